@@ -1,0 +1,81 @@
+// Cylinder: two rings of N side vertices (radial normals) and two caps of N vertices (axial
+// normals), so that shading is smooth around and sharp at the rims. The same template serves the
+// snout (snout.cpp), whose rings are merely moved, scaled and tilted.
+//
+// Vertex layout at level 0 with N segments:
+//   [0, N) bottom ring, [N, 2N) top ring, [2N, 3N) bottom cap, [3N, 4N) top cap;
+//   vertex i of each block lies at angle 2*pi*i/N.
+// Level l uses every 2^l-th vertex of each block: side quads, and caps fanned from vertex 0.
+#include <numbers>
+
+#include "kinds.h"
+
+namespace plantview::detail {
+
+void build_ring_solid_template(const TemplateKey& key, TemplateBuilder& out) {
+  const uint32_t n0 = key.a_max;
+  for (uint32_t level = 0; level < halving_levels(key.a_max, key.a_min); ++level) {
+    const uint32_t n = segments_at(key.a_max, key.a_min, level);
+    const uint32_t step = n0 / n;
+    out.begin_level();
+    for (uint32_t i = 0; i < n; ++i) {
+      const uint32_t a = i * step, b = ((i + 1) % n) * step;
+      out.quad(a, b, n0 + b, n0 + a);
+    }
+    for (uint32_t k = 1; k + 1 < n; ++k) {
+      out.triangle(2 * n0, 2 * n0 + (k + 1) * step, 2 * n0 + k * step);
+      out.triangle(3 * n0, 3 * n0 + k * step, 3 * n0 + (k + 1) * step);
+    }
+  }
+}
+
+// Shared with snout.cpp: levels and errors of a ring solid of N_max segments.
+void plan_ring_solid(float max_radius_m, float diameter_for_rule_m, MeshPlan& plan,
+                     TemplateKey& key) {
+  const SegmentExponents e = segment_exponents(diameter_for_rule_m);
+  const uint32_t n_max = 1u << e.n_max, n_min = 1u << e.n_min;
+  plan.topology = Topology::triangles;
+  plan.closed = true;
+  plan.level_count = uint8_t(e.n_max - e.n_min + 1);
+  plan.vertex_count = 4 * n_max;
+  plan.segments = {uint16_t(n_max), 0};
+  for (uint32_t l = 0; l < plan.level_count; ++l) {
+    const uint32_t n = segments_at(n_max, n_min, l);
+    plan.error_m[l] = sagitta(max_radius_m, std::numbers::pi_v<float> / float(n));
+  }
+  key.kind = uint8_t(PrimitiveKind::cylinder);
+  key.a_max = uint16_t(n_max);
+  key.a_min = uint16_t(n_min);
+}
+
+void plan(const Cylinder& c, MeshPlan& plan, TemplateKey& key) {
+  const float r = sane(c.radius_m), h = sane(c.height_m);
+  if (r == 0.0f || h == 0.0f) return;  // no volume: empty mesh
+  plan_ring_solid(r, 2.0f * r, plan, key);
+}
+
+void build_template_Cylinder(const TemplateKey& key, TemplateBuilder& out) {
+  build_ring_solid_template(key, out);
+}
+
+void write(const Cylinder& c, const MeshPlan& plan, const VertexSink& sink) {
+  const float r = sane(c.radius_m), h2 = 0.5f * sane(c.height_m);
+  const uint32_t n = plan.segments[0];
+  const uint32_t down = sink.normal({0, 0, -1}), up = sink.normal({0, 0, 1});
+  for (uint32_t i = 0; i < n; ++i) {
+    const glm::vec2 cs = circle_sample(i, n);
+    const uint32_t radial = sink.normal({cs.x, cs.y, 0});
+    const glm::vec3 bottom(r * cs.x, r * cs.y, -h2), top(r * cs.x, r * cs.y, h2);
+    sink.put(i, bottom, radial);
+    sink.put(n + i, top, radial);
+    sink.put(2 * n + i, bottom, down);
+    sink.put(3 * n + i, top, up);
+  }
+}
+
+Aabb bounds(const Cylinder& c) {
+  const float r = sane(c.radius_m), h2 = 0.5f * sane(c.height_m);
+  return {{-r, -r, -h2}, {r, r, h2}};
+}
+
+}  // namespace plantview::detail
