@@ -1,0 +1,2 @@
+// spherical_dish cases: PLACEHOLDER, to be written (see tests/primitives/cylinder_cases.cpp for the pattern).
+#include "support/primitive_cases.h"
