@@ -289,3 +289,12 @@ inline uint32_t element_count(const MeshPlan& plan, uint32_t level) {
 }
 
 }  // namespace plantview
+
+namespace plantview {
+
+// One representative primitive of every kind, sized like a plant part of the given diameter
+// (a 0.2 m pipe part: a 0.2 m box, a 0.1 m radius cylinder, an elbow of bend radius 1.5 D...),
+// at the origin. For statistics, demos and benchmarks. Index i holds PrimitiveKind(i).
+std::vector<Primitive> representative_primitives(float diameter_m);
+
+}  // namespace plantview

@@ -1,0 +1,17 @@
+// The subcommands of the plantview program. Each registers its options on the CLI11 app and
+// returns the process exit status when run: 0 on success, 1 on a runtime failure (message on
+// stderr), 2 on a usage error (CLI11 reports those).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace plantview::cli {
+
+// A subcommand's action, run after parsing when its subcommand was chosen.
+using Action = std::function<int()>;
+
+// `plantview primitives`: the tessellation of every primitive kind at every level.
+Action add_primitives_command(CLI::App& app);
+
+}  // namespace plantview::cli
