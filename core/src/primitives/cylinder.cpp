@@ -61,10 +61,10 @@ void build_template_Cylinder(const TemplateKey& key, TemplateBuilder& out) {
 void write(const Cylinder& c, const MeshPlan& plan, const VertexSink& sink) {
   const float r = sane(c.radius_m), h2 = 0.5f * sane(c.height_m);
   const uint32_t n = plan.segments[0];
-  const uint32_t down = sink.normal({0, 0, -1}), up = sink.normal({0, 0, 1});
+  const uint32_t down = sink.unit_normal({0, 0, -1}), up = sink.unit_normal({0, 0, 1});
   for (uint32_t i = 0; i < n; ++i) {
     const glm::vec2 cs = circle_sample(i, n);
-    const uint32_t radial = sink.normal({cs.x, cs.y, 0});
+    const uint32_t radial = sink.unit_normal({cs.x, cs.y, 0});
     const glm::vec3 bottom(r * cs.x, r * cs.y, -h2), top(r * cs.x, r * cs.y, h2);
     sink.put(i, bottom, radial);
     sink.put(n + i, top, radial);

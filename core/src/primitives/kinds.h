@@ -83,6 +83,7 @@ struct VertexSink {
   glm::mat3 linear{1.0f};
   glm::vec3 translation_m{0.0f};   // placement translation minus origin, already in float
   glm::mat3 normal_matrix{1.0f};   // inverse transpose of linear
+  bool preserves_unit_normals = false;  // normal_matrix is a rotation (placement is a similarity)
   PackedVertex* out = nullptr;
 
   // The packed model-space normal of a local normal (need not be unit length; zero gives +z).
@@ -91,6 +92,12 @@ struct VertexSink {
     float len2 = glm::dot(n, n);
     if (!(len2 > 1e-30f)) return pack_normal(glm::vec3(0, 0, 1));
     return pack_normal(n * (1.0f / std::sqrt(len2)));
+  }
+  // As normal(), for a local normal the caller knows to be of unit length: skips the
+  // normalisation when the placement is a similarity (the usual case), which is the hot path.
+  uint32_t unit_normal(const glm::vec3& local_unit_normal) const {
+    if (!preserves_unit_normals) return normal(local_unit_normal);
+    return pack_normal(normal_matrix * local_unit_normal);
   }
   void put(uint32_t i, const glm::vec3& local_position, uint32_t packed_normal) const {
     out[i].position_m = linear * local_position + translation_m;

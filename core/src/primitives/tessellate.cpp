@@ -142,8 +142,8 @@ bool kind_from_name(std::string_view name, PrimitiveKind& kind) {
 
 uint32_t pack_normal(glm::vec3 n) {
   auto component = [](float v) -> uint32_t {
-    v = std::clamp(v, -1.0f, 1.0f);
-    const auto q = static_cast<int32_t>(std::lrint(v * 511.0f));
+    v = std::clamp(v, -1.0f, 1.0f) * 511.0f;
+    const auto q = static_cast<int32_t>(v + (v >= 0.0f ? 0.5f : -0.5f));  // round half away
     return static_cast<uint32_t>(q) & 0x3ffu;
   };
   return component(n.x) | component(n.y) << 10 | component(n.z) << 20;
@@ -224,6 +224,19 @@ void write_vertices(const Primitive& primitive, const MeshPlan& plan, const glm:
   // A singular placement flattens the shape; its normals fall back to the local ones.
   sink.normal_matrix =
       std::abs(det) > 1e-30f ? glm::transpose(glm::inverse(sink.linear)) : glm::mat3(1.0f);
+  // A similarity (rotation, mirror, uniform scale) keeps unit normals unit once the normal
+  // matrix is rescaled to a rotation.
+  {
+    const glm::mat3& m = sink.linear;
+    const float l0 = glm::dot(m[0], m[0]), l1 = glm::dot(m[1], m[1]), l2 = glm::dot(m[2], m[2]);
+    const float tol = 1e-5f * l0;
+    if (l0 > 1e-30f && std::abs(l1 - l0) <= tol && std::abs(l2 - l0) <= tol &&
+        std::abs(glm::dot(m[0], m[1])) <= tol && std::abs(glm::dot(m[0], m[2])) <= tol &&
+        std::abs(glm::dot(m[1], m[2])) <= tol) {
+      sink.normal_matrix = m * (1.0f / std::sqrt(l0));
+      sink.preserves_unit_normals = true;
+    }
+  }
   sink.out = out.data();
   std::visit([&](const auto& s) { detail::write(s, plan, sink); }, primitive.shape);
 }
