@@ -84,6 +84,8 @@ struct Object {
   // Where the object came from (a file path as given to import, or "gen:<preset>"): importing the
   // same source again replaces every object it brought before.
   std::string source;
+
+  bool operator==(const Object&) const = default;
 };
 
 struct PlantModel {

@@ -69,6 +69,7 @@ namespace plantview {
 // Box centred at the origin, sides along the axes. Closed. 24 vertices, 12 triangles.
 struct Box {
   float size_x_m = 0, size_y_m = 0, size_z_m = 0;
+  bool operator==(const Box&) const = default;
 };
 
 // Rectangular frustum along z, centred: the bottom rectangle (bottom_x by bottom_y) lies at
@@ -78,6 +79,7 @@ struct Box {
 struct Pyramid {
   float bottom_x_m = 0, bottom_y_m = 0, top_x_m = 0, top_y_m = 0;
   float offset_x_m = 0, offset_y_m = 0, height_m = 0;
+  bool operator==(const Pyramid&) const = default;
 };
 
 // Right prism along z, centred, over a regular polygon of `sides` (3..64) corners at
@@ -85,12 +87,14 @@ struct Pyramid {
 struct Prism {
   uint32_t sides = 6;
   float radius_m = 0, height_m = 0;
+  bool operator==(const Prism&) const = default;
 };
 
 // Cylinder along z, centred. Closed. Per level with N segments: 4N vertices at level 0,
 // 4N - 4 triangles (2N side, N - 2 per cap).
 struct Cylinder {
   float radius_m = 0, height_m = 0;
+  bool operator==(const Cylinder&) const = default;
 };
 
 // Cone frustum along z, centred (RVM "snout"): the bottom circle (radius_bottom) at z = -height/2
@@ -102,6 +106,7 @@ struct Snout {
   float offset_x_m = 0, offset_y_m = 0;
   float bottom_shear_x_rad = 0, bottom_shear_y_rad = 0;
   float top_shear_x_rad = 0, top_shear_y_rad = 0;
+  bool operator==(const Snout&) const = default;
 };
 
 // Square-to-round transition along z, centred: the bottom rectangle at z = -height/2 centred at
@@ -111,6 +116,7 @@ struct Snout {
 struct SquareToRound {
   float bottom_x_m = 0, bottom_y_m = 0, top_radius_m = 0, height_m = 0;
   float offset_x_m = 0, offset_y_m = 0;
+  bool operator==(const SquareToRound&) const = default;
 };
 
 // Circular torus (pipe elbow): a circle of tube_radius swept about z at distance bend_radius,
@@ -119,6 +125,7 @@ struct SquareToRound {
 // closed), 2*S*N + 2*(N - 2) triangles (2*S*N when closed).
 struct CircularTorus {
   float bend_radius_m = 0, tube_radius_m = 0, angle_rad = 0;
+  bool operator==(const CircularTorus&) const = default;
 };
 
 // Rectangular torus: the rectangle [inner_radius, outer_radius] x [-height/2, height/2] (in the xz
@@ -126,24 +133,28 @@ struct CircularTorus {
 // 8(S+1) + 8 vertices, 8S + 4 triangles (no end caps and 8S when closed).
 struct RectangularTorus {
   float inner_radius_m = 0, outer_radius_m = 0, height_m = 0, angle_rad = 0;
+  bool operator==(const RectangularTorus&) const = default;
 };
 
 // Sphere centred at the origin. Closed. With N segments around and N/2 bands from pole to pole:
 // 2 + (N/2 - 1) * N vertices, 2N(N/2 - 1) triangles.
 struct Sphere {
   float radius_m = 0;
+  bool operator==(const Sphere&) const = default;
 };
 
 // Half-ellipsoid standing on the xy plane (base circle of base_radius at z = 0) rising to
 // z = height: vessel heads. Closed by a flat base disc. With N segments around and N/4 bands.
 struct EllipticalDish {
   float base_radius_m = 0, height_m = 0;
+  bool operator==(const EllipticalDish&) const = default;
 };
 
 // Spherical cap standing on the xy plane (base circle of base_radius at z = 0) rising to
 // z = height. Closed by a flat base disc.
 struct SphericalDish {
   float base_radius_m = 0, height_m = 0;
+  bool operator==(const SphericalDish&) const = default;
 };
 
 // Vessel saddle support: a block length (x) by width (y) by height (z), standing on z = 0 and
@@ -153,11 +164,13 @@ struct SphericalDish {
 // 8(A+1) + 8 vertices, 6A + 4 triangles.
 struct Saddle {
   float length_m = 0, width_m = 0, height_m = 0, cradle_radius_m = 0;
+  bool operator==(const Saddle&) const = default;
 };
 
 // A segment along x from start_x to end_x (RVM line). Topology::lines: 2 vertices, 2 indices.
 struct Line {
   float start_x_m = 0, end_x_m = 0;
+  bool operator==(const Line&) const = default;
 };
 
 // A polygon mesh (RVM facet group): polygons, each of one outer contour and any hole contours,
@@ -167,6 +180,7 @@ struct Line {
 struct FacetVertex {
   glm::vec3 position_m{0};
   glm::vec3 normal{0, 0, 1};
+  bool operator==(const FacetVertex&) const = default;
 };
 struct FacetGroup {
   std::vector<FacetVertex> vertices;      // all contours' vertices, contour after contour
@@ -178,6 +192,7 @@ struct FacetGroup {
   // `triangles`, replacing what was there. Degenerate contours (fewer than 3 vertices, zero area)
   // are skipped. Returns the number of polygons that were skipped in whole or in part.
   uint32_t triangulate();
+  bool operator==(const FacetGroup&) const = default;
 };
 
 // The variant's alternatives are listed in PrimitiveKind order.
@@ -201,12 +216,14 @@ bool kind_from_name(std::string_view name, PrimitiveKind& kind);
 struct Placement {
   glm::mat3 linear{1.0f};
   glm::vec3 translation_m{0.0f};
+  bool operator==(const Placement&) const = default;
 };
 
 struct Primitive {
   Placement placement;
   Shape shape;
   PrimitiveKind kind() const { return static_cast<PrimitiveKind>(shape.index()); }
+  bool operator==(const Primitive&) const = default;
 };
 
 struct Aabb {
