@@ -74,8 +74,9 @@ struct Box {
 
 // Rectangular frustum along z, centred: the bottom rectangle (bottom_x by bottom_y) lies at
 // z = -height/2 centred at -offset/2, the top rectangle at z = +height/2 centred at +offset/2.
-// A zero top gives a pyramid, a zero-length top side a wedge. Closed. 24 vertices; 2 triangles
-// per face with area, so 12 for a frustum, 8 for a wedge, 6 for a pyramid.
+// A zero top gives a pyramid, a zero-length top side a wedge. Closed. 4 vertices per face with
+// area (3 for a side whose top or bottom edge collapsed): 24 for a frustum, 18 for a wedge, 16 for
+// a pyramid; 2 triangles per face with area (1 for such a side): 12, 8 and 6.
 struct Pyramid {
   float bottom_x_m = 0, bottom_y_m = 0, top_x_m = 0, top_y_m = 0;
   float offset_x_m = 0, offset_y_m = 0, height_m = 0;
