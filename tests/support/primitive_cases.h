@@ -14,6 +14,7 @@
 #pragma once
 
 #include <functional>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -57,4 +58,9 @@ float max_distance_to_mesh(const std::vector<glm::vec3>& points, const LevelMesh
 // Placements to exercise: identity, a rotated and translated one, a mirrored one.
 glm::mat3 rotation_about(glm::vec3 axis, float angle_rad);
 
+}  // namespace plantview::testing
+
+namespace plantview::testing {
+// Test output names a case, not its bytes.
+inline void PrintTo(const PrimitiveCase& c, std::ostream* os) { *os << c.name; }
 }  // namespace plantview::testing

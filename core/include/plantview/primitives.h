@@ -112,8 +112,8 @@ struct Snout {
 
 // Square-to-round transition along z, centred: the bottom rectangle at z = -height/2 centred at
 // -offset/2, the top circle at +height/2 centred at +offset/2; a ruled surface joins them. The
-// rectangle's corners lie at the circle's 45, 135, 225 and 315 degree samples. Closed.
-// 4N + 4 vertices, 2N + 2 + (N - 2) triangles at N segments.
+// rectangle's corners lie at the circle's 45, 135, 225 and 315 degree samples at every level.
+// Closed. 4N + 4 vertices, 4N - 4 triangles at N segments (2N side, N - 2 per end face).
 struct SquareToRound {
   float bottom_x_m = 0, bottom_y_m = 0, top_radius_m = 0, height_m = 0;
   float offset_x_m = 0, offset_y_m = 0;
@@ -123,15 +123,19 @@ struct SquareToRound {
 // Circular torus (pipe elbow): a circle of tube_radius swept about z at distance bend_radius,
 // from angle 0 (on +x) to angle_rad, counter-clockwise; 2*pi closes the ring. Closed (flat end
 // caps when open). With S sweep and N tube segments: (S+1)*N + 2N vertices (S*N and no caps when
-// closed), 2*S*N + 2*(N - 2) triangles (2*S*N when closed).
+// closed), 2*S*N + 2*(N - 2) triangles (2*S*N when closed). N follows the size rule on the tube
+// diameter; S = the power of two >= N * (angle / 2pi) * max(1, (R + r) / 2r), at most 256. The
+// level count comes from the tube; S halves per level down to its floor (1 up to pi/2, 2 up to
+// pi, 4 beyond).
 struct CircularTorus {
   float bend_radius_m = 0, tube_radius_m = 0, angle_rad = 0;
   bool operator==(const CircularTorus&) const = default;
 };
 
 // Rectangular torus: the rectangle [inner_radius, outer_radius] x [-height/2, height/2] (in the xz
-// plane) swept about z from angle 0 to angle_rad. Closed. With S sweep segments:
-// 8(S+1) + 8 vertices, 8S + 4 triangles (no end caps and 8S when closed).
+// plane) swept about z from angle 0 to angle_rad. Closed. With S sweep segments (the size rule on
+// the outer diameter times angle / 2pi): 8(S+1) + 8 vertices, 8S + 4 triangles (8S vertices, no
+// end caps and 8S triangles when closed).
 struct RectangularTorus {
   float inner_radius_m = 0, outer_radius_m = 0, height_m = 0, angle_rad = 0;
   bool operator==(const RectangularTorus&) const = default;
@@ -145,14 +149,17 @@ struct Sphere {
 };
 
 // Half-ellipsoid standing on the xy plane (base circle of base_radius at z = 0) rising to
-// z = height: vessel heads. Closed by a flat base disc. With N segments around and N/4 bands.
+// z = height: vessel heads. Closed by a flat base disc. With N segments around (the size rule on
+// 2 * base_radius) and B = N/4 bands: B*N + N + 1 vertices, 2NB - 2 triangles.
 struct EllipticalDish {
   float base_radius_m = 0, height_m = 0;
   bool operator==(const EllipticalDish&) const = default;
 };
 
 // Spherical cap standing on the xy plane (base circle of base_radius at z = 0) rising to
-// z = height. Closed by a flat base disc.
+// z = height. Closed by a flat base disc. N segments around from the size rule on the widest
+// diameter (2 * base_radius, or the sphere's beyond a hemisphere); B bands, the power of two
+// nearest polar_angle * N / 2pi (at least 1): B*N + N + 1 vertices, 2NB - 2 triangles.
 struct SphericalDish {
   float base_radius_m = 0, height_m = 0;
   bool operator==(const SphericalDish&) const = default;
@@ -161,8 +168,9 @@ struct SphericalDish {
 // Vessel saddle support: a block length (x) by width (y) by height (z), standing on z = 0 and
 // centred in x and y, whose top face is a cylindrical cradle of cradle_radius about an axis
 // parallel to x, passing through both top side edges. The cradle radius is at least width/2;
-// the block is at least as high as the cradle is deep. Closed. With A arc segments:
-// 8(A+1) + 8 vertices, 6A + 4 triangles.
+// the block is at least as high as the cradle is deep. Closed. With A arc segments (the power of
+// two >= N * beta / pi, beta = asin(width / (2 * cradle_radius)), N from the cradle diameter):
+// 8(A+1) + 8 vertices, 8A + 4 triangles (cradle, bottom and both end strips, two sides).
 struct Saddle {
   float length_m = 0, width_m = 0, height_m = 0, cradle_radius_m = 0;
   bool operator==(const Saddle&) const = default;
