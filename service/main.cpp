@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
 
   std::vector<plantview::cli::Action> actions;
   actions.push_back(plantview::cli::add_primitives_command(app));
+  actions.push_back(plantview::cli::add_store_commands(app));
+  actions.push_back(plantview::cli::add_import_command(app));
 
   try {
     app.parse(argc, argv);

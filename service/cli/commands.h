@@ -14,4 +14,10 @@ using Action = std::function<int()>;
 // `plantview primitives`: the tessellation of every primitive kind at every level.
 Action add_primitives_command(CLI::App& app);
 
+// `plantview gen`, `info` and `export`: generating plants into, and reading, the store.
+Action add_store_commands(CLI::App& app);
+
+// `plantview import FILE... --store DIR`: RVM and XML files into the store.
+Action add_import_command(CLI::App& app);
+
 }  // namespace plantview::cli

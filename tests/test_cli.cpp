@@ -1,0 +1,155 @@
+// The plantview program end to end: gen, import, info, export, and what bad input does.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kHuldra = fs::path(PLANTVIEW_SHARED_DIR) / "data" / "huldra";
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("plantview-cli-" + std::to_string(::getpid()) + "-" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  Outcome run(const std::string& args) {
+    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
+    const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
+    const int raw = std::system(cmd.c_str());
+    Outcome r;
+    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+  nlohmann::json info(const fs::path& store) {
+    const Outcome r = run("info --json --store " + store.string());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return nlohmann::json::parse(r.out, nullptr, false);
+  }
+  fs::path dir_;
+};
+
+TEST_F(Cli, UsageErrorsExitTwoAndHelpExitsZero) {
+  EXPECT_EQ(run("--help").status, 0);
+  EXPECT_EQ(run("--version").status, 0);
+  EXPECT_EQ(run("").status, 2);
+  EXPECT_EQ(run("frobnicate").status, 2);
+  EXPECT_EQ(run("gen --preset z --store " + (dir_ / "s").string()).status, 2);
+  EXPECT_EQ(run("gen --preset a --scale 0 --store " + (dir_ / "s").string()).status, 2);
+  EXPECT_EQ(run("import --store " + (dir_ / "s").string() + " notes.doc").status, 2);
+}
+
+TEST_F(Cli, GenWritesAStoreThatInfoDescribes) {
+  const fs::path store = dir_ / "store";
+  const Outcome gen = run("gen --preset a --seed 3 --store " + store.string());
+  ASSERT_EQ(gen.status, 0) << gen.err;
+  EXPECT_TRUE(gen.out.empty()) << "machine-readable stdout stays empty";
+  const auto j = info(store);
+  EXPECT_GT(j["objects"].get<int>(), 10000);
+  EXPECT_GT(j["triangles_full_resolution"].get<long>(), 1000000);
+  EXPECT_GT(j["objects_by_class"]["pipe"].get<int>(), 1000);
+  EXPECT_GT(j["store_bytes"].get<long>(), 0);
+  // Generating the same preset again replaces it rather than doubling it.
+  ASSERT_EQ(run("gen --preset a --seed 3 --store " + store.string()).status, 0);
+  EXPECT_EQ(info(store)["objects"], j["objects"]);
+}
+
+TEST_F(Cli, ImportOfHuldraCountsItsPrimitivesAndReimportReplaces) {
+  if (!fs::exists(kHuldra)) GTEST_SKIP() << "no " << kHuldra;
+  const fs::path store = dir_ / "store";
+  const std::string rvm = (kHuldra / "WD1-PSUP.RVM").string();
+  Outcome r = run("import " + rvm + " --store " + store.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto j = info(store);
+  EXPECT_EQ(j["primitives"], 2757);
+  EXPECT_EQ(j["primitives_by_kind"]["box"], 936);
+  EXPECT_EQ(j["primitives_by_kind"]["cylinder"], 624);
+  EXPECT_EQ(j["primitives_by_kind"]["pyramid"], 472);
+  EXPECT_EQ(j["primitives_by_kind"]["facet_group"], 334);
+  EXPECT_EQ(j["primitives_by_kind"]["rectangular_torus"], 262);
+  EXPECT_EQ(j["primitives_by_kind"]["line"], 129);
+  EXPECT_GT(j["objects_by_class"]["structure"].get<int>(), 0) << "attributes found beside the RVM";
+  r = run("import " + rvm + " --store " + store.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(info(store)["primitives"], 2757);
+}
+
+TEST_F(Cli, ATruncatedRvmFailsNamingTheOffsetAndLeavesTheStoreAsItWas) {
+  if (!fs::exists(kHuldra)) GTEST_SKIP() << "no " << kHuldra;
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  const auto before = info(store);
+  const std::string bytes = slurp(kHuldra / "WD1-PSUP.RVM");
+  const fs::path cut = dir_ / "CUT.RVM";
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  const Outcome r = run("import " + cut.string() + " --store " + store.string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("CUT.RVM"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("offset"), std::string::npos) << r.err;
+  EXPECT_EQ(info(store), before);
+}
+
+TEST_F(Cli, ExportedXmlImportsToTheSameModel) {
+  const fs::path store = dir_ / "store", copy = dir_ / "copy", xml = dir_ / "plant.xml";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  Outcome r = run("export --store " + store.string() + " --xml " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("import " + xml.string() + " --store " + copy.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto a = info(store), b = info(copy);
+  a.erase("store");
+  b.erase("store");
+  a.erase("store_bytes");
+  b.erase("store_bytes");
+  EXPECT_EQ(a, b);
+}
+
+TEST_F(Cli, AGenKilledPartWayLeavesTheStoreAsItWas) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  const auto before = info(store);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const std::string s = store.string();
+    execl(PLANTVIEW_BIN, PLANTVIEW_BIN, "gen", "--preset", "c", "--scale", "20", "--store", s.c_str(),
+          static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  kill(child, SIGKILL);
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "gen finished before it was killed";
+  EXPECT_EQ(info(store), before);
+}
+
+}  // namespace
