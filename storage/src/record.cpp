@@ -7,7 +7,7 @@ namespace plantview::detail {
 
 namespace {
 
-constexpr uint8_t kLayoutVersion = 1;
+constexpr uint8_t kLayoutVersion = 2;
 constexpr uint8_t kGeneralLinear = 0xff;
 constexpr uint8_t kScaled = 0x80;
 
@@ -247,7 +247,7 @@ bool decode_primitive(Reader& r, Primitive& p, std::string& error) {
 
 }  // namespace
 
-void encode_object(const Object& o, const DAabb& b, std::vector<uint8_t>& out) {
+void encode_object(const Object& o, std::vector<uint8_t>& out) {
   out.clear();
   Writer w(out);
   w.put(kLayoutVersion);
@@ -255,8 +255,6 @@ void encode_object(const Object& o, const DAabb& b, std::vector<uint8_t>& out) {
   w.put(uint8_t(o.object_class));
   w.put(o.colour);
   for (int i = 0; i < 3; ++i) w.put(o.origin_m[i]);
-  for (int i = 0; i < 3; ++i) w.put(b.min[i]);
-  for (int i = 0; i < 3; ++i) w.put(b.max[i]);
   w.put_str(o.name);
   w.put_str(o.source);
   w.put(o.pipeline_id);
@@ -282,7 +280,7 @@ void encode_object(const Object& o, const DAabb& b, std::vector<uint8_t>& out) {
   }
 }
 
-bool decode_object(const uint8_t* data, size_t size, Object& o, DAabb& b, std::string& error) {
+bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& error) {
   Reader r(data, size);
   o = Object{};
   uint8_t version = 0, object_class = 0;
@@ -297,8 +295,6 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, DAabb& b, std::s
   }
   o.object_class = ObjectClass(object_class);
   for (int i = 0; ok && i < 3; ++i) ok = r.get(o.origin_m[i]);
-  for (int i = 0; ok && i < 3; ++i) ok = r.get(b.min[i]);
-  for (int i = 0; ok && i < 3; ++i) ok = r.get(b.max[i]);
   ok = ok && r.get_str(o.name) && r.get_str(o.source) && r.get(o.pipeline_id);
   uint32_t n = 0;
   ok = ok && r.get_count(n, 14);  // kind, code, translation at least

@@ -124,6 +124,16 @@ struct ZstdDCtxFree {
   void operator()(ZSTD_DCtx* c) const { ZSTD_freeDCtx(c); }
 };
 
+// Frames carry their content size (for exact inflation) but no dictionary id or checksum: a
+// store has one dictionary, and LMDB pages are checksummed by nothing we could act on anyway.
+ZSTD_CCtx* make_cctx() {
+  ZSTD_CCtx* c = ZSTD_createCCtx();
+  ZSTD_CCtx_setParameter(c, ZSTD_c_dictIDFlag, 0);
+  ZSTD_CCtx_setParameter(c, ZSTD_c_contentSizeFlag, 1);
+  ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, kCompressionLevel);
+  return c;
+}
+
 struct Databases {
   MDB_dbi meta, objects, attributes, ids, names, sources, spatial;
 };
@@ -196,7 +206,7 @@ struct Import::State {
   uint64_t put_count = 0;
 
   // Compression: a dictionary is trained on the first records of the store's first import.
-  std::unique_ptr<ZSTD_CCtx, ZstdCCtxFree> cctx{ZSTD_createCCtx()};
+  std::unique_ptr<ZSTD_CCtx, ZstdCCtxFree> cctx{make_cctx()};
   std::unique_ptr<ZSTD_CDict, ZstdCDictFree> cdict;
   bool dictionary_decided = false;
   struct Pending {
@@ -210,10 +220,8 @@ struct Import::State {
 
   bool compress(const std::vector<uint8_t>& in, std::vector<uint8_t>& out, std::string& error) {
     out.resize(ZSTD_compressBound(in.size()));
-    const size_t n = cdict ? ZSTD_compress_usingCDict(cctx.get(), out.data(), out.size(), in.data(),
-                                                      in.size(), cdict.get())
-                           : ZSTD_compressCCtx(cctx.get(), out.data(), out.size(), in.data(),
-                                               in.size(), kCompressionLevel);
+    // The context keeps its parameters and, once trained, references the dictionary.
+    const size_t n = ZSTD_compress2(cctx.get(), out.data(), out.size(), in.data(), in.size());
     if (ZSTD_isError(n)) {
       error = "store " + store->directory + ": compressing a record: " + ZSTD_getErrorName(n);
       return false;
@@ -257,6 +265,7 @@ struct Import::State {
       if (!ZDICT_isError(n)) {
         dict.resize(n);
         cdict.reset(ZSTD_createCDict(dict.data(), dict.size(), kCompressionLevel));
+        ZSTD_CCtx_refCDict(cctx.get(), cdict.get());
         MDB_val k = as_val("dictionary"), v = as_val(dict.data(), dict.size());
         const int rc = mdb_put(txn.get(), store->dbs.meta, &k, &v, 0);
         if (rc != MDB_SUCCESS) {
@@ -281,13 +290,12 @@ struct Import::State {
     MDB_val k = key.val(), v;
     int rc = mdb_get(txn.get(), store->dbs.objects, &k, &v);
     Object old;
-    DAabb bounds;
     if (rc == MDB_SUCCESS) {
       std::vector<uint8_t> record;
       std::string why;
       const auto ddict = store->decoder_for(txn.get());
       if (!inflate(dctx, ddict.get(), v, record, why) ||
-          !detail::decode_object(record.data(), record.size(), old, bounds, why)) {
+          !detail::decode_object(record.data(), record.size(), old, why)) {
         error = "store " + store->directory + ": slot " + std::to_string(slot) + ": " + why;
         return false;
       }
@@ -296,7 +304,7 @@ struct Import::State {
       auto it = std::find_if(pending.begin(), pending.end(), [&](const Pending& p) { return p.slot == slot; });
       if (it == pending.end()) return true;
       std::string why;
-      if (!detail::decode_object(it->object.data(), it->object.size(), old, bounds, why)) {
+      if (!detail::decode_object(it->object.data(), it->object.size(), old, why)) {
         error = "store " + store->directory + ": " + why;
         return false;
       }
@@ -387,7 +395,7 @@ bool Import::put(const Object& object, std::string& error) {
   }
   const uint32_t slot = s.next_slot++;
   const DAabb bounds = object_bounds(object);
-  detail::encode_object(object, bounds, s.raw);
+  detail::encode_object(object, s.raw);
   detail::encode_attributes(object.attributes, s.raw_attributes);
   if (!s.dictionary_decided) {
     s.pending.push_back({slot, s.raw, s.raw_attributes});
@@ -557,10 +565,9 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
     error = s.store->fail("object slot " + std::to_string(slot), rc);
     return false;
   }
-  DAabb bounds;
   std::string why;
   if (!inflate(s.dctx.get(), s.ddict.get(), v, s.scratch, why) ||
-      !detail::decode_object(s.scratch.data(), s.scratch.size(), out, bounds, why)) {
+      !detail::decode_object(s.scratch.data(), s.scratch.size(), out, why)) {
     error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
     return false;
   }
@@ -740,7 +747,10 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
   k = as_val("dictionary");
   if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS) {
     s->dictionary_decided = true;
-    if (v.mv_size > 0) s->cdict.reset(ZSTD_createCDict(v.mv_data, v.mv_size, kCompressionLevel));
+    if (v.mv_size > 0) {
+      s->cdict.reset(ZSTD_createCDict(v.mv_data, v.mv_size, kCompressionLevel));
+      ZSTD_CCtx_refCDict(s->cctx.get(), s->cdict.get());
+    }
   } else if (s->next_slot > 0) {
     s->dictionary_decided = true;  // a store that chose no dictionary keeps plain frames
   }
