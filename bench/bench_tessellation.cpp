@@ -10,6 +10,8 @@
 // ratio tessellate/memcpy (goal: at least 0.25).
 #include <benchmark/benchmark.h>
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -106,18 +108,18 @@ BENCHMARK(BM_MemcpySameBytes)->Unit(benchmark::kMillisecond)->UseRealTime();
 // Keeps each benchmark's rates so the ratio can be printed after the table.
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
+  // Colours only on a terminal.
+  RatioReporter() : ConsoleReporter(::isatty(1) ? OO_Defaults : OO_Tabular) {}
   std::map<std::string, double> bytes_per_s, vertices_per_s;
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& r : runs) {
       if (r.run_type != Run::RT_Iteration || r.iterations == 0) continue;
       const std::string name = r.benchmark_name();
-      const double seconds = r.real_accumulated_time;
       auto bytes = r.counters.find("bytes_per_second");
       if (bytes != r.counters.end()) bytes_per_s[name] = bytes->second.value;
       auto verts = r.counters.find("vertices_per_s");
       if (verts != r.counters.end()) vertices_per_s[name] = verts->second.value;
-      (void)seconds;
     }
   }
 };

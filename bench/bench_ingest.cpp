@@ -1,0 +1,146 @@
+// Ingest: time from nothing to a committed store, and the store's size, for the generated presets
+// a, b, c and c at scale 10, and for the Huldra RVM sample (parse, classify, store).
+//
+// Usage: bench_ingest [--quick] [--shared DIR]
+//   --quick    presets a and c only, one run each (the CTest smoke run)
+// Prints a table, then one JSON object per line on stdout prefixed "json: ".
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "plantview/generate.h"
+#include "plantview/rvm.h"
+#include "plantview/rvm_import.h"
+#include "plantview/store.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using namespace plantview;
+
+struct Row {
+  std::string name;
+  double seconds = 0;
+  uint64_t objects = 0, primitives = 0, triangles = 0, store_bytes = 0;
+};
+
+fs::path scratch_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("plantview-bench-ingest-" + std::to_string(::getpid()) + "-" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+bool finish(Store& store, Row& row) {
+  std::string error;
+  auto view = store.read(error);
+  if (!view) return false;
+  const StoreInfo info = view->info();
+  row.objects = info.objects;
+  row.primitives = info.statistics.primitives;
+  row.triangles = info.statistics.triangles;
+  row.store_bytes = info.store_bytes;
+  return true;
+}
+
+bool ingest_preset(char preset, uint32_t scale, Row& row) {
+  const fs::path dir = scratch_dir(row.name);
+  const auto start = Clock::now();
+  std::string error;
+  auto store = Store::open(dir.string(), Store::Mode::read_write, error);
+  auto import = store ? store->begin_import(error) : nullptr;
+  if (!import) {
+    std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
+    return false;
+  }
+  GenerateOptions options;
+  options.preset = preset;
+  options.scale = scale;
+  bool ok = true;
+  generate_plant(options, [&](Object&& o) {
+    o.source = "gen";
+    ok = ok && import->put(o, error);
+  });
+  ok = ok && import->commit(error);
+  row.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  if (!ok) std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
+  ok = ok && finish(*store, row);
+  store.reset();
+  fs::remove_all(dir);
+  return ok;
+}
+
+bool ingest_huldra(const fs::path& shared, Row& row) {
+  const fs::path rvm = shared / "data" / "huldra" / "WD1-PSUP.RVM";
+  const fs::path txt = shared / "data" / "huldra" / "WD1-PSUP.txt";
+  if (!fs::exists(rvm)) return false;
+  const fs::path dir = scratch_dir(row.name);
+  const auto start = Clock::now();
+  auto bytes = load_file(rvm);
+  auto text = load_file(txt);
+  if (!bytes || !text) return false;
+  auto parsed = parse_rvm(bytes.value(), rvm.string());
+  const auto& t = text.value();
+  auto attributes = parse_attributes(std::string_view(reinterpret_cast<const char*>(t.data()), t.size()), txt.string());
+  if (!parsed || !attributes) return false;
+  RvmImportSummary summary;
+  const auto objects = rvm_to_objects(parsed.value(), &attributes.value(), rvm.string(), summary);
+  std::string error;
+  auto store = Store::open(dir.string(), Store::Mode::read_write, error);
+  auto import = store ? store->begin_import(error) : nullptr;
+  bool ok = import != nullptr;
+  for (const Object& o : objects) ok = ok && import->put(o, error);
+  ok = ok && import->commit(error);
+  row.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  ok = ok && finish(*store, row);
+  store.reset();
+  fs::remove_all(dir);
+  return ok;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false;
+  fs::path shared = PLANTVIEW_SHARED_DIR;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+    else if (std::strcmp(argv[i], "--shared") == 0 && i + 1 < argc) shared = argv[++i];
+    else {
+      std::fprintf(stderr, "usage: bench_ingest [--quick] [--shared DIR]\n");
+      return 2;
+    }
+  }
+  std::vector<Row> rows;
+  struct Job { const char* name; char preset; uint32_t scale; };
+  std::vector<Job> jobs = {{"preset a", 'a', 1}, {"preset b", 'b', 1}, {"preset c", 'c', 1}, {"preset c x10", 'c', 10}};
+  if (quick) jobs = {{"preset a", 'a', 1}, {"preset c", 'c', 1}};
+  for (const Job& job : jobs) {
+    Row row{job.name};
+    if (!ingest_preset(job.preset, job.scale, row)) return 1;
+    rows.push_back(row);
+  }
+  Row huldra{"huldra rvm+txt"};
+  if (ingest_huldra(shared, huldra)) rows.push_back(huldra);
+
+  std::printf("%-16s %10s %10s %12s %14s %12s %10s\n", "input", "seconds", "objects", "primitives",
+              "triangles", "store MB", "B/prim");
+  for (const Row& r : rows) {
+    std::printf("%-16s %10.3f %10llu %12llu %14llu %12.2f %10.1f\n", r.name.c_str(), r.seconds,
+                (unsigned long long)r.objects, (unsigned long long)r.primitives,
+                (unsigned long long)r.triangles, double(r.store_bytes) / 1e6,
+                r.primitives ? double(r.store_bytes) / double(r.primitives) : 0.0);
+  }
+  for (const Row& r : rows) {
+    nlohmann::json j = {{"input", r.name}, {"seconds", r.seconds}, {"objects", r.objects},
+                        {"primitives", r.primitives}, {"triangles", r.triangles}, {"store_bytes", r.store_bytes}};
+    std::printf("json: %s\n", j.dump().c_str());
+  }
+  return 0;
+}
