@@ -14,9 +14,42 @@
 namespace plantview {
 namespace {
 
-// Preset a, seed 1, generated once for the tests that only read it.
+// Preset a, seed 1, at scale 3, generated once for every test that reads it. Objects of a unit
+// carry its area in their first name component ("/C-02-004", "/P-03-0203-B1/ELBO-3").
+struct ThreeUnits {
+  std::vector<Object> unit0;  // the first unit's objects, in order
+  std::unordered_map<std::string, DAabb> plots;
+  std::unordered_map<std::string, uint64_t> objects_per_unit;
+  std::unordered_set<uint64_t> ids;
+  uint64_t objects = 0;
+  std::vector<double> progress;
+  GenerateSummary summary;
+};
+
+const ThreeUnits& three_units() {
+  static const ThreeUnits run = [] {
+    ThreeUnits r;
+    r.summary = generate_plant(
+        {'a', 3, 1},
+        [&](Object&& o) {
+          ++r.objects;
+          r.ids.insert(o.id);
+          const size_t a = o.name.find('-') + 1;
+          const std::string area = o.name.substr(a, o.name.find('-', a) - a);
+          r.plots[area].extend(object_bounds(o));
+          ++r.objects_per_unit[area];
+          if (area == "01") r.unit0.push_back(std::move(o));
+        },
+        [&](double f) { r.progress.push_back(f); });
+    return r;
+  }();
+  return run;
+}
+
+// Preset a at scale 1 (the first of the three units: a unit depends only on preset, seed and its
+// index, which the scale test checks).
 const PlantModel& preset_a() {
-  static const PlantModel model = generate_model({'a', 1, 1});
+  static const PlantModel model{three_units().unit0};
   return model;
 }
 
@@ -30,9 +63,9 @@ std::string attribute(const Object& o, std::string_view key) {
 // Relative deviation of `ours` from `paper`.
 double deviation(double ours, double paper) { return (ours - paper) / paper; }
 
-#define EXPECT_WITHIN(ours, paper, tolerance)                                              \
-  EXPECT_LE(std::abs(deviation(double(ours), double(paper))), (tolerance))                 \
-      << #ours << " = " << (ours) << " vs " << (paper) << " ("                             \
+#define EXPECT_WITHIN(ours, paper, tolerance)                              \
+  EXPECT_LE(std::abs(deviation(double(ours), double(paper))), (tolerance)) \
+      << #ours << " = " << (ours) << " vs " << (paper) << " ("             \
       << 100.0 * deviation(double(ours), double(paper)) << " %)"
 
 struct Counts {
@@ -41,7 +74,8 @@ struct Counts {
   void add(const Object& o) {
     stats.add(o);
     for (const Primitive& p : o.primitives) {
-      if (p.kind() == PrimitiveKind::snout) ++snouts[size_t(snout_variant(std::get<Snout>(p.shape)))];
+      if (p.kind() == PrimitiveKind::snout)
+        ++snouts[size_t(snout_variant(std::get<Snout>(p.shape)))];
     }
   }
 };
@@ -58,7 +92,8 @@ void expect_paper_figures(const Counts& c, const PresetInfo& info) {
   EXPECT_WITHIN(prims(ObjectClass::equipment), info.equipment_primitives, 0.10);
   EXPECT_WITHIN(prims(ObjectClass::pipe), info.pipe_primitives, 0.10);
   EXPECT_WITHIN(prims(ObjectClass::component), info.component_primitives, 0.10);
-  const uint64_t su = prims(ObjectClass::equipment) + prims(ObjectClass::pipe) + prims(ObjectClass::component);
+  const uint64_t su =
+      prims(ObjectClass::equipment) + prims(ObjectClass::pipe) + prims(ObjectClass::component);
   EXPECT_WITHIN(su, info.su_primitives, 0.10);
   EXPECT_WITHIN(s.primitives, info.zhou_primitives, 0.10);
   // Each pipe is one cylinder; pipelines carry no primitives.
@@ -95,9 +130,13 @@ TEST(GeneratePresets, PresetAMatchesThePapersFigures) {
   expect_paper_figures(c, *preset_info('a'));
 }
 
-TEST(GeneratePresets, PresetBMatchesThePapersFigures) { expect_paper_figures(count_preset('b'), *preset_info('b')); }
+TEST(GeneratePresets, PresetBMatchesThePapersFigures) {
+  expect_paper_figures(count_preset('b'), *preset_info('b'));
+}
 
-TEST(GeneratePresets, PresetCMatchesThePapersFigures) { expect_paper_figures(count_preset('c'), *preset_info('c')); }
+TEST(GeneratePresets, PresetCMatchesThePapersFigures) {
+  expect_paper_figures(count_preset('c'), *preset_info('c'));
+}
 
 TEST(GeneratePresets, ParsePresetAcceptsTheThreePresetsOnly) {
   char p = 0;
@@ -113,40 +152,50 @@ TEST(GeneratePresets, ParsePresetAcceptsTheThreePresetsOnly) {
   EXPECT_EQ(preset_info('c')->kind_primitives[size_t(PrimitiveKind::cylinder)], 30354u);
 }
 
-TEST(GenerateDeterminism, SameSeedGivesIdenticalObjectsAndAnotherSeedDiffers) {
-  const PlantModel again = generate_model({'a', 1, 1});
-  ASSERT_EQ(again.objects.size(), preset_a().objects.size());
-  EXPECT_TRUE(again.objects == preset_a().objects);
-  const PlantModel other = generate_model({'a', 1, 2});
-  EXPECT_FALSE(other.objects == preset_a().objects);
+// A sink may stop the generator by throwing; nothing is left behind.
+struct Enough {};
+
+TEST(GenerateDeterminism, AnotherSeedGivesAnotherPlant) {
+  std::vector<Object> first;
+  try {
+    generate_plant({'a', 1, 2}, [&](Object&& o) {
+      first.push_back(std::move(o));
+      if (first.size() == 50) throw Enough{};
+    });
+  } catch (const Enough&) {
+  }
+  ASSERT_EQ(first.size(), 50u);
+  const std::vector<Object> seed1(preset_a().objects.begin(), preset_a().objects.begin() + 50);
+  EXPECT_FALSE(first == seed1);
 }
 
-TEST(GenerateScale, UnitsTripleTheObjectsInDisjointPlots) {
-  // Objects of a unit carry its area in their first name component ("/C-02-004", "/P-03-...").
-  std::unordered_map<std::string, DAabb> plots;
-  std::unordered_set<uint64_t> ids;
-  uint64_t objects = 0;
-  double last_progress = 0.0;
-  const GenerateSummary summary = generate_plant(
-      {'a', 3, 1},
-      [&](Object&& o) {
-        ++objects;
-        ids.insert(o.id);
-        const size_t a = o.name.find('-') + 1;
-        plots[o.name.substr(a, o.name.find('-', a) - a)].extend(object_bounds(o));
-      },
-      [&](double f) {
-        EXPECT_GE(f, last_progress);
-        last_progress = f;
-      });
-  EXPECT_EQ(summary.units, 3u);
-  EXPECT_EQ(summary.objects, objects);
-  EXPECT_EQ(ids.size(), objects) << "ids are unique";
-  EXPECT_DOUBLE_EQ(last_progress, 1.0);
-  EXPECT_WITHIN(objects, 3 * preset_a().objects.size(), 0.05);
-  ASSERT_EQ(plots.size(), 3u);
+// Three units: three times the objects on disjoint plots; the first unit is exactly the plant
+// of scale 1 with the same seed (generation is a pure function of preset, seed and unit index),
+// the others are variations of it.
+TEST(GenerateScale, UnitsTripleTheObjectsInDisjointPlotsAndRepeatExactly) {
+  const ThreeUnits& r = three_units();
+  EXPECT_EQ(r.summary.units, 3u);
+  EXPECT_EQ(r.summary.objects, r.objects);
+  EXPECT_EQ(r.ids.size(), r.objects) << "ids are unique";
+  ASSERT_FALSE(r.progress.empty());
+  for (size_t i = 1; i < r.progress.size(); ++i) EXPECT_GE(r.progress[i], r.progress[i - 1]);
+  EXPECT_DOUBLE_EQ(r.progress.back(), 1.0);
+  EXPECT_WITHIN(r.objects, 3 * r.unit0.size(), 0.05);
+  EXPECT_NE(r.objects_per_unit.at("02"), r.objects_per_unit.at("01")) << "each unit varies";
+  // The first unit again, alone: identical objects.
+  std::vector<Object> again;
+  try {
+    generate_plant({'a', 1, 1}, [&](Object&& o) {
+      again.push_back(std::move(o));
+      if (again.size() == 400) throw Enough{};
+    });
+  } catch (const Enough&) {
+  }
+  ASSERT_EQ(again.size(), 400u);
+  EXPECT_TRUE(std::equal(again.begin(), again.end(), r.unit0.begin())) << "same seed, same plant";
+  ASSERT_EQ(r.plots.size(), 3u);
   std::vector<DAabb> boxes;
-  for (const auto& [area, box] : plots) boxes.push_back(box);
+  for (const auto& [area, box] : r.plots) boxes.push_back(box);
   for (size_t i = 0; i < boxes.size(); ++i) {
     for (size_t j = i + 1; j < boxes.size(); ++j) {
       const bool overlap = boxes[i].min.x < boxes[j].max.x && boxes[j].min.x < boxes[i].max.x &&
@@ -158,7 +207,9 @@ TEST(GenerateScale, UnitsTripleTheObjectsInDisjointPlots) {
 
 // --- Piping topology -----------------------------------------------------------------------------
 
-glm::dvec3 at(const Object& o, const ConnectionPoint& c) { return o.origin_m + glm::dvec3(c.position_m); }
+glm::dvec3 at(const Object& o, const ConnectionPoint& c) {
+  return o.origin_m + glm::dvec3(c.position_m);
+}
 
 double distance_to_line(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
   const glm::dvec3 d = glm::normalize(b - a);
@@ -207,7 +258,8 @@ TEST(GeneratePiping, BranchesAreConnectedStraightExceptAtElbows) {
         ASSERT_NE(it, by_id.end()) << branch.name;
         const Object& o = *it->second;
         EXPECT_EQ(o.pipeline_id, line.id) << o.name;
-        EXPECT_TRUE(o.object_class == ObjectClass::pipe || o.object_class == ObjectClass::component);
+        EXPECT_TRUE(o.object_class == ObjectClass::pipe ||
+                    o.object_class == ObjectClass::component);
         ASSERT_GE(o.connections.size(), 1u) << o.name;
         m.push_back(&o);
       }
@@ -252,13 +304,16 @@ TEST(GeneratePiping, BranchesAreConnectedStraightExceptAtElbows) {
           }
         }
       }
-      // Branch ends: a nozzle, a tee or olet port, a battery limit at the plot's edge, or a closure.
+      // Branch ends: a nozzle, a tee or olet port, a battery limit at the plot's edge, or a
+      // closure.
       auto is_end = [&](const glm::dvec3& p) {
         return ends.count(key(p)) > 0 || std::abs(p.x) < 0.1 || std::abs(p.x - plan_x) < 0.1;
       };
       EXPECT_TRUE(is_end(at(*m.front(), m.front()->connections[0])))
-          << branch.name << " head " << m.front()->name << " at " << at(*m.front(), m.front()->connections[0]).x
-          << " " << at(*m.front(), m.front()->connections[0]).y << " " << at(*m.front(), m.front()->connections[0]).z;
+          << branch.name << " head " << m.front()->name << " at "
+          << at(*m.front(), m.front()->connections[0]).x << " "
+          << at(*m.front(), m.front()->connections[0]).y << " "
+          << at(*m.front(), m.front()->connections[0]).z;
       if (m.back()->connections.size() > 1) {
         EXPECT_TRUE(is_end(at(*m.back(), m.back()->connections[1]))) << branch.name << " tail";
       }
@@ -279,7 +334,8 @@ TEST(GeneratePiping, PipesAreOneCylinderAlongTheirCentreline) {
     const CentrelineSegment& s = o.centreline[0];
     const float length = glm::length(s.end_m - s.start_m);
     EXPECT_NEAR(std::get<Cylinder>(o.primitives[0].shape).height_m, length, 1e-4f) << o.name;
-    EXPECT_NEAR(std::get<Cylinder>(o.primitives[0].shape).radius_m, 0.5f * s.diameter_m, 1e-5f) << o.name;
+    EXPECT_NEAR(std::get<Cylinder>(o.primitives[0].shape).radius_m, 0.5f * s.diameter_m, 1e-5f)
+        << o.name;
     EXPECT_EQ(o.connections[0].position_m, glm::vec3(0.0f)) << o.name << ": origin at the inlet";
   }
 }
@@ -308,11 +364,15 @@ TEST(GeneratePiping, NamesAndAttributesReadLikeAPlantModel) {
 
 // --- Geometry ------------------------------------------------------------------------------------
 
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 TEST(GenerateGeometry, EveryPrimitiveTessellatesAndNothingIsNaN) {
   for (const Object& o : preset_a().objects) {
-    ASSERT_TRUE(std::isfinite(o.origin_m.x) && std::isfinite(o.origin_m.y) && std::isfinite(o.origin_m.z)) << o.name;
+    ASSERT_TRUE(std::isfinite(o.origin_m.x) && std::isfinite(o.origin_m.y) &&
+                std::isfinite(o.origin_m.z))
+        << o.name;
     for (const Primitive& p : o.primitives) {
       for (int c = 0; c < 3; ++c) ASSERT_TRUE(finite(p.placement.linear[c])) << o.name;
       ASSERT_TRUE(finite(p.placement.translation_m)) << o.name;

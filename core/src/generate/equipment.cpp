@@ -47,16 +47,16 @@ constexpr TypeInfo kTypes[kEquipmentTypeCount] = {
     {"PK", "Package unit", 10, 3, {120, 162, 120, 255}},
 };
 
-const char* const kColumnServices[] = {"Demethanizer", "Deethanizer", "Depropanizer",
-                                       "Debutanizer", "C2 splitter", "C3 splitter",
-                                       "Quench tower", "Caustic tower", "Stripper", "Absorber"};
+const char* const kColumnServices[] = {
+    "Demethanizer", "Deethanizer",  "Depropanizer",  "Debutanizer", "C2 splitter",
+    "C3 splitter",  "Quench tower", "Caustic tower", "Stripper",    "Absorber"};
 const char* const kDrumServices[] = {"Reflux drum", "Feed surge drum", "Knock-out drum",
-                                     "Flash drum", "Condensate drum", "Suction drum",
-                                     "Separator", "Blowdown drum"};
-const char* const kExchangerServices[] = {"Reboiler", "Condenser", "Feed/effluent exchanger",
+                                     "Flash drum",  "Condensate drum", "Suction drum",
+                                     "Separator",   "Blowdown drum"};
+const char* const kExchangerServices[] = {"Reboiler",    "Condenser", "Feed/effluent exchanger",
                                           "Trim cooler", "Preheater", "Product cooler"};
-const char* const kPumpServices[] = {"Reflux pump", "Bottoms pump", "Feed pump", "Product pump",
-                                     "Quench oil pump", "Condensate pump"};
+const char* const kPumpServices[] = {"Reflux pump",  "Bottoms pump",    "Feed pump",
+                                     "Product pump", "Quench oil pump", "Condensate pump"};
 
 template <size_t N>
 const char* pick(Rng& rng, const char* const (&list)[N]) {
@@ -156,8 +156,7 @@ void size_item(Unit& unit, EquipmentRecord& e, double shrink) {
         e.type == T::sphere_tank || e.type == T::filter) {
       e.diameter *= f;
       e.size_x = e.size_y;
-    } else if (e.type == T::horizontal_drum || e.type == T::exchanger ||
-               e.type == T::compressor) {
+    } else if (e.type == T::horizontal_drum || e.type == T::exchanger || e.type == T::compressor) {
       e.diameter = std::min(e.diameter, max_y - 1.4);
     }
   }
@@ -238,7 +237,8 @@ class ItemBuilder {
   }
   bool welded_end(NozzleRole role) {
     return e_.type != EquipmentType::pump && e_.type != EquipmentType::compressor &&
-           role != NozzleRole::pump_suction && unit_.rng.chance(unit_.spec.welded_nozzles_per_mille);
+           role != NozzleRole::pump_suction &&
+           unit_.rng.chance(unit_.spec.welded_nozzles_per_mille);
   }
 
   // A vertical ladder from z0 to z1 at `foot` (on grade plan position), rungs facing `out`:
@@ -260,7 +260,8 @@ class ItemBuilder {
       }
       spend(1);
     }
-    for (double z = z0 + 2.5; z < z1 - 0.5 && afford(1) && kind_room(kRectTorus, 1, 0.75); z += 1.2) {
+    for (double z = z0 + 2.5; z < z1 - 0.5 && afford(1) && kind_room(kRectTorus, 1, 0.75);
+         z += 1.2) {
       b_.rect_torus(dvec3(foot.x, foot.y, z) + out * 0.35, kUp, side, 0.33, 0.38, 0.05, kHalfTurn);
       spend(1);
     }
@@ -300,10 +301,22 @@ class ItemBuilder {
     // Rotation steps of 2 pi / count as literals: no libm call, the same on every machine.
     double c = 0, s = 0;
     switch (count) {
-      case 8: c = s = 0.70710678118654752; break;
-      case 16: c = 0.92387953251128674; s = 0.38268343236508977; break;
-      case 24: c = 0.96592582628906829; s = 0.25881904510252076; break;
-      default: count = 32; c = 0.98078528040323043; s = 0.19509032201612825; break;
+      case 8:
+        c = s = 0.70710678118654752;
+        break;
+      case 16:
+        c = 0.92387953251128674;
+        s = 0.38268343236508977;
+        break;
+      case 24:
+        c = 0.96592582628906829;
+        s = 0.25881904510252076;
+        break;
+      default:
+        count = 32;
+        c = 0.98078528040323043;
+        s = 0.19509032201612825;
+        break;
     }
     if (!afford(count) || !unit_.detail_ledger.room(kCylinder, count)) return;
     const glm::mat3 f = frame_z(axis);
@@ -319,9 +332,11 @@ class ItemBuilder {
     spend(count);
   }
   // Studs for a body flange of outside radius `flange_r`.
-  void body_flange_bolts(const dvec3& centre, const dvec3& axis, double flange_r, double thickness) {
+  void body_flange_bolts(const dvec3& centre, const dvec3& axis, double flange_r,
+                         double thickness) {
     const int count = flange_r < 0.35 ? 8 : flange_r < 0.6 ? 16 : flange_r < 0.9 ? 24 : 32;
-    bolt_ring(centre, axis, flange_r - 0.045, thickness + 0.08, flange_r < 0.6 ? 0.01 : 0.016, count);
+    bolt_ring(centre, axis, flange_r - 0.045, thickness + 0.08, flange_r < 0.6 ? 0.01 : 0.016,
+              count);
   }
   // A manway on a shell: neck, blind cover and its studs.
   void manway(const dvec3& base, const dvec3& dir) {
@@ -342,7 +357,8 @@ class ItemBuilder {
       // Every other one a utility connection (steam-out, purge, flushing).
       const bool utility = e_.nozzles.size() % 2 == 1;
       nozzle(dvec3(e_.centre.x, e_.centre.y, z) + d * (r - 0.02), d,
-             utility ? rng().range(2, 4) : rng().range(unit_.spec.line_bore_min, unit_.spec.line_bore_max),
+             utility ? rng().range(2, 4)
+                     : rng().range(unit_.spec.line_bore_min, unit_.spec.line_bore_max),
              0.25, utility ? NozzleRole::utility : NozzleRole::process);
       spend(2);
     }
@@ -350,7 +366,8 @@ class ItemBuilder {
   // Lifting lugs: two gusset plates standing on top of a body.
   void lifting_lugs(const dvec3& top_centre, const dvec3& along, double spread) {
     if (!afford(2)) return;
-    for (double s : {-1.0, 1.0}) b_.wedge(top_centre + along * (s * spread), along * s, kUp, 0.15, 0.025, 0.18);
+    for (double s : {-1.0, 1.0})
+      b_.wedge(top_centre + along * (s * spread), along * s, kUp, 0.15, 0.025, 0.18);
     spend(2);
   }
 
@@ -380,8 +397,8 @@ class ItemBuilder {
   void extra_head_nozzles(const dvec3& head_base, const dvec3& axis, double r) {
     const double c8 = 0.70710678118654752;
     for (int i = 0; i < 8 && afford(2); ++i) {
-      const dvec3 radial = i % 2 == 0 ? kCardinal[i / 2]
-                                      : (kCardinal[i / 2] + kCardinal[(i / 2 + 1) % 4]) * c8;
+      const dvec3 radial =
+          i % 2 == 0 ? kCardinal[i / 2] : (kCardinal[i / 2] + kCardinal[(i / 2 + 1) % 4]) * c8;
       head_nozzle(head_base, axis, radial, r, 2 + int(rng().below(3)), NozzleRole::spare);
       spend(2);
     }
@@ -426,9 +443,11 @@ class ItemBuilder {
     for (double x = -0.5 * lx + 0.1;
          x <= 0.5 * lx - 0.1 && afford(3) && unit_.detail_ledger.room(kBox, 3); x += 0.9) {
       for (double z : {0.5 * height, height}) {
-        b_.box_axes(c + dvec3(x - 0.04, -0.5 * ly + 0.1, z - 0.08), c + dvec3(x + 0.04, 0.5 * ly - 0.1, z));
+        b_.box_axes(c + dvec3(x - 0.04, -0.5 * ly + 0.1, z - 0.08),
+                    c + dvec3(x + 0.04, 0.5 * ly - 0.1, z));
       }
-      b_.box_axes(c + dvec3(x, 0.5 * ly - 0.3, height + 0.05), c + dvec3(x + 0.85, 0.5 * ly - 0.05, height + 0.12));
+      b_.box_axes(c + dvec3(x, 0.5 * ly - 0.3, height + 0.05),
+                  c + dvec3(x + 0.85, 0.5 * ly - 0.05, height + 0.12));
       spend(3);
     }
   }
@@ -445,7 +464,8 @@ class ItemBuilder {
     for (double s : {-0.5, 0.5}) {
       for (double t : {-0.45, 0.45}) {
         if (!afford(1)) break;
-        b_.box(deck_centre + side * (s * width) + out * t + kUp * 0.55, out, kUp, dvec3(0.05, 0.05, 1.05));
+        b_.box(deck_centre + side * (s * width) + out * t + kUp * 0.55, out, kUp,
+               dvec3(0.05, 0.05, 1.05));
         spend(1);
       }
     }
@@ -498,9 +518,10 @@ class ItemBuilder {
   int allowance_;
 };
 
-
 // Nozzle bores: process connections within the preset's line sizes, utilities small.
-int process_bore(Unit& unit) { return unit.rng.range(unit.spec.line_bore_min, unit.spec.line_bore_max); }
+int process_bore(Unit& unit) {
+  return unit.rng.range(unit.spec.line_bore_min, unit.spec.line_bore_max);
+}
 int utility_bore(Unit& unit) { return unit.rng.range(2, 4); }
 
 // Direction from an item toward its rack (pipes leave that way), and along the rack.
@@ -712,10 +733,10 @@ void build_exchanger(Unit& unit, ItemBuilder& it) {
   const dvec3 front = a - kX * half, rear = a + kX * half;
   b.cylinder(front, rear, r);
   b.dish(rear, kX, r, 0.5 * r);
-  b.cylinder(front, front - kX * 0.12, r + 0.1);                      // shell flange
-  b.cylinder(front - kX * 0.12, front - kX * 0.92, r + 0.03);         // channel
-  b.cylinder(front - kX * 0.92, front - kX * 1.04, r + 0.1);          // channel flange
-  b.dish(front - kX * 1.04, -kX, r + 0.03, 0.25 * r);                  // channel cover
+  b.cylinder(front, front - kX * 0.12, r + 0.1);               // shell flange
+  b.cylinder(front - kX * 0.12, front - kX * 0.92, r + 0.03);  // channel
+  b.cylinder(front - kX * 0.92, front - kX * 1.04, r + 0.1);   // channel flange
+  b.dish(front - kX * 1.04, -kX, r + 0.03, 0.25 * r);          // channel cover
   if (e.on_saddles) {
     const double width = 0.8 * e.diameter, cradle = r + 0.01;
     const double h = z - std::sqrt(cradle * cradle - 0.25 * width * width);
@@ -725,11 +746,14 @@ void build_exchanger(Unit& unit, ItemBuilder& it) {
     const double base = e.stacked_on >= 0 ? e.elevation - 0.1 : 0.0;
     for (double s : {-0.55, 0.55}) {
       const dvec3 p = c + kX * (s * half);
-      b.box_axes(p + dvec3(-0.3, -0.5 * e.diameter - 0.1, base), p + dvec3(0.3, 0.5 * e.diameter + 0.1, base + 0.3));
-      b.box_axes(p + dvec3(-0.1, -0.4 * e.diameter, base + 0.3), p + dvec3(0.1, 0.4 * e.diameter, z - 0.5 * r));
+      b.box_axes(p + dvec3(-0.3, -0.5 * e.diameter - 0.1, base),
+                 p + dvec3(0.3, 0.5 * e.diameter + 0.1, base + 0.3));
+      b.box_axes(p + dvec3(-0.1, -0.4 * e.diameter, base + 0.3),
+                 p + dvec3(0.1, 0.4 * e.diameter, z - 0.5 * r));
     }
   }
-  const int bore = std::max(unit.spec.line_bore_min, std::min(bore_at_least(0.3 * e.diameter), unit.spec.line_bore_max));
+  const int bore = std::max(unit.spec.line_bore_min,
+                            std::min(bore_at_least(0.3 * e.diameter), unit.spec.line_bore_max));
   it.nozzle(rear - kX * 0.5 + kUp * (r - 0.02), kUp, bore, 0.25, NozzleRole::process);
   it.nozzle(front + kX * 0.5 - kUp * (r - 0.02), kDown, bore, 0.2, NozzleRole::process);
   it.nozzle(front - kX * 0.5 + kUp * (r + 0.01), kUp, bore, 0.25, NozzleRole::process);
@@ -749,7 +773,7 @@ void build_exchanger(Unit& unit, ItemBuilder& it) {
     it.spend(2);
   }
   // A platform at the channel end for opening the cover.
-  if (e.stacked_on < 0) it.end_platform(front - kX * 1.6 + kUp * (r - 0.3) , -kX, e.diameter + 0.8);
+  if (e.stacked_on < 0) it.end_platform(front - kX * 1.6 + kUp * (r - 0.3), -kX, e.diameter + 0.8);
   // Anchor bolts through the support feet.
   for (double s : {-0.55, 0.55}) {
     for (double sy : {-1.0, 1.0}) {
@@ -772,9 +796,9 @@ void build_pump(Unit& unit, ItemBuilder& it) {
   b.box(c + kUp * 0.125, side, kUp, dvec3(0.9, 2.6, 0.25));
   b.box(c + kUp * 0.3, side, kUp, dvec3(0.8, 2.4, 0.1));
   const dvec3 shaft = c + kUp * hs;
-  b.cylinder(shaft + s * 0.55, shaft + s * 0.85, rc);       // volute
-  b.cylinder(shaft + s * 0.05, shaft + s * 0.55, 0.11);      // bearing frame
-  b.box(shaft - s * 0.15, side, kUp, dvec3(0.3, 0.35, 0.3)); // coupling guard
+  b.cylinder(shaft + s * 0.55, shaft + s * 0.85, rc);         // volute
+  b.cylinder(shaft + s * 0.05, shaft + s * 0.55, 0.11);       // bearing frame
+  b.box(shaft - s * 0.15, side, kUp, dvec3(0.3, 0.35, 0.3));  // coupling guard
   const double rm = 0.2 + 0.1 * it.rng().unit();
   b.cylinder(shaft - s * 0.32, shaft - s * 1.05, rm);        // motor
   b.cylinder(shaft - s * 1.05, shaft - s * 1.2, rm + 0.02);  // fan cowl
@@ -790,8 +814,10 @@ void build_compressor(Unit& unit, ItemBuilder& it) {
   ObjectBuilder& b = it.b();
   const dvec3 c = e.centre;
   const double r = 0.5 * e.diameter, half = 0.5 * e.length;
-  b.box_axes(c + dvec3(-0.5 * e.size_x + 0.3, -r - 0.8, 0.0), c + dvec3(0.5 * e.size_x - 0.3, r + 0.8, 0.6));
-  b.box_axes(c + dvec3(-0.5 * e.size_x + 0.4, -r - 0.6, 0.6), c + dvec3(0.5 * e.size_x - 0.4, r + 0.6, 0.8));
+  b.box_axes(c + dvec3(-0.5 * e.size_x + 0.3, -r - 0.8, 0.0),
+             c + dvec3(0.5 * e.size_x - 0.3, r + 0.8, 0.6));
+  b.box_axes(c + dvec3(-0.5 * e.size_x + 0.4, -r - 0.6, 0.6),
+             c + dvec3(0.5 * e.size_x - 0.4, r + 0.6, 0.8));
   const dvec3 a = c + kUp * (0.8 + r + 0.2) + kX * 1.0;
   b.cylinder(a - kX * half, a + kX * half, r);
   b.cylinder(a - kX * (half + 0.4), a - kX * half, 0.35 * r);
@@ -804,7 +830,8 @@ void build_compressor(Unit& unit, ItemBuilder& it) {
             0.4, NozzleRole::process);
   it.nozzle(a + kX * (0.5 * half) + kUp * (r - 0.02), kUp, std::min(process_bore(unit) + 2, 14),
             0.4, NozzleRole::process);
-  it.nozzle(a + kX * (0.2 * half) - kY * (r - 0.02), -kY, utility_bore(unit), 0.2, NozzleRole::utility);
+  it.nozzle(a + kX * (0.2 * half) - kY * (r - 0.02), -kY, utility_bore(unit), 0.2,
+            NozzleRole::utility);
   if (it.afford(6)) {
     it.top_platform(e.length, 0.8, 0.8 + 2 * r + 0.6);
     it.spend(1);
@@ -820,14 +847,17 @@ void build_air_cooler(Unit& unit, ItemBuilder& it) {
   // Legs from the top tier, plenum, two bundles with their headers, two fans.
   for (double sx : {-2.9, 2.9}) {
     for (double sy : {-0.5 * w + 0.1, 0.5 * w - 0.1}) {
-      b.box_axes(c + dvec3(sx - 0.1, sy - 0.1, rack.tiers.back()), c + dvec3(sx + 0.1, sy + 0.1, z0));
+      b.box_axes(c + dvec3(sx - 0.1, sy - 0.1, rack.tiers.back()),
+                 c + dvec3(sx + 0.1, sy + 0.1, z0));
     }
   }
   b.box_axes(c + dvec3(-2.9, -0.5 * w, z0), c + dvec3(2.9, 0.5 * w, z0 + 0.2));
   for (double sx : {-1.45, 1.45}) {
-    b.box_axes(c + dvec3(sx - 1.35, -0.5 * w + 0.4, z0 + 0.2), c + dvec3(sx + 1.35, 0.5 * w - 0.4, z0 + 0.5));
+    b.box_axes(c + dvec3(sx - 1.35, -0.5 * w + 0.4, z0 + 0.2),
+               c + dvec3(sx + 1.35, 0.5 * w - 0.4, z0 + 0.5));
     for (double sy : {-0.5 * w + 0.2, 0.5 * w - 0.2}) {
-      b.box_axes(c + dvec3(sx - 1.4, sy - 0.2, z0 + 0.15), c + dvec3(sx + 1.4, sy + 0.2, z0 + 0.55));
+      b.box_axes(c + dvec3(sx - 1.4, sy - 0.2, z0 + 0.15),
+                 c + dvec3(sx + 1.4, sy + 0.2, z0 + 0.55));
     }
   }
   const double fan_r = std::min(1.4, 0.5 * w - 0.6);
@@ -885,18 +915,21 @@ void build_furnace(Unit& unit, ItemBuilder& it) {
   const dvec3 in = toward_rack(unit, e);
   const int bore = process_bore(unit);
   for (double sx : {-0.25, 0.25}) {
-    it.nozzle(c + dvec3(sx * lx, 0, z_c + 1.5) + in * (0.35 * ly), in, bore, 0.3, NozzleRole::process);
+    it.nozzle(c + dvec3(sx * lx, 0, z_c + 1.5) + in * (0.35 * ly), in, bore, 0.3,
+              NozzleRole::process);
     it.nozzle(c + dvec3(sx * lx, 0, 1.8 + 0.5 * fire_h) + in * (0.5 * ly), in, bore, 0.3,
               NozzleRole::process);
   }
   // Details: floor burners in four rows, a platform with its stair.
   for (int i = 0; i < 32 && it.afford(1); ++i) {
-    const dvec3 p = c + dvec3((double(i % 8) - 3.5) / 8.0 * lx, (double(i / 8) - 1.5) * 0.2 * ly, 0);
+    const dvec3 p =
+        c + dvec3((double(i % 8) - 3.5) / 8.0 * lx, (double(i / 8) - 1.5) * 0.2 * ly, 0);
     b.cylinder(p + kUp * 1.0, p + kUp * 1.8, 0.15);
     it.spend(1);
   }
   if (it.afford(6)) {
-    b.box_axes(c + dvec3(-0.5 * lx, -0.5 * ly - 1.0, z_c - 0.05), c + dvec3(0.5 * lx, -0.5 * ly, z_c));
+    b.box_axes(c + dvec3(-0.5 * lx, -0.5 * ly - 1.0, z_c - 0.05),
+               c + dvec3(0.5 * lx, -0.5 * ly, z_c));
     it.spend(1);
     if (it.afford(60)) {
       it.stair(c + dvec3(-0.5 * lx - z_c, -0.5 * ly - 0.6, 0), kX, 0.0, z_c);
@@ -944,7 +977,8 @@ void build_tank(Unit& unit, ItemBuilder& it) {
   b.snout(c + kUp * (0.4 + e.height), c + kUp * (0.4 + e.height + 0.1 * r), r, 0.4, kUp);
   b.rect_torus(c + kUp * (e.height - 0.6), kUp, kX, r, r + 0.6, 0.06, kFullTurn);  // wind girder
   const dvec3 in = toward_rack(unit, e);
-  it.nozzle(c + kUp * 0.9 + in * (r - 0.02), in, process_bore(unit), 0.3, NozzleRole::outlet_bottom);
+  it.nozzle(c + kUp * 0.9 + in * (r - 0.02), in, process_bore(unit), 0.3,
+            NozzleRole::outlet_bottom);
   it.nozzle(c + kUp * 1.2 + glm::cross(kUp, in) * (r - 0.02), glm::cross(kUp, in),
             process_bore(unit), 0.3, NozzleRole::process);
   it.nozzle(c + kUp * (0.4 + e.height + 0.05 * r) + in * (0.5 * r), kUp, process_bore(unit), 0.3,
@@ -973,8 +1007,7 @@ void build_sphere_tank(Unit& unit, ItemBuilder& it) {
   it.nozzle(c + kUp * (zc + r - 0.02), kUp, process_bore(unit), 0.4, NozzleRole::top);
   if (it.afford(8)) {
     it.top_platform(2.0, 2.0, zc + r + 0.3);
-    it.ladder(c - toward_rack(unit, e) * (r + 0.8), -toward_rack(unit, e), 0.0, zc + r,
-              it.round());
+    it.ladder(c - toward_rack(unit, e) * (r + 0.8), -toward_rack(unit, e), 0.0, zc + r, it.round());
   }
 }
 
@@ -992,7 +1025,8 @@ void build_package(Unit& unit, ItemBuilder& it) {
   const dvec3 in = toward_rack(unit, e);
   const int bore = std::min(process_bore(unit), 6);
   it.nozzle(c + dvec3(-0.25 * lx, 0, 1.0) + in * (r - 0.02), in, bore, 0.2, NozzleRole::process);
-  it.nozzle(c + dvec3(0.05 * lx, 0, 0.8) + in * (0.8 * r - 0.02), in, bore, 0.2, NozzleRole::process);
+  it.nozzle(c + dvec3(0.05 * lx, 0, 0.8) + in * (0.8 * r - 0.02), in, bore, 0.2,
+            NozzleRole::process);
   for (int i = 0; i < 6 && it.afford(1); ++i) {
     b.box_axes(c + dvec3(-0.5 * lx + 0.1, 0.5 * ly - 0.1, 0.3 + 0.4 * i),
                c + dvec3(0.5 * lx - 0.1, 0.5 * ly, 0.35 + 0.4 * i));
@@ -1003,36 +1037,71 @@ void build_package(Unit& unit, ItemBuilder& it) {
 
 const char* description_of(Rng& rng, T type) {
   switch (type) {
-    case T::column: return pick(rng, kColumnServices);
+    case T::column:
+      return pick(rng, kColumnServices);
     case T::vertical_drum:
-    case T::horizontal_drum: return pick(rng, kDrumServices);
-    case T::exchanger: return pick(rng, kExchangerServices);
-    case T::pump: return pick(rng, kPumpServices);
-    case T::compressor: return "Cracked gas compressor";
-    case T::air_cooler: return "Overhead air condenser";
-    case T::furnace: return "Cracking furnace";
-    case T::filter: return "Suction filter";
-    case T::tank: return "Day tank";
-    case T::sphere_tank: return "LPG sphere";
-    case T::package: return "Chemical injection package";
+    case T::horizontal_drum:
+      return pick(rng, kDrumServices);
+    case T::exchanger:
+      return pick(rng, kExchangerServices);
+    case T::pump:
+      return pick(rng, kPumpServices);
+    case T::compressor:
+      return "Cracked gas compressor";
+    case T::air_cooler:
+      return "Overhead air condenser";
+    case T::furnace:
+      return "Cracking furnace";
+    case T::filter:
+      return "Suction filter";
+    case T::tank:
+      return "Day tank";
+    case T::sphere_tank:
+      return "LPG sphere";
+    case T::package:
+      return "Chemical injection package";
   }
   return "";
 }
 
 void build_item(Unit& unit, ItemBuilder& it) {
   switch (it.rec().type) {
-    case T::column: build_column(unit, it); break;
-    case T::vertical_drum: build_vertical_drum(unit, it); break;
-    case T::horizontal_drum: build_horizontal_drum(unit, it); break;
-    case T::exchanger: build_exchanger(unit, it); break;
-    case T::pump: build_pump(unit, it); break;
-    case T::compressor: build_compressor(unit, it); break;
-    case T::air_cooler: build_air_cooler(unit, it); break;
-    case T::furnace: build_furnace(unit, it); break;
-    case T::filter: build_filter(unit, it); break;
-    case T::tank: build_tank(unit, it); break;
-    case T::sphere_tank: build_sphere_tank(unit, it); break;
-    case T::package: build_package(unit, it); break;
+    case T::column:
+      build_column(unit, it);
+      break;
+    case T::vertical_drum:
+      build_vertical_drum(unit, it);
+      break;
+    case T::horizontal_drum:
+      build_horizontal_drum(unit, it);
+      break;
+    case T::exchanger:
+      build_exchanger(unit, it);
+      break;
+    case T::pump:
+      build_pump(unit, it);
+      break;
+    case T::compressor:
+      build_compressor(unit, it);
+      break;
+    case T::air_cooler:
+      build_air_cooler(unit, it);
+      break;
+    case T::furnace:
+      build_furnace(unit, it);
+      break;
+    case T::filter:
+      build_filter(unit, it);
+      break;
+    case T::tank:
+      build_tank(unit, it);
+      break;
+    case T::sphere_tank:
+      build_sphere_tank(unit, it);
+      break;
+    case T::package:
+      build_package(unit, it);
+      break;
   }
 }
 
@@ -1055,7 +1124,8 @@ bool place_all(Unit& unit, bool overflow) {
     EquipmentRecord& e = unit.equipment[i];
     std::vector<int> bands(unit.bands.size());
     for (size_t k = 0; k < bands.size(); ++k) bands[k] = int(k);
-    std::stable_sort(bands.begin(), bands.end(), [&](int a, int b) { return used[size_t(a)] < used[size_t(b)]; });
+    std::stable_sort(bands.begin(), bands.end(),
+                     [&](int a, int b) { return used[size_t(a)] < used[size_t(b)]; });
     bool placed = false;
     for (int pass = 0; pass < (overflow ? 2 : 1) && !placed; ++pass) {
       for (int band : bands) {
@@ -1222,17 +1292,22 @@ void build_equipment(Unit& unit) {
     weight_left += kTypes[size_t(e.type)].detail_weight;
   }
   const int64_t budget = unit.info.equipment_primitives;
-  const std::pair<Tally, PrimitiveKind> kinds[] = {
-      {kBox, PrimitiveKind::box},       {kWedge, PrimitiveKind::pyramid},
-      {kPrism, PrimitiveKind::prism},   {kCylinder, PrimitiveKind::cylinder},
-      {kTorus, PrimitiveKind::circular_torus}, {kRectTorus, PrimitiveKind::rectangular_torus},
-      {kSphere, PrimitiveKind::sphere}, {kSaddle, PrimitiveKind::saddle},
-      {kDish, PrimitiveKind::elliptical_dish}};
+  const std::pair<Tally, PrimitiveKind> kinds[] = {{kBox, PrimitiveKind::box},
+                                                   {kWedge, PrimitiveKind::pyramid},
+                                                   {kPrism, PrimitiveKind::prism},
+                                                   {kCylinder, PrimitiveKind::cylinder},
+                                                   {kTorus, PrimitiveKind::circular_torus},
+                                                   {kRectTorus, PrimitiveKind::rectangular_torus},
+                                                   {kSphere, PrimitiveKind::sphere},
+                                                   {kSaddle, PrimitiveKind::saddle},
+                                                   {kDish, PrimitiveKind::elliptical_dish}};
   for (auto [t, k] : kinds) unit.kind_targets[t] = unit.info.kind_primitives[size_t(k)];
   // Details' kinds follow the plant's mix, scaled to the equipment's share of Su's primitives.
   const double share = double(budget) / double(unit.info.su_primitives);
-  unit.detail_ledger.set_target(kBox, int64_t(1.1 * share * unit.info.kind_primitives[size_t(PrimitiveKind::box)]));
-  unit.detail_ledger.set_target(kCylinder, int64_t(1.5 * share * unit.info.kind_primitives[size_t(PrimitiveKind::cylinder)]));
+  unit.detail_ledger.set_target(
+      kBox, int64_t(1.1 * share * unit.info.kind_primitives[size_t(PrimitiveKind::box)]));
+  unit.detail_ledger.set_target(
+      kCylinder, int64_t(1.5 * share * unit.info.kind_primitives[size_t(PrimitiveKind::cylinder)]));
   uint64_t built = 0;
   for (uint32_t i : order) {
     unit.detail_ledger.set_progress(++built, order.size());

@@ -8,12 +8,11 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <glm/glm.hpp>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 #include "plantview/generate.h"
 #include "plantview/model.h"
@@ -32,10 +31,10 @@ class Rng {
  public:
   explicit Rng(uint64_t seed);
   uint64_t next();
-  uint32_t below(uint32_t n);                  // uniform in [0, n); n > 0
-  int range(int lo, int hi);                   // uniform in [lo, hi]
+  uint32_t below(uint32_t n);  // uniform in [0, n); n > 0
+  int range(int lo, int hi);   // uniform in [lo, hi]
   bool chance(uint32_t per_mille) { return below(1000) < per_mille; }
-  double unit() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double unit() { return double(next() >> 11) * 0x1.0p-53; }                   // [0, 1)
   double metres(int lo_mm, int hi_mm) { return 0.001 * range(lo_mm, hi_mm); }  // mm grid
   template <class T>
   void shuffle(std::vector<T>& v) {
@@ -51,9 +50,22 @@ class Rng {
 // (snouts split into sheared cylinders, eccentric and concentric cones; pyramids are wedges).
 
 enum Tally : uint8_t {
-  kBox, kWedge, kPrism, kCylinder, kSheared, kEccentric, kConcentric, kTorus, kRectTorus,
-  kSphere, kSaddle, kDish, kOtherKind,
-  kPipes, kComponents, kComponentPrims,
+  kBox,
+  kWedge,
+  kPrism,
+  kCylinder,
+  kSheared,
+  kEccentric,
+  kConcentric,
+  kTorus,
+  kRectTorus,
+  kSphere,
+  kSaddle,
+  kDish,
+  kOtherKind,
+  kPipes,
+  kComponents,
+  kComponentPrims,
   kTallyCount
 };
 inline constexpr int kKindTallies = kOtherKind + 1;
@@ -107,13 +119,13 @@ class Ledger {
 // Pipe sizes (ASME B36.10 outside diameters, class 150 flanges, long-radius elbows).
 
 struct PipeSize {
-  const char* label;   // "6\"" for the reader
-  int dn;              // DN (mm)
-  double od_m;         // pipe outside diameter
-  double flange_od_m;  // flange outside diameter
-  double flange_thk_m; // flange length along the run (hub included)
-  double valve_len_m;  // gate valve face to face
-  double elbow_r_m;    // long-radius bend radius: 1.5 x NPS
+  const char* label;    // "6\"" for the reader
+  int dn;               // DN (mm)
+  double od_m;          // pipe outside diameter
+  double flange_od_m;   // flange outside diameter
+  double flange_thk_m;  // flange length along the run (hub included)
+  double valve_len_m;   // gate valve face to face
+  double elbow_r_m;     // long-radius bend radius: 1.5 x NPS
 };
 inline constexpr int kPipeSizeCount = 20;
 extern const std::array<PipeSize, kPipeSizeCount> kPipeSizes;
@@ -127,9 +139,8 @@ int bore_at_least(double od_m);  // smallest bore index whose OD >= od_m (the la
 glm::mat3 frame_z(const dvec3& z_axis);
 // A right-handed rotation with local x = x_axis and local z = z_axis (both unit, orthogonal).
 glm::mat3 frame_xz(const dvec3& x_axis, const dvec3& z_axis);
-// Any unit vector perpendicular to an axis-aligned or general unit vector `d`, preferring up (+z).
+// A unit vector perpendicular to the unit vector `d`, as close to up (+z) as it can be.
 dvec3 perpendicular_up(const dvec3& d);
-bool axis_aligned(const dvec3& d);
 
 // Builds one object: primitives are given in unit-local coordinates and stored relative to the
 // object's origin. All lengths in metres.
@@ -159,15 +170,13 @@ class ObjectBuilder {
   void sphere(const dvec3& centre, double radius);
   // Elliptical head standing on base_centre, rising along `axis` to `height`.
   void dish(const dvec3& base_centre, const dvec3& axis, double base_radius, double height);
-  // Elbow: flow arrives along d_in to the corner (intersection of the two run centrelines) and
-  // leaves along d_out; sweep `angle` from the inlet point corner - r*d_in.
+  // A 90 degree elbow: flow arrives along d_in at the corner (where the two run centrelines
+  // meet) and leaves along d_out (perpendicular); the bend runs from corner - r*d_in to
+  // corner + r*d_out.
   void elbow(const dvec3& corner, const dvec3& d_in, const dvec3& d_out, double bend_r,
              double tube_r);
-  // Circular torus about `axis` centred at `centre`, sweeping `angle_rad` from `start_dir`.
-  void torus(const dvec3& centre, const dvec3& axis, const dvec3& start_dir, double bend_r,
-             double tube_r, float angle_rad);
-  void rect_torus(const dvec3& centre, const dvec3& axis, const dvec3& start_dir,
-                  double inner_r, double outer_r, double height, float angle_rad);
+  void rect_torus(const dvec3& centre, const dvec3& axis, const dvec3& start_dir, double inner_r,
+                  double outer_r, double height, float angle_rad);
   // Saddle on grade under a horizontal vessel of axis `vessel_axis` (x of the saddle).
   void saddle(const dvec3& base_centre, const dvec3& vessel_axis, double length, double width,
               double height, double cradle_radius);
@@ -190,7 +199,15 @@ std::string fixed(double value, int decimals);  // "12.35": locale-independent
 
 // An equipment nozzle: a flanged end that a pipeline may connect to.
 // Spare nozzles stay unconnected (blinded on the equipment).
-enum class NozzleRole : uint8_t { process, outlet_bottom, top, pump_suction, pump_discharge, utility, spare };
+enum class NozzleRole : uint8_t {
+  process,
+  outlet_bottom,
+  top,
+  pump_suction,
+  pump_discharge,
+  utility,
+  spare
+};
 struct Nozzle {
   dvec3 position;   // flange face centre (unit-local)
   dvec3 direction;  // outward, axis-aligned unit
@@ -202,26 +219,36 @@ struct Nozzle {
 };
 
 enum class EquipmentType : uint8_t {
-  column, vertical_drum, horizontal_drum, exchanger, pump, compressor, air_cooler, furnace,
-  filter, tank, sphere_tank, package,
+  column,
+  vertical_drum,
+  horizontal_drum,
+  exchanger,
+  pump,
+  compressor,
+  air_cooler,
+  furnace,
+  filter,
+  tank,
+  sphere_tank,
+  package,
 };
 inline constexpr int kEquipmentTypeCount = 12;
 
 struct EquipmentRecord {
   EquipmentType type = EquipmentType::package;
-  std::string tag;            // "C-01-004"
-  std::string description;    // "Depropanizer"
-  dvec3 centre{0.0};          // footprint centre on grade
-  double size_x = 0, size_y = 0;  // footprint
+  std::string tag;                              // "C-01-004"
+  std::string description;                      // "Depropanizer"
+  dvec3 centre{0.0};                            // footprint centre on grade
+  double size_x = 0, size_y = 0;                // footprint
   double diameter = 0, length = 0, height = 0;  // main body
-  int band = -1;              // layout band index (-1: on a rack)
-  int feeds_pair = -1;        // vessels: the pump pair their bottom outlet feeds
-  int pump_pair = -1;         // pumps: their pair
-  char pump_letter = 0;       // 'A' or 'B'
-  int pump_bore = 0;          // pumps: suction bore, the same for both of a pair
-  bool on_saddles = false;    // exchangers
-  double elevation = 0;       // stacked exchangers: the lower shell's top
-  int stacked_on = -1;        // stacked exchangers: the equipment below
+  int band = -1;                                // layout band index (-1: on a rack)
+  int feeds_pair = -1;                          // vessels: the pump pair their bottom outlet feeds
+  int pump_pair = -1;                           // pumps: their pair
+  char pump_letter = 0;                         // 'A' or 'B'
+  int pump_bore = 0;                            // pumps: suction bore, the same for both of a pair
+  bool on_saddles = false;                      // exchangers
+  double elevation = 0;                         // stacked exchangers: the lower shell's top
+  int stacked_on = -1;                          // stacked exchangers: the equipment below
   std::vector<uint32_t> nozzles;
 };
 
@@ -238,7 +265,7 @@ struct Band {
   int rack = 0;
   int side = 1;  // +1: band at larger y than its rack, -1: smaller
   double y_near = 0, y_far = 0;
-  double pump_row_y = 0;       // pump shaft-centre line (y)
+  double pump_row_y = 0;  // pump shaft-centre line (y)
   // A shelf is a row of columns; a column holds items one behind the other (across y).
   struct Column {
     double x0, width, used;  // start x, width along x, depth used from the shelf's start
@@ -278,16 +305,16 @@ struct Unit {
   dvec3 origin_m{0.0};    // model-space position of the unit's (0, 0, 0)
   Rng rng;
   Emitter& out;
-  Ledger ledger;          // piping stage targets
-  Ledger detail_ledger;   // equipment details: keeps their kinds in proportion to the plant's
+  Ledger ledger;         // piping stage targets
+  Ledger detail_ledger;  // equipment details: keeps their kinds in proportion to the plant's
   std::vector<Rack> racks;
   std::vector<Band> bands;
   std::vector<EquipmentRecord> equipment;
   std::vector<Nozzle> nozzles;
-  Mix emitted;            // everything emitted so far in this unit
+  Mix emitted;                                       // everything emitted so far in this unit
   std::array<int64_t, kKindTallies> kind_targets{};  // Zhou's kinds for this unit
   std::array<int64_t, kObjectClassCount> primitives_by_class{}, objects_by_class{};
-  bool piping = false;    // the piping stage runs: emitted objects count in the ledger
+  bool piping = false;             // the piping stage runs: emitted objects count in the ledger
   uint32_t pipelines_skipped = 0;  // planned but not routable
 
   uint64_t id(std::string_view name) const { return object_id(id_source, name); }
@@ -296,17 +323,17 @@ struct Unit {
 };
 
 // Stages, in the order generate_plant runs them for each unit.
-void lay_out_unit(Unit& unit);        // layout.cpp: racks, bands
-void build_equipment(Unit& unit);     // equipment.cpp: places and emits equipment, lists nozzles
-void build_structure(Unit& unit);     // structure.cpp: racks and steel structures
+void lay_out_unit(Unit& unit);     // layout.cpp: racks, bands
+void build_equipment(Unit& unit);  // equipment.cpp: places and emits equipment, lists nozzles
+void build_structure(Unit& unit);  // structure.cpp: racks and steel structures
 void build_piping(Unit& unit, const std::function<void(double)>& progress);  // piping.cpp
 
 // Layout services (layout.cpp). Reserves a footprint (x by y) in a band's shelves; returns false
 // when the band is full. `centre` receives the footprint centre on grade.
 // `item` is recorded on the shelf. With `overflow`, a full band opens a shelf beyond its far
 // edge instead of failing (the plot grows rather than items overlapping).
-bool place_in_band(Unit& unit, int band, double size_x, double size_y, uint32_t item,
-                   bool overflow, dvec3& centre);
+bool place_in_band(Unit& unit, int band, double size_x, double size_y, uint32_t item, bool overflow,
+                   dvec3& centre);
 // Spreads each shelf's items evenly along the rack instead of leaving them packed at its start.
 void spread_shelves(Unit& unit);
 // Reserves size_x along the band's pump row as close to x_wanted as it can; false when full.

@@ -38,11 +38,6 @@ int bore_at_least(double od_m) {
   return kPipeSizeCount - 1;
 }
 
-bool axis_aligned(const dvec3& d) {
-  int nonzero = (d.x != 0.0) + (d.y != 0.0) + (d.z != 0.0);
-  return nonzero == 1;
-}
-
 glm::mat3 frame_xz(const dvec3& x, const dvec3& z) {
   const dvec3 y = glm::cross(z, x);
   return glm::mat3(glm::vec3(x), glm::vec3(y), glm::vec3(z));
@@ -67,6 +62,7 @@ ObjectBuilder::ObjectBuilder(const dvec3& unit_origin_m, const dvec3& local_orig
                              ObjectClass object_class)
     : local_origin_(local_origin) {
   object_.object_class = object_class;
+  object_.attributes.reserve(10);
   object_.origin_m = unit_origin_m + local_origin;
 }
 
@@ -147,16 +143,11 @@ void ObjectBuilder::dish(const dvec3& base, const dvec3& axis, double base_radiu
   add(EllipticalDish{float(base_radius), float(height)}, frame_z(axis), base);
 }
 
-void ObjectBuilder::elbow(const dvec3& corner, const dvec3& d_in, const dvec3& d_out,
-                          double bend_r, double tube_r) {
+void ObjectBuilder::elbow(const dvec3& corner, const dvec3& d_in, const dvec3& d_out, double bend_r,
+                          double tube_r) {
   const dvec3 centre = corner - d_in * bend_r + d_out * bend_r;
-  add(CircularTorus{float(bend_r), float(tube_r), 1.5707964f}, frame_xz(-d_out, glm::cross(d_in, d_out)),
-      centre);
-}
-
-void ObjectBuilder::torus(const dvec3& centre, const dvec3& axis, const dvec3& start_dir,
-                          double bend_r, double tube_r, float angle_rad) {
-  add(CircularTorus{float(bend_r), float(tube_r), angle_rad}, frame_xz(start_dir, axis), centre);
+  add(CircularTorus{float(bend_r), float(tube_r), 1.5707964f},
+      frame_xz(-d_out, glm::cross(d_in, d_out)), centre);
 }
 
 void ObjectBuilder::rect_torus(const dvec3& centre, const dvec3& axis, const dvec3& start_dir,
@@ -165,8 +156,8 @@ void ObjectBuilder::rect_torus(const dvec3& centre, const dvec3& axis, const dve
       frame_xz(start_dir, axis), centre);
 }
 
-void ObjectBuilder::saddle(const dvec3& base, const dvec3& vessel_axis, double length,
-                           double width, double height, double cradle_radius) {
+void ObjectBuilder::saddle(const dvec3& base, const dvec3& vessel_axis, double length, double width,
+                           double height, double cradle_radius) {
   add(Saddle{float(length), float(width), float(height), float(cradle_radius)},
       frame_xz(vessel_axis, dvec3(0, 0, 1)), base);
 }

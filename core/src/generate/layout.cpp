@@ -8,11 +8,11 @@
 namespace plantview::gen {
 
 namespace {
-constexpr double kEdgeMargin_m = 1.5;    // plot edge to the first equipment
-constexpr double kRackClearance_m = 0.5; // rack edge to the pump row
-constexpr double kPumpRowDepth_m = 3.2;  // pumps stand across this strip
-constexpr double kShelfGap_m = 1.2;      // access way between shelves
-constexpr double kItemGap_m = 1.0;       // between neighbours on a shelf
+constexpr double kEdgeMargin_m = 1.5;     // plot edge to the first equipment
+constexpr double kRackClearance_m = 0.5;  // rack edge to the pump row
+constexpr double kPumpRowDepth_m = 3.2;   // pumps stand across this strip
+constexpr double kShelfGap_m = 1.2;       // access way between shelves
+constexpr double kItemGap_m = 1.0;        // between neighbours on a shelf
 }  // namespace
 
 void lay_out_unit(Unit& unit) {
@@ -31,14 +31,14 @@ void lay_out_unit(Unit& unit) {
       if (z > 0.0) rack.tiers.push_back(z);
     }
     const int lane_count = int((rack.width - 0.6) / rack.lane_pitch) + 1;
-    rack.lanes.assign(rack.tiers.size(), std::vector<std::vector<std::pair<double, double>>>(
-                                             size_t(lane_count)));
+    rack.lanes.assign(rack.tiers.size(),
+                      std::vector<std::vector<std::pair<double, double>>>(size_t(lane_count)));
     unit.racks.push_back(std::move(rack));
   }
   for (int r = 0; r < spec.racks; ++r) {
     const Rack& rack = unit.racks[size_t(r)];
-    const double lo = r == 0 ? kEdgeMargin_m
-                             : 0.5 * (unit.racks[size_t(r - 1)].y_centre + rack.y_centre);
+    const double lo =
+        r == 0 ? kEdgeMargin_m : 0.5 * (unit.racks[size_t(r - 1)].y_centre + rack.y_centre);
     const double hi = r + 1 == spec.racks
                           ? depth - kEdgeMargin_m
                           : 0.5 * (unit.racks[size_t(r + 1)].y_centre + rack.y_centre);

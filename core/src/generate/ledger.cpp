@@ -51,23 +51,36 @@ int Rng::range(int lo, int hi) {
 
 Tally tally_of(const Primitive& p) {
   switch (p.kind()) {
-    case PrimitiveKind::box: return kBox;
-    case PrimitiveKind::pyramid: return kWedge;
-    case PrimitiveKind::prism: return kPrism;
-    case PrimitiveKind::cylinder: return kCylinder;
+    case PrimitiveKind::box:
+      return kBox;
+    case PrimitiveKind::pyramid:
+      return kWedge;
+    case PrimitiveKind::prism:
+      return kPrism;
+    case PrimitiveKind::cylinder:
+      return kCylinder;
     case PrimitiveKind::snout:
       switch (snout_variant(std::get<Snout>(p.shape))) {
-        case SnoutVariant::sheared_cylinder: return kSheared;
-        case SnoutVariant::eccentric_cone: return kEccentric;
-        case SnoutVariant::concentric_cone: return kConcentric;
+        case SnoutVariant::sheared_cylinder:
+          return kSheared;
+        case SnoutVariant::eccentric_cone:
+          return kEccentric;
+        case SnoutVariant::concentric_cone:
+          return kConcentric;
       }
       return kConcentric;
-    case PrimitiveKind::circular_torus: return kTorus;
-    case PrimitiveKind::rectangular_torus: return kRectTorus;
-    case PrimitiveKind::sphere: return kSphere;
-    case PrimitiveKind::saddle: return kSaddle;
-    case PrimitiveKind::elliptical_dish: return kDish;
-    default: return kOtherKind;
+    case PrimitiveKind::circular_torus:
+      return kTorus;
+    case PrimitiveKind::rectangular_torus:
+      return kRectTorus;
+    case PrimitiveKind::sphere:
+      return kSphere;
+    case PrimitiveKind::saddle:
+      return kSaddle;
+    case PrimitiveKind::elliptical_dish:
+      return kDish;
+    default:
+      return kOtherKind;
   }
 }
 

@@ -6,12 +6,15 @@
 // Counts: every optional choice (valve types, flange spec, inline groups, welds, closures,
 // supports) goes through the unit's ledger, which steers the unit toward Su's pipe and component
 // counts and Zhou's primitive mix.
+#include "piping.h"
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 #include <string>
+#include <unordered_map>
 
-#include "piping.h"
 #include "presets.h"
 
 namespace plantview::gen {
@@ -30,60 +33,85 @@ double tee_half(int bore) { return 0.5 * item_length(item(Part::tee, bore)); }
 enum Axis : uint8_t { kAxisX, kAxisY, kAxisZ };
 struct Move {
   Axis axis;
-  double target;  // NAN: the end's coordinate on that axis
+  double target;            // NAN: the end's coordinate on that axis
+  bool from_start = false;  // target is an offset from the route's start
 };
 using Pattern = std::vector<Move>;
 
 double& coord(dvec3& p, Axis a) { return a == kAxisX ? p.x : a == kAxisY ? p.y : p.z; }
 
-// Drops zero-length moves and merges straight-on ones; false on a U-turn or a non-right angle.
-bool simplify(std::vector<dvec3>& pts) {
-  std::vector<dvec3> out;
-  for (const dvec3& p : pts) {
-    if (out.empty() || glm::length(p - out.back()) > 1e-9) out.push_back(p);
+// A route under construction: a handful of points, no allocation.
+struct Points {
+  std::array<dvec3, 24> p;
+  size_t n = 0;
+  void push(const dvec3& q) {
+    if (n < p.size()) p[n] = q;
+    ++n;
   }
-  std::vector<dvec3> m;
-  for (const dvec3& p : out) {
-    if (m.size() >= 2) {
-      const dvec3 d0 = glm::normalize(m.back() - m[m.size() - 2]);
-      const dvec3 d1 = glm::normalize(p - m.back());
+  std::vector<dvec3> vector() const {
+    return std::vector<dvec3>(p.begin(), p.begin() + std::ptrdiff_t(n));
+  }
+};
+
+// Drops zero-length moves and merges straight-on ones; false on a U-turn or a non-right angle.
+template <class Seq>
+bool simplify_into(const Seq& in, size_t count, Points& m) {
+  m.n = 0;
+  for (size_t i = 0; i < count; ++i) {
+    const dvec3& p = in[i];
+    if (m.n > 0 && glm::length(p - m.p[m.n - 1]) <= 1e-9) continue;
+    if (m.n >= 2) {
+      const dvec3 d0 = glm::normalize(m.p[m.n - 1] - m.p[m.n - 2]);
+      const dvec3 d1 = glm::normalize(p - m.p[m.n - 1]);
       const double c = glm::dot(d0, d1);
       if (c > 1.0 - 1e-9) {
-        m.back() = p;
+        m.p[m.n - 1] = p;
         continue;
       }
       if (std::abs(c) > 1e-9) return false;
     }
-    m.push_back(p);
+    m.push(p);
   }
-  pts = std::move(m);
-  return pts.size() >= 2;
+  return m.n >= 2 && m.n <= m.p.size();
+}
+
+bool simplify(std::vector<dvec3>& pts) {
+  Points m;
+  if (pts.size() > m.p.size() || !simplify_into(pts, pts.size(), m)) return false;
+  pts = m.vector();
+  return true;
 }
 
 // Every segment holds its elbows' bend radii and a pipe, or exactly the bend radii (elbows
 // welded to each other or to the end's fitting, no pipe); every point stays above min_z.
-bool long_enough(const std::vector<dvec3>& pts, double bend_r, double min_z) {
-  const size_t n = pts.size();
+template <class Seq>
+bool long_enough(const Seq& pts, size_t n, double bend_r, double min_z) {
   for (size_t k = 0; k + 1 < n; ++k) {
     const double bends = (k > 0 ? bend_r : 0.0) + (k + 2 < n ? bend_r : 0.0);
     const double len = glm::length(pts[k + 1] - pts[k]);
     if (len < bends + kMinPipe && !(bends > 0.0 && std::abs(len - bends) < 1e-6)) return false;
   }
-  for (const dvec3& p : pts) {
-    if (p.z < min_z) return false;
+  for (size_t k = 0; k < n; ++k) {
+    if (pts[k].z < min_z) return false;
   }
   return true;
 }
+bool long_enough(const std::vector<dvec3>& pts, double bend_r, double min_z) {
+  return long_enough(pts, pts.size(), bend_r, min_z);
+}
 
 // Pipes a route needs (segments longer than their bends).
-int route_pipes(const std::vector<dvec3>& pts, double bend_r) {
+template <class Seq>
+int route_pipes(const Seq& pts, size_t n, double bend_r) {
   int pipes = 0;
-  const size_t n = pts.size();
   for (size_t k = 0; k + 1 < n; ++k) {
     const double bends = (k > 0 ? bend_r : 0.0) + (k + 2 < n ? bend_r : 0.0);
     if (glm::length(pts[k + 1] - pts[k]) > bends + 1e-6) ++pipes;
   }
   return pipes;
+}
+int route_pipes(const std::vector<dvec3>& pts, double bend_r) {
+  return route_pipes(pts, pts.size(), bend_r);
 }
 
 // From s (flow along ds) to e (flow arriving along de): stubs along ds and de, then the moves of
@@ -104,26 +132,34 @@ bool route(const dvec3& s, const dvec3& ds, const dvec3& e, const dvec3& de, dou
                                           : std::max(stub, bend_r + kMinPipe + 0.05);
     const dvec3 s1 = s + ds * start, e1 = e - de * end;
     for (const Pattern& pattern : patterns) {
-      std::vector<dvec3> pts{s, s1};
-      dvec3 p = s1, target_point = e1;
+      Points raw;
+      raw.push(s);
+      raw.push(s1);
+      dvec3 p = s1, target_point = e1, start_point = s;
       for (const Move& mv : pattern) {
-        coord(p, mv.axis) = std::isnan(mv.target) ? coord(target_point, mv.axis) : mv.target;
-        pts.push_back(p);
+        coord(p, mv.axis) = std::isnan(mv.target) ? coord(target_point, mv.axis)
+                            : mv.from_start       ? coord(start_point, mv.axis) + mv.target
+                                                  : mv.target;
+        raw.push(p);
       }
       for (Axis a : {kAxisX, kAxisY, kAxisZ}) {
         if (coord(p, a) != coord(target_point, a)) {
           coord(p, a) = coord(target_point, a);
-          pts.push_back(p);
+          raw.push(p);
         }
       }
-      pts.push_back(e);
-      if (!simplify(pts) || !long_enough(pts, bend_r, min_z)) continue;
-      bool seen = false;
-      for (const auto& o : out) {
-        seen = seen || (o.size() == pts.size() && route_pipes(o, bend_r) == route_pipes(pts, bend_r));
+      raw.push(e);
+      Points pts;
+      if (raw.n > raw.p.size() || !simplify_into(raw.p, raw.n, pts) ||
+          !long_enough(pts.p, pts.n, bend_r, min_z)) {
+        continue;
       }
+      bool seen = false;
+      const int pipes = route_pipes(pts.p, pts.n, bend_r);
+      for (const auto& o : out)
+        seen = seen || (o.size() == pts.n && route_pipes(o, bend_r) == pipes);
       if (seen) continue;
-      out.push_back(std::move(pts));
+      out.push_back(pts.vector());
       if (out.size() >= max_options) return true;
     }
   }
@@ -143,33 +179,45 @@ std::vector<Pattern> permutations(const Pattern& prefix) {
   return out;
 }
 
-// Every order of the three moves, then the same after a sidestep of `aside` metres along x or y
-// (for ends that face each other across a body, or point away from where the route goes).
-// Ends that differ by a few centimetres on some axes cannot be joined by a move that short: the
-// last patterns step aside on all such axes at once (and come back later).
-std::vector<Pattern> local_patterns(const dvec3& s, const dvec3& e, double bend_r, double aside) {
-  std::vector<Pattern> out = permutations({});
-  std::vector<Axis> tiny;
+// Every order of the three moves, then the same after a 1.5 m sidestep along x, y or z (for ends
+// that face each other across a body, or point away from where the route goes). Ends that
+// differ by a few centimetres on some axes cannot be joined by a move that short: the last
+// patterns step aside on all such axes at once (and come back later). The pattern sets are built
+// once, one per set of such axes.
+const std::vector<Pattern>& local_patterns(const dvec3& s, const dvec3& e, double bend_r) {
+  constexpr double kAside = 1.5;
+  static const std::array<std::vector<Pattern>, 8> table = [] {
+    std::array<std::vector<Pattern>, 8> t;
+    for (int mask = 0; mask < 8; ++mask) {
+      std::vector<Pattern>& out = t[size_t(mask)];
+      out = permutations({});
+      for (Axis a : {kAxisY, kAxisX, kAxisZ}) {
+        for (double sign : {1.0, -1.0}) {
+          for (Pattern& r : permutations({{a, sign * kAside, true}})) out.push_back(std::move(r));
+        }
+      }
+      std::vector<Axis> tiny;
+      for (Axis a : {kAxisY, kAxisX, kAxisZ}) {
+        if (mask & (1 << int(a))) tiny.push_back(a);
+      }
+      if (tiny.size() < 2) continue;
+      for (int signs = 0; signs < (1 << tiny.size()); ++signs) {
+        Pattern prefix;
+        for (size_t i = 0; i < tiny.size(); ++i) {
+          prefix.push_back({tiny[i], ((signs >> i) & 1) ? -kAside : kAside, true});
+        }
+        for (Pattern& r : permutations(prefix)) out.push_back(std::move(r));
+      }
+    }
+    return t;
+  }();
+  int mask = 0;
   for (Axis a : {kAxisY, kAxisX, kAxisZ}) {
     dvec3 p = s, q = e;
     const double d = std::abs(coord(p, a) - coord(q, a));
-    if (d > 1e-9 && d < 2.0 * bend_r + kMinPipe + 0.2) tiny.push_back(a);
-    for (double sign : {1.0, -1.0}) {
-      const double target = coord(p, a) + sign * aside;
-      for (Pattern& r : permutations({{a, target}})) out.push_back(std::move(r));
-    }
+    if (d > 1e-9 && d < 2.0 * bend_r + kMinPipe + 0.2) mask |= 1 << int(a);
   }
-  if (tiny.size() >= 2) {
-    for (int signs = 0; signs < (1 << tiny.size()); ++signs) {
-      Pattern prefix;
-      for (size_t i = 0; i < tiny.size(); ++i) {
-        dvec3 p = s;
-        prefix.push_back({tiny[i], coord(p, tiny[i]) + ((signs >> i) & 1 ? -aside : aside)});
-      }
-      for (Pattern& r : permutations(prefix)) out.push_back(std::move(r));
-    }
-  }
-  return out;
+  return table[size_t(mask)];
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -178,14 +226,14 @@ std::vector<Pattern> local_patterns(const dvec3& s, const dvec3& e, double bend_
 enum class TeeUse : uint8_t { none, vent, drain, takeoff, pump_suction, pump_discharge };
 
 struct Slot {
-  double at = 0;   // from the segment's start point (a corner or the route start)
+  double at = 0;  // from the segment's start point (a corner or the route start)
   double length = 0;
   std::vector<Item> items;
   TeeUse tee = TeeUse::none;
   dvec3 branch_dir{0.0};
   int branch_bore = 0;
-  int tag = -1;    // caller's index (drops)
-  bool olet = false;  // tee slots: an olet on the run instead (no length along it)
+  int tag = -1;                 // caller's index (drops)
+  bool olet = false;            // tee slots: an olet on the run instead (no length along it)
   std::vector<Item> sub_items;  // vents and drains: the stub's members after its pipe
 };
 
@@ -265,14 +313,23 @@ double place(const std::vector<Gap>& gaps, double length, bool mid, Rng& rng) {
 
 // ---------------------------------------------------------------------------------------------
 
+// An inline group the ledger may put on a run: its slot (length, members), what it adds, and
+// where it may go.
+struct Option {
+  Slot slot;
+  Mix mix;
+  bool mid = true;  // in the middle of a run (else right after or before a bend)
+  bool horizontal_only = false;
+};
+
 struct Drop {
   int header = 0;
   double x = 0;
   int bore = 2;
-  int nozzle = -1;     // destination nozzle, or -1 for a utility station
-  int side = 1;        // station side of the rack
+  int nozzle = -1;            // destination nozzle, or -1 for a utility station
+  int side = 1;               // station side of the rack
   bool side_takeoff = false;  // stations: taken off the header's side, not its top
-  std::optional<Port> port;  // the header tee's branch port, once built
+  std::optional<Port> port;   // the header tee's branch port, once built
 };
 
 class Piping {
@@ -346,6 +403,7 @@ class Piping {
   int failures_ = 0;
   dvec3 line_head_{0.0};  // first branch head of the line being built
   Mix pending_;           // chosen for the line being built, not emitted yet
+  std::unordered_map<uint32_t, std::vector<Option>> catalogue_;  // inline groups by spec and bore
   bool room(Tally t) const {
     return unit_.ledger.count(t) + pending_.n[t] + 1 <= unit_.ledger.target(t);
   }
@@ -373,7 +431,8 @@ void Piping::set_targets() {
   const double f = double(info.su_primitives + structure) / double(info.zhou_primitives);
   auto kind = [&](PrimitiveKind k) { return double(info.kind_primitives[size_t(k)]) * f; };
   const double snouts = kind(PrimitiveKind::snout);
-  const double snout_total = double(info.sheared_cylinders + info.eccentric_cones + info.concentric_cones);
+  const double snout_total =
+      double(info.sheared_cylinders + info.eccentric_cones + info.concentric_cones);
   const std::pair<Tally, double> kinds[] = {
       {kBox, kind(PrimitiveKind::box)},
       {kWedge, kind(PrimitiveKind::pyramid)},
@@ -451,8 +510,11 @@ void Piping::plan() {
       // One of the three nozzles nearest along the rack.
       std::vector<size_t> near(p.size());
       for (size_t k = 0; k < p.size(); ++k) near[k] = k;
-      auto dist = [&](size_t k) { return std::abs(unit_.nozzles[size_t(p[k])].position.x - e.centre.x); };
-      std::stable_sort(near.begin(), near.end(), [&](size_t a, size_t b) { return dist(a) < dist(b); });
+      auto dist = [&](size_t k) {
+        return std::abs(unit_.nozzles[size_t(p[k])].position.x - e.centre.x);
+      };
+      std::stable_sort(near.begin(), near.end(),
+                       [&](size_t a, size_t b) { return dist(a) < dist(b); });
       const size_t k = near[rng_.below(uint32_t(std::min<size_t>(3, near.size())))];
       discharge_targets_[size_t(pair)] = p[k];
       p.erase(p.begin() + std::ptrdiff_t(k));
@@ -492,8 +554,8 @@ void Piping::plan() {
     }
   }
   // Drops fill the rest: to utility nozzles first, then to utility stations.
-  const int drops = std::max(0, lines - fixed_lines - int(process_pairs_.size()) -
-                                    int(battery_limit_nozzles_.size()));
+  const int drops = std::max(
+      0, lines - fixed_lines - int(process_pairs_.size()) - int(battery_limit_nozzles_.size()));
   header_drops_.assign(size_t(headers), {});
   rng_.shuffle(utility);
   for (int d = 0; d < drops; ++d) {
@@ -508,7 +570,8 @@ void Piping::plan() {
       const int racks = int(unit_.racks.size());
       const int rack = rack_of_nozzle(drop.nozzle);
       const int on_rack = (headers - rack + racks - 1) / racks;
-      drop.header = on_rack > 0 ? rack + racks * int(rng_.below(uint32_t(on_rack))) : d % std::max(1, headers);
+      drop.header = on_rack > 0 ? rack + racks * int(rng_.below(uint32_t(on_rack)))
+                                : d % std::max(1, headers);
     } else {
       const Rack& rack = unit_.racks[size_t(drop.header % int(unit_.racks.size()))];
       drop.x = rack.x_begin + 1.0 + (rack.x_end - rack.x_begin - 2.0) * rng_.unit();
@@ -598,7 +661,8 @@ std::vector<Item> Piping::nozzle_group(LineContext& line, const Nozzle& nozzle, 
     std::vector<Mix> mixes;
     for (Part p : parts) {
       Mix m;
-      if (p != Part::weld) m += part_mix(p), m += part_mix(nozzle.flanged ? Part::gasket : Part::weld);
+      if (p != Part::weld)
+        m += part_mix(p), m += part_mix(nozzle.flanged ? Part::gasket : Part::weld);
       mixes.push_back(m);
     }
     valve = parts[unit_.ledger.choose(mixes)];
@@ -648,7 +712,8 @@ std::vector<Item> Piping::closure_group(LineContext& line, int bore, bool allow_
   std::vector<std::vector<Item>> options;
   std::vector<Part> valves{Part::gate, Part::ball, Part::globe};
   if (bore <= 4) valves.push_back(Part::ball_sw);
-  auto with_valve = [&](std::initializer_list<Part> before, Part valve, std::initializer_list<Part> after) {
+  auto with_valve = [&](std::initializer_list<Part> before, Part valve,
+                        std::initializer_list<Part> after) {
     std::vector<Item> v;
     for (Part p : before) v.push_back(item(p, bore, true));
     if (valve != Part::weld) v.push_back(item(valve, bore));
@@ -687,8 +752,8 @@ std::vector<SegmentSlots> Piping::segments_of(const std::vector<dvec3>& pts, int
 }
 
 bool Piping::add_forced_tee(std::vector<SegmentSlots>& segs, const std::vector<dvec3>& pts,
-                            int bore, const dvec3& centre, const dvec3& branch_dir,
-                            int branch_bore, TeeUse use, int tag, bool olet) {
+                            int bore, const dvec3& centre, const dvec3& branch_dir, int branch_bore,
+                            TeeUse use, int tag, bool olet) {
   const double c = olet ? 0.0 : tee_half(bore);
   for (size_t k = 0; k + 1 < pts.size(); ++k) {
     const dvec3 d = pts[k + 1] - pts[k];
@@ -726,70 +791,75 @@ void Piping::add_optional(LineContext& line, std::vector<SegmentSlots>& segs,
     return std::vector<Item>{item(flange, b, true), item(Part::gasket, b), item(middle, b),
                              item(Part::gasket, b), item(flange, b, false)};
   };
-  // The catalogue for this line and bore, built once: each group placed in the middle of a run
-  // (splitting its pipe) or, where it may, right after or before a bend or end.
-  struct Option {
-    Slot slot;
-    Mix mix;
-    bool mid = true;
-    bool horizontal_only = false;
-  };
-  std::vector<Option> options;
-  auto offer = [&](std::vector<Item> items, bool attached_too, bool horizontal_only = false) {
-    Option o;
-    o.slot.length = group_length(items);
-    o.slot.items = std::move(items);
-    o.mix = group_mix(o.slot.items);
-    o.horizontal_only = horizontal_only;
-    if (attached_too) {
-      o.mid = false;
-      options.push_back(o);
-    }
-    o.mid = true;
-    o.mix += pipe_mix();
-    options.push_back(std::move(o));
-  };
-  std::vector<Part> valves{Part::gate, Part::globe, Part::globe_y, Part::ball, Part::check};
-  if (bore >= 8) valves.push_back(Part::butterfly);
-  for (Part v : valves) offer(set_of(v, bore), true);
-  // Butt-welding valves straight in the run (socket-weld ball valves on small bores), and steam
-  // traps on steam and condensate lines.
-  for (Part v : {Part::gate, Part::globe, Part::ball_welded, Part::check}) offer({item(v, bore)}, true);
-  if (bore <= 4) offer({item(Part::ball_sw, bore)}, true);
-  if (line.service == Service::lp_steam || line.service == Service::mp_steam ||
-      line.service == Service::condensate) {
-    offer({item(Part::trap, bore)}, true);
-  }
-  if (line.service == Service::process) {
-    offer(set_of(Part::control, bore), true);
-    offer(set_of(Part::orifice, bore), false);
-  }
-  offer(set_of(Part::strainer, bore), true, true);
-  offer(set_of(Part::spectacle, bore), true);
-  // Valves one size down between a pair of reducers (eccentric ones flat on top), as control
-  // stations and large block valves are built.
-  if (bore >= 4) {
-    for (Part reducer : {Part::reducer_conc, Part::reducer_ecc}) {
-      for (Part v : {Part::control, Part::gate, Part::ball, Part::globe, Part::check}) {
-        if (v == Part::control && line.service != Service::process) continue;
-        std::vector<Item> items{{reducer, bore, bore - 1, true}};
-        for (const Item& it : set_of(v, bore - 1)) items.push_back(it);
-        items.push_back({reducer, bore - 1, bore, true});
-        offer(std::move(items), true);
+  // The catalogue for this spec, service and bore (built once per unit): each group placed in
+  // the middle of a run (splitting its pipe) or, where it may, right after or before a bend or
+  // end.
+  const uint32_t key =
+      uint32_t(bore) * 64u + uint32_t(line.weld_neck) * 32u + uint32_t(line.service);
+  auto cached = catalogue_.find(key);
+  if (cached == catalogue_.end()) {
+    std::vector<Option> built;
+    auto offer = [&](std::vector<Item> items, bool attached_too, bool horizontal_only = false) {
+      Option o;
+      o.slot.length = group_length(items);
+      o.slot.items = std::move(items);
+      o.mix = group_mix(o.slot.items);
+      o.horizontal_only = horizontal_only;
+      if (attached_too) {
+        o.mid = false;
+        built.push_back(o);
       }
-      for (Part v : {Part::ball_welded, Part::gate}) {
-        offer({{reducer, bore, bore - 1, true}, item(v, bore - 1), {reducer, bore - 1, bore, true}}, true);
+      o.mid = true;
+      o.mix += pipe_mix();
+      built.push_back(std::move(o));
+    };
+    std::vector<Part> valves{Part::gate, Part::globe, Part::globe_y, Part::ball, Part::check};
+    if (bore >= 8) valves.push_back(Part::butterfly);
+    for (Part v : valves) offer(set_of(v, bore), true);
+    // Butt-welding valves straight in the run (socket-weld ball valves on small bores), and
+    // steam traps on steam and condensate lines.
+    for (Part v : {Part::gate, Part::globe, Part::ball_welded, Part::check})
+      offer({item(v, bore)}, true);
+    if (bore <= 4) offer({item(Part::ball_sw, bore)}, true);
+    if (line.service == Service::lp_steam || line.service == Service::mp_steam ||
+        line.service == Service::condensate) {
+      offer({item(Part::trap, bore)}, true);
+    }
+    if (line.service == Service::process) {
+      offer(set_of(Part::control, bore), true);
+      offer(set_of(Part::orifice, bore), false);
+    }
+    offer(set_of(Part::strainer, bore), true, true);
+    offer(set_of(Part::spectacle, bore), true);
+    // Valves one size down between a pair of reducers (eccentric ones flat on top), as control
+    // stations and large block valves are built.
+    if (bore >= 4) {
+      for (Part reducer : {Part::reducer_conc, Part::reducer_ecc}) {
+        for (Part v : {Part::control, Part::gate, Part::ball, Part::globe, Part::check}) {
+          if (v == Part::control && line.service != Service::process) continue;
+          std::vector<Item> items{{reducer, bore, bore - 1, true}};
+          for (const Item& it : set_of(v, bore - 1)) items.push_back(it);
+          items.push_back({reducer, bore - 1, bore, true});
+          offer(std::move(items), true);
+        }
+        for (Part v : {Part::ball_welded, Part::gate}) {
+          offer(
+              {{reducer, bore, bore - 1, true}, item(v, bore - 1), {reducer, bore - 1, bore, true}},
+              true);
+        }
       }
     }
+    offer({item(flange, bore, true), item(Part::gasket, bore), item(flange, bore, false)}, false);
+    offer({item(Part::weld, bore)}, false);
+    cached = catalogue_.emplace(key, std::move(built)).first;
   }
-  offer({item(flange, bore, true), item(Part::gasket, bore), item(flange, bore, false)}, false);
-  offer({item(Part::weld, bore)}, false);
+  const std::vector<Option>& catalogue = cached->second;
+  std::vector<Option> stubs;
   // Vents up and drains down from horizontal runs: a reducing tee or an olet, a short pipe, a
   // valve and a closure.
   const int sub_bore = bore >= 4 ? 2 : 1;
   const std::vector<Item> closure = closure_group(line, sub_bore, true);
   const double drain_drop = 0.15 + tee_half(bore) + group_length(closure);
-  const size_t first_stub = options.size();
   for (int drain = 0; drain < 2; ++drain) {
     for (bool olet : {false, true}) {
       Option o;
@@ -804,11 +874,11 @@ void Piping::add_optional(LineContext& line, std::vector<SegmentSlots>& segs,
       o.mix += pipe_mix();  // the stub's pipe
       o.mix += group_mix(closure);
       o.horizontal_only = true;
-      options.push_back(std::move(o));
+      stubs.push_back(std::move(o));
     }
   }
   std::vector<Mix> mixes;
-  std::vector<size_t> index;
+  std::vector<const Option*> index;
   for (size_t k = 0; k < segs.size(); ++k) {
     SegmentSlots& seg = segs[k];
     const dvec3 dir = glm::normalize(pts[k + 1] - pts[k]);
@@ -817,18 +887,19 @@ void Piping::add_optional(LineContext& line, std::vector<SegmentSlots>& segs,
     for (int round = 0; round < 3; ++round) {
       const std::vector<Gap> gaps = gaps_of(seg);
       mixes.assign(1, Mix{});
-      index.assign(1, 0);
-      for (size_t i = 0; i < options.size(); ++i) {
-        const Option& o = options[i];
-        if (o.horizontal_only && !horizontal) continue;
-        if (i >= first_stub && o.slot.tee == TeeUse::drain && !drain_room) continue;
-        if (!fits(gaps, o.slot.length, o.mid) || !small_kinds_fit(o.mix)) continue;
+      index.assign(1, nullptr);
+      auto consider = [&](const Option& o) {
+        if (o.horizontal_only && !horizontal) return;
+        if (o.slot.tee == TeeUse::drain && !drain_room) return;
+        if (!fits(gaps, o.slot.length, o.mid) || !small_kinds_fit(o.mix)) return;
         mixes.push_back(o.mix);
-        index.push_back(i);
-      }
+        index.push_back(&o);
+      };
+      for (const Option& o : catalogue) consider(o);
+      for (const Option& o : stubs) consider(o);
       const size_t pick = unit_.ledger.choose(mixes);
       if (pick == 0) break;
-      const Option& o = options[index[pick]];
+      const Option& o = *index[pick];
       Slot slot = o.slot;
       slot.at = place(gaps, o.slot.length, o.mid, rng_);
       pending_ += o.mix;
@@ -839,7 +910,8 @@ void Piping::add_optional(LineContext& line, std::vector<SegmentSlots>& segs,
 
 // ---------------------------------------------------------------------------------------------
 
-bool Piping::pick_route(std::vector<std::vector<dvec3>>& options, int bore, std::vector<dvec3>& pts) {
+bool Piping::pick_route(std::vector<std::vector<dvec3>>& options, int bore,
+                        std::vector<dvec3>& pts) {
   if (options.empty()) return false;
   const double r = bend_radius(bore);
   auto mix_of_route = [&](const std::vector<dvec3>& route_pts) {
@@ -893,7 +965,8 @@ void Piping::build_branch(LineContext& line, const Port& head, const std::vector
   for (size_t k = 0; k + 1 < n; ++k) {
     const dvec3 dir = glm::normalize(pts[k + 1] - pts[k]);
     auto& slots = segs[k].slots;
-    std::stable_sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) { return a.at < b.at; });
+    std::stable_sort(slots.begin(), slots.end(),
+                     [](const Slot& a, const Slot& b) { return a.at < b.at; });
     for (const Slot& slot : slots) {
       const dvec3 p = pts[k] + dir * slot.at;
       if (glm::dot(p - run.position(), dir) > 1e-6) run.pipe_to(p);
@@ -960,7 +1033,8 @@ void Piping::add_supports(LineContext& line, const Run& run) {
         Mix mixes[4];
         for (int k = 1; k < 4; ++k) mixes[k] = part_mix(parts[k]);
         const Part part = parts[ledger.choose(mixes)];
-        if (part != Part::weld) build_support(line, part, dvec3(x, p.a.y, p.a.z), dir, p.bore, beam);
+        if (part != Part::weld)
+          build_support(line, part, dvec3(x, p.a.y, p.a.z), dir, p.bore, beam);
       }
       continue;
     }
@@ -981,7 +1055,8 @@ void Piping::add_supports(LineContext& line, const Run& run) {
                            part_mix(Part::bracket_braced), part_mix(Part::strut)};
       const Part part = parts[ledger.choose(mixes)];
       if (part != Part::weld) {
-        build_support(line, part, at, dir, p.bore, at.z + r + 1.0, across * (rng_.chance(500) ? 1.0 : -1.0));
+        build_support(line, part, at, dir, p.bore, at.z + r + 1.0,
+                      across * (rng_.chance(500) ? 1.0 : -1.0));
       }
     }
   }
@@ -1040,9 +1115,15 @@ void Piping::add_supports(LineContext& line, const Run& run) {
 // Pipeline kinds.
 
 constexpr Service kHeaderServices[] = {
-    Service::lp_steam,  Service::cooling_water_supply, Service::cooling_water_return,
-    Service::nitrogen,  Service::instrument_air,       Service::mp_steam,
-    Service::plant_air, Service::fuel_gas,             Service::condensate,
+    Service::lp_steam,
+    Service::cooling_water_supply,
+    Service::cooling_water_return,
+    Service::nitrogen,
+    Service::instrument_air,
+    Service::mp_steam,
+    Service::plant_air,
+    Service::fuel_gas,
+    Service::condensate,
     Service::flare,
 };
 constexpr int kHeaderServiceCount = int(sizeof kHeaderServices / sizeof kHeaderServices[0]);
@@ -1086,8 +1167,8 @@ bool rack_route(Unit& unit, Rng& rng, int rack_index, int side, double x0, doubl
     if (std::isnan(y)) continue;
     const double z = rack.tiers[size_t(tier)] + 0.1 + r;
     const double aside = s.y + side * 1.5;
-    if (route(s, ds, e, de, bend_r, r + 0.1, {0.0, 0.4, 1.0}, rack_patterns(y, z, aside),
-              options, 3)) {
+    if (route(s, ds, e, de, bend_r, r + 0.1, {0.0, 0.4, 1.0}, rack_patterns(y, z, aside), options,
+              3)) {
       return true;
     }
     // The lane stays reserved: a later line simply takes the next one.
@@ -1124,7 +1205,8 @@ bool Piping::build_header(int h) {
   std::vector<SegmentSlots> segs = segments_of(pts, bore);
   // Take-offs for the drops, in x order, spaced apart.
   std::vector<int>& drops = header_drops_[size_t(h)];
-  std::stable_sort(drops.begin(), drops.end(), [&](int a, int b) { return drops_[size_t(a)].x < drops_[size_t(b)].x; });
+  std::stable_sort(drops.begin(), drops.end(),
+                   [&](int a, int b) { return drops_[size_t(a)].x < drops_[size_t(b)].x; });
   // Spaced apart: pushed forward from the start, then back from the end.
   const double c = tee_half(bore), spacing = 2 * c + 2 * kMinPipe + 0.2;
   const double first = s.x + c + kMinPipe + 1.0, last = e.x - c - kMinPipe - 0.5;
@@ -1159,7 +1241,8 @@ bool Piping::build_header(int h) {
       drop.side_takeoff = unit_.ledger.choose(options) == 1;
     }
     const dvec3 takeoff = drop.side_takeoff ? dvec3(0, drop.side, 0) : kUp;
-    add_forced_tee(segs, pts, bore, dvec3(drop.x, y, z), takeoff, drop.bore, TeeUse::takeoff, d, olet);
+    add_forced_tee(segs, pts, bore, dvec3(drop.x, y, z), takeoff, drop.bore, TeeUse::takeoff, d,
+                   olet);
   }
   add_optional(line, segs, pts, bore);
   std::vector<std::pair<Slot, Port>> ports;
@@ -1208,8 +1291,9 @@ bool Piping::build_drop(Drop& d) {
     const double y_exit = rack.y_centre + side * (0.5 * rack.width + 0.6);
     std::vector<Pattern> patterns = permutations({{kAxisY, y_exit}});
     for (const Pattern& p : permutations({})) patterns.push_back(p);
-    ok = route(s, head.direction, e, -n.direction, bend_radius(bore), r + 0.1, {0.0, 0.5, 1.0, 1.8}, patterns,
-               options, 4) && pick_route(options, bore, pts);
+    ok = route(s, head.direction, e, -n.direction, bend_radius(bore), r + 0.1, {0.0, 0.5, 1.0, 1.8},
+               patterns, options, 4) &&
+         pick_route(options, bore, pts);
     if (ok) {
       unit_.nozzles[size_t(d.nozzle)].used = true;
       line.to = unit_.equipment[n.equipment].tag;
@@ -1314,7 +1398,8 @@ bool Piping::build_pump_suction(int pair) {
     const Mix strainer_options[] = {Mix{}, part_mix(Part::strainer)};
     if (unit_.ledger.choose(strainer_options) == 1) end.push_back(item(Part::strainer, bore));
     const Mix reducer_options[] = {part_mix(Part::reducer_conc), part_mix(Part::reducer_ecc)};
-    const Part reducer = unit_.ledger.choose(reducer_options) == 1 ? Part::reducer_ecc : Part::reducer_conc;
+    const Part reducer =
+        unit_.ledger.choose(reducer_options) == 1 ? Part::reducer_ecc : Part::reducer_conc;
     end.push_back({reducer, bore, far.bore, true});
     end.push_back(item(flange, far.bore, true));
     end.push_back(item(Part::gasket, far.bore));
@@ -1327,17 +1412,17 @@ bool Piping::build_pump_suction(int pair) {
   const dvec3 tee_centre(e_near.x, corner.y, corner.z);
   // Vessel side.
   const Port head{f.position, f.direction, f.bore};
-  const std::vector<Item> start =
-      feeder >= 0 ? nozzle_group(line, f, bore, true, true)
-                  : std::vector<Item>{item(flange, bore, false)};
+  const std::vector<Item> start = feeder >= 0 ? nozzle_group(line, f, bore, true, true)
+                                              : std::vector<Item>{item(flange, bore, false)};
   const dvec3 s = head.position + group_span(start, f.direction);
   std::vector<dvec3> pts;
   const double run_in = std::abs(far.position.x - near.position.x) + c + 2 * big_r + 0.4;
-  std::vector<Pattern> patterns = local_patterns(s, corner, big_r, 1.5);
+  std::vector<Pattern> patterns = local_patterns(s, corner, big_r);
   if (feeder < 0) {
     // Along the lane to above the pumps, then down beside the rack.
     const double y_out = corner.y;
-    patterns.insert(patterns.begin(), Pattern{{kAxisX, corner.x - dx * run_in}, {kAxisY, y_out}, {kAxisZ, NAN}});
+    patterns.insert(patterns.begin(),
+                    Pattern{{kAxisX, corner.x - dx * run_in}, {kAxisY, y_out}, {kAxisZ, NAN}});
   }
   std::vector<std::vector<dvec3>> options;
   if (!route(s, f.direction, corner, dvec3(dx, 0, 0), big_r, 0.5 * pipe_size(bore).od_m + 0.1,
@@ -1391,8 +1476,9 @@ bool Piping::build_pump_discharge(int pair) {
   const int rack_index = pa.band >= 0 ? unit_.bands[size_t(pa.band)].rack : 0;
   const Rack& rack = unit_.racks[size_t(rack_index)];
   const int side = pa.band >= 0 ? unit_.bands[size_t(pa.band)].side : 1;
-  const double x_dest = target >= 0 ? unit_.nozzles[size_t(target)].position.x
-                        : (na.position.x < 0.5 * unit_.info.plan_x_m ? 0.0 : unit_.info.plan_x_m);
+  const double x_dest =
+      target >= 0 ? unit_.nozzles[size_t(target)].position.x
+                  : (na.position.x < 0.5 * unit_.info.plan_x_m ? 0.0 : unit_.info.plan_x_m);
   const double dx = x_dest >= 0.5 * (na.position.x + nb.position.x) ? 1.0 : -1.0;
   const bool a_first = (nb.position.x - na.position.x) * dx > 0;
   const Nozzle& first = a_first ? na : nb;
@@ -1402,20 +1488,29 @@ bool Piping::build_pump_discharge(int pair) {
   const Part flange = line.weld_neck ? Part::flange_wn : Part::flange_so;
   // Each riser: the pump's flange, a reducer, then a check valve and a block valve (bolted
   // together between flanges, or butt-welded).
-  const std::vector<Item> flanged{item(Part::gasket, na.bore), item(flange, na.bore, false),
+  const std::vector<Item> flanged{item(Part::gasket, na.bore),
+                                  item(flange, na.bore, false),
                                   {Part::reducer_conc, na.bore, bore, true},
-                                  item(flange, bore, true), item(Part::gasket, bore),
-                                  item(Part::check, bore), item(Part::gasket, bore),
-                                  item(Part::gate, bore), item(Part::gasket, bore),
+                                  item(flange, bore, true),
+                                  item(Part::gasket, bore),
+                                  item(Part::check, bore),
+                                  item(Part::gasket, bore),
+                                  item(Part::gate, bore),
+                                  item(Part::gasket, bore),
                                   item(flange, bore, false)};
-  const std::vector<Item> welded{item(Part::gasket, na.bore), item(flange, na.bore, false),
+  const std::vector<Item> welded{item(Part::gasket, na.bore),
+                                 item(flange, na.bore, false),
                                  {Part::reducer_conc, na.bore, bore, true},
-                                 item(Part::weld, bore), item(Part::check, bore),
-                                 item(Part::weld, bore), item(Part::ball_welded, bore),
+                                 item(Part::weld, bore),
+                                 item(Part::check, bore),
+                                 item(Part::weld, bore),
+                                 item(Part::ball_welded, bore),
                                  item(Part::weld, bore)};
-  const std::vector<Item> check_only{item(Part::gasket, na.bore), item(flange, na.bore, false),
+  const std::vector<Item> check_only{item(Part::gasket, na.bore),
+                                     item(flange, na.bore, false),
                                      {Part::reducer_conc, na.bore, bore, true},
-                                     item(Part::weld, bore), item(Part::check, bore),
+                                     item(Part::weld, bore),
+                                     item(Part::check, bore),
                                      item(Part::weld, bore)};
   const Mix riser_options[] = {group_mix(flanged), group_mix(welded), group_mix(check_only)};
   const size_t riser = unit_.ledger.choose(riser_options);
@@ -1434,7 +1529,7 @@ bool Piping::build_pump_discharge(int pair) {
     de = -t.direction;
     line.to = unit_.equipment[t.equipment].tag;
   } else {
-    end = {item(flange, bore, true), item(Part::gasket, bore), item(Part::gate, bore),
+    end = {item(flange, bore, true), item(Part::gasket, bore),  item(Part::gate, bore),
            item(Part::gasket, bore), item(flange, bore, false), item(flange, bore, true)};
     de = dvec3(dx, 0, 0);
     line.to = "Battery limit";
@@ -1451,13 +1546,14 @@ bool Piping::build_pump_discharge(int pair) {
       if (std::isnan(y)) continue;
       const double z = lane_z(tier, rk, bore);
       std::vector<Pattern> patterns = rack_patterns(y, z, corner.y);
-      for (const Pattern& p : local_patterns(corner, e, big_r, 1.5)) patterns.push_back(p);
+      for (const Pattern& p : local_patterns(corner, e, big_r)) patterns.push_back(p);
       ok = route(corner, dvec3(dx, 0, 0), e, de, big_r, 0.5 * pipe_size(bore).od_m + 0.1,
-                 {0.0, 0.5, 1.2}, patterns, options, 3, run_out) && pick_route(options, bore, pts);
+                 {0.0, 0.5, 1.2}, patterns, options, 3, run_out) &&
+           pick_route(options, bore, pts);
     }
     if (!ok) {
       ok = route(corner, dvec3(dx, 0, 0), e, de, big_r, 0.5 * pipe_size(bore).od_m + 0.1,
-                 {0.0, 0.5, 1.2}, local_patterns(corner, e, big_r, 1.5), options, 3, run_out) &&
+                 {0.0, 0.5, 1.2}, local_patterns(corner, e, big_r), options, 3, run_out) &&
            pick_route(options, bore, pts);
     }
   } else {
@@ -1470,14 +1566,15 @@ bool Piping::build_pump_discharge(int pair) {
       e = q - group_span(end, de);
       const std::vector<Pattern> patterns{{{kAxisZ, z}, {kAxisY, y}, {kAxisX, NAN}}};
       ok = route(corner, dvec3(dx, 0, 0), e, de, big_r, 0.1, {0.0, 0.5, 1.2}, patterns, options, 3,
-                 run_out) && pick_route(options, bore, pts);
+                 run_out) &&
+           pick_route(options, bore, pts);
     }
     if (!ok) {
       // No lane left toward that end: along the pump row to a battery limit at grade level.
       const dvec3 q(dx > 0 ? unit_.info.plan_x_m - 0.02 : 0.02, corner.y, corner.z);
       e = q - group_span(end, de);
       ok = route(corner, dvec3(dx, 0, 0), e, de, big_r, 0.1, {0.0, 0.5, 1.2},
-                 local_patterns(corner, e, big_r, 1.5), options, 3, run_out) &&
+                 local_patterns(corner, e, big_r), options, 3, run_out) &&
            pick_route(options, bore, pts);
     }
   }
@@ -1527,10 +1624,10 @@ bool Piping::build_process(int ia, int ib) {
   LineContext line = new_line(Service::process, bore);
   line.from = unit_.equipment[a.equipment].tag;
   line.to = unit_.equipment[b.equipment].tag;
-  const std::vector<Item> start = nozzle_group(line, a, bore, true,
-                                               a.direction.z > -0.5 || a.position.z > 2.2);
-  const std::vector<Item> end = nozzle_group(line, b, bore, false,
-                                             b.direction.z > -0.5 || b.position.z > 2.2);
+  const std::vector<Item> start =
+      nozzle_group(line, a, bore, true, a.direction.z > -0.5 || a.position.z > 2.2);
+  const std::vector<Item> end =
+      nozzle_group(line, b, bore, false, b.direction.z > -0.5 || b.position.z > 2.2);
   const dvec3 s = a.position + group_span(start, a.direction);
   const dvec3 e = b.position - group_span(end, -b.direction);
   const double big_r = bend_radius(bore), min_z = 0.5 * pipe_size(bore).od_m + 0.1;
@@ -1542,15 +1639,18 @@ bool Piping::build_process(int ia, int ib) {
   const bool local = band_a == band_b && std::abs(a.position.x - b.position.x) < 25.0;
   if (local) {
     ok = route(s, a.direction, e, -b.direction, big_r, min_z, {0.0, 0.4, 1.0, 2.0},
-               local_patterns(s, e, big_r, 1.5), options, 4) && pick_route(options, bore, pts);
+               local_patterns(s, e, big_r), options, 3) &&
+         pick_route(options, bore, pts);
   }
   if (!ok) {
-    ok = rack_route(unit_, rng_, rack_of_nozzle(ia), band_a ? band_a->side : 1, s.x, e.x, bore, big_r, s,
-                    a.direction, e, -b.direction, options) && pick_route(options, bore, pts);
+    ok = rack_route(unit_, rng_, rack_of_nozzle(ia), band_a ? band_a->side : 1, s.x, e.x, bore,
+                    big_r, s, a.direction, e, -b.direction, options) &&
+         pick_route(options, bore, pts);
   }
   if (!ok && !local) {
     ok = route(s, a.direction, e, -b.direction, big_r, min_z, {0.0, 0.4, 1.0, 2.0},
-               local_patterns(s, e, big_r, 1.5), options, 4) && pick_route(options, bore, pts);
+               local_patterns(s, e, big_r), options, 3) &&
+         pick_route(options, bore, pts);
   }
   if (!ok) {
     return false;
@@ -1573,8 +1673,8 @@ bool Piping::build_battery_limit(int ia) {
   line.to = "Battery limit";
   const Part flange = line.weld_neck ? Part::flange_wn : Part::flange_so;
   const std::vector<Item> start = nozzle_group(line, a, bore, true, true);
-  const std::vector<Item> end{item(flange, bore, true), item(Part::gasket, bore),
-                              item(Part::gate, bore), item(Part::gasket, bore),
+  const std::vector<Item> end{item(flange, bore, true),  item(Part::gasket, bore),
+                              item(Part::gate, bore),    item(Part::gasket, bore),
                               item(flange, bore, false), item(Part::spectacle, bore),
                               item(flange, bore, true)};
   const dvec3 s = a.position + group_span(start, a.direction);
@@ -1586,7 +1686,8 @@ bool Piping::build_battery_limit(int ia) {
   std::vector<std::vector<dvec3>> options;
   bool ok = false;
   for (int tier = 0; tier < int(rack.tiers.size()) && !ok; ++tier) {
-    const double y = reserve_lane(rack, tier, s.x, x_bl, pipe_size(bore).od_m, band ? band->side : 1);
+    const double y =
+        reserve_lane(rack, tier, s.x, x_bl, pipe_size(bore).od_m, band ? band->side : 1);
     if (std::isnan(y)) continue;
     const double z = lane_z(tier, rack, bore);
     const dvec3 e = dvec3(x_bl, y, z) - group_span(end, de);
@@ -1599,14 +1700,15 @@ bool Piping::build_battery_limit(int ia) {
       p.push_back({kAxisX, NAN});
       patterns.push_back(p);
     }
-    ok = route(s, a.direction, e, de, bend_radius(bore), 0.1, {0.0, 0.4, 1.0}, patterns, options, 3) &&
+    ok = route(s, a.direction, e, de, bend_radius(bore), 0.1, {0.0, 0.4, 1.0}, patterns, options,
+               3) &&
          pick_route(options, bore, pts);
   }
   if (!ok) {
     // No lane left toward that end: to a battery limit at the nozzle's elevation.
     const dvec3 e = dvec3(x_bl, s.y, std::max(s.z, 1.0)) - group_span(end, de);
     ok = route(s, a.direction, e, de, bend_radius(bore), 0.1, {0.0, 0.4, 1.0},
-               local_patterns(s, e, bend_radius(bore), 1.5), options, 3) &&
+               local_patterns(s, e, bend_radius(bore)), options, 3) &&
          pick_route(options, bore, pts);
   }
   if (!ok) {
@@ -1645,20 +1747,26 @@ void Piping::run(const std::function<void(double)>& progress) {
     const auto [kind, index] = tasks[i];
     // Elbows: long radius, or 3D and 5D pulled bends on some lines (not on headers).
     const uint32_t roll = rng_.below(1000);
-    bend_factor_ = kind == kHeader ? 1.0
+    bend_factor_ = kind == kHeader                        ? 1.0
                    : roll < unit_.spec.bends_5d_per_mille ? 5.0 / 1.5
                    : roll < unit_.spec.bends_5d_per_mille + unit_.spec.bends_3d_per_mille ? 2.0
                                                                                           : 1.0;
     bool ok = true;
     auto build = [&] {
       switch (kind) {
-        case kHeader: return build_header(index);
-        case kDrop: return build_drop(drops_[size_t(index)]);
-        case kSuction: return build_pump_suction(index);
-        case kDischarge: return build_pump_discharge(index);
+        case kHeader:
+          return build_header(index);
+        case kDrop:
+          return build_drop(drops_[size_t(index)]);
+        case kSuction:
+          return build_pump_suction(index);
+        case kDischarge:
+          return build_pump_discharge(index);
         case kProcess:
-          return build_process(process_pairs_[size_t(index)].first, process_pairs_[size_t(index)].second);
-        case kBatteryLimit: return build_battery_limit(battery_limit_nozzles_[size_t(index)]);
+          return build_process(process_pairs_[size_t(index)].first,
+                               process_pairs_[size_t(index)].second);
+        case kBatteryLimit:
+          return build_battery_limit(battery_limit_nozzles_[size_t(index)]);
       }
       return false;
     };

@@ -10,8 +10,17 @@
 namespace plantview::gen {
 
 enum class Service : uint8_t {
-  process, lp_steam, mp_steam, condensate, cooling_water_supply, cooling_water_return, nitrogen,
-  instrument_air, plant_air, fuel_gas, flare,
+  process,
+  lp_steam,
+  mp_steam,
+  condensate,
+  cooling_water_supply,
+  cooling_water_return,
+  nitrogen,
+  instrument_air,
+  plant_air,
+  fuel_gas,
+  flare,
 };
 struct ServiceInfo {
   const char* code;   // line number prefix: "P", "LS", "CWS"...
@@ -22,12 +31,46 @@ const ServiceInfo& service_info(Service service);
 
 // Every kind of branch member (and support). Straight members advance along the run.
 enum class Part : uint8_t {
-  pipe, elbow, tee, olet, weld, flange_so, flange_wn, gasket, blind, cap, plug, gate, globe, globe_y,
-  ball, ball_welded, ball_sw, check, butterfly, control, reducer_conc, reducer_ecc, strainer, trap,
-  orifice, spectacle,
+  pipe,
+  elbow,
+  tee,
+  olet,
+  weld,
+  flange_so,
+  flange_wn,
+  gasket,
+  blind,
+  cap,
+  plug,
+  gate,
+  globe,
+  globe_y,
+  ball,
+  ball_welded,
+  ball_sw,
+  check,
+  butterfly,
+  control,
+  reducer_conc,
+  reducer_ecc,
+  strainer,
+  trap,
+  orifice,
+  spectacle,
   // Supports (not branch members).
-  shoe, shoe_gusseted, guide, hanger, clamp, bracket, bracket_braced, strut, trunnion, stanchion,
-  dummy_leg, dummy_leg_bare, dummy_leg_gusseted,
+  shoe,
+  shoe_gusseted,
+  guide,
+  hanger,
+  clamp,
+  bracket,
+  bracket_braced,
+  strut,
+  trunnion,
+  stanchion,
+  dummy_leg,
+  dummy_leg_bare,
+  dummy_leg_gusseted,
 };
 inline constexpr int kPartCount = int(Part::dummy_leg_gusseted) + 1;
 
@@ -39,7 +82,9 @@ struct Item {
   int bore_in = 0, bore_out = 0;
   bool face_forward = true;
 };
-inline Item item(Part part, int bore, bool face_forward = true) { return {part, bore, bore, face_forward}; }
+inline Item item(Part part, int bore, bool face_forward = true) {
+  return {part, bore, bore, face_forward};
+}
 
 double item_length(const Item& item);
 // Where a member that starts at `from` on a run along `dir` ends.
@@ -62,17 +107,17 @@ struct Port {
 struct LineContext {
   explicit LineContext(Unit& unit_) : unit(unit_) {}
   Unit& unit;
-  std::string name;       // "/P-01-0203"
+  std::string name;  // "/P-01-0203"
   uint64_t id = 0;
   Service service = Service::process;
-  int bore = 0;           // nominal line size
+  int bore = 0;  // nominal line size
   const char* spec = "A1A";
   const char* rating = "CL150";
-  bool weld_neck = false; // flange type of the spec
+  bool weld_neck = false;  // flange type of the spec
   int support_count = 0;
   std::vector<Branch> branches;
-  std::string from, to;   // for the pipeline's attributes
-  int tag_seq = 0;        // valve tags
+  std::string from, to;      // for the pipeline's attributes
+  int tag_seq = 0;           // valve tags
   double bend_factor = 1.0;  // elbow bend radius over the long-radius one (1, 2 or 3.33)
 };
 
@@ -85,8 +130,8 @@ class Run {
   int bore() const { return bore_; }
   const std::string& name() const { return name_; }
 
-  void straight(const Item& item);                  // a fitting, valve, flange, weld...
-  void pipe_to(const dvec3& end);                   // a pipe along the current direction
+  void straight(const Item& item);                      // a fitting, valve, flange, weld...
+  void pipe_to(const dvec3& end);                       // a pipe along the current direction
   void elbow(const dvec3& corner, const dvec3& d_out);  // position must be corner - R * dir
   Port tee(const dvec3& branch_dir, int branch_bore);   // the branch port, pointing out
   // A branch outlet welded onto the run (no length along it): inlet and outlet at the same point.

@@ -40,27 +40,44 @@ struct PartInfo {
   const char* material;
 };
 constexpr PartInfo kParts[kPartCount] = {
-    {"TUBE", "SMLS", "A106 Gr.B"},      {"ELBO", "LR90", "A234 WPB"},
-    {"TEE", "EQUAL", "A234 WPB"},       {"OLET", "WOL", "A105"},
+    {"TUBE", "SMLS", "A106 Gr.B"},
+    {"ELBO", "LR90", "A234 WPB"},
+    {"TEE", "EQUAL", "A234 WPB"},
+    {"OLET", "WOL", "A105"},
     {"WELD", "BW", ""},
-    {"FLAN", "SO", "A105"},             {"FLAN", "WN", "A105"},
-    {"GASK", "SPW", "SS316/Graphite"},  {"FBLI", "BL", "A105"},
-    {"CAP", "ELLI", "A234 WPB"},        {"PLUG", "HEX", "A105"},
-    {"VALV", "GATE", "A216 WCB"},       {"VALV", "GLOBE", "A216 WCB"},
-    {"VALV", "Y-GLOBE", "A216 WCB"},    {"VALV", "BALL", "A216 WCB"},
-    {"VALV", "BALL BW", "A216 WCB"},    {"VALV", "BALL SW", "A105"},
-    {"VALV", "SWING CHECK", "A216 WCB"},{"VALV", "BUTTERFLY", "A216 WCB"},
-    {"INST", "GLOBE CV", "A216 WCB"},   {"REDU", "CONC", "A234 WPB"},
-    {"REDU", "ECC", "A234 WPB"},        {"FILT", "Y-TYPE", "A216 WCB"},
+    {"FLAN", "SO", "A105"},
+    {"FLAN", "WN", "A105"},
+    {"GASK", "SPW", "SS316/Graphite"},
+    {"FBLI", "BL", "A105"},
+    {"CAP", "ELLI", "A234 WPB"},
+    {"PLUG", "HEX", "A105"},
+    {"VALV", "GATE", "A216 WCB"},
+    {"VALV", "GLOBE", "A216 WCB"},
+    {"VALV", "Y-GLOBE", "A216 WCB"},
+    {"VALV", "BALL", "A216 WCB"},
+    {"VALV", "BALL BW", "A216 WCB"},
+    {"VALV", "BALL SW", "A105"},
+    {"VALV", "SWING CHECK", "A216 WCB"},
+    {"VALV", "BUTTERFLY", "A216 WCB"},
+    {"INST", "GLOBE CV", "A216 WCB"},
+    {"REDU", "CONC", "A234 WPB"},
+    {"REDU", "ECC", "A234 WPB"},
+    {"FILT", "Y-TYPE", "A216 WCB"},
     {"TRAP", "FLOAT", "A216 WCB"},
-    {"INST", "ORIFICE PLATE", "SS316"}, {"PCOM", "SPECTACLE", "A516 Gr.70"},
-    {"SUPP", "SHOE", "S275"},           {"SUPP", "SHOE", "S275"},
-    {"SUPP", "GUIDE", "S275"},          {"SUPP", "ROD HANGER", "S275"},
+    {"INST", "ORIFICE PLATE", "SS316"},
+    {"PCOM", "SPECTACLE", "A516 Gr.70"},
+    {"SUPP", "SHOE", "S275"},
+    {"SUPP", "SHOE", "S275"},
+    {"SUPP", "GUIDE", "S275"},
+    {"SUPP", "ROD HANGER", "S275"},
     {"SUPP", "RISER CLAMP", "S275"},
-    {"SUPP", "BRACKET", "S275"},        {"SUPP", "BRACED BRACKET", "S275"},
+    {"SUPP", "BRACKET", "S275"},
+    {"SUPP", "BRACED BRACKET", "S275"},
     {"SUPP", "STRUT", "S275"},
-    {"SUPP", "TRUNNION", "S275"},       {"SUPP", "STANCHION", "S275"},
-    {"SUPP", "DUMMY LEG", "S275"},      {"SUPP", "DUMMY LEG", "S275"},
+    {"SUPP", "TRUNNION", "S275"},
+    {"SUPP", "STANCHION", "S275"},
+    {"SUPP", "DUMMY LEG", "S275"},
+    {"SUPP", "DUMMY LEG", "S275"},
     {"SUPP", "DUMMY LEG", "S275"},
 };
 
@@ -125,9 +142,16 @@ const std::array<Mix, kPartCount> kPartMixes = make_part_mixes();
 
 double tee_half(int bore) { return 0.025 + 0.72 * pipe_size(bore).od_m; }
 
-std::string bore_text(int bore) {
-  const PipeSize& s = pipe_size(bore);
-  return "DN" + std::to_string(s.dn) + " (" + s.label + ")";
+const std::string& bore_text(int bore) {
+  static const std::array<std::string, kPipeSizeCount> texts = [] {
+    std::array<std::string, kPipeSizeCount> t;
+    for (int i = 0; i < kPipeSizeCount; ++i) {
+      const PipeSize& s = pipe_size(i);
+      t[size_t(i)] = "DN" + std::to_string(s.dn) + " (" + s.label + ")";
+    }
+    return t;
+  }();
+  return texts[size_t(bore)];
 }
 
 // A unit vector across the run, horizontal where the run is (up where it is vertical... any
@@ -187,7 +211,7 @@ dvec3 shape_item(ObjectBuilder& b, const Item& it, const dvec3& a, const dvec3& 
     case Part::globe_y: {
       b.cylinder(a, a + dir * (0.45 * len), 0.9 * rf);
       b.cylinder(a + dir * (0.45 * len), out, 0.9 * rf);
-      const dvec3 bonnet = glm::normalize(up + dir) , tilt = glm::normalize(dir - up);
+      const dvec3 bonnet = glm::normalize(up + dir), tilt = glm::normalize(dir - up);
       const dvec3 bonnet_top = m + bonnet * (1.2 * s.od_m + 0.12);
       b.sheared_cylinder(m, bonnet_top, 0.6 * rf, tilt, kQuarterPi, 0.0f);
       handwheel(bonnet_top, bonnet, 0.6 * s.od_m + 0.15);
@@ -197,7 +221,8 @@ dvec3 shape_item(ObjectBuilder& b, const Item& it, const dvec3& a, const dvec3& 
       b.cylinder(a, a + dir * (0.2 * len), 0.95 * rf);
       b.cylinder(out - dir * (0.2 * len), out, 0.95 * rf);
       b.sphere(m, 0.42 * len + 0.3 * r);
-      b.box(m + up * (0.42 * len + 0.3 * r + 0.04), dir, up, dvec3(0.25 + 2.5 * s.od_m, 0.03, 0.02));
+      b.box(m + up * (0.42 * len + 0.3 * r + 0.04), dir, up,
+            dvec3(0.25 + 2.5 * s.od_m, 0.03, 0.02));
       break;
     case Part::ball_sw:
       // Small-bore socket-weld ball valve: the forged body, drawn as its ball.
@@ -277,14 +302,24 @@ dvec3 shape_item(ObjectBuilder& b, const Item& it, const dvec3& a, const dvec3& 
 
 Colour colour_of(Part part, Service service) {
   switch (part) {
-    case Part::flange_so: case Part::flange_wn: case Part::gasket: case Part::blind:
+    case Part::flange_so:
+    case Part::flange_wn:
+    case Part::gasket:
+    case Part::blind:
     case Part::spectacle:
       return kFlangeGrey;
-    case Part::gate: case Part::globe: case Part::globe_y: case Part::ball: case Part::check:
-    case Part::ball_welded: case Part::ball_sw: case Part::trap:
+    case Part::gate:
+    case Part::globe:
+    case Part::globe_y:
+    case Part::ball:
+    case Part::check:
+    case Part::ball_welded:
+    case Part::ball_sw:
+    case Part::trap:
     case Part::butterfly:
       return kValveRed;
-    case Part::control: case Part::orifice:
+    case Part::control:
+    case Part::orifice:
       return kInstrumentYellow;
     default:
       return service_info(service).colour;
@@ -297,31 +332,56 @@ const ServiceInfo& service_info(Service service) { return kServices[size_t(servi
 
 const Mix& part_mix(Part part) { return kPartMixes[size_t(part)]; }
 
-bool is_closure(Part part) { return part == Part::blind || part == Part::cap || part == Part::plug; }
+bool is_closure(Part part) {
+  return part == Part::blind || part == Part::cap || part == Part::plug;
+}
 
 double item_length(const Item& it) {
   const PipeSize& s = pipe_size(it.bore_in);
   switch (it.part) {
-    case Part::tee: return 2.0 * tee_half(it.bore_in);
-    case Part::weld: return 0.0;
-    case Part::flange_so: case Part::flange_wn: return s.flange_thk_m;
-    case Part::gasket: return 0.003;
-    case Part::blind: return 0.8 * s.flange_thk_m;
-    case Part::cap: return 0.25 * s.od_m;
-    case Part::plug: return 0.05;
-    case Part::gate: case Part::check: return s.valve_len_m;
-    case Part::globe: return 1.15 * s.valve_len_m;
-    case Part::globe_y: return 1.2 * s.valve_len_m;
-    case Part::ball: case Part::ball_welded: return 0.9 * s.valve_len_m;
-    case Part::ball_sw: return 0.8 * s.valve_len_m;
-    case Part::butterfly: return std::max(0.05, 0.25 * s.valve_len_m);
-    case Part::control: return 1.2 * s.valve_len_m;
-    case Part::reducer_conc: case Part::reducer_ecc:
+    case Part::tee:
+      return 2.0 * tee_half(it.bore_in);
+    case Part::weld:
+      return 0.0;
+    case Part::flange_so:
+    case Part::flange_wn:
+      return s.flange_thk_m;
+    case Part::gasket:
+      return 0.003;
+    case Part::blind:
+      return 0.8 * s.flange_thk_m;
+    case Part::cap:
+      return 0.25 * s.od_m;
+    case Part::plug:
+      return 0.05;
+    case Part::gate:
+    case Part::check:
+      return s.valve_len_m;
+    case Part::globe:
+      return 1.15 * s.valve_len_m;
+    case Part::globe_y:
+      return 1.2 * s.valve_len_m;
+    case Part::ball:
+    case Part::ball_welded:
+      return 0.9 * s.valve_len_m;
+    case Part::ball_sw:
+      return 0.8 * s.valve_len_m;
+    case Part::butterfly:
+      return std::max(0.05, 0.25 * s.valve_len_m);
+    case Part::control:
+      return 1.2 * s.valve_len_m;
+    case Part::reducer_conc:
+    case Part::reducer_ecc:
       return 0.076 + 0.6 * std::max(s.od_m, pipe_size(it.bore_out).od_m);
-    case Part::strainer: return 1.3 * s.valve_len_m;
-    case Part::trap: return 1.6 * s.valve_len_m;
-    case Part::orifice: case Part::spectacle: return 0.01;
-    default: return 0.0;
+    case Part::strainer:
+      return 1.3 * s.valve_len_m;
+    case Part::trap:
+      return 1.6 * s.valve_len_m;
+    case Part::orifice:
+    case Part::spectacle:
+      return 0.01;
+    default:
+      return 0.0;
   }
 }
 
@@ -430,7 +490,9 @@ void Run::elbow(const dvec3& corner, const dvec3& d_out) {
   b.centreline(corner, p2, s.od_m);
   b.attribute("Angle", "90 deg");
   elbows_.push_back({corner, dir_, d_out, bore_});
-  const char* stype = line_.bend_factor > 3.0 ? "5D BEND" : line_.bend_factor > 1.5 ? "3D BEND" : nullptr;
+  const char* stype = line_.bend_factor > 3.0   ? "5D BEND"
+                      : line_.bend_factor > 1.5 ? "3D BEND"
+                                                : nullptr;
   emit(b, Part::elbow, member_name("ELBO"), stype);
   pos_ = p2;
   dir_ = d_out;
@@ -492,7 +554,8 @@ void build_support(LineContext& line, Part part, const dvec3& at, const dvec3& d
   const PipeSize& s = pipe_size(bore);
   const double r = 0.5 * s.od_m;
   ObjectBuilder b(line.unit.origin_m, at, ObjectClass::component);
-  const dvec3 across = std::abs(dir.z) < 0.9 ? glm::normalize(glm::cross(kUp, dir)) : dvec3(1, 0, 0);
+  const dvec3 across =
+      std::abs(dir.z) < 0.9 ? glm::normalize(glm::cross(kUp, dir)) : dvec3(1, 0, 0);
   const dvec3 along = std::abs(dir.z) < 0.9 ? dir : dvec3(0, 1, 0);
   dvec3 toward = -kUp;
   switch (part) {
@@ -552,7 +615,8 @@ void build_support(LineContext& line, Part part, const dvec3& at, const dvec3& d
       const double rs = std::min(0.15, std::max(0.03, 0.7 * r));
       const dvec3 foot(at.x, at.y, ground_z + 0.02);
       b.sheared_cylinder(foot, at, rs, along, 0.0f, -kQuarterPi);
-      b.box(dvec3(at.x, at.y, ground_z + 0.01), along, kUp, dvec3(2.4 * rs + 0.1, 2.4 * rs + 0.1, 0.02));
+      b.box(dvec3(at.x, at.y, ground_z + 0.01), along, kUp,
+            dvec3(2.4 * rs + 0.1, 2.4 * rs + 0.1, 0.02));
       break;
     }
     case Part::clamp:
@@ -572,7 +636,8 @@ void build_support(LineContext& line, Part part, const dvec3& at, const dvec3& d
       const double rs = std::min(0.08, std::max(0.03, 0.6 * r));
       b.cylinder(dvec3(at.x, at.y, ground_z + 0.02), dvec3(at.x, at.y, bottom - 0.02), rs);
       b.box(dvec3(at.x, at.y, ground_z + 0.01), along, kUp, dvec3(0.35, 0.35, 0.02));
-      b.box(dvec3(at.x, at.y, bottom - 0.01), along, kUp, dvec3(0.25, std::max(0.1, 1.4 * r), 0.02));
+      b.box(dvec3(at.x, at.y, bottom - 0.01), along, kUp,
+            dvec3(0.25, std::max(0.1, 1.4 * r), 0.02));
       break;
     }
     case Part::dummy_leg:
@@ -584,7 +649,8 @@ void build_support(LineContext& line, Part part, const dvec3& at, const dvec3& d
       const dvec3 foot(at.x, at.y, ground_z + 0.02);
       b.sheared_cylinder(foot, at, rs, along, 0.0f, -kQuarterPi);
       if (part != Part::dummy_leg_bare) {
-        b.box(dvec3(at.x, at.y, ground_z + 0.01), along, kUp, dvec3(2.6 * rs + 0.1, 2.6 * rs + 0.1, 0.02));
+        b.box(dvec3(at.x, at.y, ground_z + 0.01), along, kUp,
+              dvec3(2.6 * rs + 0.1, 2.6 * rs + 0.1, 0.02));
       }
       if (part == Part::dummy_leg_gusseted) {
         for (double side : {-1.0, 1.0}) {

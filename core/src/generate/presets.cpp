@@ -9,20 +9,20 @@ namespace {
 
 // Zhou et al. Table 1, in PrimitiveKind order (snouts: sheared + eccentric + concentric).
 constexpr uint32_t kZhouKinds[kPrimitiveKindCount] = {
-    9269,                // box
-    1547,                // pyramid (Zhou's wedges; Squcone 0)
-    134,                 // prism
-    30354,               // cylinder
-    12638 + 3624 + 6030, // snout: Scylinder + Econe + Concone
-    0,                   // square_to_round (Sqcir 0)
-    7881,                // circular_torus
-    528,                 // rectangular_torus
-    2904,                // sphere
-    389,                 // elliptical_dish (Oval)
-    0,                   // spherical_dish
-    32,                  // saddle
-    0,                   // line
-    0,                   // facet_group
+    9269,                 // box
+    1547,                 // pyramid (Zhou's wedges; Squcone 0)
+    134,                  // prism
+    30354,                // cylinder
+    12638 + 3624 + 6030,  // snout: Scylinder + Econe + Concone
+    0,                    // square_to_round (Sqcir 0)
+    7881,                 // circular_torus
+    528,                  // rectangular_torus
+    2904,                 // sphere
+    389,                  // elliptical_dish (Oval)
+    0,                    // spherical_dish
+    32,                   // saddle
+    0,                    // line
+    0,                    // facet_group
 };
 constexpr uint32_t kZhouSheared = 12638, kZhouEccentric = 3624, kZhouConcentric = 6030;
 constexpr uint32_t kSuTotalC = 73054;
@@ -61,10 +61,10 @@ PresetInfo make_info(char preset, std::string_view description, double x, double
 }
 
 const PresetInfo kInfo[3] = {
-    make_info('a', "Su et al. Fig. 1(a): long process unit", 213.96, 36.05, 19.14, 201, 3491,
-              12372, 841, 7919, 10762, 22172, 5692556),
-    make_info('b', "Su et al. Fig. 1(b): tall unit, many utility lines", 149.37, 82.96, 65.97,
-              108, 8509, 28959, 1101, 2148, 32751, 43408, 11579044),
+    make_info('a', "Su et al. Fig. 1(a): long process unit", 213.96, 36.05, 19.14, 201, 3491, 12372,
+              841, 7919, 10762, 22172, 5692556),
+    make_info('b', "Su et al. Fig. 1(b): tall unit, many utility lines", 149.37, 82.96, 65.97, 108,
+              8509, 28959, 1101, 2148, 32751, 43408, 11579044),
     make_info('c', "Su et al. Fig. 1(c) and Zhou et al. Fig. 1: ethylene plant section", 119.40,
               33.66, 31.32, 232, 7787, 31059, 1543, 9382, 55885, 73054, 21619272),
 };
@@ -107,20 +107,71 @@ constexpr std::array<uint16_t, kEquipmentTypeCount> mix(
 
 // Bore indices: see kPipeSizes (2: 1", 4: 2", 6: 4", 7: 6", 8: 8", 10: 12", 12: 16").
 const PresetSpec kSpecs[3] = {
-    {'a', 1, 8.0, {5.0, 7.0, 9.0, 11.0},
-     mix({{T::column, 6}, {T::vertical_drum, 20}, {T::horizontal_drum, 4}, {T::exchanger, 32},
-          {T::pump, 60}, {T::compressor, 3}, {T::air_cooler, 8}, {T::furnace, 2},
-          {T::filter, 40}, {T::tank, 2}, {T::package, 24}}),
-     1, 18.0, 1.0, 8, 4, 9, 6, 11, 0, 0, 850, 100},
-    {'b', 2, 8.0, {5.0, 7.5, 10.0, 12.5},
-     mix({{T::column, 4}, {T::vertical_drum, 28}, {T::horizontal_drum, 7}, {T::exchanger, 56},
-          {T::pump, 8}, {T::filter, 5}}),
-     2, 63.0, 1.0, 16, 4, 9, 6, 11, 0, 0, 300, 330},
-    {'c', 1, 6.4, {5.5, 7.5, 9.5, 0.0},
-     mix({{T::column, 12}, {T::vertical_drum, 54}, {T::horizontal_drum, 12}, {T::exchanger, 80},
-          {T::pump, 40}, {T::compressor, 4}, {T::air_cooler, 10}, {T::furnace, 4},
-          {T::filter, 10}, {T::package, 6}}),
-     4, 29.0, 0.58, 12, 5, 10, 7, 12, 200, 150, 200, 330},
+    // a: a long unit (214 m), one rack of four tiers, many pumps and filters; a welded plant
+    // (butt-welded nozzles and valves), so its components carry few primitives each.
+    {.preset = 'a',
+     .racks = 1,
+     .rack_width_m = 8.0,
+     .tiers_m = {5.0, 7.0, 9.0, 11.0},
+     .equipment_mix = mix({{T::column, 6}, {T::vertical_drum, 20}, {T::horizontal_drum, 4},
+                           {T::exchanger, 32}, {T::pump, 60}, {T::compressor, 3},
+                           {T::air_cooler, 8}, {T::furnace, 2}, {T::filter, 40}, {T::tank, 2},
+                           {T::package, 24}}),
+     .exchangers_on_saddles = 1,
+     .column_height_max_m = 18.0,
+     .equipment_scale = 1.0,
+     .utility_headers = 8,
+     .line_bore_min = 4,
+     .line_bore_max = 9,
+     .header_bore_min = 6,
+     .header_bore_max = 11,
+     .bends_3d_per_mille = 0,
+     .bends_5d_per_mille = 0,
+     .welded_nozzles_per_mille = 850,
+     .far_partner_per_mille = 100},
+    // b: a wide, tall unit (149 x 83 m, 63 m columns) with two racks, few items of equipment
+    // and many utility lines.
+    {.preset = 'b',
+     .racks = 2,
+     .rack_width_m = 8.0,
+     .tiers_m = {5.0, 7.5, 10.0, 12.5},
+     .equipment_mix = mix({{T::column, 4}, {T::vertical_drum, 28}, {T::horizontal_drum, 7},
+                           {T::exchanger, 56}, {T::pump, 8}, {T::filter, 5}}),
+     .exchangers_on_saddles = 2,
+     .column_height_max_m = 63.0,
+     .equipment_scale = 1.0,
+     .utility_headers = 16,
+     .line_bore_min = 4,
+     .line_bore_max = 9,
+     .header_bore_min = 6,
+     .header_bore_max = 11,
+     .bends_3d_per_mille = 0,
+     .bends_5d_per_mille = 0,
+     .welded_nozzles_per_mille = 300,
+     .far_partner_per_mille = 330},
+    // c: a dense ethylene plant section (119 x 34 m, 232 items): smaller items, exchangers in
+    // stacks of three, larger lines, and pulled 3D/5D bends on a third of the lines (Zhou's
+    // tori average more triangles than long-radius elbows).
+    {.preset = 'c',
+     .racks = 1,
+     .rack_width_m = 6.4,
+     .tiers_m = {5.5, 7.5, 9.5, 0.0},
+     .equipment_mix = mix({{T::column, 12}, {T::vertical_drum, 54}, {T::horizontal_drum, 12},
+                           {T::exchanger, 80}, {T::pump, 40}, {T::compressor, 4},
+                           {T::air_cooler, 10}, {T::furnace, 4}, {T::filter, 10},
+                           {T::package, 6}}),
+     .exchangers_on_saddles = 4,
+     .column_height_max_m = 29.0,
+     .equipment_scale = 0.58,
+     .utility_headers = 12,
+     .line_bore_min = 5,
+     .line_bore_max = 10,
+     .header_bore_min = 7,
+     .header_bore_max = 12,
+     .bends_3d_per_mille = 200,
+     .bends_5d_per_mille = 150,
+     .welded_nozzles_per_mille = 200,
+     .far_partner_per_mille = 330},
 };
 
 }  // namespace

@@ -12,16 +12,16 @@ namespace plantview::gen {
 struct PresetSpec {
   char preset;
   // Layout.
-  int racks;                       // pipe racks along x, spread evenly across y
+  int racks;  // pipe racks along x, spread evenly across y
   double rack_width_m;
-  std::array<double, 4> tiers_m;   // beam top elevations; 0 ends the list
+  std::array<double, 4> tiers_m;  // beam top elevations; 0 ends the list
   // Equipment: how many of each EquipmentType, per unit.
   std::array<uint16_t, kEquipmentTypeCount> equipment_mix;
-  int exchangers_on_saddles;       // the rest stand on concrete piers
-  double column_height_max_m;      // tallest column (below the plant height)
-  double equipment_scale;          // plan sizes of equipment (dense plots take smaller items)
+  int exchangers_on_saddles;   // the rest stand on concrete piers
+  double column_height_max_m;  // tallest column (below the plant height)
+  double equipment_scale;      // plan sizes of equipment (dense plots take smaller items)
   // Piping.
-  int utility_headers;             // headers along the racks, each feeding utility drops
+  int utility_headers;               // headers along the racks, each feeding utility drops
   int line_bore_min, line_bore_max;  // process line bores (indices into kPipeSizes)
   int header_bore_min, header_bore_max;
   // Triangles: lines (per mille) whose elbows are 3D or 5D bends (more sweep segments).

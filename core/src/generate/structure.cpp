@@ -33,7 +33,8 @@ void build_bent(Unit& unit, const Rack& rack, const std::string& rack_name, int 
     b.box_axes(dvec3(x - 0.3, y - 0.3, -0.3), dvec3(x + 0.3, y + 0.3, 0.3));     // pedestal
     b.box_axes(dvec3(x - 0.15, y - 0.15, 0.3), dvec3(x + 0.15, y + 0.15, top));  // column
     // Knee gussets under every tier beam, against the column's inner face.
-    for (double z : rack.tiers) b.wedge(dvec3(x, y - s * 0.15, z - 0.3), kY * -s, -kUp, 0.4, 0.02, 0.4);
+    for (double z : rack.tiers)
+      b.wedge(dvec3(x, y - s * 0.15, z - 0.3), kY * -s, -kUp, 0.4, 0.02, 0.4);
   }
   for (double z : rack.tiers) {
     b.box_axes(dvec3(x - 0.12, rack.y_centre - half - 0.15, z - 0.3),
@@ -44,7 +45,8 @@ void build_bent(Unit& unit, const Rack& rack, const std::string& rack_name, int 
 
 void build_bay(Unit& unit, const Rack& rack, const std::string& rack_name, int index, double x0,
                double x1, bool braced) {
-  ObjectBuilder b(unit.origin_m, dvec3(0.5 * (x0 + x1), rack.y_centre, 0.0), ObjectClass::structure);
+  ObjectBuilder b(unit.origin_m, dvec3(0.5 * (x0 + x1), rack.y_centre, 0.0),
+                  ObjectClass::structure);
   const double half = 0.5 * rack.width - 0.15;
   const double xm = 0.5 * (x0 + x1);
   for (double z : rack.tiers) {
