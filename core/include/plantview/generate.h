@@ -10,31 +10,43 @@
 //
 // Objects follow model.h. In addition, the generator guarantees:
 //   - Classes: equipment, pipeline (no primitives, only branches), pipe (exactly one cylinder),
-//     component (fittings, valves, flanges, gaskets, welds, supports...), structure (racks and
-//     steel; outside Su's categories, its boxes and wedges count toward Zhou's kinds).
+//     component (fittings, valves, flanges, gaskets, welds, supports...), structure (rack bents
+//     and bays; outside Su's categories, its primitives count toward Zhou's kinds).
 //   - Piping topology. A pipeline lists branches; a branch lists its pipes and components in flow
 //     order. For every branch member, connections[0] is the flow inlet and connections[1] the
-//     outlet (a tee adds its branch port as connections[2]); a member's outlet coincides with the
-//     next member's inlet and the two point in opposite directions. Only elbows (Type "ELBO")
-//     change the flow direction; all other members are straight (inlet and outlet directions
-//     opposite), and inline ones (flanges, gaskets, welds, valves, concentric reducers) have
-//     their connection points on the run's centreline. A branch starts and ends at an equipment
-//     nozzle (listed as a connection of the equipment object), a tee's branch port, a battery
-//     limit, or a closed end (blind flange, cap, plug). Members carry pipeline_id.
-//   - Pipe supports are components of their pipeline (pipeline_id set) but not branch members:
-//     one connection point where they carry the pipe (on its centreline, pointing toward the
-//     support), no centreline.
-//   - Names read like a PDMS model: "/P-01-0203" (pipeline), "/P-01-0203-B1" (branch),
-//     "/P-01-0203-B1/ELBO-3", "/C-01-004" (equipment), "/RACK-01-1/COL-12" (steel). The two
-//     digits after the service code are the plant unit's area (unit index + 1, wider past 99).
-//   - Ids: object_id("gen:<preset>:<seed>:<unit>", name); Object::source is "gen:<preset>".
-//   - Origins: a pipe's or component's origin is its inlet connection point; equipment and
-//     structure objects have theirs at their footprint centre on grade; pipelines at their first
-//     branch's start. Model space: x along the units' length, y across, z up, grade at z = 0.
+//     outlet (a tee or olet adds its branch port as connections[2]; a closing blind flange, cap
+//     or plug, always a branch's last member, has only its inlet); a member's outlet coincides
+//     with the next member's inlet and the two point in opposite directions. Only elbows (Type
+//     "ELBO", 90 degrees) change the flow direction; every other member is straight (inlet and
+//     outlet directions opposite), and concentric inline ones (flanges, gaskets, welds, valves,
+//     concentric reducers, orifice plates) have their connection points and centreline on the
+//     run's centreline. Welds and olets have no length along the run. A branch starts and ends
+//     at an equipment nozzle (listed among the equipment object's connections), a tee's or
+//     olet's branch port, a battery limit at the unit's edge (x = 0 or the plan length), or a
+//     closure. Members carry pipeline_id.
+//   - Pipe supports (Type "SUPP": shoes, guides, brackets, struts, clamps, hangers, stanchions,
+//     dummy legs, trunnions) are components of their pipeline (pipeline_id set) but not branch
+//     members: one connection point where they carry the pipe, pointing toward the support, and
+//     no centreline.
+//   - Names read like a PDMS model: "/P-01-0203" (pipeline: service code, area, line number),
+//     "/P-01-0203-B1" (branch), "/P-01-0203-B1/ELBO-3" (member), "/P-01-0203/SUPP-4" (support),
+//     "/C-01-004" (equipment), "/RACK-01-1/BENT-03" (steel). The area is the plant unit's index
+//     + 1, two digits (three or four from scale 100 or 1000 on). Attributes carry Type, Stype,
+//     Bore, Spec, Rating, Material, Tag (valves, instruments), Pipeline, Branch...
+//   - Ids: object_id("gen:<preset>:<seed>:<unit index>", name); Object::source is "gen:<preset>".
+//   - Origins: a pipe's or component's origin is its inlet connection point (a support's: its
+//     connection point); equipment and structure objects have theirs at their footprint centre on
+//     grade; a pipeline at its first branch's head. Model space: x along the units' length, y
+//     across, z up, grade at z = 0; unit u lies in a grid cell of the plan size plus a 20 m road.
+//   - A unit is a pure function of (preset, seed, unit index): below scale 100 (same area width)
+//     the first unit of any scale is the scale-1 plant of the same seed, object for object.
 //
-// Determinism: the output is a pure function of (preset, scale, seed): the generator uses its own
-// integer PRNG, integer bookkeeping for its choices, and no transcendental function of generated
-// values (FP contraction differences between compilers could still move a coordinate by an ulp).
+// Determinism: the output is a pure function of (preset, scale, seed) on every machine: the
+// generator draws from its own integer PRNG (xoshiro256**), keeps its bookkeeping in exact
+// integers (its choices compare correctly rounded divisions summed in a fixed order), and calls
+// no transcendental function on generated values (angles are tabulated constants). Compilers that
+// fuse multiply-adds by default (GCC for AArch64, or any -march with FMA) may round differently:
+// build the generator with -ffp-contract=off there for bit-identical output.
 //
 // Threads: generate_plant() may run on any thread; concurrent calls are independent. The sink and
 // progress callbacks are called on the calling thread.
@@ -49,9 +61,9 @@
 namespace plantview {
 
 struct GenerateOptions {
-  char preset = 'c';    // 'a', 'b' or 'c' (Su et al. Fig. 1)
-  uint32_t scale = 1;   // plant units laid out in a grid, 1..kMaxGenerateScale
-  uint64_t seed = 1;    // every unit derives its own variation from (preset, seed, unit index)
+  char preset = 'c';   // 'a', 'b' or 'c' (Su et al. Fig. 1)
+  uint32_t scale = 1;  // plant units laid out in a grid, 1..kMaxGenerateScale
+  uint64_t seed = 1;   // every unit derives its own variation from (preset, seed, unit index)
 };
 inline constexpr uint32_t kMaxGenerateScale = 1000;
 
@@ -68,11 +80,13 @@ struct GenerateSummary {
 };
 
 // Streams the plant to `sink`, one object at a time, unit after unit (objects move out; the sink
-// owns them). At most one plant unit is held in memory (a few MB), so any scale runs in bounded
-// memory. Within a unit, equipment and structure come first, then each pipeline's members followed
-// by the pipeline object itself. `progress`, if given, is called with the fraction done (0..1],
-// at least once per unit and last with 1. Options out of range (unknown preset, scale 0 or above
-// kMaxGenerateScale) are a caller bug: check them with parse_preset() and the constant above.
+// owns them). At most one plant unit's layout is held in memory (a few MB whatever the scale).
+// Within a unit, equipment and structure come first, then each pipeline's members and supports
+// followed by the pipeline object itself. `progress`, if given, is called with the fraction done
+// (0..1], non-decreasing, at least once per unit and last with 1. An exception thrown by `sink`
+// or `progress` propagates (the generator holds nothing that needs cleaning up). Options out of
+// range (unknown preset, scale 0 or above kMaxGenerateScale) are a caller bug: check them with
+// parse_preset() and the constant above.
 GenerateSummary generate_plant(const GenerateOptions& options,
                                const std::function<void(Object&&)>& sink,
                                const std::function<void(double fraction)>& progress = {});
