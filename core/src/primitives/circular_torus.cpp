@@ -166,6 +166,7 @@ void write(const CircularTorus& t, const MeshPlan& plan, const VertexSink& sink)
   const uint32_t n = plan.segments[0], s = plan.segments[1];
   const uint32_t stations = p.closed ? s : s + 1;
   std::array<glm::vec2, 257> sweep;
+  sweep[0] = glm::vec2(1.0f, 0.0f);  // station 0 is angle 0 (sweep_directions agrees)
   sweep_directions(p.angle_rad, s, stations, sweep.data());
   const uint32_t start_cap = stations * n, end_cap = start_cap + n;
   const uint32_t start_normal = sink.normal({0, -1, 0});

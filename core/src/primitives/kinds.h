@@ -16,6 +16,7 @@
 //       Analytic local bounds.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -77,6 +78,15 @@ class TemplateBuilder {
   std::vector<uint32_t> level_begin_;
 };
 
+// pack_normal, inline for the per-vertex path (the public function forwards here).
+inline uint32_t pack_unit_normal(const glm::vec3& n) {
+  auto component = [](float v) -> uint32_t {
+    v = std::min(std::max(v, -1.0f), 1.0f) * 511.0f;
+    return static_cast<uint32_t>(static_cast<int32_t>(v + (v >= 0.0f ? 0.5f : -0.5f))) & 0x3ffu;
+  };
+  return component(n.x) | component(n.y) << 10 | component(n.z) << 20;
+}
+
 // Transforms local positions and normals to model space (relative to the caller's origin) and
 // packs them. Prepared once per primitive by the driver.
 struct VertexSink {
@@ -90,14 +100,14 @@ struct VertexSink {
   uint32_t normal(const glm::vec3& local_normal) const {
     glm::vec3 n = normal_matrix * local_normal;
     float len2 = glm::dot(n, n);
-    if (!(len2 > 1e-30f)) return pack_normal(glm::vec3(0, 0, 1));
-    return pack_normal(n * (1.0f / std::sqrt(len2)));
+    if (!(len2 > 1e-30f)) return pack_unit_normal(glm::vec3(0, 0, 1));
+    return pack_unit_normal(n * (1.0f / std::sqrt(len2)));
   }
   // As normal(), for a local normal the caller knows to be of unit length: skips the
   // normalisation when the placement is a similarity (the usual case), which is the hot path.
   uint32_t unit_normal(const glm::vec3& local_unit_normal) const {
     if (!preserves_unit_normals) return normal(local_unit_normal);
-    return pack_normal(normal_matrix * local_unit_normal);
+    return pack_unit_normal(normal_matrix * local_unit_normal);
   }
   void put(uint32_t i, const glm::vec3& local_position, uint32_t packed_normal) const {
     out[i].position_m = linear * local_position + translation_m;

@@ -140,14 +140,7 @@ bool kind_from_name(std::string_view name, PrimitiveKind& kind) {
   return false;
 }
 
-uint32_t pack_normal(glm::vec3 n) {
-  auto component = [](float v) -> uint32_t {
-    v = std::clamp(v, -1.0f, 1.0f) * 511.0f;
-    const auto q = static_cast<int32_t>(v + (v >= 0.0f ? 0.5f : -0.5f));  // round half away
-    return static_cast<uint32_t>(q) & 0x3ffu;
-  };
-  return component(n.x) | component(n.y) << 10 | component(n.z) << 20;
-}
+uint32_t pack_normal(glm::vec3 n) { return detail::pack_unit_normal(n); }
 
 glm::vec3 unpack_normal(uint32_t packed) {
   auto component = [](uint32_t bits) {
