@@ -23,29 +23,6 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-nlohmann::json statistics_json(const ModelStatistics& s) {
-  nlohmann::json j;
-  j["objects"] = s.objects;
-  j["primitives"] = s.primitives;
-  j["triangles_full_resolution"] = s.triangles;
-  for (int c = 0; c < kObjectClassCount; ++c) {
-    const std::string name(class_name(ObjectClass(c)));
-    j["objects_by_class"][name] = s.objects_by_class[c];
-    j["primitives_by_class"][name] = s.primitives_by_class[c];
-    j["triangles_by_class"][name] = s.triangles_by_class[c];
-  }
-  for (int k = 0; k < kPrimitiveKindCount; ++k) {
-    const std::string name(kind_name(PrimitiveKind(k)));
-    j["primitives_by_kind"][name] = s.primitives_by_kind[k];
-    j["triangles_by_kind"][name] = s.triangles_by_kind[k];
-  }
-  if (!s.bounds.empty()) {
-    j["bounds_m"] = {{"min", {s.bounds.min.x, s.bounds.min.y, s.bounds.min.z}},
-                     {"max", {s.bounds.max.x, s.bounds.max.y, s.bounds.max.z}}};
-  }
-  return j;
-}
-
 // ---- gen
 
 struct GenOptions {
@@ -148,7 +125,7 @@ int run_info(const InfoOptions& o) {
   const StoreInfo info = view->info();
   const ModelStatistics& s = info.statistics;
   if (o.json) {
-    nlohmann::json j = statistics_json(s);
+    nlohmann::json j = nlohmann::json::parse(statistics_json(s));
     j["store"] = o.store;
     j["format_version"] = info.format_version;
     j["store_bytes"] = info.store_bytes;

@@ -37,7 +37,7 @@ nlohmann::json statistics_to_json(const ModelStatistics& s) {
   nlohmann::json j;
   j["objects"] = s.objects;
   j["primitives"] = s.primitives;
-  j["triangles"] = s.triangles;
+  j["triangles_full_resolution"] = s.triangles;
   for (int c = 0; c < kObjectClassCount; ++c) {
     const std::string name(class_name(ObjectClass(c)));
     j["objects_by_class"][name] = s.objects_by_class[c];
@@ -60,7 +60,7 @@ ModelStatistics statistics_from_json(const nlohmann::json& j) {
   ModelStatistics s;
   s.objects = j.value("objects", uint64_t(0));
   s.primitives = j.value("primitives", uint64_t(0));
-  s.triangles = j.value("triangles", uint64_t(0));
+  s.triangles = j.value("triangles_full_resolution", uint64_t(0));
   for (int c = 0; c < kObjectClassCount; ++c) {
     const std::string name(class_name(ObjectClass(c)));
     s.objects_by_class[c] = j["objects_by_class"].value(name, uint64_t(0));
@@ -139,6 +139,10 @@ struct Databases {
 };
 
 }  // namespace
+
+std::string statistics_json(const ModelStatistics& statistics) {
+  return statistics_to_json(statistics).dump();
+}
 
 // ---------------------------------------------------------------------------------------------
 
@@ -493,7 +497,7 @@ bool Import::commit(std::string& error) {
     if (rc != MDB_SUCCESS) error = s.fail("writing " + std::string(key), rc);
     return rc == MDB_SUCCESS;
   };
-  const std::string stats = statistics_to_json(s.totals).dump();
+  const std::string stats = statistics_json(s.totals);
   const uint32_t version = kStoreFormatVersion;
   if (!put_meta(dbs.spatial, "origin", &origin, sizeof origin) ||
       !put_meta(dbs.spatial, "nodes", nodes.data(), nodes.size() * sizeof(SpatialNode)) ||

@@ -69,6 +69,11 @@ struct StoreInfo {
   uint64_t store_bytes = 0;    // size of the data file on disk
 };
 
+// The statistics as one JSON object: objects, primitives and triangles (full resolution), each
+// by class and by kind, and bounds_m {min, max} when there is geometry. This is the form kept in
+// meta/"statistics" and printed by `plantview info --json`.
+std::string statistics_json(const ModelStatistics& statistics);
+
 class Store;
 
 // Adds and replaces objects in one transaction. Not thread-safe; one per store at a time.
