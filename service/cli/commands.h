@@ -20,4 +20,7 @@ Action add_store_commands(CLI::App& app);
 // `plantview import FILE... --store DIR`: RVM and XML files into the store.
 Action add_import_command(CLI::App& app);
 
+// `plantview render`, `compare` and `path`: review images, comparing them, camera paths.
+Action add_render_commands(CLI::App& app);
+
 }  // namespace plantview::cli

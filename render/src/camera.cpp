@@ -1,0 +1,290 @@
+// Cameras: the --camera text form, the default view, camera-path JSON and path generation.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "plantview/render.h"
+
+namespace plantview {
+
+namespace {
+
+bool parse_number(std::string_view text, double& out) {
+  if (text.empty()) return false;
+  if (text.front() == '+') text.remove_prefix(1);
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+  return ec == std::errc() && end == text.data() + text.size() && std::isfinite(out);
+}
+
+bool check_camera(const Camera& c, std::string& error) {
+  const glm::dvec3 view = c.target_m - c.eye_m;
+  if (glm::length(view) < 1e-6) {
+    error = "camera: the eye is on the target";
+    return false;
+  }
+  if (glm::length(c.up) < 1e-9 || glm::length(glm::cross(view, c.up)) < 1e-9 * glm::length(view) * glm::length(c.up)) {
+    error = "camera: 'up' is zero or along the view direction";
+    return false;
+  }
+  if (!(c.fov_deg > 0.0 && c.fov_deg < 179.0)) {
+    error = "camera: fov must be in (0, 179) degrees";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool parse_camera(std::string_view text, Camera& out, std::string& error) {
+  // Tokens split on commas; a token "key=number" starts a key, bare numbers continue it.
+  Camera camera;
+  bool have_eye = false, have_target = false;
+  std::vector<std::pair<std::string, std::vector<double>>> fields;
+  size_t at = 0;
+  while (at <= text.size()) {
+    const size_t comma = std::min(text.find(',', at), text.size());
+    std::string_view token = text.substr(at, comma - at);
+    at = comma + 1;
+    const size_t eq = token.find('=');
+    if (eq != std::string_view::npos) {
+      fields.emplace_back(std::string(token.substr(0, eq)), std::vector<double>{});
+      token.remove_prefix(eq + 1);
+    }
+    if (fields.empty()) {
+      error = "camera: expected key=value, got '" + std::string(token) + "'";
+      return false;
+    }
+    double v = 0;
+    if (!parse_number(token, v)) {
+      error = "camera: '" + fields.back().first + "' has a bad number '" + std::string(token) + "'";
+      return false;
+    }
+    fields.back().second.push_back(v);
+    if (comma == text.size()) break;
+  }
+  for (const auto& [key, values] : fields) {
+    const auto vec = [&](glm::dvec3& v) {
+      if (values.size() != 3) {
+        error = "camera: '" + key + "' needs 3 numbers, got " + std::to_string(values.size());
+        return false;
+      }
+      v = {values[0], values[1], values[2]};
+      return true;
+    };
+    if (key == "eye") {
+      if (!vec(camera.eye_m)) return false;
+      have_eye = true;
+    } else if (key == "target") {
+      if (!vec(camera.target_m)) return false;
+      have_target = true;
+    } else if (key == "up") {
+      if (!vec(camera.up)) return false;
+    } else if (key == "fov") {
+      if (values.size() != 1) {
+        error = "camera: 'fov' needs 1 number";
+        return false;
+      }
+      camera.fov_deg = values[0];
+    } else {
+      error = "camera: unknown key '" + key + "' (eye, target, up, fov)";
+      return false;
+    }
+  }
+  if (!have_eye || !have_target) {
+    error = "camera: eye=X,Y,Z and target=X,Y,Z are required";
+    return false;
+  }
+  if (!check_camera(camera, error)) return false;
+  out = camera;
+  return true;
+}
+
+std::string format_camera(const Camera& c) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "eye=%.17g,%.17g,%.17g,target=%.17g,%.17g,%.17g,up=%.17g,%.17g,%.17g,fov=%.17g",
+                c.eye_m.x, c.eye_m.y, c.eye_m.z, c.target_m.x, c.target_m.y, c.target_m.z, c.up.x,
+                c.up.y, c.up.z, c.fov_deg);
+  return buf;
+}
+
+Camera default_camera(const DAabb& bounds, double aspect) {
+  Camera c;
+  if (bounds.empty()) return c;
+  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
+  const double radius = std::max(0.5 * glm::length(bounds.max - bounds.min), 1.0);
+  // From above the (-x, -y) corner, 30 degrees down; far enough that the bounding sphere fits
+  // the narrower of the two fields of view.
+  const double fov_y = glm::radians(c.fov_deg);
+  const double fov_x = 2.0 * std::atan(std::tan(fov_y / 2.0) * std::max(aspect, 1e-3));
+  const double half = 0.5 * std::min(fov_x, fov_y);
+  const double distance = radius / std::sin(half);
+  const glm::dvec3 direction = glm::normalize(glm::dvec3(-1.0, -1.2, 0.8));
+  c.eye_m = centre + direction * distance;
+  c.target_m = centre;
+  c.up = {0, 0, 1};
+  return c;
+}
+
+std::string camera_path_json(const std::vector<Camera>& cameras) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& c : cameras) {
+    list.push_back({{"eye", {c.eye_m.x, c.eye_m.y, c.eye_m.z}},
+                    {"target", {c.target_m.x, c.target_m.y, c.target_m.z}},
+                    {"up", {c.up.x, c.up.y, c.up.z}},
+                    {"fov", c.fov_deg}});
+  }
+  return list.dump(1) + "\n";
+}
+
+bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::string& error) {
+  const auto list = nlohmann::json::parse(json, nullptr, false);
+  if (list.is_discarded() || !list.is_array()) {
+    error = "camera path: not a JSON list of cameras";
+    return false;
+  }
+  std::vector<Camera> cameras;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const auto& item = list[i];
+    const std::string where = "camera path: camera " + std::to_string(i);
+    if (!item.is_object()) {
+      error = where + " is not an object";
+      return false;
+    }
+    Camera c;
+    const auto vec = [&](const char* key, glm::dvec3& v, bool required) {
+      if (!item.contains(key)) {
+        if (required) error = where + ": '" + key + "' is missing";
+        return !required;
+      }
+      const auto& a = item[key];
+      if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() ||
+          !a[2].is_number()) {
+        error = where + ": '" + key + "' must be a list of 3 numbers";
+        return false;
+      }
+      v = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+      return true;
+    };
+    if (!vec("eye", c.eye_m, true) || !vec("target", c.target_m, true) || !vec("up", c.up, false))
+      return false;
+    if (item.contains("fov")) {
+      if (!item["fov"].is_number()) {
+        error = where + ": 'fov' must be a number";
+        return false;
+      }
+      c.fov_deg = item["fov"].get<double>();
+    }
+    std::string why;
+    if (!check_camera(c, why)) {
+      error = where + ": " + why;
+      return false;
+    }
+    cameras.push_back(c);
+  }
+  if (cameras.empty()) {
+    error = "camera path: the list is empty";
+    return false;
+  }
+  out = std::move(cameras);
+  return true;
+}
+
+bool parse_path_kind(std::string_view name, PathKind& kind) {
+  if (name == "walkthrough") kind = PathKind::walkthrough;
+  else if (name == "orbit") kind = PathKind::orbit;
+  else return false;
+  return true;
+}
+
+std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bounds,
+                                     const std::vector<DAabb>& equipment) {
+  std::vector<Camera> path;
+  if (frames <= 0 || bounds.empty()) return path;
+  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
+  const glm::dvec3 size = bounds.max - bounds.min;
+  const double radius = std::max(0.5 * glm::length(size), 1.0);
+  if (kind == PathKind::orbit) {
+    for (int i = 0; i < frames; ++i) {
+      const double a = 2.0 * M_PI * i / frames;
+      Camera c;
+      c.target_m = centre;
+      c.eye_m = centre + glm::dvec3(std::cos(a) * 1.6 * radius, std::sin(a) * 1.6 * radius,
+                                    0.6 * radius);
+      path.push_back(c);
+    }
+    return path;
+  }
+
+  // Walkthrough: waypoints from outside the plant at its -y side, down to eye height, then
+  // along the aisle between equipment rows: the midpoints between consecutive equipment
+  // centres, sorted along the plant's longer horizontal axis, kept clear of equipment bounds.
+  const double eye_height_m = bounds.min.z + std::min(1.7, 0.5 * size.z + 0.1);
+  const bool along_x = size.x >= size.y;
+  std::vector<glm::dvec3> waypoints;
+  const glm::dvec3 start = along_x
+      ? glm::dvec3(bounds.min.x - 0.6 * radius, centre.y - 1.2 * radius, bounds.max.z + 0.5 * radius)
+      : glm::dvec3(centre.x - 1.2 * radius, bounds.min.y - 0.6 * radius, bounds.max.z + 0.5 * radius);
+  waypoints.push_back(start);
+  const glm::dvec3 entry = along_x ? glm::dvec3(bounds.min.x - 5.0, centre.y, eye_height_m)
+                                   : glm::dvec3(centre.x, bounds.min.y - 5.0, eye_height_m);
+  waypoints.push_back(entry);
+  std::vector<glm::dvec3> centres;
+  for (const auto& b : equipment)
+    if (!b.empty()) centres.push_back(0.5 * (b.min + b.max));
+  const int axis = along_x ? 0 : 1;
+  std::sort(centres.begin(), centres.end(),
+            [&](const glm::dvec3& a, const glm::dvec3& b) { return a[axis] < b[axis]; });
+  const auto clear = [&](const glm::dvec3& p) {
+    for (const auto& b : equipment) {
+      if (p.x > b.min.x - 0.5 && p.x < b.max.x + 0.5 && p.y > b.min.y - 0.5 &&
+          p.y < b.max.y + 0.5 && p.z > b.min.z && p.z < b.max.z)
+        return false;
+    }
+    return true;
+  };
+  // About one waypoint per 8 equipment items, walking the aisle through the middle.
+  const size_t step = std::max<size_t>(1, centres.size() / 12);
+  for (size_t i = 0; i + step < centres.size(); i += step) {
+    glm::dvec3 p = 0.5 * (centres[i] + centres[i + step]);
+    p.z = eye_height_m;
+    if (clear(p)) waypoints.push_back(p);
+  }
+  waypoints.push_back(along_x ? glm::dvec3(bounds.max.x + 5.0, centre.y, eye_height_m)
+                              : glm::dvec3(centre.x, bounds.max.y + 5.0, eye_height_m));
+  if (waypoints.size() < 3) waypoints.insert(waypoints.end() - 1, centre);
+
+  // Cameras evenly spaced along the polyline, each looking ahead along it.
+  std::vector<double> at(waypoints.size(), 0.0);
+  for (size_t i = 1; i < waypoints.size(); ++i)
+    at[i] = at[i - 1] + glm::length(waypoints[i] - waypoints[i - 1]);
+  const double total = std::max(at.back(), 1e-6);
+  const auto point = [&](double s) {
+    s = std::clamp(s, 0.0, total);
+    size_t i = 1;
+    while (i + 1 < at.size() && at[i] < s) ++i;
+    const double span = std::max(at[i] - at[i - 1], 1e-9);
+    return glm::mix(waypoints[i - 1], waypoints[i], std::clamp((s - at[i - 1]) / span, 0.0, 1.0));
+  };
+  const double look_ahead_m = std::max(10.0, 0.05 * total);
+  for (int f = 0; f < frames; ++f) {
+    const double s = frames == 1 ? 0.0 : total * f / (frames - 1);
+    Camera c;
+    c.eye_m = point(s);
+    c.target_m = point(s + look_ahead_m);
+    if (glm::length(c.target_m - c.eye_m) < 1e-3) c.target_m = c.eye_m + (c.eye_m - point(s - look_ahead_m));
+    // Keep the view from pointing straight down or up.
+    glm::dvec3 view = c.target_m - c.eye_m;
+    const double horizontal = std::hypot(view.x, view.y);
+    if (horizontal < 0.3 * std::abs(view.z)) {
+      view.x += along_x ? 0.3 * std::abs(view.z) : 0.0;
+      view.y += along_x ? 0.0 : 0.3 * std::abs(view.z);
+      c.target_m = c.eye_m + view;
+    }
+    path.push_back(c);
+  }
+  return path;
+}
+
+}  // namespace plantview

@@ -1,0 +1,227 @@
+// GpuContext: EGL without a display. Devices through EGL_EXT_platform_device (hardware first),
+// then Mesa's surfaceless platform. libepoxy resolves every EGL and GL entry point.
+#include <epoxy/egl.h>
+#include <epoxy/gl.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "plantview/render.h"
+
+namespace plantview {
+
+namespace {
+
+std::string egl_error_name(EGLint code) {
+  switch (code) {
+    case EGL_SUCCESS: return "EGL_SUCCESS";
+    case EGL_NOT_INITIALIZED: return "EGL_NOT_INITIALIZED";
+    case EGL_BAD_ACCESS: return "EGL_BAD_ACCESS";
+    case EGL_BAD_ALLOC: return "EGL_BAD_ALLOC";
+    case EGL_BAD_ATTRIBUTE: return "EGL_BAD_ATTRIBUTE";
+    case EGL_BAD_CONFIG: return "EGL_BAD_CONFIG";
+    case EGL_BAD_CONTEXT: return "EGL_BAD_CONTEXT";
+    case EGL_BAD_DISPLAY: return "EGL_BAD_DISPLAY";
+    case EGL_BAD_MATCH: return "EGL_BAD_MATCH";
+    case EGL_BAD_PARAMETER: return "EGL_BAD_PARAMETER";
+    default: return "EGL error 0x" + [&] {
+      char buf[16];
+      std::snprintf(buf, sizeof buf, "%x", unsigned(code));
+      return std::string(buf);
+    }();
+  }
+}
+
+bool has_extension(const char* list, const char* name) {
+  if (!list) return false;
+  const size_t n = std::strlen(name);
+  for (const char* p = list; (p = std::strstr(p, name)) != nullptr; p += n) {
+    if ((p == list || p[-1] == ' ') && (p[n] == ' ' || p[n] == '\0')) return true;
+  }
+  return false;
+}
+
+// A display with a current GL 4.5 core context, or an error. Owns what it made.
+struct Attempt {
+  EGLDisplay display = EGL_NO_DISPLAY;
+  EGLContext context = EGL_NO_CONTEXT;
+  std::string error;
+
+  void release() {
+    if (display != EGL_NO_DISPLAY) {
+      eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+      if (context != EGL_NO_CONTEXT) eglDestroyContext(display, context);
+      eglTerminate(display);
+    }
+    display = EGL_NO_DISPLAY;
+    context = EGL_NO_CONTEXT;
+  }
+
+  bool open(EGLenum platform, void* native, const std::string& what) {
+    display = eglGetPlatformDisplayEXT(platform, native, nullptr);
+    if (display == EGL_NO_DISPLAY) {
+      error = what + ": no display (" + egl_error_name(eglGetError()) + ")";
+      return false;
+    }
+    EGLint major = 0, minor = 0;
+    if (!eglInitialize(display, &major, &minor)) {
+      error = what + ": eglInitialize failed (" + egl_error_name(eglGetError()) + ")";
+      display = EGL_NO_DISPLAY;
+      return false;
+    }
+    const char* extensions = eglQueryString(display, EGL_EXTENSIONS);
+    if (!eglBindAPI(EGL_OPENGL_API)) {
+      error = what + ": no desktop OpenGL (" + egl_error_name(eglGetError()) + ")";
+      release();
+      return false;
+    }
+    // Rendering goes to framebuffer objects, so no surface is needed: no config at all where
+    // the display allows it, else any config that can render OpenGL.
+    EGLConfig config = nullptr;
+    if (!has_extension(extensions, "EGL_KHR_no_config_context") &&
+        !has_extension(extensions, "EGL_MESA_configless_context")) {
+      const EGLint config_attributes[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+      EGLint count = 0;
+      if (!eglChooseConfig(display, config_attributes, &config, 1, &count) || count < 1) {
+        error = what + ": no OpenGL config";
+        release();
+        return false;
+      }
+    }
+    if (!has_extension(extensions, "EGL_KHR_surfaceless_context")) {
+      error = what + ": EGL_KHR_surfaceless_context is missing";
+      release();
+      return false;
+    }
+    const EGLint context_attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 4,
+                                         EGL_CONTEXT_MINOR_VERSION, 5,
+                                         EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                         EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                         EGL_NONE};
+    context = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attributes);
+    if (context == EGL_NO_CONTEXT) {
+      error = what + ": no OpenGL 4.5 core context (" + egl_error_name(eglGetError()) + ")";
+      release();
+      return false;
+    }
+    if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
+      error = what + ": eglMakeCurrent failed (" + egl_error_name(eglGetError()) + ")";
+      release();
+      return false;
+    }
+    return true;
+  }
+};
+
+// What EGL says a device is: its DRM node or "software".
+std::string device_name(EGLDeviceEXT device) {
+  const char* extensions = eglQueryDeviceStringEXT(device, EGL_EXTENSIONS);
+  if (has_extension(extensions, "EGL_EXT_device_drm")) {
+    const char* node = eglQueryDeviceStringEXT(device, EGL_DRM_DEVICE_FILE_EXT);
+    if (node) return node;
+  }
+  if (has_extension(extensions, "EGL_MESA_device_software")) return "software";
+  return "unnamed";
+}
+
+bool is_software(EGLDeviceEXT device) {
+  return has_extension(eglQueryDeviceStringEXT(device, EGL_EXTENSIONS),
+                       "EGL_MESA_device_software");
+}
+
+std::string gl_description() {
+  const auto str = [](GLenum name) {
+    const auto* s = reinterpret_cast<const char*>(glGetString(name));
+    return std::string(s ? s : "?");
+  };
+  return str(GL_RENDERER) + " (" + str(GL_VENDOR) + "), OpenGL " + str(GL_VERSION);
+}
+
+}  // namespace
+
+struct GpuContext::State {
+  Attempt attempt;
+  std::string description;
+  ~State() { attempt.release(); }
+};
+
+GpuContext::GpuContext(std::unique_ptr<State> state) : state_(std::move(state)) {}
+GpuContext::~GpuContext() = default;
+const std::string& GpuContext::description() const { return state_->description; }
+
+bool GpuContext::make_current(std::string& error) {
+  if (!eglMakeCurrent(state_->attempt.display, EGL_NO_SURFACE, EGL_NO_SURFACE,
+                      state_->attempt.context)) {
+    error = "GPU context: eglMakeCurrent failed (" + egl_error_name(eglGetError()) + ")";
+    return false;
+  }
+  return true;
+}
+
+std::unique_ptr<GpuContext> GpuContext::create(int device_index, std::string& error) {
+  const char* client_extensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  if (!client_extensions) {
+    error = "EGL: no client extensions (is libEGL from Mesa or a GPU driver installed?)";
+    return nullptr;
+  }
+  auto state = std::make_unique<State>();
+  std::vector<std::string> failures;
+
+  const bool device_platform = has_extension(client_extensions, "EGL_EXT_platform_device") &&
+                               has_extension(client_extensions, "EGL_EXT_device_enumeration");
+  std::vector<EGLDeviceEXT> devices;
+  if (device_platform) {
+    EGLint count = 0;
+    if (eglQueryDevicesEXT(0, nullptr, &count) && count > 0) {
+      devices.resize(size_t(count));
+      eglQueryDevicesEXT(count, devices.data(), &count);
+      devices.resize(size_t(count));
+    }
+  }
+
+  if (device_index >= 0) {
+    if (size_t(device_index) >= devices.size()) {
+      error = "EGL: no device " + std::to_string(device_index) + " (" +
+              std::to_string(devices.size()) + " found through EGL_EXT_platform_device)";
+      return nullptr;
+    }
+    const std::string what = "EGL device " + std::to_string(device_index) + " (" +
+                             device_name(devices[size_t(device_index)]) + ")";
+    if (!state->attempt.open(EGL_PLATFORM_DEVICE_EXT, devices[size_t(device_index)], what)) {
+      error = state->attempt.error;
+      return nullptr;
+    }
+    state->description = what + ": " + gl_description();
+    return std::unique_ptr<GpuContext>(new GpuContext(std::move(state)));
+  }
+
+  // Hardware devices first, then software ones, then the surfaceless platform.
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = 0; i < devices.size(); ++i) {
+      if (is_software(devices[i]) != (pass == 1)) continue;
+      const std::string what = "EGL device " + std::to_string(i) + " (" +
+                               device_name(devices[i]) + ")";
+      if (state->attempt.open(EGL_PLATFORM_DEVICE_EXT, devices[i], what)) {
+        state->description = what + ": " + gl_description();
+        return std::unique_ptr<GpuContext>(new GpuContext(std::move(state)));
+      }
+      failures.push_back(state->attempt.error);
+    }
+  }
+  if (has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
+    if (state->attempt.open(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY,
+                            "Mesa surfaceless")) {
+      state->description = "Mesa surfaceless: " + gl_description();
+      return std::unique_ptr<GpuContext>(new GpuContext(std::move(state)));
+    }
+    failures.push_back(state->attempt.error);
+  } else {
+    failures.push_back("EGL_MESA_platform_surfaceless is not offered");
+  }
+  error = "EGL: no OpenGL 4.5 core context could be created";
+  for (const auto& f : failures) error += "; " + f;
+  return nullptr;
+}
+
+}  // namespace plantview

@@ -1,0 +1,1085 @@
+// Renderer: cull, choose, stream, draw and read back one frame (see render.h for the rules).
+#include <epoxy/egl.h>
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <unordered_map>
+#include <unordered_set>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "lod.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "hlod.h"
+#include "residency.h"
+
+namespace plantview {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+constexpr uint32_t kProxyVertices = 24;   // the unit cube of budget proxies, at arena offset 0
+constexpr uint32_t kProxyKey = UINT32_MAX;
+constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run index
+constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
+constexpr uint64_t kInitialArenaVertices = 1u << 20;  // the GPU buffers grow from here
+constexpr size_t kKnownObjectsKept = 200000;  // decoded objects kept beyond the resident ones
+
+// One entry of the per-frame object table (std430: two vec4), read by the vertex shader.
+struct TableEntry {
+  float offset_m[3];  // the object's origin relative to the eye
+  uint32_t colour;    // RGBA8
+  float scale[3];     // 1 for objects; the box size for proxies
+  uint32_t pick;      // index into the frame's pick table + 1
+};
+static_assert(sizeof(TableEntry) == 32);
+
+// A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
+// indices at any level. Objects are kept while resident and a while after.
+struct Known {
+  uint64_t id = 0;
+  ObjectClass object_class = ObjectClass::other;
+  Colour colour;
+  glm::dvec3 origin_m{0.0};
+  uint64_t pipeline_id = 0;
+  std::vector<Primitive> primitives;  // owns facet groups' triangles that plans point into
+  struct Part {
+    MeshPlan plan;
+    uint32_t first_vertex;  // within the object's vertices
+    uint32_t primitive;     // index into primitives
+  };
+  std::vector<Part> parts;
+  std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
+  uint32_t vertex_count = 0;
+  uint32_t centreline_first = 0;
+  uint8_t level_count = 1;
+  bool has_lines = false, has_triangles = false;
+  std::array<float, kMaxLevels> error_m{};  // largest over the triangle parts
+  float pipe_diameter_m = 0;
+  int32_t run = -1;                 // the pipeline run it belongs to, if any
+  uint32_t table = UINT32_MAX;      // object-table entry while resident
+  // While resident: the finest level whose vertices are in the arena. At base 0 every vertex
+  // is there and the templates' indices serve every level; above 0 only the vertices of levels
+  // >= base are, compacted, and `compact` holds their indices (relative to the object's first
+  // vertex), per part and level at compact_ranges[part][level] = {start, count}.
+  uint8_t base = 0;
+  uint32_t resident_centreline_first = 0;
+  std::vector<uint32_t> compact;
+  std::vector<std::array<std::pair<uint32_t, uint32_t>, kMaxLevels>> compact_ranges;
+  uint64_t last_seen = 0;           // frame
+};
+
+const char* kVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 a_position;
+layout(location = 1) in vec4 a_normal;
+layout(location = 2) in uint a_object;
+layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+uniform mat4 u_view_projection;
+out vec3 v_position;
+out vec3 v_normal;
+out vec4 v_colour;
+flat out uint v_pick;
+void main() {
+  vec4 a = objects[2u * a_object];
+  vec4 b = objects[2u * a_object + 1u];
+  vec3 p = a_position * b.xyz + a.xyz;
+  v_position = p;
+  v_normal = a_normal.xyz;
+  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  v_pick = floatBitsToUint(b.w);
+  gl_Position = u_view_projection * vec4(p, 1.0);
+}
+)";
+
+const char* kFragmentShader = R"(#version 450 core
+in vec3 v_position;
+in vec3 v_normal;
+in vec4 v_colour;
+flat in uint v_pick;
+layout(location = 0) out vec4 o_colour;
+layout(location = 1) out uint o_pick;
+uniform vec3 u_sun;  // unit, towards the light, in the camera-relative frame
+void main() {
+  vec3 base = v_colour.rgb;
+  float n_length = length(v_normal);
+  vec3 lit;
+  if (n_length < 0.5) {
+    lit = base * 0.8;  // lines have no normal
+  } else {
+    vec3 n = v_normal / n_length;
+    vec3 to_eye = normalize(-v_position);
+    if (dot(n, to_eye) < 0.0) n = -n;  // two-sided: open meshes and facet groups
+    float head = max(dot(n, to_eye), 0.0);
+    float sun = max(dot(n, u_sun), 0.0);
+    lit = base * (0.22 + 0.48 * head + 0.38 * sun);
+  }
+  o_colour = vec4(min(lit, vec3(1.0)), v_colour.a);
+  o_pick = v_pick;
+}
+)";
+
+GLuint compile(GLenum type, const char* source, std::string& error) {
+  const GLuint shader = glCreateShader(type);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
+    error = std::string("renderer: shader does not compile: ") + log;
+    glDeleteShader(shader);
+    return 0;
+  }
+  return shader;
+}
+
+}  // namespace
+
+std::string_view lod_policy_name(LodPolicy policy) {
+  switch (policy) {
+    case LodPolicy::screen_space: return "screen-space";
+    case LodPolicy::distance: return "distance";
+    case LodPolicy::none: return "none";
+  }
+  return "?";
+}
+
+bool parse_lod_policy(std::string_view name, LodPolicy& policy) {
+  if (name == "screen-space" || name == "screen_space" || name == "sse") policy = LodPolicy::screen_space;
+  else if (name == "distance") policy = LodPolicy::distance;
+  else if (name == "none") policy = LodPolicy::none;
+  else return false;
+  return true;
+}
+
+std::string FrameStats::to_json() const {
+  std::string levels;
+  for (size_t l = 0; l < triangles_by_level.size(); ++l)
+    levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
+  char times[400];
+  std::snprintf(times, sizeof times,
+                "{\"cull\":%.3f,\"choose\":%.3f,\"stream\":%.3f,\"draw\":%.3f,"
+                "\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
+                ms.cull, ms.choose, ms.stream, ms.draw, ms.read_back, ms.encode, ms.total);
+  return "{\"objects_visible\":" + std::to_string(objects_visible) +
+         ",\"objects_culled\":" + std::to_string(objects_culled) +
+         ",\"triangles\":" + std::to_string(triangles) + ",\"lines\":" + std::to_string(lines) +
+         ",\"triangles_by_level\":[" + levels + "]" +
+         ",\"centreline_pipes\":" + std::to_string(centreline_pipes) +
+         ",\"hlod_merges\":" + std::to_string(hlod_merges) +
+         ",\"hlod_members\":" + std::to_string(hlod_members) +
+         ",\"budget_proxies\":" + std::to_string(budget_proxies) +
+         ",\"budget_coarsened\":" + std::to_string(budget_coarsened) +
+         ",\"objects_refined\":" + std::to_string(objects_refined) +
+         ",\"objects_subpixel\":" + std::to_string(objects_subpixel) +
+         ",\"draw_commands\":" + std::to_string(draw_commands) +
+         ",\"arena_bytes_budget\":" + std::to_string(arena_bytes_budget) +
+         ",\"arena_bytes_resident\":" + std::to_string(arena_bytes_resident) +
+         ",\"arena_bytes_uploaded\":" + std::to_string(arena_bytes_uploaded) +
+         ",\"arena_bytes_evicted\":" + std::to_string(arena_bytes_evicted) +
+         ",\"objects_resident\":" + std::to_string(objects_resident) +
+         ",\"objects_tessellated\":" + std::to_string(objects_tessellated) +
+         ",\"objects_evicted\":" + std::to_string(objects_evicted) + ",\"ms\":" + times + "}";
+}
+
+struct Renderer::State {
+  const Store* store = nullptr;
+  RenderOptions options;
+  std::unique_ptr<ReadView> view;
+  glm::dvec3 spatial_origin{0.0};
+  DAabb bounds;
+  uint64_t frame_number = 0;
+
+  // Residency (in vertices) and what is known of decoded objects and runs, by residency key.
+  detail::Residency residency{0};
+  std::unordered_map<uint32_t, Known> known;
+  // Pipeline HLOD: runs found so far, the run of each member slot, pipelines analysed.
+  std::vector<detail::PipelineRun> runs;
+  std::vector<uint64_t> run_decided_frame;
+  std::vector<uint8_t> run_merged, run_drawn;
+  std::unordered_map<uint32_t, uint32_t> run_of_slot;
+  std::unordered_set<uint64_t> pipelines_analysed;
+
+  // The object table: entries handed to resident objects, and to proxies for one frame.
+  std::vector<TableEntry> table;
+  std::vector<uint32_t> table_free;
+  uint32_t table_used = 0;  // high-water mark
+
+  // GL objects. The arena is two buffers indexed alike: vertices and their object-table index.
+  GLuint program = 0, vao = 0, proxy_vao = 0, arena = 0, arena_objects = 0, index_buffer = 0,
+         table_buffer = 0, proxy_buffer = 0, cube_indices = 0;
+  uint64_t arena_vertices_gl = 0;  // size of the GPU buffers, in vertices (<= the budget)
+  GLint u_view_projection = -1, u_sun = -1;
+  GLuint framebuffer = 0, colour_rb = 0, pick_rb = 0, depth_rb = 0;
+  uint32_t fb_width = 0, fb_height = 0;
+  size_t index_capacity = 0, table_capacity = 0, proxy_capacity = 0;
+
+  // Per-frame scratch, reused so that frames allocate little once warm.
+  struct Visible {
+    uint32_t slot;
+    float min[3], max[3];  // relative to the spatial origin
+    double distance_m;
+    double px_per_m;
+  };
+  struct Draw {
+    uint32_t key;
+    uint8_t level;
+    bool centreline;
+    const Visible* visible;
+  };
+  std::vector<Visible> visible;
+  std::vector<Draw> draws;
+  std::vector<uint32_t> stack;
+  std::vector<PackedVertex> vertices, compacted;
+  std::vector<uint32_t> vertex_objects, remap, level_indices;
+  std::vector<uint32_t> opaque, transparent, lines, proxies, proxy_tables;
+  std::vector<uint64_t> pick_ids;
+  std::vector<std::pair<uint32_t, uint64_t>> evicted;
+  std::vector<uint32_t> pick_pixels;
+  Object object;  // decode target
+
+  ~State() {
+    if (program) glDeleteProgram(program);
+    GLuint buffers[] = {arena, arena_objects, index_buffer, table_buffer, proxy_buffer, cube_indices};
+    glDeleteBuffers(6, buffers);
+    GLuint vaos[] = {vao, proxy_vao};
+    glDeleteVertexArrays(2, vaos);
+    release_framebuffer();
+  }
+
+  void release_framebuffer() {
+    if (framebuffer) glDeleteFramebuffers(1, &framebuffer);
+    GLuint rbs[] = {colour_rb, pick_rb, depth_rb};
+    glDeleteRenderbuffers(3, rbs);
+    framebuffer = colour_rb = pick_rb = depth_rb = 0;
+    fb_width = fb_height = 0;
+  }
+
+  uint32_t table_acquire() {
+    if (!table_free.empty()) {
+      const uint32_t t = table_free.back();
+      table_free.pop_back();
+      return t;
+    }
+    if (table_used == table.size()) table.resize(std::max<size_t>(1024, table.size() * 2));
+    return table_used++;
+  }
+
+  bool init_gl(std::string& error);
+  bool grow_arena(uint64_t vertices_needed, std::string& error);
+  void bind_arena();
+  bool ensure_framebuffer(uint32_t w, uint32_t h, std::string& error);
+  bool open_view(std::string& error);
+  Known* know(uint32_t slot, std::string& error);
+  void analyse_pipeline(uint64_t pipeline_id, std::string& error);
+  Known* know_run(uint32_t run);
+  bool make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats, std::string& error,
+                     bool& fits);
+  void release(uint32_t key, Known& k) {
+    residency.drop(key);
+    if (k.table != UINT32_MAX) table_free.push_back(k.table);
+    k.table = UINT32_MAX;
+  }
+  void forget_old(FrameStats& stats);
+  bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
+             FrameStats& stats, std::string& error);
+};
+
+bool Renderer::State::init_gl(std::string& error) {
+  if (eglGetCurrentContext() == EGL_NO_CONTEXT) {
+    error = "renderer: no current OpenGL context (create a GpuContext first)";
+    return false;
+  }
+  if (epoxy_gl_version() < 45) {
+    error = "renderer: OpenGL 4.5 is required, the context has " +
+            std::to_string(epoxy_gl_version() / 10) + "." + std::to_string(epoxy_gl_version() % 10);
+    return false;
+  }
+  const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader, error);
+  if (!vs) return false;
+  const GLuint fs = compile(GL_FRAGMENT_SHADER, kFragmentShader, error);
+  if (!fs) {
+    glDeleteShader(vs);
+    return false;
+  }
+  program = glCreateProgram();
+  glAttachShader(program, vs);
+  glAttachShader(program, fs);
+  glLinkProgram(program);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint ok = 0;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetProgramInfoLog(program, sizeof log, nullptr, log);
+    error = std::string("renderer: shaders do not link: ") + log;
+    return false;
+  }
+  u_view_projection = glGetUniformLocation(program, "u_view_projection");
+  u_sun = glGetUniformLocation(program, "u_sun");
+
+  glCreateBuffers(1, &index_buffer);
+  glCreateBuffers(1, &table_buffer);
+  glCreateBuffers(1, &proxy_buffer);
+  glCreateBuffers(1, &cube_indices);
+  static constexpr uint32_t kCube[36] = {0,  2,  1,  0,  3,  2,  4,  5,  6,  4,  6,  7,
+                                         8,  10, 9,  8,  11, 10, 12, 13, 14, 12, 14, 15,
+                                         16, 18, 17, 16, 19, 18, 20, 21, 22, 20, 22, 23};
+  glNamedBufferStorage(cube_indices, sizeof kCube, kCube, 0);
+
+  // Objects: per-vertex attributes from the arena's two buffers.
+  glCreateVertexArrays(1, &vao);
+  glEnableVertexArrayAttrib(vao, 0);
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribBinding(vao, 0, 0);
+  glEnableVertexArrayAttrib(vao, 1);
+  glVertexArrayAttribFormat(vao, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
+  glVertexArrayAttribBinding(vao, 1, 0);
+  glEnableVertexArrayAttrib(vao, 2);
+  glVertexArrayAttribIFormat(vao, 2, 1, GL_UNSIGNED_INT, 0);
+  glVertexArrayAttribBinding(vao, 2, 1);
+  glVertexArrayElementBuffer(vao, index_buffer);
+  // Proxies: the cube's vertices, the object-table index per instance.
+  glCreateVertexArrays(1, &proxy_vao);
+  glEnableVertexArrayAttrib(proxy_vao, 0);
+  glVertexArrayAttribFormat(proxy_vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribBinding(proxy_vao, 0, 0);
+  glEnableVertexArrayAttrib(proxy_vao, 1);
+  glVertexArrayAttribFormat(proxy_vao, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
+  glVertexArrayAttribBinding(proxy_vao, 1, 0);
+  glEnableVertexArrayAttrib(proxy_vao, 2);
+  glVertexArrayAttribIFormat(proxy_vao, 2, 1, GL_UNSIGNED_INT, 0);
+  glVertexArrayAttribBinding(proxy_vao, 2, 1);
+  glVertexArrayBindingDivisor(proxy_vao, 1, 1);
+  glVertexArrayVertexBuffer(proxy_vao, 1, proxy_buffer, 0, sizeof(uint32_t));
+  glVertexArrayElementBuffer(proxy_vao, cube_indices);
+  return grow_arena(std::min<uint64_t>(kInitialArenaVertices, options.vertex_budget_bytes / kBytesPerVertex),
+                    error);
+}
+
+void Renderer::State::bind_arena() {
+  glVertexArrayVertexBuffer(vao, 0, arena, 0, sizeof(PackedVertex));
+  glVertexArrayVertexBuffer(vao, 1, arena_objects, 0, sizeof(uint32_t));
+  glVertexArrayVertexBuffer(proxy_vao, 0, arena, 0, sizeof(PackedVertex));
+}
+
+// The GPU buffers hold at least `vertices_needed` (never more than the budget), keeping what
+// they held.
+bool Renderer::State::grow_arena(uint64_t vertices_needed, std::string& error) {
+  if (vertices_needed <= arena_vertices_gl) return true;
+  const uint64_t budget = options.vertex_budget_bytes / kBytesPerVertex;
+  const uint64_t size = std::min(budget, std::max(vertices_needed, 2 * arena_vertices_gl));
+  GLuint buffers[2];
+  glCreateBuffers(2, buffers);
+  glNamedBufferStorage(buffers[0], GLsizeiptr(size * sizeof(PackedVertex)), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  glNamedBufferStorage(buffers[1], GLsizeiptr(size * sizeof(uint32_t)), nullptr, GL_DYNAMIC_STORAGE_BIT);
+  if (glGetError() != GL_NO_ERROR) {
+    glDeleteBuffers(2, buffers);
+    error = "renderer: cannot allocate " + std::to_string((size * kBytesPerVertex) >> 20) +
+            " MB of the vertex arena";
+    return false;
+  }
+  if (arena_vertices_gl) {
+    glCopyNamedBufferSubData(arena, buffers[0], 0, 0, GLsizeiptr(arena_vertices_gl * sizeof(PackedVertex)));
+    glCopyNamedBufferSubData(arena_objects, buffers[1], 0, 0, GLsizeiptr(arena_vertices_gl * sizeof(uint32_t)));
+    GLuint old[2] = {arena, arena_objects};
+    glDeleteBuffers(2, old);
+  }
+  arena = buffers[0];
+  arena_objects = buffers[1];
+  arena_vertices_gl = size;
+  bind_arena();
+  return true;
+}
+
+bool Renderer::State::ensure_framebuffer(uint32_t w, uint32_t h, std::string& error) {
+  if (framebuffer && fb_width == w && fb_height == h) return true;
+  release_framebuffer();
+  glCreateFramebuffers(1, &framebuffer);
+  glCreateRenderbuffers(1, &colour_rb);
+  glCreateRenderbuffers(1, &pick_rb);
+  glCreateRenderbuffers(1, &depth_rb);
+  glNamedRenderbufferStorage(colour_rb, GL_RGBA8, GLsizei(w), GLsizei(h));
+  glNamedRenderbufferStorage(pick_rb, GL_R32UI, GLsizei(w), GLsizei(h));
+  glNamedRenderbufferStorage(depth_rb, GL_DEPTH_COMPONENT32F, GLsizei(w), GLsizei(h));
+  glNamedFramebufferRenderbuffer(framebuffer, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_rb);
+  glNamedFramebufferRenderbuffer(framebuffer, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, pick_rb);
+  glNamedFramebufferRenderbuffer(framebuffer, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
+  const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  glNamedFramebufferDrawBuffers(framebuffer, 2, buffers);
+  if (glCheckNamedFramebufferStatus(framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+    error = "renderer: cannot make a " + std::to_string(w) + "x" + std::to_string(h) +
+            " framebuffer";
+    release_framebuffer();
+    return false;
+  }
+  fb_width = w;
+  fb_height = h;
+  return true;
+}
+
+bool Renderer::State::open_view(std::string& error) {
+  view = store->read(error);
+  if (!view) return false;
+  spatial_origin = view->spatial_origin();
+  bounds = view->info().statistics.bounds;
+  // Forget everything: the snapshot may differ. The proxy cube stays at offset 0.
+  known.clear();
+  runs.clear();
+  run_decided_frame.clear();
+  run_merged.clear();
+  run_drawn.clear();
+  run_of_slot.clear();
+  pipelines_analysed.clear();
+  table_free.clear();
+  table_used = 0;
+  residency = detail::Residency(options.vertex_budget_bytes / kBytesPerVertex);
+  std::vector<std::pair<uint32_t, uint64_t>> none;
+  residency.begin_frame();
+  if (residency.admit(kProxyKey, kProxyVertices, none) != 0u) {
+    error = "renderer: the vertex budget is too small";
+    return false;
+  }
+  PackedVertex cube[kProxyVertices];
+  const glm::vec3 normals[6] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+  for (int f = 0; f < 6; ++f) {
+    const int axis = f / 2;
+    const float side = float(f % 2);
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const float corners[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    for (int c = 0; c < 4; ++c) {
+      glm::vec3 p;
+      p[axis] = side;
+      p[u] = corners[c][0];
+      p[v] = corners[c][1];
+      cube[f * 4 + c] = {p, pack_normal(normals[f])};
+    }
+  }
+  glNamedBufferSubData(arena, 0, sizeof cube, cube);
+  return true;
+}
+
+// Fills a Known from an object (primitives moved out of it).
+static void fill_known(Known& k, Object& o) {
+  k.id = o.id;
+  k.object_class = o.object_class;
+  k.colour = o.colour;
+  k.origin_m = o.origin_m;
+  k.pipeline_id = o.pipeline_id;
+  k.primitives = std::move(o.primitives);
+  o.primitives.clear();
+  k.parts.clear();
+  k.parts.reserve(k.primitives.size());
+  uint32_t vertex_count = 0;
+  for (uint32_t i = 0; i < k.primitives.size(); ++i) {
+    Known::Part part{plan_mesh(k.primitives[i]), vertex_count, i};
+    if (part.plan.vertex_count == 0) continue;
+    vertex_count += part.plan.vertex_count;
+    if (part.plan.topology == Topology::lines) {
+      k.has_lines = true;
+    } else {
+      k.has_triangles = true;
+      k.level_count = std::max(k.level_count, part.plan.level_count);
+      for (uint32_t l = 0; l < kMaxLevels; ++l)
+        k.error_m[l] = std::max(k.error_m[l], part.plan.error_m[part.plan.clamp_level(l)]);
+    }
+    k.parts.push_back(part);
+  }
+  if (o.object_class == ObjectClass::pipe && !o.centreline.empty()) {
+    k.centreline = o.centreline;
+    k.centreline_first = vertex_count;
+    vertex_count += uint32_t(2 * o.centreline.size());
+    for (const auto& s : o.centreline) k.pipe_diameter_m = std::max(k.pipe_diameter_m, s.diameter_m);
+  }
+  k.vertex_count = vertex_count;
+}
+
+Known* Renderer::State::know(uint32_t slot, std::string& error) {
+  if (const auto it = known.find(slot); it != known.end()) return &it->second;
+  if (!view->object(slot, object, false, error)) return nullptr;
+  Known& k = known[slot];
+  fill_known(k, object);
+  if (options.hlod && k.pipeline_id != 0 &&
+      (k.object_class == ObjectClass::pipe || k.object_class == ObjectClass::component)) {
+    if (!pipelines_analysed.count(k.pipeline_id)) {
+      std::string ignored;  // a pipeline that cannot be read is simply not merged
+      analyse_pipeline(k.pipeline_id, ignored);
+    }
+    if (const auto r = run_of_slot.find(slot); r != run_of_slot.end()) k.run = int32_t(r->second);
+  }
+  return &k;
+}
+
+void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
+  pipelines_analysed.insert(pipeline_id);
+  const auto slot = view->slot_of(pipeline_id);
+  Object pipeline;
+  if (!slot || !view->object(*slot, pipeline, false, error)) return;
+  std::vector<Object> members;
+  std::vector<std::pair<uint32_t, const Object*>> branch;
+  for (const Branch& b : pipeline.branches) {
+    members.clear();
+    members.reserve(b.members.size());
+    std::vector<uint32_t> slots;
+    for (const uint64_t id : b.members) {
+      const auto s = view->slot_of(id);
+      if (!s) continue;
+      members.emplace_back();
+      if (!view->object(*s, members.back(), false, error)) {
+        members.pop_back();
+        continue;
+      }
+      slots.push_back(*s);
+    }
+    branch.clear();
+    for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
+    const size_t first = runs.size();
+    detail::find_runs(branch, runs);
+    for (size_t r = first; r < runs.size(); ++r) {
+      for (const uint32_t m : runs[r].members) {
+        run_of_slot[m] = uint32_t(r);
+        if (const auto it = known.find(m); it != known.end()) it->second.run = int32_t(r);
+      }
+    }
+  }
+  run_decided_frame.resize(runs.size(), 0);
+  run_merged.resize(runs.size(), 0);
+  run_drawn.resize(runs.size(), 0);
+}
+
+Known* Renderer::State::know_run(uint32_t run) {
+  const uint32_t key = kRunKeyBit | run;
+  if (const auto it = known.find(key); it != known.end()) return &it->second;
+  const detail::PipelineRun& r = runs[run];
+  Object o;
+  o.id = 0;
+  if (!r.members.empty()) {
+    if (const auto it = known.find(r.members.front()); it != known.end()) o.id = it->second.pipeline_id;
+  }
+  o.object_class = ObjectClass::pipe;
+  o.colour = r.colour;
+  o.origin_m = r.start_m;
+  o.primitives.push_back(detail::merged_cylinder(r, r.start_m));
+  o.centreline.push_back({glm::vec3(0.0f), glm::vec3(r.end_m - r.start_m), r.diameter_m});
+  Known& k = known[key];
+  fill_known(k, o);
+  return &k;
+}
+
+// Tessellates a known object into the arena from level `base` on (see Known), evicting if
+// needed. fits = false when it cannot be placed without evicting what this frame shows.
+bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats,
+                                    std::string& error, bool& fits) {
+  base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  vertices.resize(k.vertex_count);
+  for (const auto& part : k.parts) {
+    write_vertices(k.primitives[part.primitive], part.plan, glm::dvec3(0.0),
+                   std::span<PackedVertex>(vertices.data() + part.first_vertex, part.plan.vertex_count));
+  }
+  for (size_t s = 0; s < k.centreline.size(); ++s) {
+    vertices[k.centreline_first + 2 * s] = {k.centreline[s].start_m, 0u};
+    vertices[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, 0u};
+  }
+  const std::vector<PackedVertex>* upload = &vertices;
+  k.compact.clear();
+  k.compact_ranges.clear();
+  k.resident_centreline_first = k.centreline_first;
+  if (base > 0) {
+    // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
+    compacted.clear();
+    k.compact_ranges.resize(k.parts.size());
+    for (size_t p = 0; p < k.parts.size(); ++p) {
+      const Known::Part& part = k.parts[p];
+      const uint32_t part_base = part.plan.clamp_level(base);
+      const uint32_t first = uint32_t(compacted.size());
+      remap.assign(part.plan.vertex_count, UINT32_MAX);
+      for (uint32_t l = part_base; l < std::max<uint32_t>(part.plan.level_count, 1); ++l) {
+        const uint32_t n = part.plan.index_count(l);
+        level_indices.resize(n);
+        write_indices(part.plan, l, 0, std::span<uint32_t>(level_indices.data(), n));
+        k.compact_ranges[p][l] = {uint32_t(k.compact.size()), n};
+        for (const uint32_t v : level_indices) {
+          if (remap[v] == UINT32_MAX) {
+            remap[v] = uint32_t(compacted.size()) - first;
+            compacted.push_back(vertices[part.first_vertex + v]);
+          }
+          k.compact.push_back(first + remap[v]);
+        }
+      }
+    }
+    k.resident_centreline_first = uint32_t(compacted.size());
+    compacted.insert(compacted.end(), vertices.begin() + k.centreline_first,
+                     vertices.begin() + k.centreline_first + 2 * k.centreline.size());
+    upload = &compacted;
+  }
+  const uint32_t count = uint32_t(upload->size());
+
+  evicted.clear();
+  const auto offset = residency.admit(key, count, evicted);
+  for (const auto& [victim, units] : evicted) {
+    if (const auto it = known.find(victim); it != known.end() && it->second.table != UINT32_MAX) {
+      table_free.push_back(it->second.table);
+      it->second.table = UINT32_MAX;
+    }
+    stats.objects_evicted += 1;
+    stats.arena_bytes_evicted += units * kBytesPerVertex;
+  }
+  fits = offset.has_value();
+  if (!fits) return true;
+  if (!grow_arena(*offset + count, error)) return false;
+  k.base = base;
+  k.table = table_acquire();
+  vertex_objects.assign(count, k.table);
+  glNamedBufferSubData(arena, GLintptr(*offset * sizeof(PackedVertex)),
+                       GLsizeiptr(count * sizeof(PackedVertex)), upload->data());
+  glNamedBufferSubData(arena_objects, GLintptr(*offset * sizeof(uint32_t)),
+                       GLsizeiptr(count * sizeof(uint32_t)), vertex_objects.data());
+  stats.objects_tessellated += 1;
+  stats.arena_bytes_uploaded += uint64_t(count) * kBytesPerVertex;
+  return true;
+}
+
+// Keeps the decoded-object cache bounded: objects neither resident nor seen lately go.
+void Renderer::State::forget_old(FrameStats&) {
+  if (known.size() <= kKnownObjectsKept + residency.resident_count()) return;
+  for (auto it = known.begin(); it != known.end();) {
+    if (!residency.resident(it->first) && it->second.last_seen + 2 < frame_number) it = known.erase(it);
+    else ++it;
+  }
+}
+
+bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool draw,
+                            bool with_ids, Image* out, FrameStats& stats, std::string& error) {
+  const auto t_start = Clock::now();
+  stats = FrameStats{};
+  stats.arena_bytes_budget = options.vertex_budget_bytes;
+  if (w == 0 || h == 0 || w > kMaxImageSide || h > kMaxImageSide) {
+    error = "renderer: image size " + std::to_string(w) + "x" + std::to_string(h) +
+            " is outside 1.." + std::to_string(kMaxImageSide);
+    return false;
+  }
+  if (!view && !open_view(error)) return false;
+  ++frame_number;
+
+  // Camera-relative matrices: the eye is the origin of everything drawn.
+  const glm::dvec3 forward = glm::normalize(camera.target_m - camera.eye_m);
+  const glm::mat4 view_rotation = glm::mat4(glm::lookAt(glm::dvec3(0.0), forward, camera.up));
+  const float focal = float(1.0 / std::tan(glm::radians(camera.fov_deg) / 2.0));
+  const float aspect = float(w) / float(h);
+  glm::mat4 projection(0.0f);  // infinite far plane, reversed depth: near -> 1, infinity -> 0
+  projection[0][0] = focal / aspect;
+  projection[1][1] = focal;
+  projection[2][3] = -1.0f;
+  projection[3][2] = float(detail::kNearPlaneM);
+  const glm::mat4 view_projection = projection * view_rotation;
+
+  // 1. Cull: planes (x, y, z, w) with inside where dot(p, xyz) + w >= 0; no far plane.
+  const auto t_cull = Clock::now();
+  const glm::mat4 m = glm::transpose(view_projection);  // rows as columns
+  const glm::vec4 planes[5] = {m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] - m[2]};
+  const glm::vec3 shift = glm::vec3(spatial_origin - camera.eye_m);  // spatial -> eye frame
+  const auto nodes = view->spatial_nodes();
+  const auto entries = view->spatial_entries();
+  const auto outside = [&](const float* mn, const float* mx) {
+    for (const glm::vec4& pl : planes) {
+      const glm::vec3 p(pl.x > 0 ? mx[0] : mn[0], pl.y > 0 ? mx[1] : mn[1],
+                        pl.z > 0 ? mx[2] : mn[2]);
+      if (pl.x * (p.x + shift.x) + pl.y * (p.y + shift.y) + pl.z * (p.z + shift.z) + pl.w < 0)
+        return true;
+    }
+    return false;
+  };
+  const double focal_px = h * 0.5 * focal;
+  const auto nearest_distance = [&](const float* mn, const float* mx) {
+    glm::dvec3 nearest;
+    for (int a = 0; a < 3; ++a)
+      nearest[a] = std::clamp(0.0, double(mn[a]) + shift[a], double(mx[a]) + shift[a]);
+    return glm::length(nearest);
+  };
+  const bool subpixel_culling = options.lod_policy == LodPolicy::screen_space;
+  visible.clear();
+  stack.clear();
+  if (!nodes.empty()) stack.push_back(0);
+  while (!stack.empty()) {
+    const SpatialNode& node = nodes[stack.back()];
+    stack.pop_back();
+    if (outside(node.min, node.max)) continue;
+    if (node.count == 0) {
+      stack.push_back(node.first);
+      stack.push_back(node.first + 1);
+      continue;
+    }
+    for (uint32_t e = node.first; e < node.first + node.count; ++e) {
+      const SpatialEntry& entry = entries[e];
+      if (outside(entry.min, entry.max)) continue;
+      Visible v{entry.slot, {}, {}, 0.0, 0.0};
+      std::copy(entry.min, entry.min + 3, v.min);
+      std::copy(entry.max, entry.max + 3, v.max);
+      v.distance_m = nearest_distance(entry.min, entry.max);
+      v.px_per_m = focal_px / std::max(v.distance_m, detail::kNearPlaneM);
+      // Screen-space policy: an object whose whole extent is under the pixel error is left out
+      // (it is not even decoded); that is what keeps far views of huge plants cheap.
+      if (subpixel_culling && v.px_per_m * std::max({entry.max[0] - entry.min[0], entry.max[1] - entry.min[1],
+                                                   entry.max[2] - entry.min[2]}) < options.pixel_error) {
+        stats.objects_subpixel += 1;
+        continue;
+      }
+      visible.push_back(v);
+    }
+  }
+  stats.objects_visible = visible.size();
+  stats.objects_culled = entries.size() - visible.size() - stats.objects_subpixel;
+  // Largest on screen first, so that the budget goes where it shows most.
+  const auto extent = [](const Visible& v) {
+    return std::max({v.max[0] - v.min[0], v.max[1] - v.min[1], v.max[2] - v.min[2]});
+  };
+  std::sort(visible.begin(), visible.end(), [&](const Visible& a, const Visible& b) {
+    return a.px_per_m * extent(a) > b.px_per_m * extent(b);
+  });
+  stats.ms.cull = ms_since(t_cull);
+
+  // 2. Choose a level (decoding objects seen for the first time), and merge pipeline runs.
+  const auto t_choose = Clock::now();
+  double decode_ms = 0;
+  residency.begin_frame();
+  residency.mark_visible(kProxyKey);
+  draws.clear();
+  const auto choose = [&](const Known& k, double distance_m, double px_per_m, double size_m,
+                          uint8_t& level, bool& centreline) {
+    level = 0;
+    centreline = false;
+    const bool thin_pipe = options.centrelines && !k.centreline.empty();
+    switch (options.lod_policy) {
+      case LodPolicy::none: break;
+      case LodPolicy::screen_space:
+        level = uint8_t(detail::choose_level_screen_space(k.error_m.data(), k.level_count, px_per_m,
+                                                          options.pixel_error));
+        centreline = thin_pipe && k.pipe_diameter_m * px_per_m < 1.0;
+        break;
+      case LodPolicy::distance:
+        level = uint8_t(detail::choose_level_distance(k.level_count, distance_m, size_m));
+        centreline = thin_pipe && distance_m > detail::kCentrelineRadii * 0.5 * k.pipe_diameter_m;
+        break;
+    }
+  };
+  for (const Visible& v : visible) {
+    const auto t_decode = Clock::now();
+    const bool was_known = known.count(v.slot) != 0;
+    Known* k = know(v.slot, error);
+    if (!k) return false;
+    if (!was_known) decode_ms += ms_since(t_decode);
+    k->last_seen = frame_number;
+    residency.mark_visible(v.slot);
+    if (k->vertex_count == 0) continue;
+    if (k->run >= 0 && options.hlod && options.lod_policy != LodPolicy::none) {
+      const uint32_t r = uint32_t(k->run);
+      const detail::PipelineRun& run = runs[r];
+      if (run_decided_frame[r] != frame_number) {
+        run_decided_frame[r] = frame_number;
+        run_drawn[r] = 0;
+        float mn[3], mx[3];
+        for (int a = 0; a < 3; ++a) {
+          mn[a] = float(run.bounds.min[a] - spatial_origin[a]);
+          mx[a] = float(run.bounds.max[a] - spatial_origin[a]);
+        }
+        const double d = nearest_distance(mn, mx);
+        const double px = focal_px / std::max(d, detail::kNearPlaneM);
+        run_merged[r] = options.lod_policy == LodPolicy::screen_space
+                            ? run.merge_error_m * px <= options.pixel_error
+                            : d > detail::kMergeRadii * 0.5 * run.diameter_m;
+        if (run_merged[r]) {
+          Known* rk = know_run(r);
+          rk->last_seen = frame_number;
+          residency.mark_visible(kRunKeyBit | r);
+          uint8_t level;
+          bool centreline;
+          choose(*rk, d, px, glm::length(run.end_m - run.start_m), level, centreline);
+          draws.push_back({kRunKeyBit | r, level, centreline, nullptr});
+          stats.hlod_merges += 1;
+        }
+      }
+      if (run_merged[r]) {
+        stats.hlod_members += 1;
+        continue;
+      }
+    }
+    uint8_t level;
+    bool centreline;
+    choose(*k, v.distance_m, v.px_per_m, extent(v), level, centreline);
+    draws.push_back({v.slot, level, centreline, &v});
+  }
+  stats.ms.choose = ms_since(t_choose) - decode_ms;
+
+  // 3. Stream what is not resident, and write every draw's indices at its level.
+  const auto t_stream = Clock::now();
+  double index_ms = 0;
+  opaque.clear();
+  transparent.clear();
+  lines.clear();
+  proxy_tables.clear();
+  pick_ids.clear();
+  const auto set_entry = [&](uint32_t t, const glm::dvec3& offset, const glm::vec3& scale,
+                             Colour c, uint64_t id) {
+    TableEntry& e = table[t];
+    e.offset_m[0] = float(offset.x);
+    e.offset_m[1] = float(offset.y);
+    e.offset_m[2] = float(offset.z);
+    e.colour = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24;
+    e.scale[0] = scale.x;
+    e.scale[1] = scale.y;
+    e.scale[2] = scale.z;
+    pick_ids.push_back(id);
+    e.pick = uint32_t(pick_ids.size());
+  };
+  for (const Draw& d : draws) {
+    Known& k = known.at(d.key);
+    uint32_t level = d.level;
+    if (residency.resident(d.key) && level < k.base) {
+      release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
+      stats.objects_refined += 1;
+    }
+    if (!residency.resident(d.key)) {
+      // One level of slack below the chosen one, so that coming nearer only swaps indices.
+      const uint8_t base = options.lod_policy == LodPolicy::none ? 0 : uint8_t(level > 0 ? level - 1 : 0);
+      bool fits = false;
+      if (!make_resident(d.key, k, base, stats, error, fits)) return false;
+      if (!fits && base + 1u < k.level_count) {
+        // Over budget: the coarsest level's vertices may still fit.
+        if (!make_resident(d.key, k, uint8_t(k.level_count - 1), stats, error, fits)) return false;
+        if (fits) stats.budget_coarsened += 1;
+      }
+      if (!fits) {
+        // Still over budget: the object's box, which costs no arena space (merged runs are
+        // skipped: their members' boxes would be drawn one by one, and runs are small).
+        if (!d.visible) continue;
+        stats.budget_proxies += 1;
+        const Visible& v = *d.visible;
+        const uint32_t t = table_acquire();
+        proxy_tables.push_back(t);
+        set_entry(t, spatial_origin + glm::dvec3(v.min[0], v.min[1], v.min[2]) - camera.eye_m,
+                  glm::vec3(v.max[0] - v.min[0], v.max[1] - v.min[1], v.max[2] - v.min[2]),
+                  k.colour, k.id);
+        stats.triangles += 12;
+        continue;
+      }
+    }
+    level = std::max<uint32_t>(level, k.base);
+    const auto t_index = Clock::now();
+    const uint32_t base = uint32_t(*residency.offset(d.key));
+    set_entry(k.table, k.origin_m - camera.eye_m, glm::vec3(1.0f), k.colour, k.id);
+    if (d.centreline) {
+      stats.centreline_pipes += 1;
+      const uint32_t n = uint32_t(2 * k.centreline.size());
+      stats.lines += n / 2;
+      for (uint32_t i = 0; i < n; ++i) lines.push_back(base + k.resident_centreline_first + i);
+      index_ms += ms_since(t_index);
+      continue;
+    }
+    auto& list = k.colour.a < 255 ? transparent : opaque;
+    for (size_t p = 0; p < k.parts.size(); ++p) {
+      const Known::Part& part = k.parts[p];
+      auto& target = part.plan.topology == Topology::lines ? lines : list;
+      const uint32_t l = part.plan.clamp_level(level);
+      const size_t at = target.size();
+      uint32_t n;
+      if (k.base == 0) {
+        n = part.plan.index_count(l);
+        target.resize(at + n);
+        write_indices(part.plan, l, base + part.first_vertex, std::span<uint32_t>(target.data() + at, n));
+      } else {
+        const auto [start, count] = k.compact_ranges[p][l];
+        n = count;
+        target.resize(at + n);
+        const uint32_t* src = k.compact.data() + start;
+        uint32_t* dst = target.data() + at;
+        for (uint32_t i = 0; i < n; ++i) dst[i] = src[i] + base;
+      }
+      if (part.plan.topology == Topology::lines) {
+        stats.lines += n / 2;
+      } else {
+        stats.triangles += n / 3;
+        stats.triangles_by_level[l] += n / 3;
+      }
+    }
+    index_ms += ms_since(t_index);
+  }
+  residency.end_frame();
+  forget_old(stats);
+  stats.ms.stream = ms_since(t_stream) - index_ms + decode_ms;
+  stats.ms.choose += index_ms;
+  stats.objects_resident = residency.resident_count() - 1;  // not the proxy cube
+  stats.arena_bytes_resident = residency.used_units() * kBytesPerVertex;
+  stats.draw_commands = (opaque.empty() ? 0 : 1) + (transparent.empty() ? 0 : 1) +
+                        (lines.empty() ? 0 : 1) + (proxy_tables.empty() ? 0 : 1);
+
+  if (!draw) {
+    for (const uint32_t t : proxy_tables) table_free.push_back(t);
+    stats.ms.total = ms_since(t_start);
+    return true;
+  }
+
+  // 4. Draw: one call per list.
+  const auto t_draw = Clock::now();
+  if (!ensure_framebuffer(w, h, error)) return false;
+  const auto upload = [](GLuint buffer, size_t& capacity, size_t bytes,
+                         std::initializer_list<std::pair<const void*, size_t>> parts) {
+    if (bytes > capacity) {
+      capacity = std::max(bytes, capacity * 3 / 2);
+      glNamedBufferData(buffer, GLsizeiptr(capacity), nullptr, GL_STREAM_DRAW);
+    } else {
+      glInvalidateBufferData(buffer);
+    }
+    size_t at = 0;
+    for (const auto& [data, size] : parts) {
+      if (size) glNamedBufferSubData(buffer, GLintptr(at), GLsizeiptr(size), data);
+      at += size;
+    }
+  };
+  const size_t n_opaque = opaque.size(), n_transparent = transparent.size(), n_lines = lines.size();
+  const size_t index_bytes = (n_opaque + n_transparent + n_lines) * sizeof(uint32_t);
+  upload(index_buffer, index_capacity, index_bytes,
+         {{opaque.data(), n_opaque * 4}, {transparent.data(), n_transparent * 4}, {lines.data(), n_lines * 4}});
+  upload(table_buffer, table_capacity, table_used * sizeof(TableEntry),
+         {{table.data(), table_used * sizeof(TableEntry)}});
+  upload(proxy_buffer, proxy_capacity, proxy_tables.size() * sizeof(uint32_t),
+         {{proxy_tables.data(), proxy_tables.size() * sizeof(uint32_t)}});
+  glVertexArrayVertexBuffer(proxy_vao, 1, proxy_buffer, 0, sizeof(uint32_t));
+  for (const uint32_t t : proxy_tables) table_free.push_back(t);
+
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+  glViewport(0, 0, GLsizei(w), GLsizei(h));
+  glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);  // two-sided: facet groups and open meshes are seen from both sides
+  const GLfloat background[4] = {0.80f, 0.84f, 0.88f, 1.0f};
+  const GLuint no_pick[4] = {0, 0, 0, 0};
+  const GLfloat far_depth = 0.0f;
+  glClearNamedFramebufferfv(framebuffer, GL_COLOR, 0, background);
+  glClearNamedFramebufferuiv(framebuffer, GL_COLOR, 1, no_pick);
+  glClearNamedFramebufferfv(framebuffer, GL_DEPTH, 0, &far_depth);
+  glUseProgram(program);
+  glUniformMatrix4fv(u_view_projection, 1, GL_FALSE, glm::value_ptr(view_projection));
+  const glm::vec3 sun = glm::normalize(glm::mat3(view_rotation) * glm::vec3(0.3f, 0.5f, 0.8f));
+  glUniform3fv(u_sun, 1, glm::value_ptr(sun));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer);
+  glDisablei(GL_BLEND, 0);
+  glBindVertexArray(vao);
+  if (n_opaque) glDrawElements(GL_TRIANGLES, GLsizei(n_opaque), GL_UNSIGNED_INT, nullptr);
+  if (n_lines)
+    glDrawElements(GL_LINES, GLsizei(n_lines), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>((n_opaque + n_transparent) * sizeof(uint32_t)));
+  if (!proxy_tables.empty()) {
+    glBindVertexArray(proxy_vao);
+    glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLsizei(proxy_tables.size()));
+    glBindVertexArray(vao);
+  }
+  if (n_transparent) {
+    // See-through objects after the rest, blended, not hiding what lies behind them.
+    glEnablei(GL_BLEND, 0);
+    glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glDepthMask(GL_FALSE);
+    glDrawElements(GL_TRIANGLES, GLsizei(n_transparent), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(n_opaque * sizeof(uint32_t)));
+    glDepthMask(GL_TRUE);
+    glDisablei(GL_BLEND, 0);
+  }
+  glBindVertexArray(0);
+  glFinish();
+  stats.ms.draw = ms_since(t_draw);
+
+  // 5. Read back, top row first.
+  const auto t_read = Clock::now();
+  out->width = w;
+  out->height = h;
+  out->rgba.resize(size_t(w) * h * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RGBA, GL_UNSIGNED_BYTE, out->rgba.data());
+  const size_t row = size_t(w) * 4;
+  for (uint32_t y = 0; y < h / 2; ++y)
+    std::swap_ranges(out->rgba.begin() + y * row, out->rgba.begin() + (y + 1) * row,
+                     out->rgba.begin() + (h - 1 - y) * row);
+  if (with_ids) {
+    pick_pixels.resize(size_t(w) * h);
+    glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT1);
+    glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RED_INTEGER, GL_UNSIGNED_INT, pick_pixels.data());
+    out->object_ids.resize(size_t(w) * h);
+    for (uint32_t y = 0; y < h; ++y) {
+      const uint32_t* src = pick_pixels.data() + size_t(h - 1 - y) * w;
+      uint64_t* dst = out->object_ids.data() + size_t(y) * w;
+      for (uint32_t x = 0; x < w; ++x)
+        dst[x] = src[x] && src[x] <= pick_ids.size() ? pick_ids[src[x] - 1] : 0;
+    }
+  } else {
+    out->object_ids.clear();
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  if (const GLenum gl_error = glGetError(); gl_error != GL_NO_ERROR) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "renderer: OpenGL error 0x%x", gl_error);
+    error = buf;
+    return false;
+  }
+  stats.ms.read_back = ms_since(t_read);
+  stats.ms.total = ms_since(t_start);
+  return true;
+}
+
+Renderer::Renderer(std::unique_ptr<State> state) : state_(std::move(state)) {}
+Renderer::~Renderer() = default;
+
+std::unique_ptr<Renderer> Renderer::create(const Store& store, const RenderOptions& options,
+                                           std::string& error) {
+  if (options.vertex_budget_bytes < (1u << 20) || options.vertex_budget_bytes > (64ull << 30)) {
+    error = "renderer: the vertex budget must be 1 MB .. 64 GB";
+    return nullptr;
+  }
+  if (!(options.pixel_error > 0.0) || !std::isfinite(options.pixel_error)) {
+    error = "renderer: the pixel error must be a positive number";
+    return nullptr;
+  }
+  auto state = std::make_unique<State>();
+  state->store = &store;
+  state->options = options;
+  if (!state->init_gl(error) || !state->open_view(error)) return nullptr;
+  return std::unique_ptr<Renderer>(new Renderer(std::move(state)));
+}
+
+bool Renderer::render(const Camera& camera, uint32_t width, uint32_t height, bool with_ids,
+                      Image& out, FrameStats& stats, std::string& error) {
+  return state_->frame(camera, width, height, true, with_ids, &out, stats, error);
+}
+
+bool Renderer::statistics(const Camera& camera, uint32_t width, uint32_t height,
+                          FrameStats& stats, std::string& error) {
+  return state_->frame(camera, width, height, false, false, nullptr, stats, error);
+}
+
+bool Renderer::refresh(std::string& error) {
+  state_->view.reset();
+  return state_->open_view(error);
+}
+
+void Renderer::set_options(const RenderOptions& options) {
+  const uint64_t budget = state_->options.vertex_budget_bytes;
+  state_->options = options;
+  state_->options.vertex_budget_bytes = budget;
+}
+
+const RenderOptions& Renderer::options() const { return state_->options; }
+const DAabb& Renderer::model_bounds() const { return state_->bounds; }
+
+}  // namespace plantview

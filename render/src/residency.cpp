@@ -1,0 +1,130 @@
+#include "residency.h"
+
+#include <algorithm>
+#include <cassert>
+
+namespace plantview::detail {
+
+RangeAllocator::RangeAllocator(uint64_t capacity) : capacity_(capacity) {
+  if (capacity > 0) insert_free(0, capacity);
+}
+
+void RangeAllocator::insert_free(uint64_t offset, uint64_t size) {
+  by_offset_.emplace(offset, size);
+  by_size_.emplace(size, offset);
+}
+
+void RangeAllocator::erase_free(std::map<uint64_t, uint64_t>::iterator it) {
+  auto [lo, hi] = by_size_.equal_range(it->second);
+  for (auto s = lo; s != hi; ++s) {
+    if (s->second == it->first) {
+      by_size_.erase(s);
+      break;
+    }
+  }
+  by_offset_.erase(it);
+}
+
+std::optional<uint64_t> RangeAllocator::allocate(uint64_t size) {
+  if (size == 0) return std::nullopt;
+  const auto best = by_size_.lower_bound(size);
+  if (best == by_size_.end()) return std::nullopt;
+  const uint64_t offset = best->second, free_size = best->first;
+  erase_free(by_offset_.find(offset));
+  if (free_size > size) insert_free(offset + size, free_size - size);
+  used_ += size;
+  return offset;
+}
+
+void RangeAllocator::release(uint64_t offset, uint64_t size) {
+  assert(size > 0 && offset + size <= capacity_ && used_ >= size);
+  used_ -= size;
+  // Merge with the free neighbours on either side.
+  auto next = by_offset_.lower_bound(offset);
+  if (next != by_offset_.end() && next->first == offset + size) {
+    size += next->second;
+    erase_free(next);
+  }
+  auto prev = by_offset_.lower_bound(offset);
+  if (prev != by_offset_.begin()) {
+    --prev;
+    if (prev->first + prev->second == offset) {
+      offset = prev->first;
+      size += prev->second;
+      erase_free(prev);
+    }
+  }
+  insert_free(offset, size);
+}
+
+uint64_t RangeAllocator::largest_free() const {
+  return by_size_.empty() ? 0 : by_size_.rbegin()->first;
+}
+
+void Residency::mark_visible(uint32_t key) {
+  const auto it = entries_.find(key);
+  if (it != entries_.end()) it->second.visible_frame = frame_;
+}
+
+std::optional<uint64_t> Residency::offset(uint32_t key) const {
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return std::nullopt;
+  return it->second.offset;
+}
+
+uint32_t Residency::counter(uint32_t key) const {
+  const auto it = entries_.find(key);
+  return it == entries_.end() ? 0 : it->second.counter;
+}
+
+std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
+                                         std::vector<std::pair<uint32_t, uint64_t>>& evicted) {
+  assert(!resident(key));
+  if (units == 0 || units > allocator_.capacity()) return std::nullopt;
+  auto place = allocator_.allocate(units);
+  while (!place) {
+    if (!candidates_built_) {
+      candidates_.clear();
+      for (const auto& [k, e] : entries_)
+        if (e.visible_frame != frame_) candidates_.push_back(k);
+      // Best candidate last: largest counter, then largest size, then key for determinism.
+      std::sort(candidates_.begin(), candidates_.end(), [&](uint32_t a, uint32_t b) {
+        const Entry& ea = entries_.at(a);
+        const Entry& eb = entries_.at(b);
+        if (ea.counter != eb.counter) return ea.counter < eb.counter;
+        if (ea.units != eb.units) return ea.units < eb.units;
+        return a > b;
+      });
+      candidates_built_ = true;
+    }
+    // Candidates made visible or dropped since the list was built are skipped.
+    while (!candidates_.empty()) {
+      const auto it = entries_.find(candidates_.back());
+      if (it != entries_.end() && it->second.visible_frame != frame_) break;
+      candidates_.pop_back();
+    }
+    if (candidates_.empty()) return std::nullopt;
+    const uint32_t victim = candidates_.back();
+    candidates_.pop_back();
+    const Entry e = entries_.at(victim);
+    allocator_.release(e.offset, e.units);
+    entries_.erase(victim);
+    evicted.emplace_back(victim, e.units);
+    place = allocator_.allocate(units);
+  }
+  entries_.emplace(key, Entry{*place, units, 0, frame_});
+  return place;
+}
+
+void Residency::drop(uint32_t key) {
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return;
+  allocator_.release(it->second.offset, it->second.units);
+  entries_.erase(it);
+}
+
+void Residency::end_frame() {
+  for (auto& [k, e] : entries_) e.counter = e.visible_frame == frame_ ? 0 : e.counter + 1;
+}
+
+}  // namespace plantview::detail

@@ -1,0 +1,79 @@
+// Residency: which objects hold space in the vertex arena, and which to evict (Zhou et al.
+// section 4). Pure bookkeeping, no GL: offsets and sizes are in arena units (vertices).
+//
+// Rules
+//   - Every resident object has a visibility counter: 0 in a frame it is visible, one more
+//     at the end of each frame it is not.
+//   - admit() finds room for a newly visible object. When the arena is full it evicts resident
+//     objects that are not visible this frame, largest counter first (ties: larger first, so
+//     fewer evictions make the room), until a large enough free range exists. It never evicts
+//     an object visible this frame; if room cannot be made, it admits nothing.
+//   - The arena never hands out more than its capacity.
+// Threads: one owner thread.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+namespace plantview::detail {
+
+// Best-fit allocator over [0, capacity) with coalescing of freed ranges.
+class RangeAllocator {
+ public:
+  explicit RangeAllocator(uint64_t capacity);
+  std::optional<uint64_t> allocate(uint64_t size);
+  void release(uint64_t offset, uint64_t size);
+  uint64_t capacity() const { return capacity_; }
+  uint64_t used() const { return used_; }
+  uint64_t largest_free() const;
+
+ private:
+  void insert_free(uint64_t offset, uint64_t size);
+  void erase_free(std::map<uint64_t, uint64_t>::iterator it);
+  uint64_t capacity_, used_ = 0;
+  std::map<uint64_t, uint64_t> by_offset_;         // offset -> size
+  std::multimap<uint64_t, uint64_t> by_size_;      // size -> offset
+};
+
+class Residency {
+ public:
+  explicit Residency(uint64_t capacity_units) : allocator_(capacity_units) {}
+
+  void begin_frame() { ++frame_; candidates_built_ = false; }
+  // Marks a resident object visible in this frame (resets its counter at end_frame).
+  void mark_visible(uint32_t key);
+  bool resident(uint32_t key) const { return entries_.count(key) != 0; }
+  std::optional<uint64_t> offset(uint32_t key) const;
+  uint32_t counter(uint32_t key) const;
+
+  // Room for `units` for `key` (not yet resident), visible this frame. Evicted keys are appended
+  // to `evicted` with their sizes; the caller frees what it kept for them.
+  std::optional<uint64_t> admit(uint32_t key, uint64_t units,
+                                std::vector<std::pair<uint32_t, uint64_t>>& evicted);
+  // Drops a resident object (e.g. when its data could not be written).
+  void drop(uint32_t key);
+  // Ages every object not visible this frame.
+  void end_frame();
+
+  uint64_t used_units() const { return allocator_.used(); }
+  uint64_t capacity_units() const { return allocator_.capacity(); }
+  size_t resident_count() const { return entries_.size(); }
+
+ private:
+  struct Entry {
+    uint64_t offset = 0, units = 0;
+    uint32_t counter = 0;
+    uint64_t visible_frame = 0;
+  };
+  RangeAllocator allocator_;
+  std::unordered_map<uint32_t, Entry> entries_;
+  uint64_t frame_ = 0;
+  // This frame's eviction candidates, best last (popped from the back).
+  std::vector<uint32_t> candidates_;
+  bool candidates_built_ = false;
+};
+
+}  // namespace plantview::detail

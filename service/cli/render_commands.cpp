@@ -1,0 +1,254 @@
+// `plantview render`, `compare` and `path`: review images, image comparison and camera paths.
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "cli/commands.h"
+#include "cli/progress.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+
+namespace plantview::cli {
+
+namespace {
+
+bool parse_size(const std::string& text, uint32_t& w, uint32_t& h, std::string& error) {
+  const size_t x = text.find('x');
+  const auto number = [](std::string_view s, uint32_t& v) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && end == s.data() + s.size();
+  };
+  if (x == std::string::npos || !number(std::string_view(text).substr(0, x), w) ||
+      !number(std::string_view(text).substr(x + 1), h)) {
+    error = "--size: expected WxH, got '" + text + "'";
+    return false;
+  }
+  if (w == 0 || h == 0 || w > kMaxImageSide || h > kMaxImageSide) {
+    error = "--size: " + text + " is outside 1.." + std::to_string(kMaxImageSide) + " per side";
+    return false;
+  }
+  return true;
+}
+
+bool parse_shard(const std::string& text, uint32_t& index, uint32_t& count, std::string& error) {
+  const size_t slash = text.find('/');
+  const auto number = [](std::string_view s, uint32_t& v) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && end == s.data() + s.size();
+  };
+  if (slash == std::string::npos || !number(std::string_view(text).substr(0, slash), index) ||
+      !number(std::string_view(text).substr(slash + 1), count) || count == 0 || index >= count) {
+    error = "--shard: expected I/N with 0 <= I < N, got '" + text + "'";
+    return false;
+  }
+  return true;
+}
+
+bool read_text(const std::string& path, std::string& out, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = "cannot read " + path;
+    return false;
+  }
+  std::ostringstream s;
+  s << in.rdbuf();
+  out = s.str();
+  return true;
+}
+
+int fail(const std::string& message) {
+  std::cerr << "plantview: " << message << "\n";
+  return 1;
+}
+
+struct RenderArgs {
+  std::string store, camera, path, out, size = "1280x720", lod_policy = "screen-space",
+                                        shard = "0/1", format = "png";
+  double pixel_error = 1.0;
+  uint64_t vertex_budget_mb = 512;
+  int device = -1, quality = 90;
+  bool no_centrelines = false;
+};
+
+int run_render(const RenderArgs& a) {
+  const auto t_start = std::chrono::steady_clock::now();
+  std::string error;
+  uint32_t width = 0, height = 0, shard_index = 0, shard_count = 1;
+  RenderOptions options;
+  if (!parse_size(a.size, width, height, error) || !parse_shard(a.shard, shard_index, shard_count, error))
+    return fail(error);
+  if (!parse_lod_policy(a.lod_policy, options.lod_policy))
+    return fail("--lod-policy: '" + a.lod_policy + "' is not one of screen-space, distance, none");
+  options.pixel_error = a.pixel_error;
+  options.vertex_budget_bytes = a.vertex_budget_mb << 20;
+  options.centrelines = !a.no_centrelines;
+  if (!a.camera.empty() && !a.path.empty()) return fail("give --camera or --path, not both");
+
+  std::vector<Camera> cameras;
+  if (!a.path.empty()) {
+    std::string json;
+    if (!read_text(a.path, json, error) || !parse_camera_path(json, cameras, error))
+      return fail(a.path + ": " + error);
+  } else if (!a.camera.empty()) {
+    Camera c;
+    if (!parse_camera(a.camera, c, error)) return fail("--camera: " + error);
+    cameras.push_back(c);
+  }
+  ImageFormat format = ImageFormat::png;
+  const bool many = !a.path.empty();
+  if (many) {
+    if (!image_format_from_name(a.format, format)) return fail("--format: png or jpeg");
+    std::error_code ec;
+    std::filesystem::create_directories(a.out, ec);
+    if (ec) return fail("cannot create " + a.out + ": " + ec.message());
+  } else if (!image_format_from_name(a.out, format)) {
+    return fail("--out: " + a.out + ": use a .png, .jpg or .jpeg name (or --path with a directory)");
+  }
+
+  auto store = Store::open(a.store, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  auto context = GpuContext::create(a.device, error);
+  if (!context) return fail(error);
+  std::cerr << "plantview: rendering on " << context->description() << "\n";
+  auto renderer = Renderer::create(*store, options, error);
+  if (!renderer) return fail(error);
+  if (cameras.empty()) cameras.push_back(default_camera(renderer->model_bounds(), double(width) / height));
+
+  std::ofstream stats_file;
+  if (many) {
+    stats_file.open(std::filesystem::path(a.out) / "stats.jsonl");
+    if (!stats_file) return fail("cannot write " + (std::filesystem::path(a.out) / "stats.jsonl").string());
+  }
+  Progress progress("render");
+  Image image;
+  FrameStats stats;
+  size_t done = 0, total = 0;
+  for (size_t i = shard_index; i < cameras.size(); i += shard_count) ++total;
+  for (size_t i = shard_index; i < cameras.size(); i += shard_count) {
+    if (!renderer->render(cameras[i], width, height, false, image, stats, error))
+      return fail("view " + std::to_string(i) + ": " + error);
+    const auto t_encode = std::chrono::steady_clock::now();
+    std::string file = a.out;
+    if (many) {
+      char name[64];
+      std::snprintf(name, sizeof name, "%06zu.%s", i, format == ImageFormat::png ? "png" : "jpg");
+      file = (std::filesystem::path(a.out) / name).string();
+    }
+    if (!write_image(file, image, a.quality, error)) return fail(error);
+    stats.ms.encode = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_encode).count();
+    std::string line = stats.to_json();
+    line.insert(1, "\"view\":" + std::to_string(i) + ",\"file\":\"" + file + "\",");
+    if (many) stats_file << line << "\n";
+    else std::cout << line << "\n";
+    if (done == 0) {
+      const double first_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+      if (!many) std::cerr << "plantview: first image written " << first_s << " s after start\n";
+    }
+    ++done;
+    progress.update(double(done) / double(total), std::to_string(done) + "/" + std::to_string(total));
+  }
+  progress.finish();
+  return 0;
+}
+
+int run_compare(const std::string& a, const std::string& b, bool json, const std::string& diff,
+                double min_psnr) {
+  std::string error;
+  Image ia, ib;
+  if (!read_image(a, ia, error) || !read_image(b, ib, error)) return fail(error);
+  ImageComparison c;
+  if (!compare_images(ia, ib, c, error)) return fail(error);
+  if (!diff.empty() && !write_difference_image(ia, ib, diff, error)) return fail(error);
+  const std::string psnr = std::isinf(c.psnr_db) ? (json ? "null" : "inf") : std::to_string(c.psnr_db);
+  if (json) {
+    std::cout << "{\"psnr_db\":" << psnr << ",\"max_difference\":" << c.max_difference
+              << ",\"differing_share\":" << c.differing_share << "}\n";
+  } else {
+    std::cout << "PSNR " << psnr << " dB, largest difference " << c.max_difference
+              << ", differing pixels " << 100.0 * c.differing_share << "%\n";
+  }
+  if (min_psnr > 0 && c.psnr_db < min_psnr) return 1;
+  return 0;
+}
+
+int run_path(const std::string& store_dir, const std::string& kind_name, int frames,
+             const std::string& out) {
+  std::string error;
+  PathKind kind;
+  if (!parse_path_kind(kind_name, kind)) return fail("--kind: walkthrough or orbit");
+  if (frames < 1 || frames > 1000000) return fail("--frames: 1..1000000");
+  auto store = Store::open(store_dir, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  auto view = store->read(error);
+  if (!view) return fail(error);
+  const DAabb bounds = view->info().statistics.bounds;
+  if (bounds.empty()) return fail(store_dir + ": the store holds no geometry");
+  std::vector<DAabb> equipment;
+  const bool ok = view->for_each_object(
+      [&](uint32_t, Object&& o) {
+        if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
+        return true;
+      },
+      false, error);
+  if (!ok) return fail(error);
+  const auto cameras = make_camera_path(kind, frames, bounds, equipment);
+  std::ofstream file(out);
+  if (!file) return fail("cannot write " + out);
+  file << camera_path_json(cameras);
+  if (!file.flush()) return fail("writing " + out + " failed");
+  return 0;
+}
+
+}  // namespace
+
+Action add_render_commands(CLI::App& app) {
+  auto args = std::make_shared<RenderArgs>();
+  auto* render = app.add_subcommand("render", "Render review images of a store");
+  render->add_option("--store", args->store, "Store directory")->required();
+  render->add_option("--camera", args->camera,
+                     "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG] (default: the whole plant)");
+  render->add_option("--path", args->path, "Camera path JSON (from `plantview path`)");
+  render->add_option("--out", args->out, "Image file (.png/.jpg), or a directory with --path")->required();
+  render->add_option("--size", args->size, "Image size WxH")->capture_default_str();
+  render->add_option("--lod-policy", args->lod_policy, "screen-space, distance or none")->capture_default_str();
+  render->add_option("--pixel-error", args->pixel_error, "Allowed screen-space error (pixels)")->capture_default_str();
+  render->add_option("--vertex-budget", args->vertex_budget_mb, "GPU vertex arena (MB)")->capture_default_str();
+  render->add_option("--shard", args->shard, "Render views I, I+N, I+2N... of a path")->capture_default_str();
+  render->add_option("--format", args->format, "Image format with --path: png or jpeg")->capture_default_str();
+  render->add_option("--quality", args->quality, "JPEG quality 1..100")->capture_default_str();
+  render->add_option("--device", args->device, "EGL device index (default: the first GPU, else software)");
+  render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");
+
+  auto compare_a = std::make_shared<std::string>(), compare_b = std::make_shared<std::string>(),
+       diff = std::make_shared<std::string>();
+  auto compare_json = std::make_shared<bool>(false);
+  auto min_psnr = std::make_shared<double>(0.0);
+  auto* compare = app.add_subcommand("compare", "Compare two images (PSNR, largest difference)");
+  compare->add_option("A", *compare_a, "First image")->required();
+  compare->add_option("B", *compare_b, "Second image")->required();
+  compare->add_flag("--json", *compare_json, "Print JSON");
+  compare->add_option("--diff", *diff, "Write a difference image here");
+  compare->add_option("--min-psnr", *min_psnr, "Exit 1 when the PSNR is below this (dB)");
+
+  auto path_store = std::make_shared<std::string>(), path_kind = std::make_shared<std::string>("walkthrough"),
+       path_out = std::make_shared<std::string>();
+  auto frames = std::make_shared<int>(120);
+  auto* path = app.add_subcommand("path", "Make a camera path through a store's plant");
+  path->add_option("--store", *path_store, "Store directory")->required();
+  path->add_option("--kind", *path_kind, "walkthrough or orbit")->capture_default_str();
+  path->add_option("--frames", *frames, "Number of views")->capture_default_str();
+  path->add_option("--out", *path_out, "Camera path JSON file")->required();
+
+  return [=]() -> int {
+    if (render->parsed()) return run_render(*args);
+    if (compare->parsed()) return run_compare(*compare_a, *compare_b, *compare_json, *diff, *min_psnr);
+    if (path->parsed()) return run_path(*path_store, *path_kind, *frames, *path_out);
+    return -1;
+  };
+}
+
+}  // namespace plantview::cli

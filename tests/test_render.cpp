@@ -1,0 +1,621 @@
+// The headless renderer on whatever EGL offers (llvmpipe in CI): reference images, culling,
+// level choice, the vertex budget and its eviction order, picking, far-from-origin precision,
+// cameras, paths and image files.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <random>
+#include <set>
+
+#include "hlod.h"
+#include "lod.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "residency.h"
+
+namespace plantview {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("plantview-render-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++));
+    fs::remove_all(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  std::string str() const { return path_.string(); }
+  fs::path path() const { return path_; }
+
+ private:
+  fs::path path_;
+  static inline int counter_ = 0;
+};
+
+// One GL context for the whole test program (contexts are per thread; tests run on one).
+GpuContext& context() {
+  static std::unique_ptr<GpuContext> ctx = [] {
+    std::string error;
+    auto c = GpuContext::create(-1, error);
+    if (!c) ADD_FAILURE() << error;
+    else std::fprintf(stderr, "render tests on: %s\n", c->description().c_str());
+    return c;
+  }();
+  if (!ctx) std::abort();
+  return *ctx;
+}
+
+Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin, Shape shape,
+                   Colour colour = {200, 120, 40, 255}) {
+  Object o;
+  o.name = name;
+  o.source = "test";
+  o.id = object_id(o.source, name);
+  o.object_class = cls;
+  o.colour = colour;
+  o.origin_m = origin;
+  o.primitives.push_back(Primitive{Placement{}, std::move(shape)});
+  return o;
+}
+
+std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>& objects) {
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+  EXPECT_TRUE(store) << error;
+  auto import = store->begin_import(error);
+  EXPECT_TRUE(import) << error;
+  for (const auto& o : objects) EXPECT_TRUE(import->put(o, error)) << error;
+  EXPECT_TRUE(import->commit(error)) << error;
+  return store;
+}
+
+struct Frame {
+  Image image;
+  FrameStats stats;
+};
+
+Frame render(Renderer& r, const Camera& camera, uint32_t w = 160, uint32_t h = 120) {
+  Frame f;
+  std::string error;
+  EXPECT_TRUE(r.render(camera, w, h, true, f.image, f.stats, error)) << error;
+  return f;
+}
+
+// Tests use a small arena unless they say otherwise: allocating it is most of a renderer's start.
+RenderOptions small(LodPolicy policy = LodPolicy::screen_space) {
+  RenderOptions o;
+  o.lod_policy = policy;
+  o.vertex_budget_bytes = 16u << 20;
+  return o;
+}
+
+std::unique_ptr<Renderer> make_renderer(const Store& store, RenderOptions options = small()) {
+  context();
+  std::string error;
+  auto r = Renderer::create(store, options, error);
+  EXPECT_TRUE(r) << error;
+  return r;
+}
+
+Camera look(glm::dvec3 eye, glm::dvec3 target) {
+  Camera c;
+  c.eye_m = eye;
+  c.target_m = target;
+  return c;
+}
+
+std::set<uint64_t> ids_in(const Image& image) {
+  std::set<uint64_t> ids(image.object_ids.begin(), image.object_ids.end());
+  ids.erase(0);
+  return ids;
+}
+
+// --- images -----------------------------------------------------------------------------------
+
+TEST(RenderImage, OneCylinderMatchesTheReferenceImage) {
+  TempDir dir;
+  auto store = make_store(dir, {make_object("C", ObjectClass::pipe, {0, 0, 0},
+                                            Cylinder{0.5f, 2.0f})});
+  auto r = make_renderer(*store, small(LodPolicy::none));
+  Camera cam = look({3, -4, 2}, {0, 0, 0});
+  cam.fov_deg = 40;
+  Frame f = render(*r, cam, 200, 150);
+  const std::string reference = std::string(PLANTVIEW_TEST_DATA) + "/reference/cylinder.png";
+  Image expected;
+  std::string error;
+  if (std::getenv("PLANTVIEW_UPDATE_REFERENCES")) {
+    ASSERT_TRUE(write_image(reference, f.image, 90, error)) << error;
+  }
+  ASSERT_TRUE(read_image(reference, expected, error)) << error;
+  ImageComparison c;
+  ASSERT_TRUE(compare_images(f.image, expected, c, error)) << error;
+  if (c.psnr_db < 30.0 || c.differing_share > 0.02) {
+    const fs::path out = fs::temp_directory_path() / "plantview-cylinder-actual.png";
+    const fs::path diff = fs::temp_directory_path() / "plantview-cylinder-diff.png";
+    write_image(out.string(), f.image, 90, error);
+    write_difference_image(f.image, expected, diff.string(), error);
+    ADD_FAILURE() << "PSNR " << c.psnr_db << " dB, " << 100 * c.differing_share
+                  << "% differing; actual " << out << ", difference " << diff;
+  }
+}
+
+TEST(RenderImage, EncodesPngLosslesslyAndJpegCloseToIt) {
+  Image image;
+  image.width = 64;
+  image.height = 48;
+  image.rgba.resize(64 * 48 * 4);
+  for (size_t i = 0; i < image.rgba.size(); ++i) image.rgba[i] = (i % 4 == 3) ? 255 : uint8_t((i * 7) / 13);
+  TempDir dir;
+  fs::create_directories(dir.path());
+  std::string error;
+  const std::string png = (dir.path() / "a.png").string();
+  ASSERT_TRUE(write_image(png, image, 90, error)) << error;
+  Image back;
+  ASSERT_TRUE(read_image(png, back, error)) << error;
+  EXPECT_EQ(back.rgba, image.rgba);
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(encode_image(image, ImageFormat::jpeg, 95, jpeg, error)) << error;
+  ASSERT_GT(jpeg.size(), 100u);
+  EXPECT_EQ(jpeg[0], 0xff);
+  EXPECT_EQ(jpeg[1], 0xd8);
+  EXPECT_FALSE(encode_image(image, ImageFormat::jpeg, 0, jpeg, error));
+  EXPECT_FALSE(write_image((dir.path() / "a.tiff").string(), image, 90, error));
+  EXPECT_NE(error.find("a.tiff"), std::string::npos);
+}
+
+TEST(RenderImage, ComparisonReportsIdenticalAndDifferentImages) {
+  Image a;
+  a.width = 10;
+  a.height = 10;
+  a.rgba.assign(400, 100);
+  Image b = a;
+  ImageComparison c;
+  std::string error;
+  ASSERT_TRUE(compare_images(a, b, c, error)) << error;
+  EXPECT_TRUE(std::isinf(c.psnr_db));
+  EXPECT_EQ(c.differing_share, 0.0);
+  b.rgba[0] = 200;  // one pixel's red
+  ASSERT_TRUE(compare_images(a, b, c, error));
+  EXPECT_NEAR(c.differing_share, 0.01, 1e-9);
+  EXPECT_NEAR(c.max_difference, 100.0 / 255.0, 1e-3);
+  EXPECT_GT(c.psnr_db, 20.0);
+  b.width = 5;
+  b.rgba.resize(200);
+  EXPECT_FALSE(compare_images(a, b, c, error));
+  EXPECT_NE(error.find("sizes differ"), std::string::npos);
+}
+
+// --- culling and picking ----------------------------------------------------------------------
+
+TEST(RenderCull, ObjectsOutsideTheFrustumAreNotDrawnAndVisibleOnesAre) {
+  TempDir dir;
+  const auto front = make_object("front", ObjectClass::equipment, {0, 5, 0}, Box{1, 1, 1});
+  const auto behind = make_object("behind", ObjectClass::equipment, {0, -5, 0}, Box{1, 1, 1});
+  const auto aside = make_object("aside", ObjectClass::equipment, {50, 5, 0}, Box{1, 1, 1});
+  auto store = make_store(dir, {front, behind, aside});
+  auto r = make_renderer(*store);
+  Frame f = render(*r, look({0, 0, 0}, {0, 1, 0}));
+  EXPECT_EQ(f.stats.objects_visible, 1u);
+  EXPECT_EQ(f.stats.objects_culled, 2u);
+  EXPECT_EQ(f.stats.triangles, 12u);
+  EXPECT_EQ(ids_in(f.image), std::set<uint64_t>{front.id});
+  // Turning round shows the other one.
+  f = render(*r, look({0, 0, 0}, {0, -1, 0}));
+  EXPECT_EQ(ids_in(f.image), std::set<uint64_t>{behind.id});
+}
+
+TEST(RenderPick, TheIdUnderAPixelIsTheObjectDrawnThere) {
+  TempDir dir;
+  const auto left = make_object("left", ObjectClass::equipment, {-1.5, 10, 0}, Box{1, 1, 1}, {255, 0, 0, 255});
+  const auto right = make_object("right", ObjectClass::equipment, {1.5, 10, 0}, Sphere{0.6f}, {0, 0, 255, 255});
+  auto store = make_store(dir, {left, right});
+  auto r = make_renderer(*store);
+  Frame f = render(*r, look({0, 0, 0}, {0, 10, 0}), 200, 100);
+  const auto at = [&](uint32_t x, uint32_t y) { return f.image.object_ids[size_t(y) * 200 + x]; };
+  const auto rgb = [&](uint32_t x, uint32_t y) { return &f.image.rgba[(size_t(y) * 200 + x) * 4]; };
+  // x = 1.5 m at 10 m with a 50 degree fov spans 1.5 / (10 tan 25) of the half height (50 px).
+  const uint32_t offset = uint32_t(std::lround(1.5 / (10 * std::tan(25 * M_PI / 180)) * 50));
+  EXPECT_EQ(at(100 - offset, 50), left.id);
+  EXPECT_EQ(at(100 + offset, 50), right.id);
+  EXPECT_EQ(at(100, 50), 0u);   // the gap between them
+  EXPECT_EQ(at(5, 5), 0u);      // the sky
+  EXPECT_GT(rgb(100 - offset, 50)[0], rgb(100 - offset, 50)[2]);  // red box
+  EXPECT_GT(rgb(100 + offset, 50)[2], rgb(100 + offset, 50)[0]);  // blue sphere
+}
+
+// --- level choice -----------------------------------------------------------------------------
+
+TEST(RenderLod, TheChosenLevelIsTheCoarsestWhoseProjectedErrorIsUnderThePixelError) {
+  const float error_m[4] = {0.001f, 0.004f, 0.016f, 0.064f};
+  // 1000 px per metre: 1 mm is 1 px, 4 mm 4 px.
+  EXPECT_EQ(detail::choose_level_screen_space(error_m, 4, 1000.0, 1.0), 0u);
+  EXPECT_EQ(detail::choose_level_screen_space(error_m, 4, 1000.0, 4.5), 1u);
+  EXPECT_EQ(detail::choose_level_screen_space(error_m, 4, 10.0, 1.0), 3u);
+  EXPECT_EQ(detail::choose_level_screen_space(error_m, 4, 100.0, 1.0), 1u);  // 1.6 px at level 2
+  EXPECT_EQ(detail::choose_level_screen_space(error_m, 4, 50.0, 1.0), 2u);
+  EXPECT_NEAR(detail::pixels_per_metre(10.0, 90.0, 1000), 50.0, 1e-9);
+  EXPECT_EQ(detail::choose_level_distance(4, 1.0, 1.0), 0u);
+  EXPECT_EQ(detail::choose_level_distance(4, 12.0, 1.0), 1u);
+  EXPECT_EQ(detail::choose_level_distance(4, 20.0, 1.0), 2u);
+  EXPECT_EQ(detail::choose_level_distance(4, 1000.0, 1.0), 3u);
+}
+
+TEST(RenderLod, ARenderedCylinderCoarsensWithDistanceAsItsErrorProjects) {
+  TempDir dir;
+  const Primitive cyl{Placement{}, Cylinder{0.4f, 1.0f}};
+  const MeshPlan plan = plan_mesh(cyl);
+  ASSERT_GT(plan.level_count, 2);
+  auto store = make_store(dir, {make_object("C", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.4f, 1.0f})});
+  auto r = make_renderer(*store);
+  const uint32_t h = 400;
+  uint32_t previous = UINT32_MAX;
+  for (double d : {2.0, 8.0, 30.0, 120.0}) {
+    Frame f = render(*r, look({0, -d, 0}, {0, 0, 0}), 400, h);
+    uint32_t level = 0;
+    for (uint32_t l = 0; l < 8; ++l)
+      if (f.stats.triangles_by_level[l]) level = l;
+    // The bounds' nearest point is 0.4 m closer than the axis.
+    const double px_per_m = detail::pixels_per_metre(d - 0.4, 50.0, h);
+    EXPECT_LE(plan.error_m[level] * px_per_m, 1.0) << "at " << d << " m";
+    if (level + 1u < plan.level_count) {
+      EXPECT_GT(plan.error_m[level + 1] * px_per_m, 1.0) << d;
+    }
+    EXPECT_LE(f.stats.triangles, previous);
+    previous = uint32_t(f.stats.triangles);
+  }
+  // At 500 m the whole cylinder spans under a pixel: it is left out.
+  Frame gone = render(*r, look({0, -500, 0}, {0, 0, 0}), 400, h);
+  EXPECT_EQ(gone.stats.objects_subpixel, 1u);
+  EXPECT_EQ(gone.stats.triangles, 0u);
+  // Policy none draws level 0 everywhere.
+  r->set_options(small(LodPolicy::none));
+  Frame f = render(*r, look({0, -500, 0}, {0, 0, 0}), 400, h);
+  EXPECT_EQ(f.stats.triangles, element_count(plan, 0));
+}
+
+TEST(RenderLod, PipesUnderAPixelAreDrawnAsTheirCentreline) {
+  TempDir dir;
+  Object pipe = make_object("P", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.05f, 4.0f});
+  pipe.centreline = {{{0, 0, -2}, {0, 0, 2}, 0.1f}};
+  auto store = make_store(dir, {pipe});
+  auto r = make_renderer(*store);
+  Frame near = render(*r, look({0, -3, 0}, {0, 0, 0}));
+  EXPECT_EQ(near.stats.centreline_pipes, 0u);
+  EXPECT_GT(near.stats.triangles, 0u);
+  Frame far = render(*r, look({0, -400, 0}, {0, 0, 0}));
+  EXPECT_EQ(far.stats.centreline_pipes, 1u);
+  EXPECT_EQ(far.stats.triangles, 0u);
+  EXPECT_EQ(far.stats.lines, 1u);
+  EXPECT_EQ(ids_in(far.image), std::set<uint64_t>{pipe.id});  // still drawn, as a line
+}
+
+// --- pipeline HLOD -----------------------------------------------------------------------------
+
+// A pipeline along x: pipe, flange, pipe (one straight run), a tee, then one more pipe.
+struct PipelineScene {
+  Object pipeline, a, flange, b, tee, c;
+  std::vector<Object> all() const { return {pipeline, a, flange, b, tee, c}; }
+};
+
+PipelineScene pipeline_scene() {
+  const glm::mat3 along_x(glm::vec3(0, 0, -1), glm::vec3(0, 1, 0), glm::vec3(1, 0, 0));
+  const glm::mat3 along_y(glm::vec3(1, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  PipelineScene s;
+  s.pipeline.name = "/PL-1";
+  s.pipeline.source = "test";
+  s.pipeline.id = object_id("test", s.pipeline.name);
+  s.pipeline.object_class = ObjectClass::pipeline;
+  const auto part = [&](const std::string& name, ObjectClass cls, float x0, float x1, float radius) {
+    Object o = make_object(name, cls, {0, 0, 0}, Cylinder{radius, x1 - x0}, {200, 180, 60, 255});
+    o.primitives[0].placement.linear = along_x;
+    o.primitives[0].placement.translation_m = {0.5f * (x0 + x1), 0, 0};
+    o.pipeline_id = s.pipeline.id;
+    o.connections = {{{x0, 0, 0}, {-1, 0, 0}, 0.1f}, {{x1, 0, 0}, {1, 0, 0}, 0.1f}};
+    o.centreline = {{{x0, 0, 0}, {x1, 0, 0}, 0.1f}};
+    return o;
+  };
+  s.a = part("A", ObjectClass::pipe, 0, 2, 0.05f);
+  s.flange = part("F", ObjectClass::component, 2, 2.04f, 0.09f);
+  s.b = part("B", ObjectClass::pipe, 2.04f, 4, 0.05f);
+  s.tee = part("T", ObjectClass::component, 4, 4.3f, 0.05f);
+  s.tee.primitives.push_back(Primitive{Placement{along_y, {4.15f, 0.15f, 0}}, Cylinder{0.05f, 0.3f}});
+  s.tee.connections.push_back({{4.15f, 0.3f, 0}, {0, 1, 0}, 0.1f});
+  s.tee.centreline.push_back({{4.15f, 0, 0}, {4.15f, 0.3f, 0}, 0.1f});
+  s.c = part("C", ObjectClass::pipe, 4.3f, 6, 0.05f);
+  s.pipeline.branches = {{"B1", {s.a.id, s.flange.id, s.b.id, s.tee.id, s.c.id}}};
+  return s;
+}
+
+TEST(RenderHlod, FindsTheStraightRunUpToTheTee) {
+  const PipelineScene s = pipeline_scene();
+  std::vector<std::pair<uint32_t, const Object*>> branch = {
+      {1, &s.a}, {2, &s.flange}, {3, &s.b}, {4, &s.tee}, {5, &s.c}};
+  std::vector<detail::PipelineRun> runs;
+  detail::find_runs(branch, runs);
+  ASSERT_EQ(runs.size(), 1u);  // C alone after the tee is no run
+  EXPECT_EQ(runs[0].members, (std::vector<uint32_t>{1, 2, 3}));
+  EXPECT_NEAR(runs[0].start_m.x, 0.0, 1e-6);
+  EXPECT_NEAR(runs[0].end_m.x, 4.0, 1e-6);
+  EXPECT_NEAR(runs[0].diameter_m, 0.1, 1e-6);
+  EXPECT_NEAR(runs[0].merge_error_m, 0.04, 1e-4);  // the flange's collar
+  // A reducer (another diameter at one end) ends a run too.
+  Object reducer = s.flange;
+  reducer.connections[1].diameter_m = 0.2f;
+  branch[1].second = &reducer;
+  runs.clear();
+  detail::find_runs(branch, runs);
+  EXPECT_TRUE(runs.empty());
+}
+
+TEST(RenderHlod, AFarRunIsOneCylinderWithoutItsFlangeAndTheTeeStays) {
+  TempDir dir;
+  const PipelineScene s = pipeline_scene();
+  auto store = make_store(dir, s.all());
+  auto r = make_renderer(*store);
+  // Near: every part drawn as itself.
+  Frame near = render(*r, look({3, -3, 1}, {3, 0, 0}), 400, 400);
+  EXPECT_EQ(near.stats.hlod_merges, 0u);
+  for (const Object* o : {&s.a, &s.flange, &s.b, &s.tee, &s.c})
+    EXPECT_TRUE(ids_in(near.image).count(o->id)) << o->name;
+  // At 20 m the flange's 4 cm collar is under a pixel: A, F and B become one cylinder (picked
+  // as the pipeline); the tee and the pipe after it stay.
+  Frame far = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
+  EXPECT_EQ(far.stats.hlod_merges, 1u);
+  EXPECT_EQ(far.stats.hlod_members, 3u);
+  const auto ids = ids_in(far.image);
+  EXPECT_TRUE(ids.count(s.pipeline.id));
+  EXPECT_TRUE(ids.count(s.tee.id));
+  EXPECT_TRUE(ids.count(s.c.id));
+  EXPECT_FALSE(ids.count(s.flange.id));
+  EXPECT_FALSE(ids.count(s.a.id));
+  // Policy none never merges.
+  r->set_options(small(LodPolicy::none));
+  Frame none = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
+  EXPECT_EQ(none.stats.hlod_merges, 0u);
+  EXPECT_TRUE(ids_in(none.image).count(s.flange.id));
+}
+
+// --- the vertex arena -------------------------------------------------------------------------
+
+TEST(RenderArena, EvictsTheLargestVisibilityCounterFirst) {
+  detail::Residency res(100);
+  std::vector<std::pair<uint32_t, uint64_t>> evicted;
+  res.begin_frame();
+  ASSERT_TRUE(res.admit(1, 30, evicted));
+  ASSERT_TRUE(res.admit(2, 30, evicted));
+  ASSERT_TRUE(res.admit(3, 30, evicted));
+  res.end_frame();
+  // Frame 2: only 3 visible. Frame 3: only 2 visible. Counters: 1 -> 2, 2 -> 0, 3 -> 1.
+  res.begin_frame();
+  res.mark_visible(3);
+  res.end_frame();
+  res.begin_frame();
+  res.mark_visible(2);
+  res.end_frame();
+  EXPECT_EQ(res.counter(1), 2u);
+  EXPECT_EQ(res.counter(2), 0u);
+  EXPECT_EQ(res.counter(3), 1u);
+  res.begin_frame();
+  res.mark_visible(2);
+  ASSERT_TRUE(res.admit(4, 20, evicted));  // needs one eviction: the oldest, 1
+  ASSERT_EQ(evicted.size(), 1u);
+  EXPECT_EQ(evicted[0].first, 1u);
+  ASSERT_TRUE(res.admit(5, 30, evicted));  // next: 3 (2 is visible)
+  ASSERT_EQ(evicted.size(), 2u);
+  EXPECT_EQ(evicted[1].first, 3u);
+  EXPECT_FALSE(res.admit(6, 30, evicted));  // only visible objects are left: nothing fits
+  EXPECT_TRUE(res.resident(2));
+  EXPECT_LE(res.used_units(), res.capacity_units());
+}
+
+TEST(RenderArena, FreedRangesCoalesce) {
+  detail::RangeAllocator a(100);
+  const auto x = a.allocate(40), y = a.allocate(40), z = a.allocate(20);
+  ASSERT_TRUE(x && y && z);
+  EXPECT_FALSE(a.allocate(1));
+  a.release(*x, 40);
+  a.release(*z, 20);
+  EXPECT_FALSE(a.allocate(60));
+  a.release(*y, 40);
+  EXPECT_EQ(a.largest_free(), 100u);
+  EXPECT_TRUE(a.allocate(100));
+}
+
+TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j)
+      objects.push_back(make_object("S" + std::to_string(i) + "_" + std::to_string(j),
+                                    ObjectClass::equipment, {i * 4.0, j * 4.0, 0},
+                                    Sphere{1.5f + 0.1f * float(j % 5)}));
+  auto store = make_store(dir, objects);
+  RenderOptions options = small(LodPolicy::none);
+  options.vertex_budget_bytes = 1u << 20;  // a few dozen large spheres
+  auto r = make_renderer(*store, options);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-10, 90);
+  uint64_t evictions = 0, proxies = 0;
+  for (int frame = 0; frame < 30; ++frame) {
+    const glm::dvec3 eye(u(rng), u(rng), 3 + 0.2 * u(rng));
+    const glm::dvec3 target(u(rng), u(rng), 0);
+    if (glm::length(target - eye) < 1) continue;
+    Frame f = render(*r, look(eye, target), 96, 64);
+    EXPECT_LE(f.stats.arena_bytes_resident, options.vertex_budget_bytes) << frame;
+    evictions += f.stats.objects_evicted;
+    proxies += f.stats.budget_proxies;
+    EXPECT_LE(ids_in(f.image).size(), f.stats.objects_visible);
+  }
+  EXPECT_GT(evictions, 0u);
+  // The whole plant at full resolution cannot fit: objects are made resident at coarser
+  // levels instead, and none is left out.
+  Frame all = render(*r, look({40, -120, 80}, {40, 40, 0}), 320, 240);
+  EXPECT_GT(all.stats.budget_coarsened, 0u);
+  EXPECT_LE(all.stats.arena_bytes_resident, options.vertex_budget_bytes);
+  EXPECT_EQ(ids_in(all.image).size(), 400u);
+}
+
+TEST(RenderArena, AnObjectLargerThanTheWholeBudgetIsDrawnAsItsBox) {
+  FacetGroup mesh;  // 60,000 vertices in one level: more than a 1 MB arena holds
+  for (uint32_t t = 0; t < 20000; ++t) {
+    const float x = float(t % 200) * 0.01f, y = float(t / 200) * 0.01f;
+    mesh.vertices.push_back({{x, y, 0}, {0, 0, 1}});
+    mesh.vertices.push_back({{x + 0.01f, y, 0}, {0, 0, 1}});
+    mesh.vertices.push_back({{x, y + 0.01f, 0}, {0, 0, 1}});
+    mesh.contour_ends.push_back(uint32_t(mesh.vertices.size()));
+    mesh.polygon_ends.push_back(uint32_t(mesh.contour_ends.size()));
+  }
+  mesh.triangulate();
+  TempDir dir;
+  const auto big = make_object("big", ObjectClass::structure, {0, 0, 0}, mesh);
+  auto store = make_store(dir, {big});
+  RenderOptions options = small();
+  options.vertex_budget_bytes = 1u << 20;
+  auto r = make_renderer(*store, options);
+  Frame f = render(*r, look({1, 1, 3}, {1, 1, 0}));
+  EXPECT_EQ(f.stats.budget_proxies, 1u);
+  EXPECT_EQ(f.stats.triangles, 12u);
+  EXPECT_EQ(ids_in(f.image), std::set<uint64_t>{big.id});
+  EXPECT_LE(f.stats.arena_bytes_resident, options.vertex_budget_bytes);
+}
+
+TEST(RenderArena, AResidentObjectIsNotTessellatedAgain) {
+  TempDir dir;
+  auto store = make_store(dir, {make_object("C", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.5f, 2.0f})});
+  auto r = make_renderer(*store);
+  Frame a = render(*r, look({0, -5, 0}, {0, 0, 0}));
+  EXPECT_EQ(a.stats.objects_tessellated, 1u);
+  EXPECT_GT(a.stats.arena_bytes_uploaded, 0u);
+  Frame b = render(*r, look({0, -50, 0}, {0, 0, 0}));  // another level: same vertices
+  EXPECT_EQ(b.stats.objects_tessellated, 0u);
+  EXPECT_EQ(b.stats.arena_bytes_uploaded, 0u);
+  EXPECT_LT(b.stats.triangles, a.stats.triangles);
+}
+
+// --- precision --------------------------------------------------------------------------------
+
+TEST(RenderPrecision, APlantTenKilometresFromTheOriginRendersAsAtTheOrigin) {
+  const glm::dvec3 far_away(10000.0, -10000.0, 35.0);
+  const auto scene = [](glm::dvec3 shift) {
+    std::vector<Object> v;
+    v.push_back(make_object("pipe", ObjectClass::pipe, shift + glm::dvec3(0, 0, 0), Cylinder{0.05f, 1.0f}));
+    v.push_back(make_object("flange", ObjectClass::component, shift + glm::dvec3(0, 0, 0.52), Cylinder{0.09f, 0.04f}, {90, 90, 200, 255}));
+    v.push_back(make_object("box", ObjectClass::equipment, shift + glm::dvec3(0.3, 0.2, 0), Box{0.1f, 0.1f, 0.1f}, {40, 160, 40, 255}));
+    return v;
+  };
+  TempDir a, b;
+  auto store_a = make_store(a, scene(glm::dvec3(0.0)));
+  auto store_b = make_store(b, scene(far_away));
+  auto ra = make_renderer(*store_a);
+  auto rb = make_renderer(*store_b);
+  const Camera cam = look({0.6, -0.9, 0.7}, {0, 0, 0.3});
+  Camera cam_far = cam;
+  cam_far.eye_m += far_away;
+  cam_far.target_m += far_away;
+  Frame fa = render(*ra, cam, 320, 240);
+  Frame fb = render(*rb, cam_far, 320, 240);
+  ImageComparison c;
+  std::string error;
+  ASSERT_TRUE(compare_images(fa.image, fb.image, c, error)) << error;
+  EXPECT_GT(c.psnr_db, 40.0);
+  EXPECT_LT(c.differing_share, 0.005);
+  EXPECT_EQ(fa.stats.triangles, fb.stats.triangles);
+}
+
+// --- cameras and paths ------------------------------------------------------------------------
+
+TEST(RenderCamera, ParsesTheCommandLineFormAndRejectsBadOnes) {
+  Camera c;
+  std::string error;
+  ASSERT_TRUE(parse_camera("eye=1,2,3,target=4,5,6", c, error)) << error;
+  EXPECT_EQ(c.eye_m, glm::dvec3(1, 2, 3));
+  EXPECT_EQ(c.target_m, glm::dvec3(4, 5, 6));
+  ASSERT_TRUE(parse_camera("eye=0,0,0,target=0,1,0,up=0,0,1,fov=35.5", c, error)) << error;
+  EXPECT_EQ(c.fov_deg, 35.5);
+  Camera back;
+  ASSERT_TRUE(parse_camera(format_camera(c), back, error)) << error;
+  EXPECT_EQ(back, c);
+  for (const char* bad : {"", "eye=1,2,target=0,0,0", "eye=1,2,3", "eye=0,0,0,target=0,0,0",
+                          "eye=0,0,0,target=1,0,0,fov=200", "eye=nan,0,0,target=1,0,0",
+                          "eye=0,0,0,target=0,0,1,up=0,0,1", "eye=0,0,0,target=1,0,0,zoom=2",
+                          "eye=1e999,0,0,target=1,0,0", "eye=0,0,0,target=1,0,0,fov=x"}) {
+    EXPECT_FALSE(parse_camera(bad, c, error)) << bad;
+    EXPECT_NE(error.find("camera"), std::string::npos);
+  }
+}
+
+TEST(RenderCamera, PathsRoundTripThroughJsonAndWalkIntoThePlant) {
+  DAabb plant;
+  plant.extend(glm::dvec3(0, 0, 0));
+  plant.extend(glm::dvec3(200, 100, 30));
+  std::vector<DAabb> equipment;
+  for (int i = 0; i < 20; ++i) {
+    DAabb b;
+    b.extend(glm::dvec3(10 + i * 9, 20 + (i % 2) * 50, 0));
+    b.extend(glm::dvec3(14 + i * 9, 26 + (i % 2) * 50, 8));
+    equipment.push_back(b);
+  }
+  const auto walk = make_camera_path(PathKind::walkthrough, 100, plant, equipment);
+  ASSERT_EQ(walk.size(), 100u);
+  // Starts outside the plant's bounds, ends at eye height, never inside equipment.
+  const auto inside = [](const DAabb& b, glm::dvec3 p) {
+    return p.x >= b.min.x && p.x <= b.max.x && p.y >= b.min.y && p.y <= b.max.y && p.z >= b.min.z && p.z <= b.max.z;
+  };
+  EXPECT_FALSE(inside(plant, walk.front().eye_m));
+  EXPECT_LT(walk[60].eye_m.z, 3.0);
+  bool went_in = false;
+  for (const auto& c : walk) {
+    went_in |= inside(plant, c.eye_m);
+    for (const auto& e : equipment) EXPECT_FALSE(inside(e, c.eye_m));
+  }
+  EXPECT_TRUE(went_in);
+  std::vector<Camera> back;
+  std::string error;
+  ASSERT_TRUE(parse_camera_path(camera_path_json(walk), back, error)) << error;
+  ASSERT_EQ(back.size(), walk.size());
+  for (size_t i = 0; i < back.size(); ++i) EXPECT_NEAR(glm::length(back[i].eye_m - walk[i].eye_m), 0, 1e-9);
+  EXPECT_FALSE(parse_camera_path("[{\"eye\":[0,0],\"target\":[1,1,1]}]", back, error));
+  EXPECT_NE(error.find("camera 0"), std::string::npos);
+  EXPECT_FALSE(parse_camera_path("[]", back, error));
+  EXPECT_FALSE(parse_camera_path("{", back, error));
+  const auto orbit = make_camera_path(PathKind::orbit, 8, plant, equipment);
+  ASSERT_EQ(orbit.size(), 8u);
+  for (const auto& c : orbit) EXPECT_FALSE(inside(plant, c.eye_m));
+}
+
+TEST(RenderCamera, TheDefaultCameraSeesTheWholePlant) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 5; ++i)
+    objects.push_back(make_object("B" + std::to_string(i), ObjectClass::equipment,
+                                  {i * 30.0, (i % 2) * 40.0, 0}, Box{4, 4, 4}));
+  auto store = make_store(dir, objects);
+  auto r = make_renderer(*store);
+  Frame f = render(*r, default_camera(r->model_bounds(), 320.0 / 240.0), 320, 240);
+  EXPECT_EQ(f.stats.objects_visible, 5u);
+  EXPECT_EQ(ids_in(f.image).size(), 5u);
+}
+
+TEST(RenderErrors, AbsurdSizesAndBudgetsAreRefused) {
+  TempDir dir;
+  auto store = make_store(dir, {make_object("C", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.5f, 2.0f})});
+  auto r = make_renderer(*store);
+  Image image;
+  FrameStats stats;
+  std::string error;
+  EXPECT_FALSE(r->render(look({0, -5, 0}, {0, 0, 0}), 0, 10, false, image, stats, error));
+  EXPECT_FALSE(r->render(look({0, -5, 0}, {0, 0, 0}), 100000, 10, false, image, stats, error));
+  EXPECT_NE(error.find("100000x10"), std::string::npos);
+  RenderOptions tiny;
+  tiny.vertex_budget_bytes = 1000;
+  EXPECT_FALSE(Renderer::create(*store, tiny, error));
+  EXPECT_NE(error.find("budget"), std::string::npos);
+  EXPECT_FALSE(GpuContext::create(999, error));
+  EXPECT_NE(error.find("999"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace plantview
