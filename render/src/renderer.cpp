@@ -220,8 +220,11 @@ struct Renderer::State {
          table_buffer = 0, proxy_buffer = 0, cube_indices = 0;
   uint64_t arena_vertices_gl = 0;  // size of the GPU buffers, in vertices (<= the budget)
   GLint u_view_projection = -1, u_sun = -1;
+  // Drawing goes to `framebuffer` (multisampled when samples > 1), then is resolved into
+  // `resolved` (single-sampled) for reading back.
   GLuint framebuffer = 0, colour_rb = 0, pick_rb = 0, depth_rb = 0;
-  uint32_t fb_width = 0, fb_height = 0;
+  GLuint resolved = 0, resolved_colour = 0, resolved_pick = 0;
+  uint32_t fb_width = 0, fb_height = 0, fb_samples = 0;
   size_t index_capacity = 0, table_capacity = 0, proxy_capacity = 0;
 
   // Per-frame scratch, reused so that frames allocate little once warm.
@@ -242,7 +245,9 @@ struct Renderer::State {
   std::vector<uint32_t> stack;
   std::vector<PackedVertex> vertices, compacted;
   std::vector<uint32_t> vertex_objects, remap, level_indices;
-  std::vector<uint32_t> opaque, transparent, lines, proxies, proxy_tables;
+  // Index lists of a frame: closed opaque solids (back faces culled), open opaque meshes,
+  // see-through triangles, lines.
+  std::vector<uint32_t> opaque, open, transparent, lines, proxy_tables;
   std::vector<uint64_t> pick_ids;
   std::vector<std::pair<uint32_t, uint64_t>> evicted;
   std::vector<uint32_t> pick_pixels;
@@ -258,11 +263,12 @@ struct Renderer::State {
   }
 
   void release_framebuffer() {
-    if (framebuffer) glDeleteFramebuffers(1, &framebuffer);
-    GLuint rbs[] = {colour_rb, pick_rb, depth_rb};
-    glDeleteRenderbuffers(3, rbs);
-    framebuffer = colour_rb = pick_rb = depth_rb = 0;
-    fb_width = fb_height = 0;
+    GLuint fbs[] = {framebuffer, resolved};
+    glDeleteFramebuffers(2, fbs);
+    GLuint rbs[] = {colour_rb, pick_rb, depth_rb, resolved_colour, resolved_pick};
+    glDeleteRenderbuffers(5, rbs);
+    framebuffer = colour_rb = pick_rb = depth_rb = resolved = resolved_colour = resolved_pick = 0;
+    fb_width = fb_height = fb_samples = 0;
   }
 
   uint32_t table_acquire() {
@@ -404,28 +410,50 @@ bool Renderer::State::grow_arena(uint64_t vertices_needed, std::string& error) {
 }
 
 bool Renderer::State::ensure_framebuffer(uint32_t w, uint32_t h, std::string& error) {
-  if (framebuffer && fb_width == w && fb_height == h) return true;
+  GLint max_samples = 1;
+  glGetIntegerv(GL_MAX_INTEGER_SAMPLES, &max_samples);
+  GLint max_colour_samples = 1;
+  glGetIntegerv(GL_MAX_SAMPLES, &max_colour_samples);
+  uint32_t wanted = options.samples;
+  if (wanted == 0) {
+    const auto* renderer_name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+    const std::string name = renderer_name ? renderer_name : "";
+    const bool software = name.find("llvmpipe") != std::string::npos ||
+                          name.find("softpipe") != std::string::npos ||
+                          name.find("SwiftShader") != std::string::npos;
+    wanted = software ? 1 : 4;
+  }
+  const uint32_t samples = std::clamp<uint32_t>(wanted, 1, uint32_t(std::min(max_samples, max_colour_samples)));
+  if (framebuffer && fb_width == w && fb_height == h && fb_samples == samples) return true;
   release_framebuffer();
-  glCreateFramebuffers(1, &framebuffer);
-  glCreateRenderbuffers(1, &colour_rb);
-  glCreateRenderbuffers(1, &pick_rb);
-  glCreateRenderbuffers(1, &depth_rb);
-  glNamedRenderbufferStorage(colour_rb, GL_RGBA8, GLsizei(w), GLsizei(h));
-  glNamedRenderbufferStorage(pick_rb, GL_R32UI, GLsizei(w), GLsizei(h));
-  glNamedRenderbufferStorage(depth_rb, GL_DEPTH_COMPONENT32F, GLsizei(w), GLsizei(h));
-  glNamedFramebufferRenderbuffer(framebuffer, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour_rb);
-  glNamedFramebufferRenderbuffer(framebuffer, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, pick_rb);
-  glNamedFramebufferRenderbuffer(framebuffer, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_rb);
-  const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-  glNamedFramebufferDrawBuffers(framebuffer, 2, buffers);
-  if (glCheckNamedFramebufferStatus(framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+  const auto make = [&](GLuint& fb, GLuint& colour, GLuint& pick, GLuint* depth, uint32_t n) {
+    glCreateFramebuffers(1, &fb);
+    glCreateRenderbuffers(1, &colour);
+    glCreateRenderbuffers(1, &pick);
+    glNamedRenderbufferStorageMultisample(colour, GLsizei(n > 1 ? n : 0), GL_RGBA8, GLsizei(w), GLsizei(h));
+    glNamedRenderbufferStorageMultisample(pick, GLsizei(n > 1 ? n : 0), GL_R32UI, GLsizei(w), GLsizei(h));
+    glNamedFramebufferRenderbuffer(fb, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour);
+    glNamedFramebufferRenderbuffer(fb, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, pick);
+    if (depth) {
+      glCreateRenderbuffers(1, depth);
+      glNamedRenderbufferStorageMultisample(*depth, GLsizei(n > 1 ? n : 0), GL_DEPTH_COMPONENT32F, GLsizei(w), GLsizei(h));
+      glNamedFramebufferRenderbuffer(fb, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, *depth);
+    }
+    const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(fb, 2, buffers);
+    return glCheckNamedFramebufferStatus(fb, GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE;
+  };
+  bool ok = make(framebuffer, colour_rb, pick_rb, &depth_rb, samples);
+  if (ok && samples > 1) ok = make(resolved, resolved_colour, resolved_pick, nullptr, 1);
+  if (!ok) {
     error = "renderer: cannot make a " + std::to_string(w) + "x" + std::to_string(h) +
-            " framebuffer";
+            " framebuffer with " + std::to_string(samples) + " samples";
     release_framebuffer();
     return false;
   }
   fb_width = w;
   fb_height = h;
+  fb_samples = samples;
   return true;
 }
 
@@ -674,7 +702,11 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 
   // Camera-relative matrices: the eye is the origin of everything drawn.
   const glm::dvec3 forward = glm::normalize(camera.target_m - camera.eye_m);
-  const glm::mat4 view_rotation = glm::mat4(glm::lookAt(glm::dvec3(0.0), forward, camera.up));
+  // An up along the view (looking straight down, say) falls back to +y, then +x.
+  glm::dvec3 up = camera.up;
+  if (glm::length(glm::cross(forward, up)) < 1e-9 * glm::length(up)) up = glm::dvec3(0, 1, 0);
+  if (glm::length(glm::cross(forward, up)) < 1e-9) up = glm::dvec3(1, 0, 0);
+  const glm::mat4 view_rotation = glm::mat4(glm::lookAt(glm::dvec3(0.0), forward, up));
   const float focal = float(1.0 / std::tan(glm::radians(camera.fov_deg) / 2.0));
   const float aspect = float(w) / float(h);
   glm::mat4 projection(0.0f);  // infinite far plane, reversed depth: near -> 1, infinity -> 0
@@ -707,7 +739,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       nearest[a] = std::clamp(0.0, double(mn[a]) + shift[a], double(mx[a]) + shift[a]);
     return glm::length(nearest);
   };
-  const bool subpixel_culling = options.lod_policy == LodPolicy::screen_space;
+  const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   visible.clear();
   stack.clear();
   if (!nodes.empty()) stack.push_back(0);
@@ -825,6 +857,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   const auto t_stream = Clock::now();
   double index_ms = 0;
   opaque.clear();
+  open.clear();
   transparent.clear();
   lines.clear();
   proxy_tables.clear();
@@ -889,7 +922,8 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     auto& list = k.colour.a < 255 ? transparent : opaque;
     for (size_t p = 0; p < k.parts.size(); ++p) {
       const Known::Part& part = k.parts[p];
-      auto& target = part.plan.topology == Topology::lines ? lines : list;
+      auto& target = part.plan.topology == Topology::lines ? lines
+                     : (&list == &opaque && !part.plan.closed) ? open : list;
       const uint32_t l = part.plan.clamp_level(level);
       const size_t at = target.size();
       uint32_t n;
@@ -920,7 +954,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   stats.ms.choose += index_ms;
   stats.objects_resident = residency.resident_count() - 1;  // not the proxy cube
   stats.arena_bytes_resident = residency.used_units() * kBytesPerVertex;
-  stats.draw_commands = (opaque.empty() ? 0 : 1) + (transparent.empty() ? 0 : 1) +
+  stats.draw_commands = (opaque.empty() ? 0 : 1) + (open.empty() ? 0 : 1) + (transparent.empty() ? 0 : 1) +
                         (lines.empty() ? 0 : 1) + (proxy_tables.empty() ? 0 : 1);
 
   if (!draw) {
@@ -946,10 +980,12 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       at += size;
     }
   };
-  const size_t n_opaque = opaque.size(), n_transparent = transparent.size(), n_lines = lines.size();
+  const size_t n_closed = opaque.size(), n_open = open.size();
+  const size_t n_opaque = n_closed + n_open, n_transparent = transparent.size(), n_lines = lines.size();
   const size_t index_bytes = (n_opaque + n_transparent + n_lines) * sizeof(uint32_t);
   upload(index_buffer, index_capacity, index_bytes,
-         {{opaque.data(), n_opaque * 4}, {transparent.data(), n_transparent * 4}, {lines.data(), n_lines * 4}});
+         {{opaque.data(), n_closed * 4}, {open.data(), n_open * 4}, {transparent.data(), n_transparent * 4},
+          {lines.data(), n_lines * 4}});
   upload(table_buffer, table_capacity, table_used * sizeof(TableEntry),
          {{table.data(), table_used * sizeof(TableEntry)}});
   upload(proxy_buffer, proxy_capacity, proxy_tables.size() * sizeof(uint32_t),
@@ -977,7 +1013,17 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer);
   glDisablei(GL_BLEND, 0);
   glBindVertexArray(vao);
-  if (n_opaque) glDrawElements(GL_TRIANGLES, GLsizei(n_opaque), GL_UNSIGNED_INT, nullptr);
+  if (n_closed) {
+    // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+    glFrontFace(GL_CCW);
+    glDrawElements(GL_TRIANGLES, GLsizei(n_closed), GL_UNSIGNED_INT, nullptr);
+    glDisable(GL_CULL_FACE);
+  }
+  if (n_open)
+    glDrawElements(GL_TRIANGLES, GLsizei(n_open), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(n_closed * sizeof(uint32_t)));
   if (n_lines)
     glDrawElements(GL_LINES, GLsizei(n_lines), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>((n_opaque + n_transparent) * sizeof(uint32_t)));
@@ -1000,13 +1046,26 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   glFinish();
   stats.ms.draw = ms_since(t_draw);
 
-  // 5. Read back, top row first.
+  // 5. Resolve the samples and read back, top row first.
   const auto t_read = Clock::now();
+  GLuint source = framebuffer;
+  if (fb_samples > 1) {
+    // Colour averages its samples; ids take one sample (integers do not average).
+    for (const GLenum attachment : {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1}) {
+      if (attachment == GL_COLOR_ATTACHMENT1 && !with_ids) break;
+      glNamedFramebufferReadBuffer(framebuffer, attachment);
+      glNamedFramebufferDrawBuffer(resolved, attachment);
+      glBlitNamedFramebuffer(framebuffer, resolved, 0, 0, GLint(w), GLint(h), 0, 0, GLint(w), GLint(h),
+                             GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    }
+    source = resolved;
+  }
   out->width = w;
   out->height = h;
   out->rgba.resize(size_t(w) * h * 4);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT0);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, source);
+  glNamedFramebufferReadBuffer(source, GL_COLOR_ATTACHMENT0);
   glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RGBA, GL_UNSIGNED_BYTE, out->rgba.data());
   const size_t row = size_t(w) * 4;
   for (uint32_t y = 0; y < h / 2; ++y)
@@ -1014,7 +1073,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
                      out->rgba.begin() + (h - 1 - y) * row);
   if (with_ids) {
     pick_pixels.resize(size_t(w) * h);
-    glNamedFramebufferReadBuffer(framebuffer, GL_COLOR_ATTACHMENT1);
+    glNamedFramebufferReadBuffer(source, GL_COLOR_ATTACHMENT1);
     glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RED_INTEGER, GL_UNSIGNED_INT, pick_pixels.data());
     out->object_ids.resize(size_t(w) * h);
     for (uint32_t y = 0; y < h; ++y) {

@@ -71,7 +71,8 @@ struct RenderArgs {
   double pixel_error = 1.0;
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
-  bool no_centrelines = false;
+  uint32_t samples = 0;
+  bool no_centrelines = false, no_hlod = false, no_subpixel = false;
 };
 
 int run_render(const RenderArgs& a) {
@@ -86,6 +87,9 @@ int run_render(const RenderArgs& a) {
   options.pixel_error = a.pixel_error;
   options.vertex_budget_bytes = a.vertex_budget_mb << 20;
   options.centrelines = !a.no_centrelines;
+  options.hlod = !a.no_hlod;
+  options.subpixel_culling = !a.no_subpixel;
+  options.samples = a.samples;
   if (!a.camera.empty() && !a.path.empty()) return fail("give --camera or --path, not both");
 
   std::vector<Camera> cameras;
@@ -222,6 +226,11 @@ Action add_render_commands(CLI::App& app) {
   render->add_option("--quality", args->quality, "JPEG quality 1..100")->capture_default_str();
   render->add_option("--device", args->device, "EGL device index (default: the first GPU, else software)");
   render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");
+  render->add_flag("--no-hlod", args->no_hlod, "Never merge pipeline runs");
+  render->add_flag("--no-subpixel-culling", args->no_subpixel, "Draw objects under the pixel error too");
+  render->add_option("--samples", args->samples,
+                     "Multisampling per pixel (1: off; default: 4 on a GPU, 1 on a software renderer)")
+      ->check(CLI::Range(1u, 16u));
 
   auto compare_a = std::make_shared<std::string>(), compare_b = std::make_shared<std::string>(),
        diff = std::make_shared<std::string>();

@@ -94,6 +94,11 @@ struct RenderOptions {
   uint64_t vertex_budget_bytes = 512ull << 20;     // the GPU vertex arena's fixed size
   bool centrelines = true;                         // thin pipes as lines (screen_space, distance)
   bool hlod = true;                                // merge straight pipeline runs when allowed
+  uint32_t samples = 0;                            // multisampling per pixel (1: off); 0: auto,
+                                                   // 4 on a GPU, 1 on a software renderer (where
+                                                   // 4 samples triple the draw time)
+  bool subpixel_culling = true;                    // screen_space: leave out objects under the
+                                                   // pixel error on screen
 };
 
 struct FrameStats {

@@ -1,0 +1,30 @@
+// HTTP/1.1 pieces of the service: query strings and response bytes. Parsing of the request
+// itself is http-parser's, in server.cpp.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace plantview::service {
+
+using Fields = std::vector<std::pair<std::string, std::string>>;
+
+// Splits "a=1&b=x%2Cy" into decoded pairs. False (with a message naming the part) on bad
+// percent escapes, empty keys or a repeated key.
+bool parse_query(std::string_view query, Fields& out, std::string& error);
+
+std::string_view status_text(int status);
+
+// A complete response: status line, headers (Content-Length, Connection and the given ones),
+// body.
+std::string http_response(int status, std::string_view content_type, std::string_view body,
+                          bool keep_alive, const Fields& headers = {});
+// {"error": message} with that status.
+std::string http_error(int status, std::string_view message, bool keep_alive,
+                       const Fields& headers = {});
+// JSON string literal of arbitrary bytes (invalid UTF-8 replaced).
+std::string json_string(std::string_view bytes);
+
+}  // namespace plantview::service

@@ -1,0 +1,57 @@
+// The plantview HTTP service: frames, LOD statistics, picking and object attributes of one
+// store over HTTP/1.1, and the browser viewer page from web/.
+//
+// Threads
+//   - The loop thread (libuv) accepts connections, parses requests (http-parser), answers what
+//     needs no rendering or storage, and writes responses. It never blocks on rendering,
+//     storage or encoding.
+//   - One render thread owns the EGL context and the renderer: frames, statistics and picks
+//     run there, one at a time, and come back to the loop through a uv_async handle.
+//   - Object look-ups run on libuv's thread pool, each with its own read view of the store.
+//
+// Queueing rules
+//   - A client (the `client` query parameter, else the connection) has at most one render
+//     request waiting: a newer one replaces it, and the older is answered 409 (superseded).
+//   - At most `max_queue` render requests wait; past that the answer is 503 with Retry-After.
+//   - Responses on a connection go out in request order (pipelining). A connection whose
+//     unsent output exceeds a limit stops being read until the client catches up, so a slow
+//     reader cannot make the server buffer without bound.
+//
+// Limits (each answered with a JSON error {"error": "..."} and the status in parentheses):
+// header bytes (431), body bytes (413), a request not complete within the request timeout
+// (408), connections beyond max_clients (503), malformed HTTP (400), bad, non-finite or unknown
+// parameters (400), images over 4096x4096 (400), unknown objects (404), methods other than GET
+// (405), a missing or wrong bearer token (401).
+//
+// Shutdown: SIGINT or SIGTERM stops accepting and reading; requests in flight finish and are
+// sent; then the render thread stops and the store is closed.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace plantview::service {
+
+struct ServerOptions {
+  std::string store_directory;
+  std::string web_directory;           // where index.html, viewer.js and viewer.css are
+  std::string host = "127.0.0.1";
+  uint16_t port = 8080;                // 0: any free port (printed when listening)
+  uint64_t vertex_budget_bytes = 512ull << 20;
+  uint32_t max_clients = 64;           // open connections
+  uint32_t max_queue = 64;             // render requests waiting
+  std::string token;                   // required (as a Bearer token) unless on loopback
+  int device = -1;                     // EGL device, as GpuContext::create takes it
+  uint32_t request_timeout_ms = 10000; // from a request's first byte to its last
+  uint32_t idle_timeout_ms = 120000;   // a keep-alive connection with nothing to do
+  uint32_t max_header_bytes = 16384;
+  uint32_t max_body_bytes = 65536;
+  uint64_t max_unsent_bytes = 32ull << 20;  // per connection, before it stops being read
+};
+
+// Runs the service until SIGINT or SIGTERM. Prints "listening on http://HOST:PORT/" on stdout
+// once it accepts connections. Returns 0 after a clean shutdown; 1 with `error` set when it
+// could not start (store, GPU, address).
+int run_server(const ServerOptions& options, std::string& error);
+
+}  // namespace plantview::service
