@@ -21,6 +21,10 @@ Action add_serve_command(CLI::App& app) {
   serve->add_option("--token", options->token, "Bearer token every request must carry (required off loopback)");
   serve->add_option("--device", options->device, "EGL device index");
   serve->add_option("--web", options->web_directory, "Directory of the viewer page")->capture_default_str();
+  auto request_timeout_s = std::make_shared<double>(10.0);
+  serve->add_option("--request-timeout", *request_timeout_s,
+                    "Seconds a client has to send a whole request (then 408)")
+      ->check(CLI::Range(0.05, 3600.0))->capture_default_str();
   return [=]() -> int {
     if (!serve->parsed()) return -1;
     const size_t colon = listen->rfind(':');
@@ -50,6 +54,7 @@ Action add_serve_command(CLI::App& app) {
     o.host = host;
     o.port = uint16_t(port);
     o.vertex_budget_bytes = *budget_mb << 20;
+    o.request_timeout_ms = uint32_t(*request_timeout_s * 1000.0);
     std::string error;
     const int status = service::run_server(o, error);
     if (status != 0) std::cerr << "plantview: " << error << "\n";

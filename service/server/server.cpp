@@ -419,7 +419,10 @@ void handle(Connection* c, const std::string& method, const std::string& url,
   } else {
     return respond_error(c, p, 404, "no such resource: " + path.substr(0, 128));
   }
+  // Latest wins per client and kind of request: a newer frame replaces a waiting frame, not a
+  // waiting pick.
   if (job.client.empty()) job.client = "connection:" + std::to_string(c->id);
+  job.client += job.kind == RenderJob::Kind::frame ? "/frame" : job.kind == RenderJob::Kind::stats ? "/stats" : "/pick";
   job.ticket = s.next_ticket++;
   uint64_t dropped = 0;
   const uint64_t ticket = job.ticket;

@@ -11,7 +11,8 @@
 //
 // Queueing rules
 //   - A client (the `client` query parameter, else the connection) has at most one render
-//     request waiting: a newer one replaces it, and the older is answered 409 (superseded).
+//     request of each kind (frame, stats, pick) waiting: a newer one replaces it, and the older
+//     is answered 409 (superseded).
 //   - At most `max_queue` render requests wait; past that the answer is 503 with Retry-After.
 //   - Responses on a connection go out in request order (pipelining). A connection whose
 //     unsent output exceeds a limit stops being read until the client catches up, so a slow
