@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds plantview (Release) and runs its main job on an embedded
-# default. Until the renderer lands, the main job is the tessellation of every primitive kind:
-# for a 0.2 m pipe part, the triangles and geometric error of each level of detail.
-# Idempotent: re-running rebuilds only what changed.
+# Installs what is missing, builds plantview (Release), generates the preset c plant into a store
+# under var/ (once), renders one review image of it, and serves it on http://127.0.0.1:8080/
+# for a browser until Ctrl-C.
+# Idempotent: re-running rebuilds only what changed and reuses the store.
+# Environment: PLANTVIEW_LISTEN (default 127.0.0.1:8080); PLANTVIEW_DEMO_NO_SERVE=1 stops after
+# the review image (for scripted runs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -10,6 +12,19 @@ scripts/deps.sh
 cmake -S . -B build-release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPLANTVIEW_BUILD_TESTS=OFF \
   -DPLANTVIEW_BUILD_BENCH=OFF >/dev/null
 cmake --build build-release -j "$(nproc 2>/dev/null || echo 2)" --target plantview >/dev/null
+plantview=./build-release/service/plantview
+$plantview --version
 
-./build-release/service/plantview --version
-./build-release/service/plantview primitives --diameter 0.2
+mkdir -p var
+if ! $plantview info --store var/preset-c >/dev/null 2>&1; then
+  rm -rf var/preset-c
+  $plantview gen --preset c --store var/preset-c
+fi
+$plantview info --store var/preset-c
+$plantview render --store var/preset-c --size 1280x720 --out var/review.png >var/review-stats.json
+echo "review image: var/review.png (statistics in var/review-stats.json)"
+
+if [ "${PLANTVIEW_DEMO_NO_SERVE:-0}" = 1 ]; then exit 0; fi
+listen=${PLANTVIEW_LISTEN:-127.0.0.1:8080}
+echo "open http://$listen/ in a browser (drag to orbit, right-drag to pan, wheel to zoom, WASD to walk, click to pick); Ctrl-C stops"
+exec $plantview serve --store var/preset-c --listen "$listen"
