@@ -1,6 +1,5 @@
 #include "server/render_worker.h"
 
-#include <chrono>
 #include <cstdio>
 
 #include "server/objects_json.h"
@@ -165,21 +164,13 @@ RenderResult RenderWorker::execute(const RenderJob& job, Renderer& renderer, con
       r.body = "{\"object\":" + json + "}\n";
       break;
     }
-    case RenderJob::Kind::frame: {
-      const auto t = std::chrono::steady_clock::now();
-      std::vector<uint8_t> bytes;
-      if (!encode_image(image, job.format, job.quality, bytes, error)) {
-        r.status = 500;
-        r.content_type = "application/json";
-        r.body = "{\"error\":" + json_string(error) + "}\n";
-        return r;
-      }
-      r.stats.ms.encode =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+    case RenderJob::Kind::frame:
+      r.needs_encoding = true;
+      r.image = std::move(image);
+      r.format = job.format;
+      r.quality = job.quality;
       r.content_type = job.format == ImageFormat::png ? "image/png" : "image/jpeg";
-      r.body.assign(bytes.begin(), bytes.end());
       break;
-    }
   }
   char ms[32];
   std::snprintf(ms, sizeof ms, "%.1f", r.stats.ms.total);

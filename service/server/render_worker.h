@@ -43,6 +43,12 @@ struct RenderResult {
   Fields headers;
   bool rendered = false;    // stats below are meaningful
   FrameStats stats;
+  // Frames: the pixels, encoded off the render thread (on libuv's pool) so that the next
+  // frame renders while this one encodes. body is empty until then.
+  bool needs_encoding = false;
+  Image image;
+  ImageFormat format = ImageFormat::jpeg;
+  int quality = 85;
 };
 
 class RenderWorker {

@@ -20,6 +20,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -443,7 +444,14 @@ void handle(Connection* c, const std::string& method, const std::string& url,
   }
 }
 
-void on_render_done(Server& s, RenderResult&& r) {
+struct EncodeWork {
+  uv_work_t req{};
+  Server* server = nullptr;
+  RenderResult result;
+  std::string error;
+};
+
+void deliver(Server& s, RenderResult& r) {
   if (r.rendered) {
     const double ms = r.stats.ms.total + r.stats.ms.encode;
     s.metrics.frames += 1;
@@ -464,6 +472,42 @@ void on_render_done(Server& s, RenderResult&& r) {
   if (!t.connection) return;  // the client went away
   finish(t.connection, t.pending,
          http_response(r.status, r.content_type, r.body, t.pending->keep_alive, r.headers), r.status);
+}
+
+void on_render_done(Server& s, RenderResult&& r) {
+  if (!r.needs_encoding) return deliver(s, r);
+  // Encode on libuv's pool: the render thread goes on with the next frame meanwhile.
+  auto* work = new EncodeWork;
+  work->server = &s;
+  work->result = std::move(r);
+  work->req.data = work;
+  ++s.works_in_flight;
+  uv_queue_work(
+      s.loop, &work->req,
+      [](uv_work_t* req) {
+        auto* w = static_cast<EncodeWork*>(req->data);
+        RenderResult& result = w->result;
+        const auto t = Clock::now();
+        std::vector<uint8_t> bytes;
+        if (!encode_image(result.image, result.format, result.quality, bytes, w->error)) {
+          result.status = 500;
+          result.content_type = "application/json";
+          result.body = "{\"error\":" + json_string(w->error) + "}\n";
+        } else {
+          result.body.assign(bytes.begin(), bytes.end());
+        }
+        result.image = Image{};
+        result.stats.ms.encode = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+        char ms[32];
+        std::snprintf(ms, sizeof ms, "%.1f", result.stats.ms.encode);
+        result.headers.emplace_back("X-Encode-Ms", ms);
+      },
+      [](uv_work_t* req, int) {
+        auto* w = static_cast<EncodeWork*>(req->data);
+        --w->server->works_in_flight;
+        deliver(*w->server, w->result);
+        delete w;
+      });
 }
 
 // --- HTTP parsing -------------------------------------------------------------------------------
@@ -734,6 +778,10 @@ int run_server(const ServerOptions& options, std::string& error) {
     std::fprintf(stderr, "plantview serve: no viewer page in %s (the API still works)\n",
                  options.web_directory.c_str());
 
+  // Encoding and object look-ups run on libuv's pool: one thread per core (at least 4), unless
+  // the operator chose otherwise. Must be set before the pool first starts.
+  if (!std::getenv("UV_THREADPOOL_SIZE"))
+    setenv("UV_THREADPOOL_SIZE", std::to_string(std::max(4u, std::thread::hardware_concurrency())).c_str(), 1);
   uv_loop_t loop;
   uv_loop_init(&loop);
   s.loop = &loop;
