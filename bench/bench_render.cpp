@@ -4,7 +4,7 @@
 // Usage: bench_render [--quick] [--preset P] [--scale K] [--frames N] [--size WxH]
 //                     [--vertex-budget MB] [--store DIR] [--out-of-core]
 //   default        preset c, 1280x720, a 120-view walkthrough; policies none, distance and
-//                  screen-space (1 px) render every view in turn, each with its own renderer
+//                  screen-space (1 px, and 0.25 px) render every view in turn, each with its own renderer
 //                  (and arena) in this one process. Per policy: mean and 95th-percentile frame
 //                  time, triangles drawn, and the PSNR of each view against policy none's.
 //   --out-of-core  one renderer (screen-space) with --vertex-budget (default 256) along the
@@ -118,13 +118,17 @@ struct PolicyRun {
 
 int policies(const Store& store, const std::vector<Camera>& cameras, uint32_t w, uint32_t h,
              uint64_t budget_bytes, uint64_t full_triangles) {
-  std::vector<PolicyRun> runs(3);
+  // Screen-space error at 1 px (the default) and at 0.25 px, to show the PSNR it buys.
+  std::vector<PolicyRun> runs(4);
   runs[0].name = "none";
   runs[0].options.lod_policy = LodPolicy::none;
   runs[1].name = "distance";
   runs[1].options.lod_policy = LodPolicy::distance;
   runs[2].name = "screen-space 1px";
   runs[2].options.lod_policy = LodPolicy::screen_space;
+  runs[3].name = "screen-space 0.25px";
+  runs[3].options.lod_policy = LodPolicy::screen_space;
+  runs[3].options.pixel_error = 0.25;
   std::string error;
   for (auto& r : runs) {
     r.options.vertex_budget_bytes = budget_bytes;
