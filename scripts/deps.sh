@@ -13,6 +13,7 @@ PACKAGES=(
   libuv1-dev libhttp-parser-dev    # the service
   libpugixml-dev nlohmann-json3-dev libcli11-dev        # XML, JSON, command line
   libgtest-dev libgmock-dev libbenchmark-dev            # tests and benchmarks
+  chromium chromium-driver python3                      # the browser test (tests/browser)
 )
 
 missing=()

@@ -1,0 +1,369 @@
+#!/usr/bin/env python3
+"""Browser test of the viewer page (web/) against a running `plantview serve`.
+
+Starts the server on a store, drives headless Chromium through chromedriver (the W3C WebDriver
+protocol, JSON over HTTP, spoken here with urllib: no Selenium, standard library only), and checks
+that the page shows a frame, orbits on a drag and shows the picked object's attributes on a click.
+Leaves a screenshot of the page.
+
+    tests/browser/test_viewer.py --plantview build/service/plantview [--store DIR]
+                                 [--screenshot build/browser/viewer.png] [--port 0]
+
+Exit status: 0 passed, 1 failed (with a message naming the step), 77 skipped (no chromium or
+chromedriver; CTest's SKIP_RETURN_CODE). The server and chromedriver (with its Chromium) are
+stopped however the test ends.
+"""
+import argparse
+import base64
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.error
+import urllib.request
+
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+WINDOW_SIZE = (1024, 768)
+SERVER_START_S = 30      # until GET /api/model answers
+FIRST_FRAME_S = 60       # frames are rendered on a CPU here: one can take a second or two
+FRAME_S = 60             # for any later frame (or the still after a move)
+PICK_S = 30              # one /api/pick answer
+ELEMENT_KEY = "element-6066-11e4-a52e-4a4fb26b4d8e"  # W3C WebDriver's element reference key
+
+
+class Failure(Exception):
+    """A check failed; the message says which and what was seen."""
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def http_json(url, method="GET", body=None, timeout=30):
+    """Returns (status, decoded JSON body or None). Raises OSError when nothing answers."""
+    data = None if body is None else json.dumps(body).encode()
+    request = urllib.request.Request(url, data=data, method=method,
+                                     headers={"Content-Type": "application/json"} if data else {})
+    try:
+        with urllib.request.urlopen(request, timeout=timeout) as response:
+            status, raw = response.status, response.read()
+    except urllib.error.HTTPError as e:
+        status, raw = e.code, e.read()
+    try:
+        return status, json.loads(raw) if raw else None
+    except ValueError:
+        return status, None
+
+
+def wait_for(what, timeout_s, probe, interval_s=0.25):
+    """Calls probe() until it returns a true value, which is returned; Failure after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = probe()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise Failure(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(interval_s)
+
+
+def start_process(argv, log_path, cwd=None):
+    """Starts argv in its own process group (so that its children can be stopped with it)."""
+    log = open(log_path, "wb")
+    try:
+        return subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                cwd=cwd, start_new_session=True)
+    finally:
+        log.close()
+
+
+def stop_process(process):
+    """Stops a process started by start_process and its group: SIGTERM, then SIGKILL after 5 s."""
+    if process is None:
+        return
+    for sig, wait_s in ((signal.SIGTERM, 5), (signal.SIGKILL, 5)):
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            break
+        try:
+            process.wait(wait_s)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+
+
+def log_tail(path, lines=30):
+    try:
+        with open(path, "rb") as f:
+            return "\n".join(f.read().decode(errors="replace").splitlines()[-lines:])
+    except OSError:
+        return "(no log)"
+
+
+class WebDriver:
+    """The few W3C WebDriver commands the test needs."""
+
+    def __init__(self, base_url):
+        self.base = base_url
+        self.session = None
+
+    def command(self, method, path, body=None, timeout=60):
+        url = f"{self.base}/session/{self.session}{path}" if self.session else f"{self.base}{path}"
+        status, reply = http_json(url, method, body, timeout)
+        value = reply.get("value") if isinstance(reply, dict) else None
+        if status != 200:
+            detail = value.get("message", value) if isinstance(value, dict) else reply
+            raise Failure(f"WebDriver {method} {path}: HTTP {status}: {str(detail)[:500]}")
+        return value
+
+    def start(self, chromium, args):
+        capabilities = {"alwaysMatch": {"browserName": "chrome",
+                                        "goog:chromeOptions": {"binary": chromium, "args": args}}}
+        value = self.command("POST", "/session", {"capabilities": capabilities}, timeout=120)
+        self.session = value["sessionId"]
+
+    def quit(self):
+        if self.session:
+            try:
+                self.command("DELETE", "", timeout=20)
+            except (Failure, OSError):
+                pass
+            self.session = None
+
+    def js(self, script, *args):
+        """Runs a function body in the page; `return` gives the (JSON) result."""
+        return self.command("POST", "/execute/sync", {"script": script, "args": list(args)})
+
+    def pointer(self, steps):
+        """Performs mouse actions (pointerMove/pointerDown/pointerUp dicts), then releases all."""
+        self.command("POST", "/actions", {"actions": [{
+            "type": "pointer", "id": "mouse", "parameters": {"pointerType": "mouse"},
+            "actions": steps}]})
+        self.command("DELETE", "/actions")
+
+    def screenshot(self, path):
+        png = base64.b64decode(self.command("GET", "/screenshot"))
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        with open(path, "wb") as f:
+            f.write(png)
+
+
+def move(x, y, duration_ms=0):
+    return {"type": "pointerMove", "origin": "viewport", "x": int(x), "y": int(y), "duration": duration_ms}
+
+
+# The page's state, as the test reads it (window.plantview and #frame's geometry).
+PAGE_STATE_JS = """
+const p = window.plantview, f = document.getElementById('frame');
+if (!p || !f) return null;
+const r = f.getBoundingClientRect();
+return {camera: p.camera, framesShown: p.framesShown, still: p.still, lastPick: p.lastPick,
+        natural: [f.naturalWidth, f.naturalHeight], rect: [r.left, r.top, r.width, r.height],
+        stats: document.getElementById('stats').innerText,
+        pick: document.getElementById('pick').innerText};
+"""
+
+
+def camera_query(camera, w, h):
+    """The page's camera query (JSON numbers print back to the same doubles)."""
+    vec = lambda v: ",".join(repr(c) for c in v)
+    return (f"eye={vec(camera['eye'])}&target={vec(camera['target'])}&up={vec(camera['up'])}"
+            f"&fov={camera['fov']!r}&w={w}&h={h}")
+
+
+def find_object(server, state):
+    """Asks /api/pick over a grid of the page's image (nearest the centre first) for an object.
+
+    Returns (css_x, css_y, object). Positions are whole CSS pixels, mapped to image pixels the way
+    the page maps a click, so that clicking there picks with the same pixel."""
+    w, h = state["natural"]
+    left, top, width, height = state["rect"]
+    columns, rows = 9, 7
+    points = [(left + width * (i + 0.5) / columns, top + height * (j + 0.5) / rows)
+              for i in range(columns) for j in range(rows)]
+    points.sort(key=lambda p: (p[0] - left - width / 2) ** 2 + (p[1] - top - height / 2) ** 2)
+    for css_x, css_y in points:
+        css_x, css_y = int(css_x), int(css_y)
+        x = min(w - 1, int((css_x - left) * w / width))
+        y = min(h - 1, int((css_y - top) * h / height))
+        url = f"{server}/api/pick?{camera_query(state['camera'], w, h)}&x={x}&y={y}"
+        status, reply = http_json(url, timeout=PICK_S)
+        if status != 200 or not isinstance(reply, dict) or "object" not in reply:
+            raise Failure(f"GET /api/pick answered {status}: {reply}")
+        if reply["object"]:
+            return css_x, css_y, reply["object"]
+    raise Failure(f"/api/pick found no object at any of {len(points)} grid positions")
+
+
+def run(args, tmp):
+    plantview = os.path.abspath(args.plantview)
+    store = args.store
+    if store:
+        store = os.path.abspath(store)
+        if not os.path.isdir(store):
+            raise Failure(f"--store {store}: not a directory")
+    else:
+        store = os.path.join(tmp, "store")
+        print(f"generating preset a into {store}", flush=True)
+        gen = subprocess.run([plantview, "gen", "--preset", "a", "--store", store],
+                             capture_output=True, text=True, timeout=600)
+        if gen.returncode != 0:
+            raise Failure(f"plantview gen failed ({gen.returncode}): {gen.stderr.strip()[-2000:]}")
+
+    processes = {}
+    driver = None
+    try:
+        # 1. The server, until it answers GET /api/model.
+        port = args.port or free_port()
+        server = f"http://127.0.0.1:{port}"
+        server_log = os.path.join(tmp, "server.log")
+        processes["server"] = start_process(
+            [plantview, "serve", "--store", store, "--listen", f"127.0.0.1:{port}"], server_log,
+            cwd=REPO_ROOT)
+
+        def server_up():
+            if processes["server"].poll() is not None:
+                raise Failure(f"plantview serve exited ({processes['server'].returncode}):\n"
+                              f"{log_tail(server_log)}")
+            try:
+                return http_json(f"{server}/api/model", timeout=5)[0] == 200
+            except OSError:
+                return False
+        wait_for("GET /api/model to answer 200", SERVER_START_S, server_up)
+        print(f"server up at {server}", flush=True)
+
+        # 2. chromedriver and a headless Chromium session.
+        driver_port = free_port()
+        driver_log = os.path.join(tmp, "chromedriver.log")
+        processes["chromedriver"] = start_process([CHROMEDRIVER, f"--port={driver_port}"], driver_log)
+        driver = WebDriver(f"http://127.0.0.1:{driver_port}")
+
+        def driver_up():
+            if processes["chromedriver"].poll() is not None:
+                raise Failure(f"chromedriver exited:\n{log_tail(driver_log)}")
+            try:
+                status, reply = http_json(f"{driver.base}/status", timeout=5)
+                return status == 200 and reply["value"]["ready"]
+            except (OSError, KeyError, TypeError):
+                return False
+        wait_for("chromedriver to be ready", 30, driver_up)
+        driver.start(CHROMIUM, ["--headless=new", "--no-sandbox", "--disable-gpu",
+                                "--disable-dev-shm-usage",
+                                f"--window-size={WINDOW_SIZE[0]},{WINDOW_SIZE[1]}"])
+
+        def state():
+            return driver.js(PAGE_STATE_JS)
+
+        def wait_state(what, timeout_s, predicate):
+            last = {}
+            def probe():
+                last["state"] = state()
+                return last["state"] if last["state"] and predicate(last["state"]) else None
+            try:
+                return wait_for(what, timeout_s, probe)
+            except Failure as e:
+                seen = last.get("state") or {}
+                raise Failure(f"{e}; page overlay: {seen.get('stats')!r}") from None
+
+        # 3. The page, until it shows a frame.
+        driver.command("POST", "/url", {"url": f"{server}/"})
+        first = wait_state("the first frame", FIRST_FRAME_S,
+                           lambda s: s["framesShown"] >= 1 and s["natural"][0] > 0 and s["natural"][1] > 0)
+        print(f"first frame {first['natural'][0]}x{first['natural'][1]} shown", flush=True)
+
+        # 4. A drag orbits: the eye moves and a new frame is shown.
+        before = wait_state("the still frame", FRAME_S, lambda s: s["still"])
+        left, top, width, height = before["rect"]
+        cx, cy = left + width / 2, top + height / 2
+        driver.pointer([move(cx, cy), {"type": "pointerDown", "button": 0},
+                        move(cx + 40, cy + 10, 100), move(cx + 80, cy + 20, 100),
+                        move(cx + 120, cy + 30, 100), {"type": "pointerUp", "button": 0}])
+        after = state()
+        if after["camera"]["eye"] == before["camera"]["eye"]:
+            raise Failure(f"the drag did not move the eye: still {after['camera']['eye']}")
+        if after["camera"]["target"] != before["camera"]["target"]:
+            raise Failure("the orbit moved the target")
+        wait_state("a frame after the drag", FRAME_S,
+                   lambda s: s["framesShown"] > before["framesShown"])
+        print(f"drag moved the eye {before['camera']['eye']} -> {after['camera']['eye']}", flush=True)
+
+        # 5. A click on an object shows its attributes.
+        rest = wait_state("the still frame after the drag", FRAME_S, lambda s: s["still"])
+        css_x, css_y, obj = find_object(server, rest)
+        print(f"object {obj.get('id')} {obj.get('name')!r} at ({css_x}, {css_y})", flush=True)
+        driver.pointer([move(css_x, css_y), {"type": "pointerDown", "button": 0},
+                        {"type": "pointerUp", "button": 0}])
+        expected = obj.get("name") or "(unnamed)"
+        picked = wait_state(f"#pick to show {expected!r}", PICK_S,
+                            lambda s: expected in s["pick"] and s["lastPick"] is not None)
+        if picked["lastPick"].get("id") != obj.get("id"):
+            raise Failure(f"the page picked {picked['lastPick'].get('id')}, /api/pick said {obj.get('id')}")
+        if picked["camera"] != rest["camera"]:
+            raise Failure("the click moved the camera")
+
+        # 6. The screenshot.
+        driver.screenshot(args.screenshot)
+        print(f"screenshot: {os.path.abspath(args.screenshot)}", flush=True)
+    except Failure:
+        if driver and driver.session:
+            try:  # what the page looked like, for the failure report
+                driver.screenshot(args.screenshot)
+                print(f"screenshot of the failure: {os.path.abspath(args.screenshot)}", file=sys.stderr)
+            except (Failure, OSError):
+                pass
+        if "server" in processes:
+            print(f"server log (last lines):\n{log_tail(os.path.join(tmp, 'server.log'))}", file=sys.stderr)
+        raise
+    finally:
+        if driver:
+            driver.quit()
+        stop_process(processes.get("chromedriver"))
+        stop_process(processes.get("server"))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--plantview", required=True, help="the built plantview binary")
+    parser.add_argument("--store", help="store to serve (default: `plantview gen --preset a` into a temporary one)")
+    parser.add_argument("--screenshot", default=os.path.join("build", "browser", "viewer.png"),
+                        help="where to write the screenshot (default build/browser/viewer.png)")
+    parser.add_argument("--port", type=int, default=0, help="server port (0: a free one)")
+    args = parser.parse_args()
+
+    for tool in (CHROMIUM, CHROMEDRIVER):
+        if not os.access(tool, os.X_OK):
+            print(f"SKIP: {tool} is missing (apt-get install chromium chromium-driver)")
+            return 77
+    if not os.access(args.plantview, os.X_OK):
+        print(f"FAIL: --plantview {args.plantview} is not an executable", file=sys.stderr)
+        return 1
+
+    tmp = tempfile.mkdtemp(prefix="plantview-browser-")
+    try:
+        run(args, tmp)
+    except Failure as e:
+        print(f"FAIL: {e}", file=sys.stderr)
+        return 1
+    except Exception as e:  # anything unforeseen is a failure too, with its traceback
+        import traceback
+        traceback.print_exc()
+        print(f"FAIL: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print("PASS")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
