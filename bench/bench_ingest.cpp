@@ -1,5 +1,7 @@
 // Ingest: time from nothing to a committed store, and the store's size, for the generated presets
-// a, b, c and c at scale 10, and for the Huldra RVM sample (parse, classify, store).
+// a, b, c and c at scale 10, and for the Huldra RVM sample (parse, classify, store). Then, as a
+// renderer would read it: the time for a new view to fetch every object (without attributes) in
+// the order of the spatial hierarchy's entries.
 //
 // Usage: bench_ingest [--quick] [--shared DIR]
 //   --quick    presets a and c only, one run each (the CTest smoke run)
@@ -28,6 +30,7 @@ using namespace plantview;
 struct Row {
   std::string name;
   double seconds = 0;
+  double read_seconds = 0;
   uint64_t objects = 0, primitives = 0, triangles = 0, store_bytes = 0;
 };
 
@@ -39,8 +42,20 @@ fs::path scratch_dir(const std::string& name) {
 
 bool finish(Store& store, Row& row) {
   std::string error;
+  const auto start = Clock::now();
   auto view = store.read(error);
-  if (!view) return false;
+  if (!view) {
+    std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
+    return false;
+  }
+  Object object;
+  for (const SpatialEntry& e : view->spatial_entries()) {
+    if (!view->object(e.slot, object, false, error)) {
+      std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
+      return false;
+    }
+  }
+  row.read_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const StoreInfo info = view->info();
   row.objects = info.objects;
   row.primitives = info.statistics.primitives;
@@ -129,17 +144,18 @@ int main(int argc, char** argv) {
   Row huldra{"huldra rvm+txt"};
   if (ingest_huldra(shared, huldra)) rows.push_back(huldra);
 
-  std::printf("%-16s %10s %10s %12s %14s %12s %10s\n", "input", "seconds", "objects", "primitives",
-              "triangles", "store MB", "B/prim");
+  std::printf("%-16s %10s %10s %12s %14s %12s %10s %10s\n", "input", "seconds", "objects", "primitives",
+              "triangles", "store MB", "B/prim", "read s");
   for (const Row& r : rows) {
-    std::printf("%-16s %10.3f %10llu %12llu %14llu %12.2f %10.1f\n", r.name.c_str(), r.seconds,
+    std::printf("%-16s %10.3f %10llu %12llu %14llu %12.2f %10.1f %10.3f\n", r.name.c_str(), r.seconds,
                 (unsigned long long)r.objects, (unsigned long long)r.primitives,
                 (unsigned long long)r.triangles, double(r.store_bytes) / 1e6,
-                r.primitives ? double(r.store_bytes) / double(r.primitives) : 0.0);
+                r.primitives ? double(r.store_bytes) / double(r.primitives) : 0.0, r.read_seconds);
   }
   for (const Row& r : rows) {
     nlohmann::json j = {{"input", r.name}, {"seconds", r.seconds}, {"objects", r.objects},
-                        {"primitives", r.primitives}, {"triangles", r.triangles}, {"store_bytes", r.store_bytes}};
+                        {"primitives", r.primitives}, {"triangles", r.triangles}, {"store_bytes", r.store_bytes},
+                        {"read_seconds", r.read_seconds}};
     std::printf("json: %s\n", j.dump().c_str());
   }
   return 0;

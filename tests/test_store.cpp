@@ -6,12 +6,20 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <random>
 #include <set>
 #include <thread>
 
 #include "plantview/store.h"
+// The store's internal encodings, for the truncation tests below.
+#include "chunks.h"
+#include "spatial.h"
+#include "tables.h"
 
 namespace plantview {
 namespace {
@@ -84,6 +92,47 @@ std::vector<Object> all_objects(const Store& store) {
                                     true, error))
       << error;
   return out;
+}
+
+// A small object: one box at `origin`, a couple of attributes.
+Object box_object(const std::string& source, int i, glm::dvec3 origin) {
+  Object o;
+  o.name = "/BOX-" + std::to_string(i);
+  o.source = source;
+  o.id = object_id(source, o.name);
+  o.origin_m = origin;
+  o.colour = {uint8_t(i), uint8_t(i >> 8), 7, 255};
+  o.primitives.push_back({{}, Box{1.0f + float(i % 7), 2, 3}});
+  o.attributes = {{"Index", std::to_string(i)}, {"Source", source}};
+  return o;
+}
+
+std::map<uint64_t, Object> objects_by_id(const Store& store) {
+  std::map<uint64_t, Object> out;
+  for (Object& o : all_objects(store)) out.emplace(o.id, std::move(o));
+  return out;
+}
+
+// Every object is found by its id and its name (with the other objects of that name), at the
+// slot it is read from.
+void expect_indexes_agree(const Store& store) {
+  std::string error;
+  auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  std::map<std::string, std::vector<uint32_t>> slots_by_name;
+  size_t count = 0;
+  ASSERT_TRUE(view->for_each_object(
+      [&](uint32_t slot, Object&& o) {
+        ++count;
+        EXPECT_EQ(view->slot_of(o.id), slot) << o.name;
+        slots_by_name[o.name].push_back(slot);  // in slot order, as slots_named() answers
+        return true;
+      },
+      false, error))
+      << error;
+  for (const auto& [name, slots] : slots_by_name) EXPECT_EQ(view->slots_named(name), slots) << name;
+  EXPECT_EQ(count, view->info().objects);
+  EXPECT_EQ(view->spatial_entries().size(), count);
 }
 
 TEST(Store, ObjectsComeBackExactlyAsTheyWentIn) {
@@ -241,6 +290,360 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
       EXPECT_LE(origin[a] + e.min[a], b.min[a]);
       EXPECT_GE(origin[a] + e.max[a], b.max[a]);
     }
+  }
+}
+
+TEST(Store, ObjectsOnEitherSideOfChunkAndBlockBoundariesComeBack) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  // 4100 objects fill object chunks (64 slots), attribute chunks (256) and blocks (2048, 4096)
+  // and spill into the next; imports of odd sizes then append to partly filled ones.
+  std::vector<Object> first;
+  for (int i = 0; i < 4100; ++i) first.push_back(box_object("a", i, {i * 3.0, 0, 0}));
+  import_objects(*store, first, "a");
+  std::map<uint64_t, Object> expected;
+  for (const Object& o : first) expected.emplace(o.id, o);
+  for (int round = 0; round < 3; ++round) {
+    const std::string source = "b" + std::to_string(round);
+    std::vector<Object> more;
+    for (int i = 0; i < 61 + 100 * round; ++i) more.push_back(box_object(source, i, {0, i * 2.0, round}));
+    import_objects(*store, more, source);
+    for (const Object& o : more) expected.emplace(o.id, o);
+  }
+  const auto back = objects_by_id(*store);
+  ASSERT_EQ(back.size(), expected.size());
+  for (const auto& [id, o] : expected) {
+    auto it = back.find(id);
+    ASSERT_NE(it, back.end()) << o.name;
+    EXPECT_TRUE(it->second == o) << o.name << " of " << o.source;
+  }
+  // Slots read one by one across the boundaries (the view's chunk cache misses and hits).
+  std::string error;
+  auto view = store->read(error);
+  for (uint32_t slot : {0u, 63u, 64u, 255u, 256u, 2047u, 2048u, 4095u, 4096u, 4099u, 63u, 2048u}) {
+    Object o;
+    ASSERT_TRUE(view->object(slot, o, true, error)) << error;
+    EXPECT_EQ(o.name, "/BOX-" + std::to_string(slot)) << slot;
+    EXPECT_EQ(o.attributes[0].value, std::to_string(slot));
+  }
+  Object none;
+  EXPECT_FALSE(view->object(4100 + 1000, none, false, error));
+  EXPECT_NE(error.find("slot 5100"), std::string::npos) << error;
+  expect_indexes_agree(*store);
+}
+
+TEST(Store, ReplacingAnObjectInTheMiddleOfAChunkKeepsItsNeighbours) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> objects;
+  for (int i = 0; i < 200; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  import_objects(*store, objects, "a");
+  std::string error;
+  const uint32_t old_slot = store->read(error)->slot_of(objects[100].id).value();
+  // Same id, new content, without removing the source: the object is replaced where it is.
+  Object changed = objects[100];
+  changed.colour = {1, 2, 3, 4};
+  changed.origin_m = {-50, 10, 10};
+  {
+    auto import = store->begin_import(error);
+    ASSERT_TRUE(import->put(changed, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+  auto view = store->read(error);
+  EXPECT_EQ(view->info().objects, 200u);
+  const auto slot = view->slot_of(changed.id);
+  ASSERT_TRUE(slot.has_value());
+  EXPECT_NE(*slot, old_slot);
+  EXPECT_EQ(view->slots_named(changed.name), std::vector<uint32_t>{*slot});
+  Object o;
+  EXPECT_FALSE(view->object(old_slot, o, false, error));
+  ASSERT_TRUE(view->object(*slot, o, true, error)) << error;
+  EXPECT_TRUE(o == changed);
+  for (int neighbour : {99, 101, 0, 63, 64, 199}) {
+    const auto s = view->slot_of(objects[neighbour].id);
+    ASSERT_TRUE(s.has_value());
+    ASSERT_TRUE(view->object(*s, o, true, error)) << error;
+    EXPECT_TRUE(o == objects[neighbour]) << neighbour;
+  }
+  // The replacement's bounds are in the spatial index, the old ones are not.
+  size_t entries_for_slot = 0;
+  for (const SpatialEntry& e : view->spatial_entries()) {
+    EXPECT_NE(e.slot, old_slot);
+    if (e.slot == *slot) {
+      ++entries_for_slot;
+      EXPECT_LE(view->spatial_origin().x + e.min[0], -50.0);
+    }
+  }
+  EXPECT_EQ(entries_for_slot, 1u);
+  expect_indexes_agree(*store);
+}
+
+TEST(Store, ReplacingASourceKeepsAnotherSourcesObjectsInTheSameChunks) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> a, b;
+  {
+    // Interleaved: every chunk holds objects of both sources.
+    std::string error;
+    auto import = store->begin_import(error);
+    for (int i = 0; i < 300; ++i) {
+      a.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+      b.push_back(box_object("b", i, {i * 1.0, 5, 0}));
+      ASSERT_TRUE(import->put(a.back(), error)) << error;
+      ASSERT_TRUE(import->put(b.back(), error)) << error;
+    }
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+  std::vector<Object> a2;
+  for (int i = 0; i < 50; ++i) a2.push_back(box_object("a", 1000 + i, {i * 1.0, -5, 0}));
+  import_objects(*store, a2, "a");
+
+  std::map<uint64_t, Object> expected;
+  for (const Object& o : b) expected.emplace(o.id, o);
+  for (const Object& o : a2) expected.emplace(o.id, o);
+  const auto back = objects_by_id(*store);
+  ASSERT_EQ(back.size(), expected.size());
+  for (const auto& [id, o] : expected) {
+    auto it = back.find(id);
+    ASSERT_NE(it, back.end()) << o.name;
+    EXPECT_TRUE(it->second == o) << o.name << " of " << o.source;
+  }
+  std::string error;
+  auto view = store->read(error);
+  EXPECT_EQ(view->info().objects, 350u);
+  EXPECT_EQ(view->info().statistics.primitives, 350u);
+  EXPECT_FALSE(view->slot_of(a[0].id).has_value());
+  EXPECT_TRUE(view->slots_named("/BOX-1001").size() == 1);
+  // "/BOX-5" now names only b's object.
+  const auto named = view->slots_named("/BOX-5");
+  ASSERT_EQ(named.size(), 1u);
+  EXPECT_EQ(view->slot_of(b[5].id), named[0]);
+  expect_indexes_agree(*store);
+
+  // Removing b altogether leaves a's new objects.
+  import_objects(*store, {}, "b");
+  EXPECT_EQ(objects_by_id(*store).size(), 50u);
+  expect_indexes_agree(*store);
+}
+
+TEST(Store, AnImportTouchingMoreBlocksThanItHoldsInMemoryReplacesASource) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  // 70000 objects span 35 object blocks, more than an import keeps decoded at once.
+  std::vector<Object> objects;
+  for (int i = 0; i < 70000; ++i) {
+    Object o = box_object("big", i, {i % 400, i / 400, 0});
+    o.attributes.clear();
+    objects.push_back(std::move(o));
+  }
+  import_objects(*store, objects, "big");
+  import_objects(*store, {box_object("other", 0, {})}, "other");
+  std::vector<Object> again(objects.begin() + 1000, objects.begin() + 1100);
+  import_objects(*store, again, "big");
+  std::string error;
+  auto view = store->read(error);
+  EXPECT_EQ(view->info().objects, 101u);
+  EXPECT_FALSE(view->slot_of(objects[0].id).has_value());
+  EXPECT_FALSE(view->slot_of(objects[69999].id).has_value());
+  const auto slot = view->slot_of(objects[1050].id);
+  ASSERT_TRUE(slot.has_value());
+  Object o;
+  ASSERT_TRUE(view->object(*slot, o, true, error)) << error;
+  EXPECT_TRUE(o == objects[1050]);
+  expect_indexes_agree(*store);
+}
+
+TEST(Store, SpatialBoundsDoNotDriftWhenOtherSourcesAreReimported) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> at(-300, 300);
+  std::vector<Object> objects;
+  for (int i = 0; i < 100; ++i) objects.push_back(box_object("a", i, {at(rng), at(rng), at(rng)}));
+  import_objects(*store, objects, "a");
+  auto entries_by_slot = [&] {
+    std::string error;
+    auto view = store->read(error);
+    std::map<uint32_t, std::vector<float>> out;
+    for (const SpatialEntry& e : view->spatial_entries()) {
+      out[e.slot] = {e.min[0], e.min[1], e.min[2], e.max[0], e.max[1], e.max[2]};
+    }
+    return out;
+  };
+  const auto before = entries_by_slot();
+  for (int round = 0; round < 5; ++round) {
+    import_objects(*store, {box_object("b", round, {at(rng), at(rng), at(rng)})}, "b");
+  }
+  auto after = entries_by_slot();
+  for (const auto& [slot, bounds] : before) EXPECT_EQ(after[slot], bounds) << "slot " << slot;
+}
+
+TEST(Store, AnObjectBeyondTheSpatialGridIsRefusedNamingItsSlot) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  import_objects(*store, {box_object("a", 0, {})}, "a");
+  std::string error;
+  auto import = store->begin_import(error);
+  ASSERT_TRUE(import->put(box_object("far", 1, {1e10, 0, 0}), error)) << error;
+  EXPECT_FALSE(import->commit(error));
+  EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+  EXPECT_NE(error.find("slot 1"), std::string::npos) << error;
+  import.reset();
+  EXPECT_EQ(objects_by_id(*store).size(), 1u);
+}
+
+// Replaces every occurrence of `from` in the file with `to` (same length); returns how many.
+int patch_file(const fs::path& path, const std::string& from, const std::string& to) {
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  int count = 0;
+  for (size_t at = bytes.find(from); at != std::string::npos; at = bytes.find(from, at + 1)) {
+    bytes.replace(at, to.size(), to);
+    ++count;
+  }
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+  return count;
+}
+
+TEST(Store, AStoreOfAnotherFormatVersionIsRefusedNotMisread) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+  }
+  // meta/"format" holds the version right after its key; make it version 1.
+  std::string current("format\0\0\0\0", 10), old("format\x01\0\0\0", 10);
+  const uint32_t version = kStoreFormatVersion;
+  std::memcpy(current.data() + 6, &version, 4);
+  ASSERT_GE(patch_file(fs::path(dir.str()) / "data.mdb", current, old), 1);
+  for (auto mode : {Store::Mode::read_only, Store::Mode::read_write}) {
+    std::string error;
+    EXPECT_FALSE(Store::open(dir.str(), mode, error));
+    EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+    EXPECT_NE(error.find("format version 1"), std::string::npos) << error;
+    EXPECT_NE(error.find("version " + std::to_string(kStoreFormatVersion)), std::string::npos) << error;
+  }
+}
+
+TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 200; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  // A fresh store's first zstd frame is the first object chunk (slots 0-63): written first, on
+  // the first pages. Break its magic number.
+  const std::string magic("\x28\xb5\x2f\xfd", 4);
+  std::string bytes;
+  {
+    std::ifstream in(fs::path(dir.str()) / "data.mdb", std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t at = bytes.find(magic);
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at, 4, "XXXX");
+  std::ofstream(fs::path(dir.str()) / "data.mdb", std::ios::binary | std::ios::trunc) << bytes;
+
+  auto store = open_store(dir.str(), Store::Mode::read_only);
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  Object o;
+  EXPECT_FALSE(view->object(5, o, false, error));
+  EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+  EXPECT_NE(error.find("object slot 5"), std::string::npos) << error;
+  // Other chunks still read; listing everything stops at the corrupt one with the same message.
+  ASSERT_TRUE(view->object(100, o, true, error)) << error;
+  EXPECT_TRUE(o == objects[100]);
+  error.clear();
+  EXPECT_FALSE(view->for_each_object([](uint32_t, Object&&) { return true; }, false, error));
+  EXPECT_NE(error.find("object slot 0"), std::string::npos) << error;
+}
+
+// Every decoder of the store's own bytes refuses each truncation of a valid input, and survives
+// (refuses or accepts, without reading out of bounds) every single corrupted byte.
+TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
+  using namespace detail;
+  std::vector<KeySlot> table;
+  for (uint32_t i = 0; i < 40; ++i) table.push_back({uint64_t(i) * 0x9e3779b97f4a7c15ull % 1000003, i * 3});
+  std::sort(table.begin(), table.end());
+  std::vector<uint8_t> keys;
+  encode_key_slots(table, keys);
+  std::vector<uint8_t> runs;
+  encode_slot_runs({1, 2, 3, 7, 8, 100, 4000}, runs);
+  std::vector<GridEntry> grid;
+  for (uint32_t i = 0; i < 40; ++i) {
+    grid.push_back({{int32_t(i * 10), -int32_t(i), 5}, {int32_t(i * 10 + 4), 3, 9 + int32_t(i)}, 1000 - i});
+  }
+  build_spatial_tree(grid);
+  std::vector<uint8_t> spatial;
+  encode_spatial({1, 2, 3}, grid, spatial);
+
+  std::vector<KeySlot> keys_back;
+  std::vector<uint32_t> runs_back;
+  std::vector<GridEntry> grid_back;
+  glm::dvec3 origin;
+  std::string error;
+  ASSERT_TRUE(decode_key_slots(keys.data(), keys.size(), keys_back, error)) << error;
+  EXPECT_EQ(keys_back.size(), table.size());
+  ASSERT_TRUE(decode_slot_runs(runs.data(), runs.size(), 5000, runs_back, error)) << error;
+  EXPECT_EQ(runs_back, (std::vector<uint32_t>{1, 2, 3, 7, 8, 100, 4000}));
+  EXPECT_FALSE(decode_slot_runs(runs.data(), runs.size(), 4000, runs_back, error));
+  ASSERT_TRUE(decode_spatial(spatial.data(), spatial.size(), origin, grid_back, error)) << error;
+  ASSERT_EQ(grid_back.size(), grid.size());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    EXPECT_EQ(std::memcmp(&grid_back[i], &grid[i], sizeof(GridEntry)), 0) << i;
+  }
+
+  for (size_t n = 0; n < keys.size(); ++n) {
+    EXPECT_FALSE(decode_key_slots(keys.data(), n, keys_back, error)) << n;
+  }
+  for (size_t n = 0; n < runs.size(); ++n) {
+    EXPECT_FALSE(decode_slot_runs(runs.data(), n, 5000, runs_back, error)) << n;
+  }
+  for (size_t n = 0; n < spatial.size(); ++n) {
+    EXPECT_FALSE(decode_spatial(spatial.data(), n, origin, grid_back, error)) << n;
+  }
+  for (uint8_t value : {uint8_t(0x00), uint8_t(0x7f), uint8_t(0xff)}) {
+    for (auto* bytes : {&keys, &runs, &spatial}) {
+      for (size_t i = 0; i < bytes->size(); ++i) {
+        std::vector<uint8_t> bad = *bytes;
+        bad[i] = value;
+        decode_key_slots(bad.data(), bad.size(), keys_back, error);
+        decode_slot_runs(bad.data(), bad.size(), 5000, runs_back, error);
+        decode_spatial(bad.data(), bad.size(), origin, grid_back, error);
+      }
+    }
+  }
+
+  // Blocks and chunks.
+  std::vector<std::vector<uint8_t>> records = {{1, 2, 3}, {}, {4}, {5, 6}};
+  std::vector<uint8_t> chunk;
+  pack_chunk(records, chunk);
+  std::vector<uint32_t> ends;
+  ASSERT_TRUE(check_chunk(chunk, 4, ends, error)) << error;
+  for (uint32_t i = 0; i < 4; ++i) {
+    const auto r = chunk_record(chunk, ends, i);
+    EXPECT_EQ(std::vector<uint8_t>(r.begin(), r.end()), records[i]) << i;
+  }
+  for (size_t n = 0; n < chunk.size(); ++n) {
+    std::vector<uint8_t> cut(chunk.begin(), chunk.begin() + n);
+    EXPECT_FALSE(check_chunk(cut, 4, ends, error)) << n;
+  }
+  std::vector<uint8_t> block;
+  join_block({{9, 9}, {}, {8}}, block);
+  std::vector<std::span<const uint8_t>> frames;
+  ASSERT_TRUE(split_block(block.data(), block.size(), 3, frames, error)) << error;
+  EXPECT_EQ(frames[0].size(), 2u);
+  EXPECT_TRUE(frames[1].empty());
+  EXPECT_EQ(frames[2][0], 8);
+  for (size_t n = 0; n < block.size(); ++n) {
+    EXPECT_FALSE(split_block(block.data(), n, 3, frames, error)) << n;
   }
 }
 

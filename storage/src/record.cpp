@@ -7,7 +7,7 @@ namespace plantview::detail {
 
 namespace {
 
-constexpr uint8_t kLayoutVersion = 2;
+constexpr uint8_t kLayoutVersion = 3;
 constexpr uint8_t kGeneralLinear = 0xff;
 constexpr uint8_t kScaled = 0x80;
 
@@ -251,7 +251,6 @@ void encode_object(const Object& o, std::vector<uint8_t>& out) {
   out.clear();
   Writer w(out);
   w.put(kLayoutVersion);
-  w.put(o.id);
   w.put(uint8_t(o.object_class));
   w.put(o.colour);
   for (int i = 0; i < 3; ++i) w.put(o.origin_m[i]);
@@ -284,7 +283,7 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& err
   Reader r(data, size);
   o = Object{};
   uint8_t version = 0, object_class = 0;
-  bool ok = r.get(version) && r.get(o.id) && r.get(object_class) && r.get(o.colour);
+  bool ok = r.get(version) && r.get(object_class) && r.get(o.colour);
   if (ok && version != kLayoutVersion) {
     error = "record layout " + std::to_string(version) + " is not " + std::to_string(kLayoutVersion);
     return false;

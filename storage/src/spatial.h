@@ -1,22 +1,66 @@
-// Internal: building the spatial hierarchy stored under spatial/"nodes" and "entries".
+// Internal: the spatial hierarchy under indexes/"spatial": how it is built, stored and expanded
+// into the SpatialNode/SpatialEntry arrays readers walk.
+//
+// Grid: bounds are kept as int32 cell indices of a kSpatialCellM grid (2^-10 m, about a
+// millimetre) around the store's spatial origin, rounded outward: an entry's box is
+// origin + [min, max] * kSpatialCellM, computed in double, and contains the object's bounds.
+// Grid values are exact in double, so rebuilding the index at every import never moves them.
+//
+// Shape: the hierarchy's topology is a function of the entry count alone (spatial_topology), so
+// only entries are stored. Node 0 is the root over entries [0, n); a node over more than
+// kLeafSize entries is inner: its children, allocated together when it is visited (depth first,
+// second half first), hold [begin, mid) and [mid, end) with mid = begin + (end - begin) / 2.
+// The builder orders entries so that each split is a median along the longest axis of the
+// centroids, and each leaf's entries by slot. Node bounds are the union of what they hold.
+//
+// Stored form (before zstd), entries in tree order:
+//   f64 origin[3] (metres, little-endian) | varint n
+//   | per leaf, in entry order: zigzag varint (leaf min - previous leaf min)[3], then per entry:
+//     varint (min - leaf min)[3] | varint (max - min)[3] | zigzag varint (slot - previous slot)
+// (varint.h; "previous" starts at 0 and runs on across leaves.)
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "plantview/store.h"
 
-namespace plantview {
+namespace plantview::detail {
 
-// An object's bounds in model space (double) with its slot, before packing.
-struct SpatialEntryD {
-  glm::dvec3 min, max;
+inline constexpr double kSpatialCellM = 1.0 / 1024;
+inline constexpr uint32_t kLeafSize = 8;
+
+struct GridEntry {
+  int32_t min[3], max[3];  // cells relative to the spatial origin
   uint32_t slot;
 };
 
-// Builds a bounding volume hierarchy (median split on the longest axis of the centroids, at
-// most kLeafSize entries a leaf) over `entries`; bounds are stored relative to `origin` and
-// rounded outward so that no object pokes out of its float box. Reorders `entries`.
-void build_spatial_tree(std::vector<SpatialEntryD>& entries, const glm::dvec3& origin,
-                        std::vector<SpatialNode>& nodes, std::vector<SpatialEntry>& packed);
+// Rounds `bounds` outward onto the grid. False when they are not finite or lie beyond the grid's
+// reach (about 2000 km from the origin).
+bool quantise_bounds(const DAabb& bounds, const glm::dvec3& origin, uint32_t slot, GridEntry& out);
+// The model-space box of an entry (contains the bounds it was quantised from).
+DAabb grid_bounds(const GridEntry& entry, const glm::dvec3& origin);
 
-}  // namespace plantview
+// Node n's entry range [begin, end), alongside the topology's nodes.
+struct NodeRange {
+  uint32_t begin, end;
+};
+// The hierarchy over n entries: nodes with first and count set (bounds left unset) and ranges.
+void spatial_topology(uint32_t n, std::vector<SpatialNode>& nodes, std::vector<NodeRange>& ranges);
+
+// Puts `entries` in tree order (see Shape above).
+void build_spatial_tree(std::vector<GridEntry>& entries);
+
+// `entries` in tree order.
+void encode_spatial(const glm::dvec3& origin, const std::vector<GridEntry>& entries,
+                    std::vector<uint8_t>& out);
+// False with a message on malformed bytes.
+bool decode_spatial(const uint8_t* data, size_t size, glm::dvec3& origin,
+                    std::vector<GridEntry>& entries, std::string& error);
+
+// The readers' form: float bounds relative to the origin, rounded outward; node bounds the union
+// of their entries.
+void expand_spatial(const std::vector<GridEntry>& entries, std::vector<SpatialNode>& nodes,
+                    std::vector<SpatialEntry>& packed);
+
+}  // namespace plantview::detail

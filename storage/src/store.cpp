@@ -1,37 +1,46 @@
 // The LMDB plant store: opening, imports (one write transaction each), read views.
 #include "plantview/store.h"
 
-#include <zdict.h>
-#include <zstd.h>
-
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <unordered_map>
 #include <unordered_set>
 
+#include "columns.h"
 #include "lmdb_guard.h"
 #include "record.h"
 #include "spatial.h"
+#include "tables.h"
 
 namespace plantview {
 
 using detail::as_val;
+using detail::ColumnWriter;
+using detail::GridEntry;
 using detail::Key32;
-using detail::Key64;
+using detail::KeySlot;
 using detail::lmdb_message;
 
 namespace {
 
-constexpr size_t kMapSizeBytes = size_t(1) << 40;      // address space only; the file grows as used
-constexpr size_t kDictionarySamples = 4000;             // records buffered to train on
-constexpr size_t kDictionaryBytes = 32 * 1024;
-constexpr int kCompressionLevel = 6;
-constexpr size_t kMaxRecordBytes = size_t(1) << 30;     // refuse to inflate anything larger
+constexpr size_t kMapSizeBytes = size_t(1) << 40;  // address space only; the file grows as used
+// Decompressed chunks a read view keeps: 32 x 64 objects (about 0.5 MB for generated plants)
+// and 2 x 256 objects' attributes, each column within 16 MB (chunks of big meshes are big).
+constexpr size_t kObjectChunksCached = 32;
+constexpr size_t kAttributeChunksCached = 2;
+constexpr size_t kChunkCacheBytes = size_t(16) << 20;
 
-uint64_t name_hash(std::string_view name) { return object_id("", name); }
+// The names table keys: 32 bits of FNV-1a 64 (hits are confirmed against the record's name).
+uint32_t name_hash(std::string_view name) {
+  const uint64_t h = object_id("", name);
+  return uint32_t(h ^ (h >> 32));
+}
 
 nlohmann::json statistics_to_json(const ModelStatistics& s) {
   nlohmann::json j;
@@ -111,31 +120,47 @@ void add(ModelStatistics& total, const ModelStatistics& part) {
   }
 }
 
-struct ZstdDDictFree {
-  void operator()(ZSTD_DDict* d) const { ZSTD_freeDDict(d); }
-};
-struct ZstdCDictFree {
-  void operator()(ZSTD_CDict* d) const { ZSTD_freeCDict(d); }
-};
-struct ZstdCCtxFree {
-  void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
-};
-struct ZstdDCtxFree {
-  void operator()(ZSTD_DCtx* c) const { ZSTD_freeDCtx(c); }
+struct Databases {
+  MDB_dbi meta, objects, attributes, indexes, sources;
 };
 
-// Frames carry their content size (for exact inflation) but no dictionary id or checksum: a
-// store has one dictionary, and LMDB pages are checksummed by nothing we could act on anyway.
-ZSTD_CCtx* make_cctx() {
-  ZSTD_CCtx* c = ZSTD_createCCtx();
-  ZSTD_CCtx_setParameter(c, ZSTD_c_dictIDFlag, 0);
-  ZSTD_CCtx_setParameter(c, ZSTD_c_contentSizeFlag, 1);
-  ZSTD_CCtx_setParameter(c, ZSTD_c_compressionLevel, kCompressionLevel);
-  return c;
+// An index value (indexes/<key>): a zstd frame, inflated into `raw`. `found` false if absent.
+bool read_index(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
+                std::vector<uint8_t>& raw, bool& found, std::string& why) {
+  MDB_val k = as_val(key), v;
+  const int rc = mdb_get(txn, dbi, &k, &v);
+  found = rc == MDB_SUCCESS;
+  raw.clear();
+  if (rc == MDB_NOTFOUND) return true;
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+    return false;
+  }
+  return detail::inflate_frame(dctx, {static_cast<const uint8_t*>(v.mv_data), v.mv_size}, raw, why);
 }
 
-struct Databases {
-  MDB_dbi meta, objects, attributes, ids, names, sources, spatial;
+// The key/slot table under indexes/<key> (empty if absent).
+bool read_table(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
+                std::vector<KeySlot>& table, std::string& why) {
+  std::vector<uint8_t> raw;
+  bool found;
+  table.clear();
+  if (!read_index(txn, dbi, key, dctx, raw, found, why)) return false;
+  return !found || detail::decode_key_slots(raw.data(), raw.size(), table, why);
+}
+
+bool by_slot(const KeySlot& a, const KeySlot& b) { return a.slot < b.slot; }
+
+// What read views need decoded from one committed state of the store: built by the first view
+// of that state and shared by every later one (read-only once built).
+struct Snapshot {
+  size_t txn_id = 0;
+  std::vector<KeySlot> ids;       // key: id; sorted by id
+  std::vector<KeySlot> slot_ids;  // key: id; sorted by slot
+  std::vector<KeySlot> names;     // key: name hash; sorted by hash
+  glm::dvec3 origin{0.0};
+  std::vector<SpatialNode> nodes;
+  std::vector<SpatialEntry> entries;
 };
 
 }  // namespace
@@ -151,202 +176,230 @@ struct Store::State {
   Mode mode;
   detail::LmdbEnv env;
   Databases dbs{};
-  // The decompression dictionary, loaded once per store (shared by views; ZSTD_DDict is
-  // read-only after creation). Null until the store has one. Guarded by dict_mutex.
-  std::mutex dict_mutex;
-  std::shared_ptr<ZSTD_DDict> ddict;
-  std::string ddict_bytes;
+  // The snapshot of the newest state a view has read. Guarded by snapshot_mutex.
+  std::mutex snapshot_mutex;
+  std::shared_ptr<const Snapshot> latest;
 
   std::string fail(std::string_view what, int rc) const { return lmdb_message(directory, what, rc); }
 
-  // The dictionary as committed in `txn` (empty if none). Caches the decoder for it.
-  std::shared_ptr<ZSTD_DDict> decoder_for(MDB_txn* txn) {
-    MDB_val key = as_val("dictionary"), val;
-    if (mdb_get(txn, dbs.meta, &key, &val) != MDB_SUCCESS || val.mv_size == 0) return nullptr;
-    std::lock_guard lock(dict_mutex);
-    const std::string_view bytes(static_cast<const char*>(val.mv_data), val.mv_size);
-    if (!ddict || ddict_bytes != bytes) {
-      ddict_bytes.assign(bytes);
-      ddict.reset(ZSTD_createDDict(ddict_bytes.data(), ddict_bytes.size()), ZstdDDictFree());
+  // The decoded snapshot a read transaction sees (decoding it unless the latest is that one).
+  std::shared_ptr<const Snapshot> snapshot_for(MDB_txn* txn, std::string& error) {
+    const size_t txn_id = mdb_txn_id(txn);
+    std::lock_guard lock(snapshot_mutex);
+    if (latest && latest->txn_id == txn_id) return latest;
+    auto s = std::make_shared<Snapshot>();
+    s->txn_id = txn_id;
+    detail::ZstdDCtx dctx(ZSTD_createDCtx());
+    std::string why;
+    if (!read_table(txn, dbs.indexes, "ids", dctx.get(), s->ids, why)) {
+      error = "store " + directory + ": id table: " + why;
+      return nullptr;
     }
-    return ddict;
+    s->slot_ids = s->ids;
+    std::sort(s->slot_ids.begin(), s->slot_ids.end(), by_slot);
+    if (!read_table(txn, dbs.indexes, "names", dctx.get(), s->names, why)) {
+      error = "store " + directory + ": name table: " + why;
+      return nullptr;
+    }
+    std::vector<uint8_t> raw;
+    std::vector<GridEntry> grid;
+    bool found;
+    if (!read_index(txn, dbs.indexes, "spatial", dctx.get(), raw, found, why) ||
+        (found && !detail::decode_spatial(raw.data(), raw.size(), s->origin, grid, why))) {
+      error = "store " + directory + ": spatial index: " + why;
+      return nullptr;
+    }
+    detail::expand_spatial(grid, s->nodes, s->entries);
+    if (!latest || latest->txn_id < txn_id) latest = s;
+    return s;
   }
 };
-
-// Inflates one record (a zstd frame) into `out`. False with a message on corruption.
-static bool inflate(ZSTD_DCtx* dctx, const ZSTD_DDict* ddict, const MDB_val& val,
-                    std::vector<uint8_t>& out, std::string& error) {
-  const unsigned long long size = ZSTD_getFrameContentSize(val.mv_data, val.mv_size);
-  if (size == ZSTD_CONTENTSIZE_ERROR || size == ZSTD_CONTENTSIZE_UNKNOWN || size > kMaxRecordBytes) {
-    error = "record is not a valid zstd frame";
-    return false;
-  }
-  out.resize(size);
-  const size_t got = ddict ? ZSTD_decompress_usingDDict(dctx, out.data(), out.size(), val.mv_data,
-                                                        val.mv_size, ddict)
-                           : ZSTD_decompressDCtx(dctx, out.data(), out.size(), val.mv_data, val.mv_size);
-  if (ZSTD_isError(got) || got != size) {
-    error = std::string("record does not decompress: ") +
-            (ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short");
-    return false;
-  }
-  return true;
-}
 
 // ---------------------------------------------------------------------------------------------
 
 struct Import::State {
   std::shared_ptr<Store::State> store;
   detail::LmdbTxn txn;
-  std::string error_prefix;
 
-  ModelStatistics totals;             // as committed before, updated as objects come and go
+  ModelStatistics totals;        // as committed before, updated as objects come and go
   uint32_t next_slot = 0;
-  bool fresh = false;                 // the store had no objects: ids and names can be appended
-  std::unordered_map<uint64_t, uint32_t> new_ids;   // id -> slot, this import's objects
-  std::vector<std::pair<uint64_t, uint32_t>> new_names;  // (name hash, slot)
-  std::vector<SpatialEntryD> new_entries;               // this import's objects' bounds
-  std::unordered_set<uint32_t> removed_slots;           // earlier objects removed by this import
+  uint32_t first_new_slot = 0;   // this import's objects are in [first_new_slot, next_slot)
+  std::vector<KeySlot> ids, names;                 // as committed (sorted)
+  std::unordered_map<uint64_t, uint32_t> new_ids;  // id -> slot, this import's live objects
+  std::vector<uint64_t> new_slot_ids;              // id by slot - first_new_slot
+  std::vector<KeySlot> new_names;                  // (name hash, slot), this import's objects
+  struct NewBounds {
+    DAabb bounds;
+    uint32_t slot;
+  };
+  std::vector<NewBounds> new_bounds;
+  std::unordered_set<uint32_t> removed;  // every slot this import removed (slots are never reused)
+  // Sources this import touched: every slot they had or got (removed ones included, filtered
+  // out at commit).
+  std::map<std::string, std::vector<uint32_t>, std::less<>> sources;
+  std::vector<uint32_t>* last_source = nullptr;
+  std::string last_source_name;
+  ColumnWriter objects, attributes;
+  std::vector<uint8_t> raw;
   uint64_t put_count = 0;
 
-  // Compression: a dictionary is trained on the first records of the store's first import.
-  std::unique_ptr<ZSTD_CCtx, ZstdCCtxFree> cctx{make_cctx()};
-  std::unique_ptr<ZSTD_CDict, ZstdCDictFree> cdict;
-  bool dictionary_decided = false;
-  struct Pending {
-    uint32_t slot;
-    std::vector<uint8_t> object, attributes;
-  };
-  std::vector<Pending> pending;  // raw records waiting for the dictionary
-  std::vector<uint8_t> raw, raw_attributes, packed;
+  explicit State(std::shared_ptr<Store::State> s)
+      : store(std::move(s)),
+        objects(store->directory, "object", store->dbs.objects, detail::kObjectShape),
+        attributes(store->directory, "attributes", store->dbs.attributes,
+                   detail::kAttributeShape) {}
 
   std::string fail(std::string_view what, int rc) const { return store->fail(what, rc); }
 
-  bool compress(const std::vector<uint8_t>& in, std::vector<uint8_t>& out, std::string& error) {
-    out.resize(ZSTD_compressBound(in.size()));
-    // The context keeps its parameters and, once trained, references the dictionary.
-    const size_t n = ZSTD_compress2(cctx.get(), out.data(), out.size(), in.data(), in.size());
-    if (ZSTD_isError(n)) {
-      error = "store " + store->directory + ": compressing a record: " + ZSTD_getErrorName(n);
-      return false;
+  // The slots of a source (as committed, plus this import's), loaded on first use.
+  bool source_slots(std::string_view source, std::vector<uint32_t>*& out, std::string& error) {
+    if (last_source && last_source_name == source) {
+      out = last_source;
+      return true;
     }
-    out.resize(n);
-    return true;
-  }
-
-  bool write_records(uint32_t slot, const std::vector<uint8_t>& object,
-                     const std::vector<uint8_t>& attributes, std::string& error) {
-    const Key32 key(slot);
-    for (auto [dbi, raw_record] : {std::pair{store->dbs.objects, &object},
-                                   std::pair{store->dbs.attributes, &attributes}}) {
-      if (!compress(*raw_record, packed, error)) return false;
-      MDB_val k = key.val(), v = as_val(packed.data(), packed.size());
-      // Slots only grow, so records append to the end of each database (full pages).
-      const int rc = mdb_put(txn.get(), dbi, &k, &v, MDB_APPEND);
-      if (rc != MDB_SUCCESS) {
-        error = fail("writing an object record", rc);
-        return false;
-      }
-    }
-    return true;
-  }
-
-  // Trains (or declines) the dictionary on the pending records, then writes them.
-  bool decide_dictionary(std::string& error) {
-    dictionary_decided = true;
-    if (pending.size() >= 64) {
-      std::vector<uint8_t> samples;
-      std::vector<size_t> sizes;
-      for (const Pending& p : pending) {
-        for (const auto* r : {&p.object, &p.attributes}) {
-          samples.insert(samples.end(), r->begin(), r->end());
-          sizes.push_back(r->size());
-        }
-      }
-      std::vector<uint8_t> dict(kDictionaryBytes);
-      const size_t n = ZDICT_trainFromBuffer(dict.data(), dict.size(), samples.data(), sizes.data(),
-                                             unsigned(sizes.size()));
-      if (!ZDICT_isError(n)) {
-        dict.resize(n);
-        cdict.reset(ZSTD_createCDict(dict.data(), dict.size(), kCompressionLevel));
-        ZSTD_CCtx_refCDict(cctx.get(), cdict.get());
-        MDB_val k = as_val("dictionary"), v = as_val(dict.data(), dict.size());
-        const int rc = mdb_put(txn.get(), store->dbs.meta, &k, &v, 0);
-        if (rc != MDB_SUCCESS) {
-          error = fail("writing the dictionary", rc);
+    auto it = sources.find(source);
+    if (it == sources.end()) {
+      std::vector<uint32_t> slots;
+      MDB_val k = as_val(source), v;
+      const int rc = mdb_get(txn.get(), store->dbs.sources, &k, &v);
+      std::string why;
+      if (rc == MDB_SUCCESS) {
+        if (!detail::decode_slot_runs(static_cast<const uint8_t*>(v.mv_data), v.mv_size,
+                                      first_new_slot, slots, why)) {
+          error = "store " + store->directory + ": slots of source '" + std::string(source) +
+                  "': " + why;
           return false;
         }
+      } else if (rc != MDB_NOTFOUND) {
+        error = fail("reading the sources index", rc);
+        return false;
       }
+      it = sources.emplace(std::string(source), std::move(slots)).first;
     }
-    for (const Pending& p : pending) {
-      if (!write_records(p.slot, p.object, p.attributes, error)) return false;
-    }
-    pending.clear();
-    pending.shrink_to_fit();
+    last_source = &it->second;
+    last_source_name = it->first;
+    out = last_source;
     return true;
   }
 
   // Removes the object in `slot` (committed earlier, or put by this import).
   bool remove_slot(uint32_t slot, std::string& error) {
-    ZSTD_DCtx* dctx = ZSTD_createDCtx();
-    std::unique_ptr<ZSTD_DCtx, ZstdDCtxFree> guard(dctx);
-    const Key32 key(slot);
-    MDB_val k = key.val(), v;
-    int rc = mdb_get(txn.get(), store->dbs.objects, &k, &v);
+    if (removed.count(slot)) return true;
+    std::span<const uint8_t> record;
+    if (!objects.get(txn.get(), slot, record, error)) return false;
     Object old;
-    if (rc == MDB_SUCCESS) {
-      std::vector<uint8_t> record;
-      std::string why;
-      const auto ddict = store->decoder_for(txn.get());
-      if (!inflate(dctx, ddict.get(), v, record, why) ||
-          !detail::decode_object(record.data(), record.size(), old, why)) {
-        error = "store " + store->directory + ": slot " + std::to_string(slot) + ": " + why;
-        return false;
-      }
-    } else if (rc == MDB_NOTFOUND) {
-      // Not yet written: still waiting for the dictionary.
-      auto it = std::find_if(pending.begin(), pending.end(), [&](const Pending& p) { return p.slot == slot; });
-      if (it == pending.end()) return true;
-      std::string why;
-      if (!detail::decode_object(it->object.data(), it->object.size(), old, why)) {
-        error = "store " + store->directory + ": " + why;
-        return false;
-      }
-      pending.erase(it);
-    } else {
-      error = fail("reading an object", rc);
+    std::string why;
+    if (record.empty()) {
+      error = "store " + store->directory + ": slot " + std::to_string(slot) +
+              " is indexed but holds no object";
+      return false;
+    }
+    if (!detail::decode_object(record.data(), record.size(), old, why)) {
+      error = "store " + store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+      return false;
+    }
+    if (!objects.erase(txn.get(), slot, error) || !attributes.erase(txn.get(), slot, error)) {
       return false;
     }
     ModelStatistics part;
     part.add(old);
     subtract(totals, part);
-    for (MDB_dbi dbi : {store->dbs.objects, store->dbs.attributes}) {
-      MDB_val dk = key.val();
-      rc = mdb_del(txn.get(), dbi, &dk, nullptr);
-      if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
-        error = fail("deleting an object", rc);
-        return false;
-      }
-    }
-    const Key64 id_key(old.id);
-    MDB_val ik = id_key.val();
-    mdb_del(txn.get(), store->dbs.ids, &ik, nullptr);
-    const Key64 name_key(name_hash(old.name));
-    MDB_val nk = name_key.val(), nv = key.val();
-    mdb_del(txn.get(), store->dbs.names, &nk, &nv);
-    MDB_val sk = as_val(old.source), sv = key.val();
-    mdb_del(txn.get(), store->dbs.sources, &sk, &sv);
-    // This import's own bookkeeping.
-    auto it = new_ids.find(old.id);
-    if (it != new_ids.end() && it->second == slot) {
-      new_ids.erase(it);
-      std::erase_if(new_names, [&](const auto& n) { return n.second == slot; });
-      std::erase_if(new_entries, [&](const SpatialEntryD& e) { return e.slot == slot; });
-    } else {
-      removed_slots.insert(slot);
+    removed.insert(slot);
+    // The source's list is rewritten at commit (without the removed slots).
+    std::vector<uint32_t>* unused;
+    if (!source_slots(old.source, unused, error)) return false;
+    if (slot >= first_new_slot) {
+      auto it = new_ids.find(new_slot_ids[slot - first_new_slot]);
+      if (it != new_ids.end() && it->second == slot) new_ids.erase(it);
     }
     return true;
   }
+
+  // The committed slot of an id, unless this import removed it.
+  std::optional<uint32_t> committed_slot(uint64_t id) const {
+    auto it = std::lower_bound(ids.begin(), ids.end(), KeySlot{id, 0});
+    for (; it != ids.end() && it->key == id; ++it) {
+      if (!removed.count(it->slot)) return it->slot;
+    }
+    return std::nullopt;
+  }
+
+  // A table as committed, less removed slots, plus this import's entries; sorted.
+  std::vector<KeySlot> merged(const std::vector<KeySlot>& committed,
+                              std::vector<KeySlot> added) const {
+    std::vector<KeySlot> out;
+    out.reserve(committed.size() + added.size());
+    for (const KeySlot& e : committed) {
+      if (!removed.count(e.slot)) out.push_back(e);
+    }
+    const size_t middle = out.size();
+    for (const KeySlot& e : added) {
+      if (!removed.count(e.slot)) out.push_back(e);
+    }
+    std::sort(out.begin() + middle, out.end());
+    std::inplace_merge(out.begin(), out.begin() + middle, out.end());
+    return out;
+  }
+
+  // Compresses and stores an index value under indexes/<key>.
+  bool put_index(std::string_view key, const std::vector<uint8_t>& raw_value, std::string& error) {
+    std::vector<uint8_t> frame;
+    std::string why;
+    if (!detail::compress_frame(compressor.get(), raw_value, frame, why)) {
+      error = "store " + store->directory + ": " + std::string(key) + ": " + why;
+      return false;
+    }
+    MDB_val k = as_val(key), v = as_val(frame.data(), frame.size());
+    const int rc = mdb_put(txn.get(), store->dbs.indexes, &k, &v, 0);
+    if (rc != MDB_SUCCESS) {
+      error = fail("writing the " + std::string(key) + " index", rc);
+      return false;
+    }
+    return true;
+  }
+
+  // The spatial hierarchy over every object's bounds, rebuilt; sets totals.bounds.
+  bool write_spatial(std::string& error) {
+    detail::ZstdDCtx dctx(ZSTD_createDCtx());
+    std::vector<uint8_t> raw_value;
+    std::vector<GridEntry> entries;
+    glm::dvec3 origin(0.0);
+    bool found;
+    std::string why;
+    if (!read_index(txn.get(), store->dbs.indexes, "spatial", dctx.get(), raw_value, found, why) ||
+        (found &&
+         !detail::decode_spatial(raw_value.data(), raw_value.size(), origin, entries, why))) {
+      error = "store " + store->directory + ": spatial index: " + why;
+      return false;
+    }
+    std::erase_if(entries, [&](const GridEntry& e) { return removed.count(e.slot) > 0; });
+    std::erase_if(new_bounds, [&](const NewBounds& b) { return removed.count(b.slot) > 0; });
+    // The origin is fixed by the first objects with geometry: whole metres near their centre.
+    if (entries.empty() && !new_bounds.empty()) {
+      DAabb all;
+      for (const NewBounds& b : new_bounds) all.extend(b.bounds);
+      origin = glm::floor(0.5 * (all.min + all.max));
+    }
+    for (const NewBounds& b : new_bounds) {
+      GridEntry e;
+      if (!detail::quantise_bounds(b.bounds, origin, b.slot, e)) {
+        error = "store " + store->directory + ": object slot " + std::to_string(b.slot) +
+                ": bounds are not finite or lie more than 2000 km from the model's origin";
+        return false;
+      }
+      entries.push_back(e);
+    }
+    detail::build_spatial_tree(entries);
+    DAabb bounds;
+    for (const GridEntry& e : entries) bounds.extend(detail::grid_bounds(e, origin));
+    totals.bounds = bounds;
+    detail::encode_spatial(origin, entries, raw_value);
+    return put_index("spatial", raw_value, error);
+  }
+
+  bool commit(std::string& error);
+
+  detail::ZstdCCtx compressor = detail::make_compressor();
 };
 
 Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -355,23 +408,12 @@ uint64_t Import::objects_put() const { return state_->put_count; }
 
 bool Import::remove_source(std::string_view source, std::string& error) {
   State& s = *state_;
-  std::vector<uint32_t> slots;
-  {
-    detail::LmdbCursor cursor;
-    int rc = cursor.open(s.txn.get(), s.store->dbs.sources);
-    if (rc != MDB_SUCCESS) {
-      error = s.fail("opening the sources index", rc);
-      return false;
-    }
-    MDB_val k = as_val(source), v;
-    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
-    while (rc == MDB_SUCCESS) {
-      slots.push_back(detail::read_be32(v.mv_data));
-      rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT_DUP);
-    }
-  }
-  // The index already holds this import's own objects from the same source.
-  for (uint32_t slot : slots) {
+  assert(s.txn.get() && "remove_source() on a spent Import");
+  std::vector<uint32_t>* slots;
+  if (!s.source_slots(source, slots, error)) return false;
+  // remove_slot may load other sources (never this one again), which leaves `slots` in place.
+  const std::vector<uint32_t> copy = *slots;
+  for (uint32_t slot : copy) {
     if (!s.remove_slot(slot, error)) return false;
   }
   return true;
@@ -379,44 +421,34 @@ bool Import::remove_source(std::string_view source, std::string& error) {
 
 bool Import::put(const Object& object, std::string& error) {
   State& s = *state_;
+  assert(s.txn.get() && "put() on a spent Import");
   if (object.id == 0) {
     error = "store " + s.store->directory + ": object '" + object.name + "' has id 0";
+    return false;
+  }
+  if (s.next_slot == UINT32_MAX) {
+    error = "store " + s.store->directory + ": no slots left (4 billion objects put)";
     return false;
   }
   // An object with the same id is replaced.
   if (auto it = s.new_ids.find(object.id); it != s.new_ids.end()) {
     if (!s.remove_slot(it->second, error)) return false;
-  } else if (!s.fresh) {
-    const Key64 id_key(object.id);
-    MDB_val k = id_key.val(), v;
-    const int rc = mdb_get(s.txn.get(), s.store->dbs.ids, &k, &v);
-    if (rc == MDB_SUCCESS) {
-      if (!s.remove_slot(detail::read_be32(v.mv_data), error)) return false;
-    } else if (rc != MDB_NOTFOUND) {
-      error = s.fail("looking up an object id", rc);
-      return false;
-    }
+  } else if (auto slot = s.committed_slot(object.id)) {
+    if (!s.remove_slot(*slot, error)) return false;
   }
   const uint32_t slot = s.next_slot++;
-  const DAabb bounds = object_bounds(object);
+  std::vector<uint32_t>* source_slots;
+  if (!s.source_slots(object.source, source_slots, error)) return false;
   detail::encode_object(object, s.raw);
-  detail::encode_attributes(object.attributes, s.raw_attributes);
-  if (!s.dictionary_decided) {
-    s.pending.push_back({slot, s.raw, s.raw_attributes});
-    if (s.pending.size() >= kDictionarySamples && !s.decide_dictionary(error)) return false;
-  } else if (!s.write_records(slot, s.raw, s.raw_attributes, error)) {
-    return false;
-  }
-  const Key32 slot_key(slot);
-  MDB_val sk = as_val(object.source), sv = slot_key.val();
-  int rc = mdb_put(s.txn.get(), s.store->dbs.sources, &sk, &sv, 0);
-  if (rc != MDB_SUCCESS) {
-    error = s.fail("writing the sources index", rc);
-    return false;
-  }
-  s.new_ids.emplace(object.id, slot);
-  s.new_names.emplace_back(name_hash(object.name), slot);
-  if (!bounds.empty()) s.new_entries.push_back({bounds.min, bounds.max, slot});
+  if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  detail::encode_attributes(object.attributes, s.raw);
+  if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  source_slots->push_back(slot);
+  s.new_ids[object.id] = slot;
+  s.new_slot_ids.push_back(object.id);
+  s.new_names.push_back({name_hash(object.name), slot});
+  const DAabb bounds = object_bounds(object);
+  if (!bounds.empty()) s.new_bounds.push_back({bounds, slot});
   ModelStatistics part;
   part.add(object);
   add(s.totals, part);
@@ -425,87 +457,61 @@ bool Import::put(const Object& object, std::string& error) {
 }
 
 bool Import::commit(std::string& error) {
-  State& s = *state_;
-  assert(s.txn.get() && "commit() on a spent Import");
-  MDB_txn* txn = s.txn.get();
+  assert(state_->txn.get() && "commit() on a spent Import");
+  // Spent either way: a failed commit leaves the store as it was.
+  const bool ok = state_->commit(error);
+  state_->txn.abort();
+  return ok;
+}
+
+bool Import::State::commit(std::string& error) {
+  State& s = *this;
+  MDB_txn* write = s.txn.get();
   const Databases& dbs = s.store->dbs;
-  if (!s.dictionary_decided && !s.decide_dictionary(error)) return false;
+  if (!s.objects.flush(write, error) || !s.attributes.flush(write, error)) return false;
 
-  // Ids and name hashes, sorted: appended to full pages in a fresh store.
-  std::vector<std::pair<uint64_t, uint32_t>> ids(s.new_ids.begin(), s.new_ids.end());
-  std::sort(ids.begin(), ids.end());
-  for (const auto& [id, slot] : ids) {
-    const Key64 k(id);
-    const Key32 v(slot);
-    MDB_val kv = k.val(), vv = v.val();
-    const int rc = mdb_put(txn, dbs.ids, &kv, &vv, s.fresh ? MDB_APPEND : 0);
+  // Id and name tables, rewritten whole: as committed, less what was removed, plus what came.
+  std::vector<KeySlot> added;
+  added.reserve(s.new_ids.size());
+  for (const auto& [id, slot] : s.new_ids) added.push_back({id, slot});
+  std::vector<uint8_t> raw_value;
+  detail::encode_key_slots(s.merged(s.ids, std::move(added)), raw_value);
+  if (!s.put_index("ids", raw_value, error)) return false;
+  detail::encode_key_slots(s.merged(s.names, std::move(s.new_names)), raw_value);
+  if (!s.put_index("names", raw_value, error)) return false;
+
+  // The sources touched: their slots, less what was removed.
+  for (auto& [source, slots] : s.sources) {
+    std::erase_if(slots, [&](uint32_t slot) { return s.removed.count(slot) > 0; });
+    MDB_val k = as_val(source);
+    int rc;
+    if (slots.empty()) {
+      rc = mdb_del(write, dbs.sources, &k, nullptr);
+      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
+    } else {
+      detail::encode_slot_runs(slots, raw_value);
+      MDB_val v = as_val(raw_value.data(), raw_value.size());
+      rc = mdb_put(write, dbs.sources, &k, &v, 0);
+    }
     if (rc != MDB_SUCCESS) {
-      error = s.fail("writing the id index", rc);
+      error = s.fail("writing the sources index", rc);
       return false;
     }
   }
-  std::sort(s.new_names.begin(), s.new_names.end());
-  for (const auto& [hash, slot] : s.new_names) {
-    const Key64 k(hash);
-    const Key32 v(slot);
-    MDB_val kv = k.val(), vv = v.val();
-    const int rc = mdb_put(txn, dbs.names, &kv, &vv, s.fresh ? MDB_APPENDDUP : 0);
-    if (rc != MDB_SUCCESS) {
-      error = s.fail("writing the name index", rc);
-      return false;
-    }
-  }
 
-  // The spatial hierarchy over every object's bounds, rebuilt.
-  glm::dvec3 origin(0.0);
-  std::vector<SpatialEntryD> entries;
-  {
-    MDB_val ok = as_val("origin"), ov;
-    bool have_origin = mdb_get(txn, dbs.spatial, &ok, &ov) == MDB_SUCCESS && ov.mv_size == 24;
-    if (have_origin) std::memcpy(&origin, ov.mv_data, 24);
-    MDB_val ek = as_val("entries"), ev;
-    if (have_origin && mdb_get(txn, dbs.spatial, &ek, &ev) == MDB_SUCCESS) {
-      const size_t n = ev.mv_size / sizeof(SpatialEntry);
-      for (size_t i = 0; i < n; ++i) {
-        SpatialEntry e;
-        std::memcpy(&e, static_cast<const char*>(ev.mv_data) + i * sizeof(SpatialEntry), sizeof e);
-        if (s.removed_slots.count(e.slot)) continue;
-        entries.push_back({origin + glm::dvec3(e.min[0], e.min[1], e.min[2]),
-                           origin + glm::dvec3(e.max[0], e.max[1], e.max[2]), e.slot});
-      }
-    }
-    entries.insert(entries.end(), s.new_entries.begin(), s.new_entries.end());
-    if (!have_origin && !entries.empty()) {
-      DAabb all;
-      for (const auto& e : entries) all.extend(DAabb{e.min, e.max});
-      origin = glm::floor(0.5 * (all.min + all.max));  // whole metres: exact in float and double
-    }
-  }
-  std::vector<SpatialNode> nodes;
-  std::vector<SpatialEntry> packed_entries;
-  build_spatial_tree(entries, origin, nodes, packed_entries);
-  DAabb bounds;
-  for (const SpatialEntry& e : packed_entries) {
-    bounds.extend(origin + glm::dvec3(e.min[0], e.min[1], e.min[2]));
-    bounds.extend(origin + glm::dvec3(e.max[0], e.max[1], e.max[2]));
-  }
-  s.totals.bounds = bounds;
+  if (!s.write_spatial(error)) return false;
 
-  auto put_meta = [&](MDB_dbi dbi, std::string_view key, const void* data, size_t size) {
+  auto put_meta = [&](std::string_view key, const void* data, size_t size) {
     MDB_val k = as_val(key), v = as_val(data, size);
-    const int rc = mdb_put(txn, dbi, &k, &v, 0);
+    const int rc = mdb_put(write, dbs.meta, &k, &v, 0);
     if (rc != MDB_SUCCESS) error = s.fail("writing " + std::string(key), rc);
     return rc == MDB_SUCCESS;
   };
   const std::string stats = statistics_json(s.totals);
   const uint32_t version = kStoreFormatVersion;
-  if (!put_meta(dbs.spatial, "origin", &origin, sizeof origin) ||
-      !put_meta(dbs.spatial, "nodes", nodes.data(), nodes.size() * sizeof(SpatialNode)) ||
-      !put_meta(dbs.spatial, "entries", packed_entries.data(),
-                packed_entries.size() * sizeof(SpatialEntry)) ||
-      !put_meta(dbs.meta, "statistics", stats.data(), stats.size()) ||
-      !put_meta(dbs.meta, "next_slot", &s.next_slot, sizeof s.next_slot) ||
-      !put_meta(dbs.meta, "format", &version, sizeof version)) {
+  if (!put_meta("statistics", stats.data(), stats.size()) ||
+      !put_meta("next_slot", &s.next_slot, sizeof s.next_slot) ||
+      !put_meta("format", &version, sizeof version)) {
     return false;
   }
   const int rc = s.txn.commit();
@@ -521,14 +527,16 @@ bool Import::commit(std::string& error) {
 struct ReadView::State {
   std::shared_ptr<Store::State> store;
   detail::LmdbTxn txn;
-  std::shared_ptr<ZSTD_DDict> ddict;
-  std::unique_ptr<ZSTD_DCtx, ZstdDCtxFree> dctx{ZSTD_createDCtx()};
-  mutable std::vector<uint8_t> scratch;
-  std::span<const SpatialNode> nodes;
-  std::span<const SpatialEntry> entries;
-  std::vector<SpatialNode> nodes_copy;      // used when the map's bytes are not aligned
-  std::vector<SpatialEntry> entries_copy;
-  glm::dvec3 origin{0.0};
+  std::shared_ptr<const Snapshot> snapshot;
+  detail::ZstdDCtx dctx{ZSTD_createDCtx()};
+  // Decompressed chunks of this view: object() on neighbouring slots decompresses once.
+  detail::ChunkCache objects, attributes;
+
+  explicit State(const std::shared_ptr<Store::State>& s)
+      : store(s),
+        objects(s->dbs.objects, detail::kObjectShape, kObjectChunksCached, kChunkCacheBytes),
+        attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
+                   kChunkCacheBytes) {}
 };
 
 ReadView::ReadView(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -556,89 +564,73 @@ StoreInfo ReadView::info() const {
   return info;
 }
 
-std::span<const SpatialNode> ReadView::spatial_nodes() const { return state_->nodes; }
-std::span<const SpatialEntry> ReadView::spatial_entries() const { return state_->entries; }
-glm::dvec3 ReadView::spatial_origin() const { return state_->origin; }
+std::span<const SpatialNode> ReadView::spatial_nodes() const { return state_->snapshot->nodes; }
+std::span<const SpatialEntry> ReadView::spatial_entries() const {
+  return state_->snapshot->entries;
+}
+glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->origin; }
 
 bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const {
   State& s = *state_;
-  const Key32 key(slot);
-  MDB_val k = key.val(), v;
-  int rc = mdb_get(s.txn.get(), s.store->dbs.objects, &k, &v);
-  if (rc != MDB_SUCCESS) {
-    error = s.store->fail("object slot " + std::to_string(slot), rc);
+  const auto& slot_ids = s.snapshot->slot_ids;
+  const auto it = std::lower_bound(slot_ids.begin(), slot_ids.end(), KeySlot{0, slot}, by_slot);
+  if (it == slot_ids.end() || it->slot != slot) {
+    error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
     return false;
   }
+  std::span<const uint8_t> record;
   std::string why;
-  if (!inflate(s.dctx.get(), s.ddict.get(), v, s.scratch, why) ||
-      !detail::decode_object(s.scratch.data(), s.scratch.size(), out, why)) {
+  bool ok = s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why);
+  if (ok && record.empty()) {
+    why = "the record is missing";
+    ok = false;
+  }
+  if (!ok || !detail::decode_object(record.data(), record.size(), out, why)) {
     error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
     return false;
   }
+  out.id = it->key;
   if (!with_attributes) return true;
-  MDB_val ak = key.val();
-  rc = mdb_get(s.txn.get(), s.store->dbs.attributes, &ak, &v);
-  if (rc != MDB_SUCCESS) {
-    error = s.store->fail("attributes of slot " + std::to_string(slot), rc);
-    return false;
+  ok = s.attributes.record(s.txn.get(), s.dctx.get(), slot, record, why);
+  if (ok && record.empty()) {
+    why = "the record is missing";
+    ok = false;
   }
-  if (!inflate(s.dctx.get(), s.ddict.get(), v, s.scratch, why) ||
-      !detail::decode_attributes(s.scratch.data(), s.scratch.size(), out.attributes, why)) {
-    error = "store " + s.store->directory + ": attributes of slot " + std::to_string(slot) + ": " + why;
+  if (!ok || !detail::decode_attributes(record.data(), record.size(), out.attributes, why)) {
+    error = "store " + s.store->directory + ": attributes of slot " + std::to_string(slot) +
+            ": " + why;
     return false;
   }
   return true;
 }
 
 std::optional<uint32_t> ReadView::slot_of(uint64_t id) const {
-  const Key64 key(id);
-  MDB_val k = key.val(), v;
-  if (mdb_get(state_->txn.get(), state_->store->dbs.ids, &k, &v) != MDB_SUCCESS || v.mv_size != 4) {
-    return std::nullopt;
-  }
-  return detail::read_be32(v.mv_data);
+  const auto& ids = state_->snapshot->ids;
+  const auto it = std::lower_bound(ids.begin(), ids.end(), KeySlot{id, 0});
+  if (it == ids.end() || it->key != id) return std::nullopt;
+  return it->slot;
 }
 
 std::vector<uint32_t> ReadView::slots_named(std::string_view name) const {
-  std::vector<uint32_t> candidates, out;
-  detail::LmdbCursor cursor;
-  if (cursor.open(state_->txn.get(), state_->store->dbs.names) != MDB_SUCCESS) return out;
-  const Key64 key(name_hash(name));
-  MDB_val k = key.val(), v;
-  int rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
-  while (rc == MDB_SUCCESS) {
-    candidates.push_back(detail::read_be32(v.mv_data));
-    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT_DUP);
-  }
+  const auto& names = state_->snapshot->names;
+  const uint32_t hash = name_hash(name);
+  std::vector<uint32_t> out;
   // A hash may collide: confirm by the name itself.
-  for (uint32_t slot : candidates) {
+  for (auto it = std::lower_bound(names.begin(), names.end(), KeySlot{hash, 0});
+       it != names.end() && it->key == hash; ++it) {
     Object o;
     std::string error;
-    if (object(slot, o, false, error) && o.name == name) out.push_back(slot);
+    if (object(it->slot, o, false, error) && o.name == name) out.push_back(it->slot);
   }
   return out;
 }
 
 bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn,
                                bool with_attributes, std::string& error) const {
-  detail::LmdbCursor cursor;
-  int rc = cursor.open(state_->txn.get(), state_->store->dbs.objects);
-  if (rc != MDB_SUCCESS) {
-    error = state_->store->fail("listing objects", rc);
-    return false;
-  }
-  MDB_val k, v;
-  rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_FIRST);
-  while (rc == MDB_SUCCESS) {
-    const uint32_t slot = detail::read_be32(k.mv_data);
+  for (const KeySlot& e : state_->snapshot->slot_ids) {
     Object o;
-    if (!object(slot, o, with_attributes, error)) return false;
-    if (!fn(slot, std::move(o))) return true;
-    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
-  }
-  if (rc != MDB_NOTFOUND) {
-    error = state_->store->fail("listing objects", rc);
-    return false;
+    if (!object(e.slot, o, with_attributes, error)) return false;
+    if (!fn(e.slot, std::move(o))) return true;
   }
   return true;
 }
@@ -682,35 +674,40 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
     return nullptr;
   }
   const unsigned create = mode == Mode::read_only ? 0u : MDB_CREATE;
-  struct Named {
-    const char* name;
-    MDB_dbi* dbi;
-    unsigned flags;
-  };
   Databases& d = state->dbs;
-  const Named named[] = {
-      {"meta", &d.meta, 0},
-      {"objects", &d.objects, 0},
-      {"attributes", &d.attributes, 0},
-      {"ids", &d.ids, 0},
-      {"names", &d.names, MDB_DUPSORT | MDB_DUPFIXED},
-      {"sources", &d.sources, MDB_DUPSORT | MDB_DUPFIXED},
-      {"spatial", &d.spatial, 0},
-  };
-  for (const Named& n : named) {
-    rc = mdb_dbi_open(txn.get(), n.name, n.flags | create, n.dbi);
-    if (rc != MDB_SUCCESS) {
-      error = lmdb_message(directory, std::string("opening database '") + n.name + "'", rc);
-      return nullptr;
-    }
+  rc = mdb_dbi_open(txn.get(), "meta", create, &d.meta);
+  if (rc != MDB_SUCCESS) {
+    error = lmdb_message(directory, "opening database 'meta'", rc);
+    return nullptr;
   }
+  // The format comes first: another version's databases are not to be opened, let alone read.
   MDB_val k = as_val("format"), v;
   if (mdb_get(txn.get(), d.meta, &k, &v) == MDB_SUCCESS) {
     uint32_t version = 0;
     if (v.mv_size == 4) std::memcpy(&version, v.mv_data, 4);
     if (version != kStoreFormatVersion) {
-      error = "store " + directory + ": format version " + std::to_string(version) +
-              ", this plantview reads version " + std::to_string(kStoreFormatVersion);
+      error = "store " + directory + ": store format version " + std::to_string(version) +
+              ", but this plantview reads only version " + std::to_string(kStoreFormatVersion) +
+              (version < kStoreFormatVersion
+                   ? " (an older plantview wrote it: import the model again into a new store)"
+                   : " (a newer plantview wrote it)");
+      return nullptr;
+    }
+  }
+  struct Named {
+    const char* name;
+    MDB_dbi* dbi;
+  };
+  const Named named[] = {
+      {"objects", &d.objects},
+      {"attributes", &d.attributes},
+      {"indexes", &d.indexes},
+      {"sources", &d.sources},
+  };
+  for (const Named& n : named) {
+    rc = mdb_dbi_open(txn.get(), n.name, create, n.dbi);
+    if (rc != MDB_SUCCESS) {
+      error = lmdb_message(directory, std::string("opening database '") + n.name + "'", rc);
       return nullptr;
     }
   }
@@ -727,8 +724,7 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
     error = "store " + state_->directory + ": opened read-only";
     return nullptr;
   }
-  auto s = std::make_unique<Import::State>();
-  s->store = state_;
+  auto s = std::make_unique<Import::State>(state_);
   int rc = s->txn.begin(state_->env.get(), 0);
   if (rc != MDB_SUCCESS) {
     error = state_->fail("starting an import", rc);
@@ -745,51 +741,30 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
   if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
     std::memcpy(&s->next_slot, v.mv_data, 4);
   }
-  MDB_stat stat;
-  s->fresh = mdb_stat(txn, state_->dbs.ids, &stat) == MDB_SUCCESS && stat.ms_entries == 0;
-  // An existing dictionary stays: earlier records need it.
-  k = as_val("dictionary");
-  if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS) {
-    s->dictionary_decided = true;
-    if (v.mv_size > 0) {
-      s->cdict.reset(ZSTD_createCDict(v.mv_data, v.mv_size, kCompressionLevel));
-      ZSTD_CCtx_refCDict(s->cctx.get(), s->cdict.get());
-    }
-  } else if (s->next_slot > 0) {
-    s->dictionary_decided = true;  // a store that chose no dictionary keeps plain frames
+  s->first_new_slot = s->next_slot;
+  detail::ZstdDCtx dctx(ZSTD_createDCtx());
+  std::string why;
+  if (!read_table(txn, state_->dbs.indexes, "ids", dctx.get(), s->ids, why)) {
+    error = "store " + state_->directory + ": id table: " + why;
+    return nullptr;
   }
+  if (!read_table(txn, state_->dbs.indexes, "names", dctx.get(), s->names, why)) {
+    error = "store " + state_->directory + ": name table: " + why;
+    return nullptr;
+  }
+  if (!s->objects.begin(txn, error) || !s->attributes.begin(txn, error)) return nullptr;
   return std::unique_ptr<Import>(new Import(std::move(s)));
 }
 
 std::unique_ptr<ReadView> Store::read(std::string& error) const {
-  auto s = std::make_unique<ReadView::State>();
-  s->store = state_;
+  auto s = std::make_unique<ReadView::State>(state_);
   const int rc = s->txn.begin(state_->env.get(), MDB_RDONLY);
   if (rc != MDB_SUCCESS) {
     error = state_->fail("starting a read", rc);
     return nullptr;
   }
-  MDB_txn* txn = s->txn.get();
-  s->ddict = state_->decoder_for(txn);
-  MDB_val k = as_val("origin"), v;
-  if (mdb_get(txn, state_->dbs.spatial, &k, &v) == MDB_SUCCESS && v.mv_size == 24) {
-    std::memcpy(&s->origin, v.mv_data, 24);
-  }
-  auto load = [&](std::string_view key, auto& span, auto& copy) {
-    using T = typename std::decay_t<decltype(copy)>::value_type;
-    MDB_val kk = as_val(key), vv;
-    if (mdb_get(txn, state_->dbs.spatial, &kk, &vv) != MDB_SUCCESS) return;
-    const size_t n = vv.mv_size / sizeof(T);
-    if (reinterpret_cast<uintptr_t>(vv.mv_data) % alignof(T) == 0) {
-      span = std::span<const T>(static_cast<const T*>(vv.mv_data), n);  // zero-copy from the map
-    } else {
-      copy.resize(n);
-      std::memcpy(copy.data(), vv.mv_data, n * sizeof(T));
-      span = copy;
-    }
-  };
-  load("nodes", s->nodes, s->nodes_copy);
-  load("entries", s->entries, s->entries_copy);
+  s->snapshot = state_->snapshot_for(s->txn.get(), error);
+  if (!s->snapshot) return nullptr;
   return std::unique_ptr<ReadView>(new ReadView(std::move(s)));
 }
 

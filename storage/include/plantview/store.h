@@ -2,34 +2,41 @@
 // environment (a directory), read by renderers and services while imports write.
 //
 // Schema (LMDB named databases; integers in keys are big-endian so that keys sort numerically):
-//   meta        "format"      -> u32 format version (kFormatVersion)
+//   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
+//                                else, and a store of another version is refused
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
-//               "dictionary"  -> the zstd dictionary records are compressed with (trained on
-//                                the first import's records; fixed for the life of the store)
 //               "next_slot"   -> u32, the slot the next object gets
-//   objects     slot (u32)    -> zstd record: id, name, class, colour, origin, bounds, source,
-//                                primitives, piping topology (see record.cpp for the layout)
-//   attributes  slot (u32)    -> zstd record: the object's key/value attributes
-//   ids         id (u64)      -> slot (u32)
-//   names       FNV-1a 64 hash of the name (u64) -> slots (u32, sorted duplicates)
-//   sources     source path   -> slots (u32, sorted duplicates)
-//   spatial     "nodes"       -> SpatialNode[]: a bounding volume hierarchy over object bounds
-//               "entries"     -> SpatialEntry[]: the leaves' objects with their bounds
-//               "origin"      -> 3 doubles: the model-space point spatial bounds are relative to
-// A slot is an object's place in the store: slots only grow, so that records append to full
-// pages; an object's stable identity is its 64-bit id (model.h).
+//   objects     block (u32)   -> the object records of slots [block * 2048, block * 2048 + 2048),
+//                                in chunks of 64 slots, each chunk one zstd frame: class, colour,
+//                                origin, name, source, primitives, piping topology (layouts in
+//                                chunks.h and record.h)
+//   attributes  block (u32)   -> the same for the objects' key/value attributes: blocks of 4096
+//                                slots, chunks of 256
+//   indexes     "ids"         -> zstd: every (id, slot), sorted by id (tables.h)
+//               "names"       -> zstd: every (32-bit hash of the name, slot), sorted by hash
+//               "spatial"     -> zstd: the spatial origin and the objects' bounds on a grid of
+//                                1/1024 m, in the order of the bounding volume hierarchy, whose
+//                                shape follows from their count (spatial.h)
+//   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
+// A slot is an object's place in the store: slots only grow, so that records append; an
+// object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
+// the chunk it is in; every import rewrites the indexes whole.
 //
 // Transactions and lifetimes
 //   - An Import is one LMDB write transaction: until commit() nothing is visible, and a failed,
 //     abandoned or killed import leaves the store exactly as it was. One import at a time per
 //     store (LMDB serialises writers, across processes too).
-//   - A ReadView is one LMDB read transaction: a consistent snapshot. Spans it returns point into
-//     the memory map and are valid only until the view is destroyed. Views may be used while an
+//   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
+//   - The indexes are decoded into memory once per committed state of the store, by the first
+//     view that reads that state, and shared by the later views of it (read() is then cheap).
+//     Spans a view returns point into that memory and are valid until the view is destroyed.
+//   - object() decompresses the 64-slot chunk holding the slot and keeps the view's 32 most
+//     recently used chunks: fetching neighbouring slots costs one decompression per chunk.
 //
 // Errors: every fallible call returns false (or an empty optional) and sets a message that
-// names the store directory and the operation (and the LMDB or zstd reason).
+// names the store directory and the operation or slot (and the LMDB or zstd reason).
 #pragma once
 
 #include <cstdint>
@@ -45,16 +52,18 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 1;
+inline constexpr uint32_t kStoreFormatVersion = 2;
 
-// A node of the spatial hierarchy. Bounds are relative to the spatial origin, rounded outward.
+// A node of the spatial hierarchy. Bounds (metres) are relative to the spatial origin, rounded
+// outward: the union of what the node holds.
 // count > 0: a leaf over entries [first, first + count); count == 0: an inner node whose
 // children are nodes `first` and `first + 1`. Node 0 is the root.
 struct SpatialNode {
   float min[3], max[3];
   uint32_t first, count;
 };
-// An object in a leaf: its slot and its bounds (relative to the spatial origin, rounded outward).
+// An object in a leaf: its slot and its bounds (metres, relative to the spatial origin, rounded
+// outward to the store's 1/1024 m grid and then to float, so they contain the object's bounds).
 struct SpatialEntry {
   float min[3], max[3];
   uint32_t slot;
@@ -88,7 +97,8 @@ class Import {
   // Adds an object (its `source` field says where it came from). An object whose id is already
   // in the store replaces it.
   bool put(const Object& object, std::string& error);
-  // Rebuilds the spatial index and statistics and commits. Afterwards the Import is spent.
+  // Rebuilds the indexes and statistics and commits. Afterwards the Import is spent, whether
+  // the commit succeeded or not (a failed commit leaves the store as it was).
   bool commit(std::string& error);
 
   uint64_t objects_put() const;
@@ -108,16 +118,22 @@ class ReadView {
   ReadView& operator=(const ReadView&) = delete;
 
   StoreInfo info() const;
-  // The spatial hierarchy (empty for an empty store); valid while this view lives.
+  // The spatial hierarchy (empty for an empty store); valid while this view lives. No work per
+  // call: the arrays are decoded once per committed state.
   std::span<const SpatialNode> spatial_nodes() const;
   std::span<const SpatialEntry> spatial_entries() const;
   glm::dvec3 spatial_origin() const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
-  // its record is corrupt (error says which).
+  // its record is corrupt (error says which). Cost: decompressing the slot's chunk of 64 slots
+  // (about 10 microseconds) unless it is one of the view's 32 most recently used; so fetch a
+  // batch of slots in ascending order (a renderer's newly visible objects, sorted), and each
+  // chunk is decompressed once. Slots follow import order, which keeps a pipe run's parts
+  // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
   std::optional<uint32_t> slot_of(uint64_t id) const;
-  // Slots of the objects with this exact name (usually one).
+  // Slots of the objects with this exact name (usually one). Binary search, then each candidate
+  // is confirmed by its record.
   std::vector<uint32_t> slots_named(std::string_view name) const;
   // Calls fn for every object in slot order until it returns false.
   bool for_each_object(const std::function<bool(uint32_t slot, Object&&)>& fn, bool with_attributes,
@@ -142,7 +158,8 @@ class Store {
 
   // Starts the (only) write transaction. Fails on a read-only store.
   std::unique_ptr<Import> begin_import(std::string& error);
-  // Starts a read snapshot. May be called from any thread; the view stays on that thread.
+  // Starts a read snapshot. May be called from any thread; the view stays on that thread. The
+  // first view of a newly committed state decodes its indexes (about 30 ms for preset c).
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;

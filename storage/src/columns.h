@@ -1,0 +1,91 @@
+// Internal: the objects/ and attributes/ databases as columns of chunked records (chunks.h):
+// writing them inside an import's transaction, and reading them through a small cache of
+// decompressed chunks inside a read transaction.
+#pragma once
+
+#include <lmdb.h>
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "chunks.h"
+
+namespace plantview::detail {
+
+// Puts and erases records of one column in a write transaction. Blocks that are touched are
+// held decoded in memory (at most kMaxOpenBlocks, then all are written out) and written by
+// flush(); a block is written as soon as its last slot is put, as imports fill slots in order.
+// Single-threaded, like the transaction. Messages name the store and the slot or block.
+class ColumnWriter {
+ public:
+  // `name`: what the column holds, for messages ("object", "attributes").
+  ColumnWriter(std::string directory, std::string name, MDB_dbi dbi, ColumnShape shape);
+  // Must come first: finds where appending starts.
+  bool begin(MDB_txn* txn, std::string& error);
+  bool put(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>&& record, std::string& error);
+  bool erase(MDB_txn* txn, uint32_t slot, std::string& error);
+  // The record in `slot` (empty: none). Valid until the next call on this writer.
+  bool get(MDB_txn* txn, uint32_t slot, std::span<const uint8_t>& record, std::string& error);
+  // Writes every block held in memory.
+  bool flush(MDB_txn* txn, std::string& error);
+
+ private:
+  static constexpr size_t kMaxOpenBlocks = 32;
+  struct Chunk {
+    std::vector<uint8_t> frame;                 // as stored, until decoded
+    std::vector<std::vector<uint8_t>> records;  // once decoded: chunk_slots entries, empty: none
+    bool decoded = false;
+  };
+  struct Block {
+    std::vector<Chunk> chunks;
+    bool stored = false;  // the database holds a version of this block
+    bool changed = false;
+  };
+  bool open_block(MDB_txn* txn, uint32_t number, Block*& block, std::string& error);
+  bool open_record(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>*& record, std::string& error);
+  bool write_block(MDB_txn* txn, uint32_t number, Block& block, std::string& error);
+  std::string fail(std::string_view what, int rc) const;
+
+  std::string directory_, name_;
+  MDB_dbi dbi_;
+  ColumnShape shape_;
+  int64_t last_stored_ = -1;  // the highest block number in the database (-1: none)
+  std::map<uint32_t, Block> blocks_;
+  ZstdCCtx cctx_ = make_compressor();
+  ZstdDCtx dctx_{ZSTD_createDCtx()};
+  std::vector<uint8_t> chunk_, value_;
+  std::vector<uint32_t> ends_;
+  std::vector<std::vector<uint8_t>> frames_;
+};
+
+// Reads records of one column in a read transaction, keeping the `capacity` most recently used
+// decompressed chunks (fewer when they hold more than `byte_budget` bytes together), so that
+// neighbouring slots cost one decompression. Belongs to one view.
+class ChunkCache {
+ public:
+  ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget);
+  // The record in `slot` (empty: none). Valid until the next call. False with a reason (without
+  // the store or slot, which the caller adds) on an LMDB error or a corrupt block or chunk.
+  bool record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
+              std::string& why);
+
+ private:
+  struct Entry {
+    uint32_t chunk = 0;
+    bool valid = false, present = false;
+    uint64_t used = 0;
+    std::vector<uint8_t> bytes;
+    std::vector<uint32_t> ends;  // check_chunk()
+  };
+  MDB_dbi dbi_;
+  ColumnShape shape_;
+  size_t byte_budget_;
+  std::vector<Entry> entries_;
+  uint64_t clock_ = 0;
+  std::vector<std::span<const uint8_t>> frames_;
+};
+
+}  // namespace plantview::detail

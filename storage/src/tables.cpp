@@ -1,0 +1,111 @@
+#include "tables.h"
+
+#include "varint.h"
+
+namespace plantview::detail {
+
+void encode_key_slots(const std::vector<KeySlot>& table, std::vector<uint8_t>& out) {
+  out.clear();
+  put_varint(out, table.size());
+  uint64_t previous = 0;
+  for (const KeySlot& e : table) {
+    put_varint(out, e.key - previous);
+    previous = e.key;
+  }
+  for (const KeySlot& e : table) put_varint(out, e.slot);
+}
+
+bool decode_key_slots(const uint8_t* data, size_t size, std::vector<KeySlot>& table,
+                      std::string& error) {
+  VarintReader r(data, size);
+  uint64_t n = 0;
+  table.clear();
+  // Every pair takes at least two bytes: the count is checked before anything is allocated.
+  if (!r.get(n) || n > r.remaining() / 2) {
+    error = "table is truncated";
+    return false;
+  }
+  table.resize(n);
+  uint64_t key = 0;
+  for (KeySlot& e : table) {
+    uint64_t delta;
+    if (!r.get(delta)) {
+      error = "table is truncated";
+      return false;
+    }
+    if (key + delta < key) {
+      error = "table keys overflow";
+      return false;
+    }
+    key += delta;
+    e.key = key;
+  }
+  for (size_t i = 0; i < table.size(); ++i) {
+    if (!r.get_u32(table[i].slot)) {
+      error = "table is truncated";
+      return false;
+    }
+    if (i > 0 && !(table[i - 1] < table[i])) {
+      error = "table is out of order at entry " + std::to_string(i);
+      return false;
+    }
+  }
+  if (!r.at_end()) {
+    error = "trailing bytes after the table";
+    return false;
+  }
+  return true;
+}
+
+void encode_slot_runs(const std::vector<uint32_t>& slots, std::vector<uint8_t>& out) {
+  out.clear();
+  std::vector<std::pair<uint32_t, uint32_t>> runs;  // (first, length)
+  for (uint32_t slot : slots) {
+    if (!runs.empty() && runs.back().first + runs.back().second == slot) {
+      ++runs.back().second;
+    } else {
+      runs.push_back({slot, 1});
+    }
+  }
+  put_varint(out, runs.size());
+  uint64_t end = 0;
+  for (const auto& [first, length] : runs) {
+    put_varint(out, first - end);
+    put_varint(out, length);
+    end = uint64_t(first) + length;
+  }
+}
+
+bool decode_slot_runs(const uint8_t* data, size_t size, uint32_t slot_limit,
+                      std::vector<uint32_t>& slots, std::string& error) {
+  VarintReader r(data, size);
+  uint64_t runs = 0;
+  slots.clear();
+  if (!r.get(runs) || runs > r.remaining() / 2) {
+    error = "slot list is truncated";
+    return false;
+  }
+  uint64_t end = 0;
+  for (uint64_t i = 0; i < runs; ++i) {
+    uint64_t gap, length;
+    if (!r.get(gap) || !r.get(length)) {
+      error = "slot list is truncated";
+      return false;
+    }
+    // A run past the limit, or an empty or adjoining run (the encoder writes neither), is corrupt.
+    if (length == 0 || gap > slot_limit || end + gap + length > slot_limit || (i > 0 && gap == 0)) {
+      error = "slot list has an impossible run";
+      return false;
+    }
+    const uint64_t first = end + gap;
+    for (uint64_t s = first; s < first + length; ++s) slots.push_back(uint32_t(s));
+    end = first + length;
+  }
+  if (!r.at_end()) {
+    error = "trailing bytes after the slot list";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace plantview::detail
