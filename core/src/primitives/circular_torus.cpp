@@ -168,21 +168,17 @@ void write(const CircularTorus& t, const MeshPlan& plan, const VertexSink& sink)
   std::array<glm::vec2, 257> sweep;
   sweep[0] = glm::vec2(1.0f, 0.0f);  // station 0 is angle 0 (sweep_directions agrees)
   sweep_directions(p.angle_rad, s, stations, sweep.data());
-  const uint32_t start_cap = stations * n, end_cap = start_cap + n;
-  const uint32_t start_normal = sink.normal({0, -1, 0});
-  const uint32_t end_normal = sink.normal({-sweep[s % stations].y, sweep[s % stations].x, 0});
+  // Station j is the tube circle about bend * u, u = sweep[j]: the sample (c, s) lies at
+  // (bend + tube c) u + tube s z, with the unit normal c u + s z.
   for (uint32_t j = 0; j < stations; ++j) {
-    const glm::vec2 u = sweep[j];
-    for (uint32_t i = 0; i < n; ++i) {
-      const glm::vec2 cs = circle_sample(i, n);
-      const float rho = p.bend_m + p.tube_m * cs.x;
-      const glm::vec3 position(rho * u.x, rho * u.y, p.tube_m * cs.y);
-      sink.put(j * n + i, position, glm::vec3(cs.x * u.x, cs.x * u.y, cs.y));
-      if (p.closed) continue;
-      if (j == 0) sink.put(start_cap + i, position, start_normal);
-      if (j == s) sink.put(end_cap + i, position, end_normal);
-    }
+    const glm::vec3 u(sweep[j], 0.0f);
+    sink.put_ring(j * n, n, AffineRing{p.bend_m * u, p.tube_m * u, {0, 0, p.tube_m}},
+                  AffineRing{{0, 0, 0}, u, {0, 0, 1}, true});
   }
+  if (p.closed) return;
+  const uint32_t start_cap = stations * n, end_cap = start_cap + n;
+  sink.copy_positions(0, start_cap, n, sink.unit_normal({0, -1, 0}));
+  sink.copy_positions(s * n, end_cap, n, sink.unit_normal({-sweep[s].y, sweep[s].x, 0}));
 }
 
 Aabb bounds(const CircularTorus& t) {

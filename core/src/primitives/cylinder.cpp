@@ -6,7 +6,6 @@
 //   [0, N) bottom ring, [N, 2N) top ring, [2N, 3N) bottom cap, [3N, 4N) top cap;
 //   vertex i of each block lies at angle 2*pi*i/N.
 // Level l uses every 2^l-th vertex of each block: side quads, and caps fanned from vertex 0.
-#include <numbers>
 
 #include "kinds.h"
 
@@ -41,7 +40,7 @@ void plan_ring_solid(float max_radius_m, float diameter_for_rule_m, MeshPlan& pl
   plan.segments = {uint16_t(n_max), 0};
   for (uint32_t l = 0; l < plan.level_count; ++l) {
     const uint32_t n = segments_at(n_max, n_min, l);
-    plan.error_m[l] = sagitta(max_radius_m, std::numbers::pi_v<float> / float(n));
+    plan.error_m[l] = segment_sagitta(max_radius_m, n);
   }
   key.kind = uint8_t(PrimitiveKind::cylinder);
   key.a_max = uint16_t(n_max);
@@ -61,16 +60,11 @@ void build_template_Cylinder(const TemplateKey& key, TemplateBuilder& out) {
 void write(const Cylinder& c, const MeshPlan& plan, const VertexSink& sink) {
   const float r = sane(c.radius_m), h2 = 0.5f * sane(c.height_m);
   const uint32_t n = plan.segments[0];
-  const uint32_t down = sink.unit_normal({0, 0, -1}), up = sink.unit_normal({0, 0, 1});
-  for (uint32_t i = 0; i < n; ++i) {
-    const glm::vec2 cs = circle_sample(i, n);
-    const uint32_t radial = sink.unit_normal({cs.x, cs.y, 0});
-    const glm::vec3 bottom(r * cs.x, r * cs.y, -h2), top(r * cs.x, r * cs.y, h2);
-    sink.put(i, bottom, radial);
-    sink.put(n + i, top, radial);
-    sink.put(2 * n + i, bottom, down);
-    sink.put(3 * n + i, top, up);
-  }
+  const AffineRing radial{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, true};
+  sink.put_ring(0, n, AffineRing{{0, 0, -h2}, {r, 0, 0}, {0, r, 0}}, radial);
+  sink.put_ring(n, n, AffineRing{{0, 0, h2}, {r, 0, 0}, {0, r, 0}}, radial);
+  sink.copy_positions(0, 2 * n, n, sink.unit_normal({0, 0, -1}));
+  sink.copy_positions(n, 3 * n, n, sink.unit_normal({0, 0, 1}));
 }
 
 Aabb bounds(const Cylinder& c) {

@@ -108,19 +108,18 @@ void write(const EllipticalDish& d, const MeshPlan& plan, const VertexSink& sink
   const float r = p.radius_m, h = p.height_m;
   const uint32_t n = plan.segments[0], bands = plan.segments[1];
   const uint32_t apex = bands * n, disc = apex + 1;
-  const uint32_t down = sink.normal({0, 0, -1});
   // Latitude (pi/2)*k/B = 2*pi*k/N: the circle samples serve both directions.
   for (uint32_t k = 0; k < bands; ++k) {
     const glm::vec2 lat = circle_sample(k, n);
-    for (uint32_t i = 0; i < n; ++i) {
-      const glm::vec2 cs = circle_sample(i, n);
-      const glm::vec3 position(r * lat.x * cs.x, r * lat.x * cs.y, h * lat.y);
-      // The ellipsoid's gradient (x/r^2, y/r^2, z/h^2), scaled by r h.
-      sink.put(k * n + i, position, glm::vec3(h * lat.x * cs.x, h * lat.x * cs.y, r * lat.y));
-      if (k == 0) sink.put(disc + i, position, down);
-    }
+    // Ring k: (r cos(lat) c, r cos(lat) s, h sin(lat)). Its normal is the ellipsoid's gradient
+    // (x/r^2, y/r^2, z/h^2), scaled by r h to (h cos(lat) c, h cos(lat) s, r sin(lat)), whose
+    // length is the same all round the ring: dividing by it once makes every normal unit.
+    const float hc = h * lat.x, rs = r * lat.y, unit = 1.0f / std::sqrt(hc * hc + rs * rs);
+    sink.put_ring(k * n, n, AffineRing{{0, 0, h * lat.y}, {r * lat.x, 0, 0}, {0, r * lat.x, 0}},
+                  AffineRing{{0, 0, rs * unit}, {hc * unit, 0, 0}, {0, hc * unit, 0}, true});
   }
-  sink.put(apex, {0, 0, h}, glm::vec3(0, 0, 1));
+  sink.copy_positions(0, disc, n, sink.unit_normal({0, 0, -1}));
+  sink.put(apex, {0, 0, h}, sink.unit_normal({0, 0, 1}));
 }
 
 Aabb bounds(const EllipticalDish& d) {

@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -78,14 +79,51 @@ class TemplateBuilder {
   std::vector<uint32_t> level_begin_;
 };
 
-// pack_normal, inline for the per-vertex path (the public function forwards here).
+// pack_normal, inline for the per-vertex path (the public function forwards here). The rounding
+// takes the sign by copysign, not by a branch: around a ring the components change sign at places
+// a branch predictor cannot learn.
 inline uint32_t pack_unit_normal(const glm::vec3& n) {
   auto component = [](float v) -> uint32_t {
-    v = std::min(std::max(v, -1.0f), 1.0f) * 511.0f;
-    return static_cast<uint32_t>(static_cast<int32_t>(v + (v >= 0.0f ? 0.5f : -0.5f))) & 0x3ffu;
+    v = std::min(std::max(v * 511.0f, -511.0f), 511.0f);
+    return static_cast<uint32_t>(static_cast<int32_t>(v + std::copysign(0.5f, v))) & 0x3ffu;
   };
   return component(n.x) | component(n.y) << 10 | component(n.z) << 20;
 }
+
+// The packing of -n, from the packing of n: the rounding is symmetric, so this is exact.
+inline uint32_t negate_packed_normal(uint32_t packed) {
+  auto field = [packed](int shift) { return ((0x400u - (packed >> shift)) & 0x3ffu) << shift; };
+  return field(0) | field(10) | field(20);
+}
+
+// Unit circle samples: kUnitCircle[i] = (cos, sin)(2*pi*i / kCircleSamples). A circle of N
+// segments (N a power of two up to kCircleSamples) uses every (kCircleSamples / N)-th entry, so
+// every level samples exactly the same angles. The quadrants are exact quarter turns of the first
+// (sample i + N/2 is exactly -sample i), the axes exact.
+inline constexpr uint32_t kCircleSamples = 1024;
+extern const std::array<glm::vec2, kCircleSamples + 1> kUnitCircle;  // filled at static init
+inline glm::vec2 circle_sample(uint32_t i, uint32_t segments) {
+  return kUnitCircle[(i * (kCircleSamples / segments)) % kCircleSamples];
+}
+
+// Sagitta of one of `segments` equal chords of a circle of radius r (segments a power of two,
+// 4 to kCircleSamples / 4): r(1 - cos(pi/N)), written as 2r sin^2(pi/2N) to avoid cancellation
+// and read from the sample table, as planning runs for every primitive streamed.
+inline float segment_sagitta(float radius_m, uint32_t segments) {
+  assert(segments >= 4 && segments <= kCircleSamples / 4);
+  const float s = kUnitCircle[kCircleSamples / (4 * segments)].y;  // sin(pi / 2N)
+  return 2.0f * radius_m * s * s;
+}
+
+// A ring of a shape as a function of the unit circle sample cs = (c, s) it stands at:
+// centre + c * along_c + s * along_s, in local coordinates. Cylinders, snouts, tori, spheres and
+// dishes are stacks of rings whose positions (and mostly normals) are of this form; the sink maps
+// the three vectors through the placement once per ring instead of mapping every vertex.
+struct AffineRing {
+  glm::vec3 centre{0}, along_c{0}, along_s{0};
+  bool unit_length = false;  // as normals: every sample has unit length (no normalisation needed)
+  glm::vec3 at(glm::vec2 cs) const { return centre + cs.x * along_c + cs.y * along_s; }
+};
 
 // Transforms local positions and normals to model space (relative to the caller's origin) and
 // packs them. Prepared once per primitive by the driver.
@@ -96,12 +134,15 @@ struct VertexSink {
   bool preserves_unit_normals = false;  // normal_matrix is a rotation (placement is a similarity)
   PackedVertex* out = nullptr;
 
-  // The packed model-space normal of a local normal (need not be unit length; zero gives +z).
-  uint32_t normal(const glm::vec3& local_normal) const {
-    glm::vec3 n = normal_matrix * local_normal;
-    float len2 = glm::dot(n, n);
+  // Packs a model-space normal of any length (zero gives +z).
+  static uint32_t pack_normalised(const glm::vec3& n) {
+    const float len2 = glm::dot(n, n);
     if (!(len2 > 1e-30f)) return pack_unit_normal(glm::vec3(0, 0, 1));
     return pack_unit_normal(n * (1.0f / std::sqrt(len2)));
+  }
+  // The packed model-space normal of a local normal (need not be unit length; zero gives +z).
+  uint32_t normal(const glm::vec3& local_normal) const {
+    return pack_normalised(normal_matrix * local_normal);
   }
   // As normal(), for a local normal the caller knows to be of unit length: skips the
   // normalisation when the placement is a similarity (the usual case), which is the hot path.
@@ -116,26 +157,76 @@ struct VertexSink {
   void put(uint32_t i, const glm::vec3& local_position, const glm::vec3& local_normal) const {
     put(i, local_position, normal(local_normal));
   }
-};
 
-// Unit circle samples: kUnitCircle[i] = (cos, sin)(2*pi*i / kCircleSamples). A circle of N
-// segments (N a power of two up to kCircleSamples) uses every (kCircleSamples / N)-th entry, so
-// every level samples exactly the same angles.
-inline constexpr uint32_t kCircleSamples = 1024;
-extern const std::array<glm::vec2, kCircleSamples + 1> kUnitCircle;  // filled at static init
-inline glm::vec2 circle_sample(uint32_t i, uint32_t segments) {
-  return kUnitCircle[(i * (kCircleSamples / segments)) % kCircleSamples];
-}
+  // Writes a ring of `segments` vertices to [first, first + segments): vertex i at the position
+  // of circle_sample(i, segments), with the packed normal normal_of(sample) (inlined: no call per
+  // vertex). `segments` is a power of two, 2 to kCircleSamples.
+  template <typename PackedNormalOf>
+  void put_ring(uint32_t first, uint32_t segments, const AffineRing& position,
+                PackedNormalOf normal_of) const {
+    const glm::vec3 centre = linear * position.centre + translation_m;
+    const glm::vec3 along_c = linear * position.along_c, along_s = linear * position.along_s;
+    const uint32_t step = kCircleSamples / segments;
+    PackedVertex* v = out + first;
+    for (uint32_t i = 0; i < segments; ++i) {
+      const glm::vec2 cs = kUnitCircle[i * step];
+      v[i].position_m = centre + cs.x * along_c + cs.y * along_s;
+      v[i].normal = normal_of(cs);
+    }
+  }
+  // As above with one normal for the whole ring (caps, discs).
+  void put_ring(uint32_t first, uint32_t segments, const AffineRing& position,
+                uint32_t packed_normal) const {
+    put_ring(first, segments, position, [packed_normal](glm::vec2) { return packed_normal; });
+  }
+  // As above with local normals of the same form.
+  void put_ring(uint32_t first, uint32_t segments, const AffineRing& position,
+                const AffineRing& local_normal) const {
+    const AffineRing n{normal_matrix * local_normal.centre, normal_matrix * local_normal.along_c,
+                       normal_matrix * local_normal.along_s, local_normal.unit_length};
+    if (!local_normal.unit_length || !preserves_unit_normals) {
+      put_ring(first, segments, position,
+               [&n](glm::vec2 cs) { return pack_normalised(n.at(cs)); });
+    } else if (local_normal.centre != glm::vec3(0.0f)) {
+      put_ring(first, segments, position,
+               [&n](glm::vec2 cs) { return pack_unit_normal(n.at(cs)); });
+    } else {
+      put_mirrored_ring(first, segments, position, n);
+    }
+  }
+  // A ring whose unit normals are linear in the sample (cylinder sides, torus stations, the bulk
+  // of a plant): sample i + N/2 is sample i negated, so vertex i + N/2 mirrors vertex i through
+  // the centre and its packed normal is the negation of vertex i's. Half the float work.
+  void put_mirrored_ring(uint32_t first, uint32_t segments, const AffineRing& position,
+                         const AffineRing& model_normal) const {
+    const glm::vec3 centre = linear * position.centre + translation_m;
+    const glm::vec3 along_c = linear * position.along_c, along_s = linear * position.along_s;
+    assert(segments >= 2);
+    const uint32_t half = segments / 2, step = kCircleSamples / segments;
+    PackedVertex* v = out + first;
+    for (uint32_t i = 0; i < half; ++i) {
+      const glm::vec2 cs = kUnitCircle[i * step];
+      const glm::vec3 d = cs.x * along_c + cs.y * along_s;
+      const uint32_t normal =
+          pack_unit_normal(cs.x * model_normal.along_c + cs.y * model_normal.along_s);
+      v[i] = {centre + d, normal};
+      v[half + i] = {centre - d, negate_packed_normal(normal)};
+    }
+  }
+  // Repeats vertices [from, from + count) at [to, to + count) with another normal: a cap or a disc
+  // that shares its rim with the side, bit for bit.
+  void copy_positions(uint32_t from, uint32_t to, uint32_t count, uint32_t packed_normal) const {
+    for (uint32_t i = 0; i < count; ++i) {
+      out[to + i].position_m = out[from + i].position_m;
+      out[to + i].normal = packed_normal;
+    }
+  }
+};
 
 // Non-finite and negative parameters read as zero.
 inline float sane(float v) { return std::isfinite(v) && v > 0.0f ? v : 0.0f; }
 // Non-finite read as zero, sign kept (offsets, shears).
 inline float finite_or_zero(float v) { return std::isfinite(v) ? v : 0.0f; }
-
-// Sagitta of a chord spanning half_angle_rad on each side of its midpoint, on radius r.
-inline float sagitta(float radius_m, float half_angle_rad) {
-  return radius_m * (1.0f - std::cos(half_angle_rad));
-}
 
 #define PLANTVIEW_KIND_HOOKS(K)                                                 \
   void plan(const K&, MeshPlan& plan, TemplateKey& key);                        \

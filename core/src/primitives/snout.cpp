@@ -17,7 +17,6 @@
 #include <array>
 #include <cmath>
 #include <initializer_list>
-#include <numbers>
 #include <span>
 
 #include "kinds.h"
@@ -75,6 +74,10 @@ struct SnoutEnd {
   glm::vec3 at(glm::vec2 cs) const {
     return centre + radius_m * glm::vec3(cs.x, cs.y, slope.x * cs.x + slope.y * cs.y);
   }
+  // at() as a ring, for the vertex sink.
+  AffineRing ring() const {
+    return {centre, radius_m * glm::vec3(1, 0, slope.x), radius_m * glm::vec3(0, 1, slope.y)};
+  }
   // Direction of increasing angle along the end curve (per metre of radius).
   glm::vec3 tangent(glm::vec2 cs) const { return {-cs.y, cs.x, -slope.x * cs.y + slope.y * cs.x}; }
   // Stretch of the circle's sagitta by the tilt of the end plane (largest |d at / d radius|).
@@ -109,12 +112,6 @@ constexpr float kTwistedQuadMargin = 1.1f;
 // ruled_ring_deviation measures a quad unless its bound, times this, is below the worst measured.
 constexpr double kBoundSlack = 1.05;
 constexpr size_t kMaxRuledQuads = 256;  // the largest segment count
-
-// r(1 - cos(a)) written without cancellation.
-float precise_sagitta(float radius_m, float half_angle_rad) {
-  const float s = std::sin(0.5f * half_angle_rad);
-  return 2.0f * radius_m * s * s;
-}
 
 // The largest distance from a ruled quad's surface to its two triangles (b0, b1, t1) and
 // (b0, t1, t0), roughly. The surface is the set of lines (rulings) joining the bottom curve to the
@@ -220,9 +217,8 @@ void plan(const Snout& s, MeshPlan& plan, TemplateKey& key) {
     const uint32_t n = segments_at(key.a_max, key.a_min, l);
     float error = 0.0f;
     if (planar_quads) {
-      const float half_angle = std::numbers::pi_v<float> / float(n);
-      error = std::max(precise_sagitta(e.bottom.radius_m * e.bottom.tilt_stretch(), half_angle),
-                       precise_sagitta(e.top.radius_m * e.top.tilt_stretch(), half_angle));
+      error = std::max(segment_sagitta(e.bottom.radius_m * e.bottom.tilt_stretch(), n),
+                       segment_sagitta(e.top.radius_m * e.top.tilt_stretch(), n));
     } else {
       // Twisted quads: measure them (kUnitCircle holds the half-segment angles for
       // n <= kCircleSamples / 2).
@@ -246,27 +242,49 @@ void build_template_Snout(const TemplateKey& key, TemplateBuilder& out) {
   build_ring_solid_template(key, out);
 }
 
+namespace {
+
+// A side normal of the snout, the end curve's direction crossed with the ruling, as a quadratic
+// in the circle sample (c, s): both factors are affine in it. Mapped to model space once per ring.
+struct SideNormal {
+  glm::vec3 c{0}, s{0}, cc{0}, ss{0}, cs{0};
+  glm::vec3 at(glm::vec2 v) const {
+    return v.x * c + v.y * s + (v.x * v.x) * cc + (v.y * v.y) * ss + (v.x * v.y) * cs;
+  }
+};
+
+// The side normals along `curve` (the end's own, or for a point-like end the other end's), in
+// model space through the sink's normal matrix.
+SideNormal side_normal(const SnoutEnds& e, const SnoutEnd& curve, const VertexSink& sink) {
+  // tangent = c t_c + s t_s (SnoutEnd::tangent); ruling = r_0 + c r_c + s r_s.
+  const glm::vec3 t_c(0, 1, curve.slope.y), t_s(-1, 0, -curve.slope.x);
+  const AffineRing bottom = e.bottom.ring(), top = e.top.ring();
+  const glm::vec3 r_0 = top.centre - bottom.centre, r_c = top.along_c - bottom.along_c,
+                  r_s = top.along_s - bottom.along_s;
+  const glm::mat3& m = sink.normal_matrix;
+  return {m * glm::cross(t_c, r_0), m * glm::cross(t_s, r_0), m * glm::cross(t_c, r_c),
+          m * glm::cross(t_s, r_s), m * (glm::cross(t_c, r_s) + glm::cross(t_s, r_c))};
+}
+
+}  // namespace
+
 void write(const Snout& s, const MeshPlan& plan, const VertexSink& sink) {
   const SnoutEnds e = ends_of(s);
   const uint32_t n = plan.segments[0];
-  // End planes' outward normals.
-  const uint32_t down = sink.normal({e.bottom.slope.x, e.bottom.slope.y, -1.0f});
-  const uint32_t up = sink.normal({-e.top.slope.x, -e.top.slope.y, 1.0f});
-  for (uint32_t i = 0; i < n; ++i) {
-    const glm::vec2 cs = circle_sample(i, n);
-    const glm::vec3 bottom = e.bottom.at(cs), top = e.top.at(cs);
-    // Side normal: along the end curve crossed with the ruling; a point-like end borrows the
-    // other end's curve direction.
-    const glm::vec3 along_bottom = e.bottom.tangent(cs), along_top = e.top.tangent(cs);
-    const glm::vec3 ruling = top - bottom;
-    const glm::vec3 n_bottom =
-        glm::cross(e.bottom.radius_m > 0.0f ? along_bottom : along_top, ruling);
-    const glm::vec3 n_top = glm::cross(e.top.radius_m > 0.0f ? along_top : along_bottom, ruling);
-    sink.put(i, bottom, n_bottom);
-    sink.put(n + i, top, n_top);
-    sink.put(2 * n + i, bottom, down);
-    sink.put(3 * n + i, top, up);
-  }
+  // Side normals: along the end curve crossed with the ruling; a point-like end borrows the
+  // other end's curve direction.
+  const SideNormal bottom_normal =
+      side_normal(e, e.bottom.radius_m > 0.0f ? e.bottom : e.top, sink);
+  const SideNormal top_normal = side_normal(e, e.top.radius_m > 0.0f ? e.top : e.bottom, sink);
+  sink.put_ring(0, n, e.bottom.ring(), [&bottom_normal](glm::vec2 cs) {
+    return VertexSink::pack_normalised(bottom_normal.at(cs));
+  });
+  sink.put_ring(n, n, e.top.ring(), [&top_normal](glm::vec2 cs) {
+    return VertexSink::pack_normalised(top_normal.at(cs));
+  });
+  // The caps, with the end planes' outward normals.
+  sink.copy_positions(0, 2 * n, n, sink.normal({e.bottom.slope.x, e.bottom.slope.y, -1.0f}));
+  sink.copy_positions(n, 3 * n, n, sink.normal({-e.top.slope.x, -e.top.slope.y, 1.0f}));
 }
 
 Aabb bounds(const Snout& s) {

@@ -62,16 +62,15 @@ void build_template_Sphere(const TemplateKey& key, TemplateBuilder& out) {
 void write(const Sphere& s, const MeshPlan& plan, const VertexSink& sink) {
   const float r = sane(s.radius_m);
   const uint32_t n = plan.segments[0];
-  sink.put(0, {0, 0, r}, sink.normal({0, 0, 1}));
+  sink.put(0, {0, 0, r}, sink.unit_normal({0, 0, 1}));
   for (uint32_t j = 1; j < n / 2; ++j) {
     const glm::vec2 polar = circle_sample(j, n);  // (cos, sin) of the polar angle
-    for (uint32_t i = 0; i < n; ++i) {
-      const glm::vec2 azimuth = circle_sample(i, n);
-      const glm::vec3 unit(polar.y * azimuth.x, polar.y * azimuth.y, polar.x);
-      sink.put(1 + (j - 1) * n + i, r * unit, unit);
-    }
+    // The unit normal at azimuth (c, s) is (sin c, sin s, cos); the position is r times it.
+    const AffineRing unit{{0, 0, polar.x}, {polar.y, 0, 0}, {0, polar.y, 0}, true};
+    const AffineRing position{r * unit.centre, r * unit.along_c, r * unit.along_s};
+    sink.put_ring(1 + (j - 1) * n, n, position, unit);
   }
-  sink.put(plan.vertex_count - 1, {0, 0, -r}, sink.normal({0, 0, -1}));
+  sink.put(plan.vertex_count - 1, {0, 0, -r}, sink.unit_normal({0, 0, -1}));
 }
 
 Aabb bounds(const Sphere& s) {

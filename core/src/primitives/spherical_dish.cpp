@@ -92,21 +92,17 @@ void write(const SphericalDish& d, const MeshPlan& plan, const VertexSink& sink)
   const SphericalDishParams p = params_of(d);
   const uint32_t n = plan.segments[0], bands = plan.segments[1];
   const uint32_t apex = bands * n, disc = apex + 1;
-  const uint32_t down = sink.normal({0, 0, -1});
   for (uint32_t k = 0; k < bands; ++k) {
     const double polar = p.polar_max * double(bands - k) / double(bands);
     const glm::vec2 normal_rz(float(std::sin(polar)), float(std::cos(polar)));
     // The base ring is placed exactly; z = h - R(1 - cos) keeps flat dishes precise.
     const float ring_m = k == 0 ? float(p.radius_m) : float(p.sphere_m * std::sin(polar));
     const float z_m = k == 0 ? 0.0f : float(p.height_m - p.sphere_m * one_minus_cos(polar));
-    for (uint32_t i = 0; i < n; ++i) {
-      const glm::vec2 cs = circle_sample(i, n);
-      const glm::vec3 position(ring_m * cs, z_m);
-      sink.put(k * n + i, position, glm::vec3(normal_rz.x * cs, normal_rz.y));
-      if (k == 0) sink.put(disc + i, position, down);
-    }
+    sink.put_ring(k * n, n, AffineRing{{0, 0, z_m}, {ring_m, 0, 0}, {0, ring_m, 0}},
+                  AffineRing{{0, 0, normal_rz.y}, {normal_rz.x, 0, 0}, {0, normal_rz.x, 0}, true});
   }
-  sink.put(apex, {0, 0, float(p.height_m)}, glm::vec3(0, 0, 1));
+  sink.copy_positions(0, disc, n, sink.unit_normal({0, 0, -1}));
+  sink.put(apex, {0, 0, float(p.height_m)}, sink.unit_normal({0, 0, 1}));
 }
 
 Aabb bounds(const SphericalDish& d) {

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <shared_mutex>
 #include <unordered_map>
+#include <utility>
 
 #include "kinds.h"
 
@@ -16,14 +17,20 @@ namespace detail {
 
 namespace {
 std::array<glm::vec2, kCircleSamples + 1> make_unit_circle() {
+  // The first quadrant in double precision, the others turned from it by exact quarter turns.
+  constexpr uint32_t quarter = kCircleSamples / 4;
   std::array<glm::vec2, kCircleSamples + 1> samples;
-  for (uint32_t i = 0; i <= kCircleSamples; ++i) {
+  for (uint32_t i = 0; i < quarter; ++i) {
     const double a = 2.0 * std::numbers::pi * double(i) / double(kCircleSamples);
-    samples[i] = glm::vec2(float(std::cos(a)), float(std::sin(a)));
+    const glm::vec2 cs(float(std::cos(a)), float(std::sin(a)));
+    samples[i] = cs;
+    samples[i + quarter] = {-cs.y, cs.x};
+    samples[i + 2 * quarter] = -cs;
+    samples[i + 3 * quarter] = {cs.y, -cs.x};
   }
-  // Exact values on the axes keep symmetric shapes symmetric.
+  // Exact values on the axes (no negative zeros) keep symmetric shapes symmetric.
   static const glm::vec2 axes[5] = {{1, 0}, {0, 1}, {-1, 0}, {0, -1}, {1, 0}};
-  for (uint32_t q = 0; q <= 4; ++q) samples[q * kCircleSamples / 4] = axes[q];
+  for (uint32_t q = 0; q <= 4; ++q) samples[q * quarter] = axes[q];
   return samples;
 }
 }  // namespace
@@ -67,6 +74,21 @@ class TemplateCache {
  public:
   const MeshTemplate& get(const TemplateKey& key) {
     const uint64_t packed = key.packed();
+    // Each thread remembers the templates it used last (templates are never removed, so the
+    // pointers stay valid): the shared lock and the hash lookup cost as much as the rest of
+    // planning a primitive, and a plant uses a few dozen shapes over and over.
+    struct Recent {
+      uint64_t packed = 0;
+      const MeshTemplate* t = nullptr;
+    };
+    thread_local std::array<Recent, 64> recent;
+    Recent& slot = recent[(packed * 0x9e3779b97f4a7c15ull) >> 58];
+    if (slot.t == nullptr || slot.packed != packed) slot = {packed, &find_or_build(key, packed)};
+    return *slot.t;
+  }
+
+ private:
+  const MeshTemplate& find_or_build(const TemplateKey& key, uint64_t packed) {
     {
       std::shared_lock lock(mutex_);
       auto it = templates_.find(packed);
@@ -88,7 +110,6 @@ class TemplateCache {
     return *it->second;
   }
 
- private:
   std::shared_mutex mutex_;
   std::unordered_map<uint64_t, std::unique_ptr<MeshTemplate>> templates_;
 };
@@ -117,6 +138,17 @@ float max_stretch(const glm::mat3& m) {
     eig = q + 2.0 * p * std::cos(std::acos(r) / 3.0);
   }
   return float(std::sqrt(std::max(eig, 0.0)));
+}
+
+// A similarity (rotation, mirror, uniform scale: orthogonal columns of equal length, within
+// float noise) keeps angles, so unit normals stay unit once the normal matrix is rescaled to a
+// rotation. Pipe racks are built almost entirely of such placements.
+bool is_similarity(const glm::mat3& m) {
+  const float l0 = glm::dot(m[0], m[0]), l1 = glm::dot(m[1], m[1]), l2 = glm::dot(m[2], m[2]);
+  const float tol = 1e-5f * l0;
+  return l0 > 1e-30f && std::abs(l1 - l0) <= tol && std::abs(l2 - l0) <= tol &&
+         std::abs(glm::dot(m[0], m[1])) <= tol && std::abs(glm::dot(m[0], m[2])) <= tol &&
+         std::abs(glm::dot(m[1], m[2])) <= tol;
 }
 
 }  // namespace
@@ -199,10 +231,15 @@ MeshPlan plan_mesh(const Primitive& primitive) {
                                                   t.level_begin[l + 1] - t.level_begin[l]);
     }
   }
-  // Errors were computed in the local frame; the placement may scale them.
-  const float stretch = max_stretch(primitive.placement.linear);
+  // Errors were computed in the local frame; the placement may scale them. A similarity
+  // stretches every direction by its column length (the eigen solve is for the general case).
+  const glm::mat3& m = primitive.placement.linear;
+  const float stretch =
+      is_similarity(m)
+          ? std::sqrt(std::max({glm::dot(m[0], m[0]), glm::dot(m[1], m[1]), glm::dot(m[2], m[2])}))
+          : max_stretch(m);
   for (uint32_t l = 0; l < plan.level_count; ++l) plan.error_m[l] *= stretch;
-  plan.flip_winding = glm::determinant(primitive.placement.linear) < 0.0f;
+  plan.flip_winding = glm::determinant(m) < 0.0f;
   return plan;
 }
 
@@ -213,28 +250,40 @@ void write_vertices(const Primitive& primitive, const MeshPlan& plan, const glm:
   detail::VertexSink sink;
   sink.linear = primitive.placement.linear;
   sink.translation_m = glm::vec3(glm::dvec3(primitive.placement.translation_m) - origin_m);
-  const float det = glm::determinant(sink.linear);
-  // A singular placement flattens the shape; its normals fall back to the local ones.
-  sink.normal_matrix =
-      std::abs(det) > 1e-30f ? glm::transpose(glm::inverse(sink.linear)) : glm::mat3(1.0f);
-  // A similarity (rotation, mirror, uniform scale) keeps unit normals unit once the normal
-  // matrix is rescaled to a rotation.
-  {
+  if (is_similarity(sink.linear)) {
+    // The normal matrix is the placement rescaled to a rotation (no inverse needed), and unit
+    // normals stay unit.
     const glm::mat3& m = sink.linear;
-    const float l0 = glm::dot(m[0], m[0]), l1 = glm::dot(m[1], m[1]), l2 = glm::dot(m[2], m[2]);
-    const float tol = 1e-5f * l0;
-    if (l0 > 1e-30f && std::abs(l1 - l0) <= tol && std::abs(l2 - l0) <= tol &&
-        std::abs(glm::dot(m[0], m[1])) <= tol && std::abs(glm::dot(m[0], m[2])) <= tol &&
-        std::abs(glm::dot(m[1], m[2])) <= tol) {
-      sink.normal_matrix = m * (1.0f / std::sqrt(l0));
-      sink.preserves_unit_normals = true;
-    }
+    sink.normal_matrix = m * (1.0f / std::sqrt(glm::dot(m[0], m[0])));
+    sink.preserves_unit_normals = true;
+  } else {
+    // A singular placement flattens the shape; its normals fall back to the local ones.
+    const float det = glm::determinant(sink.linear);
+    sink.normal_matrix =
+        std::abs(det) > 1e-30f ? glm::transpose(glm::inverse(sink.linear)) : glm::mat3(1.0f);
   }
   sink.out = out.data();
   std::visit([&](const auto& s) { detail::write(s, plan, sink); }, primitive.shape);
 }
 
 namespace {
+
+// dst[i] = src[i] + base for i < count. Four at a time with the buffers declared apart, so that
+// the compiler turns each group into one vector add (GCC's -O2 vectoriser takes straight-line
+// groups, not loops of unknown length).
+template <typename Index>
+void offset_indices(const uint32_t* __restrict src, Index* __restrict dst, size_t count,
+                    uint32_t base) {
+  size_t i = 0;
+  for (; i + 4 <= count; i += 4) {
+    dst[i] = Index(src[i] + base);
+    dst[i + 1] = Index(src[i + 1] + base);
+    dst[i + 2] = Index(src[i + 2] + base);
+    dst[i + 3] = Index(src[i + 3] + base);
+  }
+  for (; i < count; ++i) dst[i] = Index(src[i] + base);
+}
+
 template <typename Index>
 uint32_t write_indices_impl(const MeshPlan& plan, uint32_t level, uint32_t base_vertex,
                             std::span<Index> out) {
@@ -243,17 +292,21 @@ uint32_t write_indices_impl(const MeshPlan& plan, uint32_t level, uint32_t base_
   const size_t n = in.size();
   Index* dst = out.data();
   const uint32_t* src = in.data();
-  if (plan.flip_winding && plan.topology == Topology::triangles) {
-    for (size_t i = 0; i + 2 < n; i += 3) {
-      dst[i] = Index(src[i] + base_vertex);
-      dst[i + 1] = Index(src[i + 2] + base_vertex);
-      dst[i + 2] = Index(src[i + 1] + base_vertex);
-    }
-  } else {
-    for (size_t i = 0; i < n; ++i) dst[i] = Index(src[i] + base_vertex);
+  if (!plan.flip_winding || plan.topology != Topology::triangles) {
+    offset_indices(src, dst, n, base_vertex);
+    return uint32_t(n);
+  }
+  // Mirrored: offset a block of triangles (vectorised), then swap each one's last two corners
+  // while the block is still in the first-level cache.
+  constexpr size_t kBlock = 3 * 256;
+  for (size_t begin = 0; begin < n; begin += kBlock) {
+    const size_t count = std::min(kBlock, n - begin);
+    offset_indices(src + begin, dst + begin, count, base_vertex);
+    for (size_t i = begin; i + 2 < begin + count; i += 3) std::swap(dst[i + 1], dst[i + 2]);
   }
   return uint32_t(n);
 }
+
 }  // namespace
 
 uint32_t write_indices(const MeshPlan& plan, uint32_t level, uint32_t base_vertex,
