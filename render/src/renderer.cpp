@@ -805,12 +805,18 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
         break;
     }
   };
+  // Objects seen for the first time are decoded in slot order: the store compresses
+  // neighbouring slots together, so this decompresses each chunk once.
+  const auto t_decode = Clock::now();
+  stack.clear();
+  for (const Visible& v : visible)
+    if (!known.count(v.slot)) stack.push_back(v.slot);
+  std::sort(stack.begin(), stack.end());
+  for (const uint32_t slot : stack)
+    if (!know(slot, error)) return false;
+  decode_ms = ms_since(t_decode);
   for (const Visible& v : visible) {
-    const auto t_decode = Clock::now();
-    const bool was_known = known.count(v.slot) != 0;
-    Known* k = know(v.slot, error);
-    if (!k) return false;
-    if (!was_known) decode_ms += ms_since(t_decode);
+    Known* k = &known.at(v.slot);
     k->last_seen = frame_number;
     residency.mark_visible(v.slot);
     if (k->vertex_count == 0) continue;
