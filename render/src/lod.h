@@ -22,6 +22,9 @@ inline constexpr double kNearPlaneM = 0.05;
 inline constexpr double kDistanceLevelRatio = 8.0;
 inline constexpr double kCentrelineRadii = 300.0;
 inline constexpr double kMergeRadii = 100.0;
+// Screen-space policy: a tree node spanning fewer pixels than this (times the pixel error) is
+// drawn as its box.
+inline constexpr double kNodeProxyPixels = 3.0;
 
 inline double pixels_per_metre(double distance_m, double fov_deg, uint32_t height_px) {
   const double focal = height_px / (2.0 * std::tan(fov_deg * M_PI / 360.0));

@@ -32,7 +32,8 @@ constexpr uint32_t kProxyKey = UINT32_MAX;
 constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run index
 constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
 constexpr uint64_t kInitialArenaVertices = 1u << 20;  // the GPU buffers grow from here
-constexpr size_t kKnownObjectsKept = 200000;  // decoded objects kept beyond the resident ones
+constexpr size_t kKnownObjectsKept = 50000;  // decoded objects kept beyond the resident ones
+constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
 
 // One entry of the per-frame object table (std430: two vec4), read by the vertex shader.
 struct TableEntry {
@@ -182,6 +183,9 @@ std::string FrameStats::to_json() const {
          ",\"budget_coarsened\":" + std::to_string(budget_coarsened) +
          ",\"objects_refined\":" + std::to_string(objects_refined) +
          ",\"objects_subpixel\":" + std::to_string(objects_subpixel) +
+         ",\"node_proxies\":" + std::to_string(node_proxies) +
+         ",\"node_proxy_pixels\":" + std::to_string(node_proxy_pixels) +
+         ",\"objects_in_node_proxies\":" + std::to_string(objects_in_node_proxies) +
          ",\"draw_commands\":" + std::to_string(draw_commands) +
          ",\"arena_bytes_budget\":" + std::to_string(arena_bytes_budget) +
          ",\"arena_bytes_resident\":" + std::to_string(arena_bytes_resident) +
@@ -242,7 +246,8 @@ struct Renderer::State {
   };
   std::vector<Visible> visible;
   std::vector<Draw> draws;
-  std::vector<uint32_t> stack;
+  std::vector<uint32_t> stack, count_stack;
+  std::vector<std::array<float, 6>> node_proxies;  // min, max relative to the spatial origin
   std::vector<PackedVertex> vertices, compacted;
   std::vector<uint32_t> vertex_objects, remap, level_indices;
   // Index lists of a frame: closed opaque solids (back faces culled), open opaque meshes,
@@ -681,9 +686,14 @@ bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameS
 // Keeps the decoded-object cache bounded: objects neither resident nor seen lately go.
 void Renderer::State::forget_old(FrameStats&) {
   if (known.size() <= kKnownObjectsKept + residency.resident_count()) return;
-  for (auto it = known.begin(); it != known.end();) {
-    if (!residency.resident(it->first) && it->second.last_seen + 2 < frame_number) it = known.erase(it);
-    else ++it;
+  // Objects not resident go, the longest unseen first; those seen this frame (drawn as boxes
+  // because the arena was full) only if that is not enough.
+  for (int pass = 0; pass < 2 && known.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {
+    for (auto it = known.begin(); it != known.end();) {
+      const bool old = pass == 1 || it->second.last_seen < frame_number;
+      if (old && !residency.resident(it->first)) it = known.erase(it);
+      else ++it;
+    }
   }
 }
 
@@ -740,13 +750,35 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     return glm::length(nearest);
   };
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
+  const auto cull = [&](double node_proxy_px) {
+  stats.objects_subpixel = stats.objects_in_node_proxies = 0;
   visible.clear();
+  node_proxies.clear();
   stack.clear();
   if (!nodes.empty()) stack.push_back(0);
   while (!stack.empty()) {
     const SpatialNode& node = nodes[stack.back()];
     stack.pop_back();
     if (outside(node.min, node.max)) continue;
+    // Tree-level HLOD: a whole node that spans only a few pixels is drawn as one box instead of
+    // its objects (which are then not even decoded), so that the cost of a far view of a huge
+    // plant is bounded by the image, not by the plant.
+    if (subpixel_culling && (node.count == 0 || node.count > 1)) {
+      const double extent_m = std::max({node.max[0] - node.min[0], node.max[1] - node.min[1], node.max[2] - node.min[2]});
+      const double px = extent_m * focal_px / std::max(nearest_distance(node.min, node.max), detail::kNearPlaneM);
+      if (px < node_proxy_px) {
+        node_proxies.push_back({node.min[0], node.min[1], node.min[2], node.max[0], node.max[1], node.max[2]});
+        // Count the objects it stands for.
+        count_stack.assign(1, uint32_t(&node - nodes.data()));
+        while (!count_stack.empty()) {
+          const SpatialNode& n = nodes[count_stack.back()];
+          count_stack.pop_back();
+          if (n.count) stats.objects_in_node_proxies += n.count;
+          else count_stack.insert(count_stack.end(), {n.first, n.first + 1});
+        }
+        continue;
+      }
+    }
     if (node.count == 0) {
       stack.push_back(node.first);
       stack.push_back(node.first + 1);
@@ -770,8 +802,19 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       visible.push_back(v);
     }
   }
+  };
+  // The frame's work is bounded: when more objects than kMaxVisibleObjects are in view, nodes
+  // are boxed at ever larger sizes until they fit (huge plants seen whole).
+  double node_proxy_px = detail::kNodeProxyPixels * options.pixel_error;
+  cull(node_proxy_px);
+  while (subpixel_culling && visible.size() > kMaxVisibleObjects && node_proxy_px < 256) {
+    node_proxy_px *= 2;
+    cull(node_proxy_px);
+  }
+  stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
   stats.objects_visible = visible.size();
-  stats.objects_culled = entries.size() - visible.size() - stats.objects_subpixel;
+  stats.objects_culled = entries.size() - visible.size() - stats.objects_subpixel - stats.objects_in_node_proxies;
+  stats.node_proxies = node_proxies.size();
   // Largest on screen first, so that the budget goes where it shows most.
   const auto extent = [](const Visible& v) {
     return std::max({v.max[0] - v.min[0], v.max[1] - v.min[1], v.max[2] - v.min[2]});
@@ -890,7 +933,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     }
     if (!residency.resident(d.key)) {
       // One level of slack below the chosen one, so that coming nearer only swaps indices.
-      const uint8_t base = options.lod_policy == LodPolicy::none ? 0 : uint8_t(level > 0 ? level - 1 : 0);
+      // (No slack once the arena is half full: then every vertex counts.)
+      const bool roomy = residency.used_units() * 2 < residency.capacity_units();
+      const uint8_t base = options.lod_policy == LodPolicy::none ? 0
+                           : uint8_t(level > 0 && roomy ? level - 1 : level);
       bool fits = false;
       if (!make_resident(d.key, k, base, stats, error, fits)) return false;
       if (!fits && base + 1u < k.level_count) {
@@ -953,6 +999,13 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       }
     }
     index_ms += ms_since(t_index);
+  }
+  for (const auto& b : node_proxies) {
+    const uint32_t t = table_acquire();
+    proxy_tables.push_back(t);
+    set_entry(t, spatial_origin + glm::dvec3(b[0], b[1], b[2]) - camera.eye_m,
+              glm::vec3(b[3] - b[0], b[4] - b[1], b[5] - b[2]), Colour{150, 150, 150, 255}, 0);
+    stats.triangles += 12;
   }
   residency.end_frame();
   forget_old(stats);

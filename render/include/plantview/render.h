@@ -112,6 +112,10 @@ struct FrameStats {
   uint64_t budget_coarsened = 0;  // objects made resident at their coarsest level to fit
   uint64_t objects_refined = 0;   // resident objects tessellated again for a finer level
   uint64_t objects_subpixel = 0;  // in the frustum but under the pixel error on screen
+  uint64_t node_proxies = 0;      // tree nodes of a few pixels drawn as one box each
+  double node_proxy_pixels = 0;   // the node size (px) under which they were: 3 x the pixel
+                                  // error, more when the view holds over 60,000 objects
+  uint64_t objects_in_node_proxies = 0;
   uint64_t draw_commands = 0;
   uint64_t arena_bytes_budget = 0, arena_bytes_resident = 0;
   uint64_t arena_bytes_uploaded = 0, arena_bytes_evicted = 0;
