@@ -2,25 +2,34 @@
 // object-id buffer and the frame's LOD statistics, for models far larger than memory.
 //
 // Per frame (Zhou et al. 2012 section 4, Su et al. section 5.3):
-//   1. cull     walk the store's spatial tree against the view frustum;
+//   1. cull     walk the store's spatial tree against the view frustum. Screen-space policy:
+//               objects whose extent projects under the pixel error are left out, and a tree
+//               node spanning under 3 x the pixel error is drawn as one box (that size doubles
+//               until at most 60,000 objects remain in view), so a far view of a huge plant
+//               costs what the image holds, not what the plant holds;
 //   2. choose   a level per visible object by LodPolicy (screen-space error by default); pipes
-//               whose diameter projects under about a pixel are drawn as their centreline;
-//   3. stream   vertices of newly visible objects are tessellated from their parameters into one
-//               GPU vertex arena of fixed size (20 bytes a vertex: position, packed normal and
-//               the object-table index; the GPU buffer grows on demand up to the budget). An object's vertices serve all of its levels, so
-//               switching level only changes the index range drawn. Every resident object has a
-//               visibility counter, reset when it is visible and incremented each frame it is
-//               not; when the arena is full, the largest counters are evicted first. The arena
-//               never exceeds its budget: visible objects that do not fit (largest on screen
-//               first) are drawn as their bounding box and counted in `budget_proxies`;
+//               whose diameter projects under about a pixel are drawn as their centreline.
 //               Pipeline HLOD: a straight run of pipes and inline components is drawn as one
 //               cylinder where the components' relief projects under the pixel error;
-//   4. draw     one draw call per kind of geometry (opaque, see-through, lines, proxies):
-//               every vertex carries the index of its object in a per-frame object table that
-//               holds the object's origin relative to the eye (computed in double precision),
-//               its colour and its pick id; so plants kilometres from the origin do not
-//               jitter, and the draw-call count does not grow with the object count;
-//   5. read back colour (RGBA8, sRGB values) and object ids.
+//   3. stream   vertices of newly visible objects are tessellated from their parameters into one
+//               GPU vertex arena of fixed size (20 bytes a vertex: position, packed normal and
+//               the object-table index; the GPU buffer grows on demand up to the budget). An
+//               object is made resident from one level below its chosen one (from the chosen
+//               one once the arena is half full): the vertices of a level serve every coarser
+//               level, so coarsening, and refining within that slack, only changes the index
+//               range drawn; refining beyond it tessellates the object again. Every resident
+//               object has a visibility counter, reset when it is visible and incremented each
+//               frame it is not; when the arena is full, the largest counters are evicted first.
+//               The arena never exceeds its budget: a visible object that does not fit is made
+//               resident at its coarsest level (`budget_coarsened`), else drawn as its box
+//               (`budget_proxies`);
+//   4. draw     one draw call per kind of geometry (closed solids with back faces culled, open
+//               meshes, see-through, lines, boxes): every vertex carries the index of its object
+//               in a per-frame object table that holds the object's origin relative to the eye
+//               (computed in double precision), its colour and its pick id; so plants
+//               kilometres from the origin do not jitter, and the draw-call count does not grow
+//               with the object count;
+//   5. read back colour (RGBA8, sRGB values) and object ids (after resolving multisampling).
 //
 // Units: lengths in metres, angles in degrees where the name says _deg, times in milliseconds.
 // Threads: a GpuContext and every Renderer made with it belong to the thread that made them.
