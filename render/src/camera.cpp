@@ -114,13 +114,23 @@ Camera default_camera(const DAabb& bounds, double aspect) {
   if (bounds.empty()) return c;
   const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
   const double radius = std::max(0.5 * glm::length(bounds.max - bounds.min), 1.0);
-  // From above the (-x, -y) corner, 30 degrees down; far enough that the bounding sphere fits
-  // the narrower of the two fields of view.
-  const double fov_y = glm::radians(c.fov_deg);
-  const double fov_x = 2.0 * std::atan(std::tan(fov_y / 2.0) * std::max(aspect, 1e-3));
-  const double half = 0.5 * std::min(fov_x, fov_y);
-  const double distance = radius / std::sin(half);
-  const glm::dvec3 direction = glm::normalize(glm::dvec3(-1.0, -1.2, 0.8));
+  // From above the (-x, -y) corner, looking down at the centre; just far enough that every
+  // corner of the bounds lies inside both fields of view (with 5% to spare).
+  const double tan_y = std::tan(glm::radians(c.fov_deg) / 2.0);
+  const double tan_x = tan_y * std::max(aspect, 1e-3);
+  const glm::dvec3 direction = glm::normalize(glm::dvec3(-1.0, -1.2, 0.8));  // towards the eye
+  const glm::dvec3 right = glm::normalize(glm::cross(-direction, glm::dvec3(0, 0, 1)));
+  const glm::dvec3 up = glm::cross(right, -direction);
+  double distance = 1.0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const glm::dvec3 p = glm::dvec3(corner & 1 ? bounds.max.x : bounds.min.x,
+                                    corner & 2 ? bounds.max.y : bounds.min.y,
+                                    corner & 4 ? bounds.max.z : bounds.min.z) - centre;
+    const double toward_eye = glm::dot(p, direction);
+    distance = std::max({distance, toward_eye + 1.05 * std::abs(glm::dot(p, right)) / tan_x,
+                         toward_eye + 1.05 * std::abs(glm::dot(p, up)) / tan_y});
+  }
+  distance = std::max(distance, radius * 0.1);
   c.eye_m = centre + direction * distance;
   c.target_m = centre;
   c.up = {0, 0, 1};
