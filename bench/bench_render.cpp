@@ -87,18 +87,11 @@ double generate_store(const fs::path& dir, char preset, uint32_t scale) {
 std::vector<Camera> walkthrough_in_child(const fs::path& store_dir, int frames);
 
 std::vector<Camera> walkthrough(const Store& store, int frames) {
+  std::vector<Camera> cameras;
   std::string error;
-  auto view = store.read(error);
-  if (!view) return {};
-  const DAabb bounds = view->info().statistics.bounds;
-  std::vector<DAabb> equipment;
-  view->for_each_object(
-      [&](uint32_t, Object&& o) {
-        if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
-        return true;
-      },
-      false, error);
-  return make_camera_path(PathKind::walkthrough, frames, bounds, equipment);
+  if (!make_camera_path(PathKind::walkthrough, frames, store, cameras, error))
+    std::fprintf(stderr, "bench_render: %s\n", error.c_str());
+  return cameras;
 }
 
 std::vector<Camera> walkthrough_in_child(const fs::path& store_dir, int frames) {

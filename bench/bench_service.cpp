@@ -171,19 +171,10 @@ int main(int argc, char** argv) {
   {
     std::string error;
     auto store = Store::open(store_dir, Store::Mode::read_only, error);
-    auto view = store ? store->read(error) : nullptr;
-    if (!view) {
+    if (!store || !make_camera_path(PathKind::walkthrough, 400, *store, path, error)) {
       std::fprintf(stderr, "bench_service: %s\n", error.c_str());
       return 1;
     }
-    std::vector<DAabb> equipment;
-    view->for_each_object(
-        [&](uint32_t, Object&& o) {
-          if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
-          return true;
-        },
-        false, error);
-    path = make_camera_path(PathKind::walkthrough, 400, view->info().statistics.bounds, equipment);
   }
 
   std::printf("%-8s %10s %10s %10s %10s %12s %14s\n", "clients", "frames/s", "p50 ms", "p99 ms",

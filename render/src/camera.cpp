@@ -6,6 +6,7 @@
 #include <string>
 
 #include "plantview/render.h"
+#include "plantview/store.h"
 
 namespace plantview {
 
@@ -295,6 +296,27 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
     path.push_back(c);
   }
   return path;
+}
+
+bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
+                      std::string& error) {
+  auto view = store.read(error);
+  if (!view) return false;
+  const DAabb bounds = view->info().statistics.bounds;
+  if (bounds.empty()) {
+    error = store.directory() + ": the store holds no geometry";
+    return false;
+  }
+  std::vector<DAabb> equipment;
+  const bool ok = view->for_each_object(
+      [&](uint32_t, Object&& o) {
+        if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
+        return true;
+      },
+      false, error);
+  if (!ok) return false;
+  out = make_camera_path(kind, frames, bounds, equipment);
+  return true;
 }
 
 }  // namespace plantview

@@ -240,6 +240,7 @@ struct Renderer::State {
   };
   struct Draw {
     uint32_t key;
+    Known* known;  // node of `known`: stable while the frame runs
     uint8_t level;
     bool centreline;
     const Visible* visible;
@@ -349,29 +350,24 @@ bool Renderer::State::init_gl(std::string& error) {
                                          16, 18, 17, 16, 19, 18, 20, 21, 22, 20, 22, 23};
   glNamedBufferStorage(cube_indices, sizeof kCube, kCube, 0);
 
-  // Objects: per-vertex attributes from the arena's two buffers.
-  glCreateVertexArrays(1, &vao);
-  glEnableVertexArrayAttrib(vao, 0);
-  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
-  glVertexArrayAttribBinding(vao, 0, 0);
-  glEnableVertexArrayAttrib(vao, 1);
-  glVertexArrayAttribFormat(vao, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
-  glVertexArrayAttribBinding(vao, 1, 0);
-  glEnableVertexArrayAttrib(vao, 2);
-  glVertexArrayAttribIFormat(vao, 2, 1, GL_UNSIGNED_INT, 0);
-  glVertexArrayAttribBinding(vao, 2, 1);
+  // Both vertex arrays read position and normal from the arena (binding 0) and the object-table
+  // index from binding 1: per vertex for objects (the arena's second buffer), per instance for
+  // proxies (the cube's vertices are shared).
+  const auto make_vertex_array = [](GLuint& array) {
+    glCreateVertexArrays(1, &array);
+    glEnableVertexArrayAttrib(array, 0);
+    glVertexArrayAttribFormat(array, 0, 3, GL_FLOAT, GL_FALSE, 0);
+    glVertexArrayAttribBinding(array, 0, 0);
+    glEnableVertexArrayAttrib(array, 1);
+    glVertexArrayAttribFormat(array, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
+    glVertexArrayAttribBinding(array, 1, 0);
+    glEnableVertexArrayAttrib(array, 2);
+    glVertexArrayAttribIFormat(array, 2, 1, GL_UNSIGNED_INT, 0);
+    glVertexArrayAttribBinding(array, 2, 1);
+  };
+  make_vertex_array(vao);
   glVertexArrayElementBuffer(vao, index_buffer);
-  // Proxies: the cube's vertices, the object-table index per instance.
-  glCreateVertexArrays(1, &proxy_vao);
-  glEnableVertexArrayAttrib(proxy_vao, 0);
-  glVertexArrayAttribFormat(proxy_vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
-  glVertexArrayAttribBinding(proxy_vao, 0, 0);
-  glEnableVertexArrayAttrib(proxy_vao, 1);
-  glVertexArrayAttribFormat(proxy_vao, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
-  glVertexArrayAttribBinding(proxy_vao, 1, 0);
-  glEnableVertexArrayAttrib(proxy_vao, 2);
-  glVertexArrayAttribIFormat(proxy_vao, 2, 1, GL_UNSIGNED_INT, 0);
-  glVertexArrayAttribBinding(proxy_vao, 2, 1);
+  make_vertex_array(proxy_vao);
   glVertexArrayBindingDivisor(proxy_vao, 1, 1);
   glVertexArrayVertexBuffer(proxy_vao, 1, proxy_buffer, 0, sizeof(uint32_t));
   glVertexArrayElementBuffer(proxy_vao, cube_indices);
@@ -886,7 +882,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
           uint8_t level;
           bool centreline;
           choose(*rk, d, px, glm::length(run.end_m - run.start_m), level, centreline);
-          draws.push_back({kRunKeyBit | r, level, centreline, nullptr});
+          draws.push_back({kRunKeyBit | r, rk, level, centreline, nullptr});
           stats.hlod_merges += 1;
         }
       }
@@ -898,7 +894,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     uint8_t level;
     bool centreline;
     choose(*k, v.distance_m, v.px_per_m, extent(v), level, centreline);
-    draws.push_back({v.slot, level, centreline, &v});
+    draws.push_back({v.slot, k, level, centreline, &v});
   }
   stats.ms.choose = ms_since(t_choose) - decode_ms;
 
@@ -925,7 +921,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     e.pick = uint32_t(pick_ids.size());
   };
   for (const Draw& d : draws) {
-    Known& k = known.at(d.key);
+    Known& k = *d.known;
     uint32_t level = d.level;
     if (residency.resident(d.key) && level < k.base) {
       release(d.key, k);  // nearer than its resident vertices serve: tessellate it again

@@ -187,19 +187,8 @@ int run_path(const std::string& store_dir, const std::string& kind_name, int fra
   if (frames < 1 || frames > 1000000) return fail("--frames: 1..1000000");
   auto store = Store::open(store_dir, Store::Mode::read_only, error);
   if (!store) return fail(error);
-  auto view = store->read(error);
-  if (!view) return fail(error);
-  const DAabb bounds = view->info().statistics.bounds;
-  if (bounds.empty()) return fail(store_dir + ": the store holds no geometry");
-  std::vector<DAabb> equipment;
-  const bool ok = view->for_each_object(
-      [&](uint32_t, Object&& o) {
-        if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
-        return true;
-      },
-      false, error);
-  if (!ok) return fail(error);
-  const auto cameras = make_camera_path(kind, frames, bounds, equipment);
+  std::vector<Camera> cameras;
+  if (!make_camera_path(kind, frames, *store, cameras, error)) return fail(error);
   std::ofstream file(out);
   if (!file) return fail("cannot write " + out);
   file << camera_path_json(cameras);

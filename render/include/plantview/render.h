@@ -84,6 +84,10 @@ bool parse_path_kind(std::string_view name, PathKind& kind);
 // Zhou et al.'s Fig. 6 run.
 std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& plant_bounds,
                                      const std::vector<DAabb>& equipment_bounds);
+// The same for a store's plant: its bounds, and the bounds of its equipment (every object is
+// read once). False with a message if the store cannot be read or holds no geometry.
+bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
+                      std::string& error);
 
 // ---------------------------------------------------------------------------------------------
 // Options and statistics.
