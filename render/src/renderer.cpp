@@ -32,8 +32,9 @@ constexpr uint32_t kProxyKey = UINT32_MAX;
 constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run index
 constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
 constexpr uint64_t kInitialArenaVertices = 1u << 20;  // the GPU buffers grow from here
-constexpr size_t kKnownObjectsKept = 50000;  // decoded objects kept beyond the resident ones
+constexpr size_t kKnownObjectsKept = 20000;  // decoded objects kept beyond the resident ones
 constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
+constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
 
 // One entry of the per-frame object table (std430: two vec4), read by the vertex shader.
 struct TableEntry {
@@ -57,6 +58,11 @@ struct Known {
     MeshPlan plan;
     uint32_t first_vertex;  // within the object's vertices
     uint32_t primitive;     // index into primitives
+    // While resident: the part's first vertex within what the arena holds of the object, and
+    // the plan whose indices address those vertices (the template's own at base 0, else its
+    // compaction, shared by every object of that template; null: `plan` itself).
+    uint32_t resident_first = 0;
+    const MeshPlan* resident_plan = nullptr;
   };
   std::vector<Part> parts;
   std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
@@ -70,13 +76,30 @@ struct Known {
   uint32_t table = UINT32_MAX;      // object-table entry while resident
   // While resident: the finest level whose vertices are in the arena. At base 0 every vertex
   // is there and the templates' indices serve every level; above 0 only the vertices of levels
-  // >= base are, compacted, and `compact` holds their indices (relative to the object's first
-  // vertex), per part and level at compact_ranges[part][level] = {start, count}.
+  // >= base are, compacted part by part (see Part::resident_plan).
   uint8_t base = 0;
   uint32_t resident_centreline_first = 0;
-  std::vector<uint32_t> compact;
-  std::vector<std::array<std::pair<uint32_t, uint32_t>, kMaxLevels>> compact_ranges;
   uint64_t last_seen = 0;           // frame
+};
+
+// A template's levels from `base` on, over only the vertices they use: what an object resident
+// from a coarser base draws with. Depends on the template alone (its index spans, the base and
+// the winding), so it is built once per renderer and shared by every object of that template.
+struct Compaction {
+  std::vector<uint32_t> kept;  // template vertex numbers, in the compacted order
+  std::array<std::vector<uint32_t>, kMaxLevels> indices;  // levels >= base, into `kept`
+  MeshPlan plan;  // the template's plan with these indices; vertex_count = kept.size()
+};
+struct CompactionKey {
+  const uint32_t* finest;  // the template's level-0 indices: unique per template
+  uint8_t base;
+  bool flip;
+  bool operator==(const CompactionKey&) const = default;
+};
+struct CompactionKeyHash {
+  size_t operator()(const CompactionKey& k) const {
+    return std::hash<const void*>()(k.finest) ^ (size_t(k.base) << 1) ^ (size_t(k.flip) << 5);
+  }
 };
 
 const char* kVertexShader = R"(#version 450 core
@@ -207,6 +230,7 @@ struct Renderer::State {
   // Residency (in vertices) and what is known of decoded objects and runs, by residency key.
   detail::Residency residency{0};
   std::unordered_map<uint32_t, Known> known;
+  std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions;  // few: per template
   // Pipeline HLOD: runs found so far, the run of each member slot, pipelines analysed.
   std::vector<detail::PipelineRun> runs;
   std::vector<uint64_t> run_decided_frame;
@@ -250,7 +274,7 @@ struct Renderer::State {
   std::vector<uint32_t> stack, count_stack;
   std::vector<std::array<float, 6>> node_proxies;  // min, max relative to the spatial origin
   std::vector<PackedVertex> vertices, compacted;
-  std::vector<uint32_t> vertex_objects, remap, level_indices;
+  std::vector<uint32_t> vertex_objects, remap;
   // Index lists of a frame: closed opaque solids (back faces culled), open opaque meshes,
   // see-through triangles, lines.
   std::vector<uint32_t> opaque, open, transparent, lines, proxy_tables;
@@ -295,6 +319,7 @@ struct Renderer::State {
   Known* know(uint32_t slot, std::string& error);
   void analyse_pipeline(uint64_t pipeline_id, std::string& error);
   Known* know_run(uint32_t run);
+  const Compaction& compaction(const MeshPlan& plan, uint8_t base);
   bool make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats, std::string& error,
                      bool& fits);
   void release(uint32_t key, Known& k) {
@@ -462,7 +487,13 @@ bool Renderer::State::open_view(std::string& error) {
   view = store->read(error);
   if (!view) return false;
   spatial_origin = view->spatial_origin();
-  bounds = view->info().statistics.bounds;
+  const ModelStatistics statistics = view->info().statistics;
+  bounds = statistics.bounds;
+  // A model that would fill the budget at full resolution gets the whole arena now: growing it
+  // later copies it, and the old and new buffers together would exceed the budget for a moment.
+  // (Full-resolution meshes have fewer vertices than triangles.)
+  if (!grow_arena(std::min(options.vertex_budget_bytes / kBytesPerVertex, statistics.triangles), error))
+    return false;
   // Forget everything: the snapshot may differ. The proxy cube stays at offset 0.
   known.clear();
   runs.clear();
@@ -606,6 +637,27 @@ Known* Renderer::State::know_run(uint32_t run) {
   return &k;
 }
 
+const Compaction& Renderer::State::compaction(const MeshPlan& plan, uint8_t base) {
+  const CompactionKey key{plan.indices[0].data(), base, plan.flip_winding};
+  if (const auto it = compactions.find(key); it != compactions.end()) return it->second;
+  Compaction& c = compactions[key];
+  c.plan = plan;
+  remap.assign(plan.vertex_count, UINT32_MAX);
+  for (uint32_t l = base; l < plan.level_count; ++l) {
+    for (const uint32_t v : plan.indices[l]) {
+      if (remap[v] == UINT32_MAX) {
+        remap[v] = uint32_t(c.kept.size());
+        c.kept.push_back(v);
+      }
+      c.indices[l].push_back(remap[v]);
+    }
+  }
+  for (uint32_t l = 0; l < kMaxLevels; ++l)
+    c.plan.indices[l] = c.indices[std::max<uint32_t>(l, base)];  // finer levels are never asked
+  c.plan.vertex_count = uint32_t(c.kept.size());
+  return c;
+}
+
 // Tessellates a known object into the arena from level `base` on (see Known), evicting if
 // needed. fits = false when it cannot be placed without evicting what this frame shows.
 bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats,
@@ -621,31 +673,25 @@ bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameS
     vertices[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, 0u};
   }
   const std::vector<PackedVertex>* upload = &vertices;
-  k.compact.clear();
-  k.compact_ranges.clear();
   k.resident_centreline_first = k.centreline_first;
+  for (Known::Part& part : k.parts) {
+    part.resident_first = part.first_vertex;
+    part.resident_plan = nullptr;
+  }
   if (base > 0) {
     // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
     compacted.clear();
-    k.compact_ranges.resize(k.parts.size());
-    for (size_t p = 0; p < k.parts.size(); ++p) {
-      const Known::Part& part = k.parts[p];
-      const uint32_t part_base = part.plan.clamp_level(base);
-      const uint32_t first = uint32_t(compacted.size());
-      remap.assign(part.plan.vertex_count, UINT32_MAX);
-      for (uint32_t l = part_base; l < std::max<uint32_t>(part.plan.level_count, 1); ++l) {
-        const uint32_t n = part.plan.index_count(l);
-        level_indices.resize(n);
-        write_indices(part.plan, l, 0, std::span<uint32_t>(level_indices.data(), n));
-        k.compact_ranges[p][l] = {uint32_t(k.compact.size()), n};
-        for (const uint32_t v : level_indices) {
-          if (remap[v] == UINT32_MAX) {
-            remap[v] = uint32_t(compacted.size()) - first;
-            compacted.push_back(vertices[part.first_vertex + v]);
-          }
-          k.compact.push_back(first + remap[v]);
-        }
+    for (Known::Part& part : k.parts) {
+      const uint8_t part_base = uint8_t(part.plan.clamp_level(base));
+      part.resident_first = uint32_t(compacted.size());
+      if (part_base == 0) {  // a one-level part (facet groups among them): all of it
+        compacted.insert(compacted.end(), vertices.begin() + part.first_vertex,
+                         vertices.begin() + part.first_vertex + part.plan.vertex_count);
+        continue;
       }
+      const Compaction& c = compaction(part.plan, part_base);
+      part.resident_plan = &c.plan;
+      for (const uint32_t v : c.kept) compacted.push_back(vertices[part.first_vertex + v]);
     }
     k.resident_centreline_first = uint32_t(compacted.size());
     compacted.insert(compacted.end(), vertices.begin() + k.centreline_first,
@@ -746,7 +792,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     return glm::length(nearest);
   };
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
+  // Returns false, unfinished, once more than kMaxVisibleObjects are found and boxing whole nodes
+  // can still make them fewer.
   const auto cull = [&](double node_proxy_px) {
+  const bool bounded = subpixel_culling && node_proxy_px < kMaxNodeProxyPixels;
   stats.objects_subpixel = stats.objects_in_node_proxies = 0;
   visible.clear();
   node_proxies.clear();
@@ -797,16 +846,14 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       }
       visible.push_back(v);
     }
+    if (bounded && visible.size() > kMaxVisibleObjects) return false;
   }
+  return true;
   };
   // The frame's work is bounded: when more objects than kMaxVisibleObjects are in view, nodes
   // are boxed at ever larger sizes until they fit (huge plants seen whole).
   double node_proxy_px = detail::kNodeProxyPixels * options.pixel_error;
-  cull(node_proxy_px);
-  while (subpixel_culling && visible.size() > kMaxVisibleObjects && node_proxy_px < 256) {
-    node_proxy_px *= 2;
-    cull(node_proxy_px);
-  }
+  while (!cull(node_proxy_px)) node_proxy_px *= 2;
   stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
   stats.objects_visible = visible.size();
   stats.objects_culled = entries.size() - visible.size() - stats.objects_subpixel - stats.objects_in_node_proxies;
@@ -968,25 +1015,16 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       continue;
     }
     auto& list = k.colour.a < 255 ? transparent : opaque;
-    for (size_t p = 0; p < k.parts.size(); ++p) {
-      const Known::Part& part = k.parts[p];
+    for (const Known::Part& part : k.parts) {
       auto& target = part.plan.topology == Topology::lines ? lines
                      : (&list == &opaque && !part.plan.closed) ? open : list;
       const uint32_t l = part.plan.clamp_level(level);
       const size_t at = target.size();
-      uint32_t n;
-      if (k.base == 0) {
-        n = part.plan.index_count(l);
-        target.resize(at + n);
-        write_indices(part.plan, l, base + part.first_vertex, std::span<uint32_t>(target.data() + at, n));
-      } else {
-        const auto [start, count] = k.compact_ranges[p][l];
-        n = count;
-        target.resize(at + n);
-        const uint32_t* src = k.compact.data() + start;
-        uint32_t* dst = target.data() + at;
-        for (uint32_t i = 0; i < n; ++i) dst[i] = src[i] + base;
-      }
+      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : part.plan;
+      const uint32_t n = plan.index_count(l);
+      target.resize(at + n);
+      write_indices(plan, l, base + part.resident_first,
+                    std::span<uint32_t>(target.data() + at, n));
       if (part.plan.topology == Topology::lines) {
         stats.lines += n / 2;
       } else {
