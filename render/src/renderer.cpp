@@ -268,16 +268,25 @@ struct Renderer::State {
     uint8_t level;
     bool centreline;
     const Visible* visible;
+    bool drawn = false;       // resident this frame (else a proxy box or nothing)
+    uint32_t arena_first = 0;  // the object's first vertex in the arena, once drawn
   };
+  // The frame's index lists, in this order in the index buffer: closed opaque solids (back
+  // faces culled), open opaque meshes, see-through triangles, lines.
+  enum List : uint8_t { kClosed, kOpen, kTransparent, kLines, kListCount };
+  static List list_of(const Known& k, const Known::Part& part) {
+    if (part.plan.topology == Topology::lines) return kLines;
+    if (k.colour.a < 255) return kTransparent;
+    return part.plan.closed ? kClosed : kOpen;
+  }
+  std::array<size_t, kListCount> list_counts{};
   std::vector<Visible> visible;
   std::vector<Draw> draws;
   std::vector<uint32_t> stack, count_stack;
   std::vector<std::array<float, 6>> node_proxies;  // min, max relative to the spatial origin
   std::vector<PackedVertex> vertices, compacted;
   std::vector<uint32_t> vertex_objects, remap;
-  // Index lists of a frame: closed opaque solids (back faces culled), open opaque meshes,
-  // see-through triangles, lines.
-  std::vector<uint32_t> opaque, open, transparent, lines, proxy_tables;
+  std::vector<uint32_t> proxy_tables;
   std::vector<uint64_t> pick_ids;
   std::vector<std::pair<uint32_t, uint64_t>> evicted;
   std::vector<uint32_t> pick_pixels;
@@ -945,13 +954,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   }
   stats.ms.choose = ms_since(t_choose) - decode_ms;
 
-  // 3. Stream what is not resident, and write every draw's indices at its level.
+  // 3. Stream what is not resident, and count every draw's indices at its level.
   const auto t_stream = Clock::now();
   double index_ms = 0;
-  opaque.clear();
-  open.clear();
-  transparent.clear();
-  lines.clear();
+  list_counts.fill(0);
   proxy_tables.clear();
   pick_ids.clear();
   const auto set_entry = [&](uint32_t t, const glm::dvec3& offset, const glm::vec3& scale,
@@ -967,7 +973,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     pick_ids.push_back(id);
     e.pick = uint32_t(pick_ids.size());
   };
-  for (const Draw& d : draws) {
+  for (Draw& d : draws) {
     Known& k = *d.known;
     uint32_t level = d.level;
     if (residency.resident(d.key) && level < k.base) {
@@ -1003,28 +1009,20 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       }
     }
     level = std::max<uint32_t>(level, k.base);
-    const auto t_index = Clock::now();
-    const uint32_t base = uint32_t(*residency.offset(d.key));
+    d.level = uint8_t(level);
+    d.drawn = true;
+    d.arena_first = uint32_t(*residency.offset(d.key));
     set_entry(k.table, k.origin_m - camera.eye_m, glm::vec3(1.0f), k.colour, k.id);
     if (d.centreline) {
       stats.centreline_pipes += 1;
-      const uint32_t n = uint32_t(2 * k.centreline.size());
-      stats.lines += n / 2;
-      for (uint32_t i = 0; i < n; ++i) lines.push_back(base + k.resident_centreline_first + i);
-      index_ms += ms_since(t_index);
+      stats.lines += k.centreline.size();
+      list_counts[kLines] += 2 * k.centreline.size();
       continue;
     }
-    auto& list = k.colour.a < 255 ? transparent : opaque;
     for (const Known::Part& part : k.parts) {
-      auto& target = part.plan.topology == Topology::lines ? lines
-                     : (&list == &opaque && !part.plan.closed) ? open : list;
       const uint32_t l = part.plan.clamp_level(level);
-      const size_t at = target.size();
-      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : part.plan;
-      const uint32_t n = plan.index_count(l);
-      target.resize(at + n);
-      write_indices(plan, l, base + part.resident_first,
-                    std::span<uint32_t>(target.data() + at, n));
+      const uint32_t n = part.plan.index_count(l);
+      list_counts[list_of(k, part)] += n;
       if (part.plan.topology == Topology::lines) {
         stats.lines += n / 2;
       } else {
@@ -1032,7 +1030,6 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
         stats.triangles_by_level[l] += n / 3;
       }
     }
-    index_ms += ms_since(t_index);
   }
   for (const auto& b : node_proxies) {
     const uint32_t t = table_acquire();
@@ -1042,19 +1039,60 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     stats.triangles += 12;
   }
   residency.end_frame();
-  forget_old(stats);
-  stats.ms.stream = ms_since(t_stream) - index_ms + decode_ms;
-  stats.ms.choose += index_ms;
   stats.objects_resident = residency.resident_count() - 1;  // not the proxy cube
   stats.arena_bytes_resident = residency.used_units() * kBytesPerVertex;
-  stats.draw_commands = (opaque.empty() ? 0 : 1) + (open.empty() ? 0 : 1) + (transparent.empty() ? 0 : 1) +
-                        (lines.empty() ? 0 : 1) + (proxy_tables.empty() ? 0 : 1);
-
+  stats.draw_commands = proxy_tables.empty() ? 0 : 1;
+  for (const size_t n : list_counts) stats.draw_commands += n ? 1 : 0;
   if (!draw) {
+    forget_old(stats);
     for (const uint32_t t : proxy_tables) table_free.push_back(t);
+    stats.ms.stream = ms_since(t_stream) + decode_ms;
     stats.ms.total = ms_since(t_start);
     return true;
   }
+
+  // Write the index lists straight into the (mapped) index buffer, each draw's indices at its
+  // level: no copy of them is kept.
+  const auto t_index = Clock::now();
+  size_t index_total = 0;
+  std::array<size_t, kListCount> list_first{};
+  for (int list = 0; list < kListCount; ++list) {
+    list_first[list] = index_total;
+    index_total += list_counts[list];
+  }
+  const size_t index_bytes = std::max<size_t>(index_total, 1) * sizeof(uint32_t);
+  if (index_bytes > index_capacity) {
+    index_capacity = std::max(index_bytes, index_capacity * 3 / 2);
+    glNamedBufferData(index_buffer, GLsizeiptr(index_capacity), nullptr, GL_STREAM_DRAW);
+  }
+  auto* indices = static_cast<uint32_t*>(glMapNamedBufferRange(
+      index_buffer, 0, GLsizeiptr(index_bytes), GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT));
+  if (!indices) {
+    error = "renderer: cannot map " + std::to_string(index_bytes >> 20) + " MB of index buffer";
+    return false;
+  }
+  std::array<uint32_t*, kListCount> cursor;
+  for (int list = 0; list < kListCount; ++list) cursor[list] = indices + list_first[list];
+  for (const Draw& d : draws) {
+    if (!d.drawn) continue;
+    const Known& k = *d.known;
+    if (d.centreline) {
+      const uint32_t first = d.arena_first + k.resident_centreline_first;
+      for (uint32_t i = 0; i < 2 * k.centreline.size(); ++i) *cursor[kLines]++ = first + i;
+      continue;
+    }
+    for (const Known::Part& part : k.parts) {
+      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : part.plan;
+      uint32_t*& at = cursor[list_of(k, part)];
+      at += write_indices(plan, d.level, d.arena_first + part.resident_first,
+                          std::span<uint32_t>(at, plan.index_count(d.level)));
+    }
+  }
+  glUnmapNamedBuffer(index_buffer);
+  index_ms = ms_since(t_index);
+  forget_old(stats);
+  stats.ms.stream = ms_since(t_stream) - index_ms + decode_ms;
+  stats.ms.choose += index_ms;
 
   // 4. Draw: one call per list.
   const auto t_draw = Clock::now();
@@ -1073,12 +1111,9 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       at += size;
     }
   };
-  const size_t n_closed = opaque.size(), n_open = open.size();
-  const size_t n_opaque = n_closed + n_open, n_transparent = transparent.size(), n_lines = lines.size();
-  const size_t index_bytes = (n_opaque + n_transparent + n_lines) * sizeof(uint32_t);
-  upload(index_buffer, index_capacity, index_bytes,
-         {{opaque.data(), n_closed * 4}, {open.data(), n_open * 4}, {transparent.data(), n_transparent * 4},
-          {lines.data(), n_lines * 4}});
+  const size_t n_closed = list_counts[kClosed], n_open = list_counts[kOpen];
+  const size_t n_opaque = n_closed + n_open, n_transparent = list_counts[kTransparent],
+               n_lines = list_counts[kLines];
   upload(table_buffer, table_capacity, table_used * sizeof(TableEntry),
          {{table.data(), table_used * sizeof(TableEntry)}});
   upload(proxy_buffer, proxy_capacity, proxy_tables.size() * sizeof(uint32_t),
