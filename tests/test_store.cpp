@@ -1,6 +1,7 @@
 // The LMDB plant store: lossless records, indexes, replacement by source, transactions,
 // snapshots, the spatial hierarchy, and survival of a killed import.
 #include <gtest/gtest.h>
+#include <lmdb.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <latch>
 #include <map>
 #include <random>
 #include <set>
@@ -453,6 +455,160 @@ TEST(Store, AnImportTouchingMoreBlocksThanItHoldsInMemoryReplacesASource) {
   expect_indexes_agree(*store);
 }
 
+// Lookups are built per committed state, on first use: after objects are replaced and removed,
+// a new view finds them where they are now, and a view from before (whose tables are built only
+// after the import) still finds them where they were.
+TEST(Store, LookupsFollowReplacementsAndRemovalsAndOldViewsKeepTheirState) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> a, b;
+  for (int i = 0; i < 150; ++i) a.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  for (int i = 0; i < 150; ++i) b.push_back(box_object("b", i, {i * 1.0, 9, 0}));
+  import_objects(*store, a, "a");
+  import_objects(*store, b, "b");
+  std::string error;
+  auto early = store->read(error);  // builds its id lookup now, its name lookup only later
+  ASSERT_TRUE(early) << error;
+  const uint32_t a7 = early->slot_of(a[7].id).value();
+  const uint32_t b7 = early->slot_of(b[7].id).value();
+
+  // Source a again with one object fewer and one changed; b's object 7 replaced in place.
+  std::vector<Object> a2(a.begin(), a.end() - 1);
+  a2[7].colour = {9, 9, 9, 9};
+  import_objects(*store, a2, "a");
+  Object b7_changed = b[7];
+  b7_changed.origin_m = {-20, -20, 0};
+  {
+    auto import = store->begin_import(error);
+    ASSERT_TRUE(import->put(b7_changed, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+
+  auto now = store->read(error);
+  ASSERT_TRUE(now) << error;
+  EXPECT_FALSE(now->slot_of(a.back().id).has_value());
+  EXPECT_TRUE(now->slots_named(a.back().name).size() == 1);  // b's object of that name is left
+  const auto a7_now = now->slot_of(a[7].id);
+  const auto b7_now = now->slot_of(b[7].id);
+  ASSERT_TRUE(a7_now && b7_now);
+  EXPECT_NE(*a7_now, a7);
+  EXPECT_NE(*b7_now, b7);
+  EXPECT_EQ(now->slots_named("/BOX-7"), (std::vector<uint32_t>{std::min(*a7_now, *b7_now),
+                                                               std::max(*a7_now, *b7_now)}));
+  Object o;
+  ASSERT_TRUE(now->object(*b7_now, o, true, error)) << error;
+  EXPECT_TRUE(o == b7_changed);
+  EXPECT_FALSE(now->object(b7, o, false, error));
+  expect_indexes_agree(*store);
+
+  // The early view: its own state, with the name lookup built from it after the imports.
+  EXPECT_EQ(early->slot_of(a[7].id), a7);
+  EXPECT_EQ(early->slot_of(a.back().id), early->slots_named(a.back().name).front());
+  EXPECT_EQ(early->slots_named("/BOX-7"), (std::vector<uint32_t>{a7, b7}));
+  ASSERT_TRUE(early->object(b7, o, true, error)) << error;
+  EXPECT_TRUE(o == b[7]);
+  std::optional<uint32_t> slot;
+  ASSERT_TRUE(early->slot_of(a[7].id, slot, error)) << error;
+  EXPECT_EQ(slot, a7);
+  ASSERT_TRUE(now->slot_of(12345, slot, error)) << error;
+  EXPECT_FALSE(slot.has_value());
+}
+
+TEST(Store, ForEachObjectVisitsLiveSlotsInOrderAndSkipsEmptiedOnes) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> a, b;
+  for (int i = 0; i < 100; ++i) a.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  for (int i = 0; i < 100; ++i) b.push_back(box_object("b", i, {i * 1.0, 5, 0}));
+  import_objects(*store, a, "a");  // slots 0-99
+  import_objects(*store, b, "b");  // slots 100-199
+  // Replace a's object 3 (slot 3 empties, the object moves to slot 200), then remove b: the
+  // highest slot in use is 200, with 100-199 empty below it.
+  {
+    std::string error;
+    auto import = store->begin_import(error);
+    Object changed = a[3];
+    changed.colour = {1, 1, 1, 1};
+    ASSERT_TRUE(import->put(changed, error)) << error;
+    ASSERT_TRUE(import->remove_source("b", error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  std::vector<uint32_t> slots;
+  std::vector<std::string> names;
+  ASSERT_TRUE(view->for_each_object(
+      [&](uint32_t slot, Object&& o) {
+        slots.push_back(slot);
+        names.push_back(o.name);
+        return true;
+      },
+      false, error))
+      << error;
+  std::vector<uint32_t> expected;
+  for (uint32_t s = 0; s < 100; ++s) {
+    if (s != 3) expected.push_back(s);
+  }
+  expected.push_back(200);
+  EXPECT_EQ(slots, expected);
+  EXPECT_EQ(names.back(), "/BOX-3");
+  for (uint32_t empty : {3u, 100u, 199u, 201u, 5000u}) {
+    Object o;
+    EXPECT_FALSE(view->object(empty, o, false, error)) << empty;
+    EXPECT_NE(error.find("no object in slot " + std::to_string(empty)), std::string::npos) << error;
+  }
+  // It stops when asked to.
+  size_t visited = 0;
+  ASSERT_TRUE(view->for_each_object([&](uint32_t, Object&&) { return ++visited < 5; }, false, error));
+  EXPECT_EQ(visited, 5u);
+  expect_indexes_agree(*store);
+}
+
+// Views of one committed state share its lookups, which the first caller builds: two threads
+// asking at once both get every answer right (run under the sanitizers too).
+TEST(Store, TwoThreadsLookUpSlotsOnViewsOfTheSameStateAtOnce) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> objects;
+  for (int i = 0; i < 5000; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  import_objects(*store, objects, "a");
+  std::map<uint64_t, uint32_t> expected;
+  {
+    std::string error;
+    auto view = store->read(error);
+    ASSERT_TRUE(view->for_each_object(
+        [&](uint32_t slot, Object&& o) {
+          expected[o.id] = slot;
+          return true;
+        },
+        false, error))
+        << error;
+  }
+  // Objects were read before any lookup: the lookups of this state are not built yet.
+  std::latch start(2);
+  auto look_up = [&](size_t& wrong) {
+    std::string error;
+    auto view = store->read(error);  // a view belongs to the thread that made it
+    start.arrive_and_wait();
+    if (!view) {
+      ++wrong;
+      return;
+    }
+    for (int i = 0; i < 5000; i += 7) {
+      const Object& o = objects[i];
+      if (view->slot_of(o.id) != expected[o.id]) ++wrong;
+      if (view->slots_named(o.name) != std::vector<uint32_t>{expected[o.id]}) ++wrong;
+    }
+  };
+  size_t wrong_a = 0, wrong_b = 0;
+  std::thread a(look_up, std::ref(wrong_a)), b(look_up, std::ref(wrong_b));
+  a.join();
+  b.join();
+  EXPECT_EQ(wrong_a, 0u);
+  EXPECT_EQ(wrong_b, 0u);
+}
+
 TEST(Store, SpatialBoundsDoNotDriftWhenOtherSourcesAreReimported) {
   TempDir dir;
   auto store = open_store(dir.str());
@@ -565,6 +721,93 @@ TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
   EXPECT_NE(error.find("object slot 0"), std::string::npos) << error;
 }
 
+// Overwrites indexes/<key> with `value`, as a damaged disk might (no Store open on `dir`).
+void put_index_value(const std::string& dir, const std::string& key, const std::vector<uint8_t>& value) {
+  MDB_env* env = nullptr;
+  ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 8);
+  ASSERT_EQ(mdb_env_open(env, dir.c_str(), 0, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
+  ASSERT_EQ(mdb_dbi_open(txn, "indexes", 0, &dbi), MDB_SUCCESS);
+  MDB_val k{key.size(), const_cast<char*>(key.data())};
+  MDB_val v{value.size(), const_cast<uint8_t*>(value.data())};
+  ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
+  ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
+  mdb_env_close(env);
+}
+
+std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
+  std::vector<uint8_t> frame;
+  std::string error;
+  EXPECT_TRUE(detail::compress_frame(detail::make_compressor().get(), raw, frame, error)) << error;
+  return frame;
+}
+
+// The name table is read on the first slots_named(): a damaged one fails that call (and every
+// later one on views of that state), with a message naming the store and the table; the rest of
+// the store still reads.
+TEST(Store, ADamagedNameTableFailsNameLookupsWithAMessage) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 100; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  put_index_value(dir.str(), "names", {'n', 'o', 't', ' ', 'z', 's', 't', 'd'});
+  auto store = open_store(dir.str(), Store::Mode::read_only);
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    std::vector<uint32_t> slots{99};
+    error.clear();
+    EXPECT_FALSE(view->slots_named("/BOX-5", slots, error));
+    EXPECT_TRUE(slots.empty());
+    EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+    EXPECT_NE(error.find("name table"), std::string::npos) << error;
+  }
+  EXPECT_TRUE(store->read(error)->slots_named("/BOX-5").empty());
+  const auto slot = view->slot_of(objects[5].id);
+  ASSERT_TRUE(slot.has_value());
+  Object o;
+  ASSERT_TRUE(view->object(*slot, o, true, error)) << error;
+  EXPECT_TRUE(o == objects[5]);
+}
+
+// The id table is read whole when a state is first viewed: a damaged one, or one naming slots
+// the store never gave out (which would size the slot arrays), fails read() with a message.
+TEST(Store, ADamagedIdTableFailsReadWithAMessage) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {box_object("a", 0, {}), box_object("a", 1, {})}, "a");
+  }
+  std::vector<uint8_t> beyond;
+  detail::encode_key_slots({{7, 0}, {8, 1}, {9, 4000000000u}}, beyond);
+  std::vector<uint8_t> doubled;
+  detail::encode_key_slots({{7, 1}, {8, 1}}, doubled);
+  std::vector<uint8_t> id_zero;
+  detail::encode_key_slots({{0, 0}, {8, 1}}, id_zero);
+  const std::pair<std::vector<uint8_t>, std::string> cases[] = {
+      {{'n', 'o', 't', ' ', 'z', 's', 't', 'd'}, "not a valid zstd frame"},
+      {zstd_frame(beyond), "slot 4000000000, beyond the store's next slot 2"},
+      {zstd_frame(doubled), "slot 1 has two ids"},
+      {zstd_frame(id_zero), "id 0"},
+  };
+  for (const auto& [value, reason] : cases) {
+    put_index_value(dir.str(), "ids", value);
+    auto store = open_store(dir.str(), Store::Mode::read_only);
+    std::string error;
+    EXPECT_FALSE(store->read(error));
+    EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+    EXPECT_NE(error.find("id table: "), std::string::npos) << error;
+    EXPECT_NE(error.find(reason), std::string::npos) << error;
+  }
+}
+
 // Every decoder of the store's own bytes refuses each truncation of a valid input, and survives
 // (refuses or accepts, without reading out of bounds) every single corrupted byte.
 TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
@@ -599,6 +842,29 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
   for (size_t i = 0; i < grid.size(); ++i) {
     EXPECT_EQ(std::memcmp(&grid_back[i], &grid[i], sizeof(GridEntry)), 0) << i;
   }
+  // The readers' form: entries in the same order, their grid boxes inside the float ones, each
+  // leaf's entries inside it.
+  std::vector<SpatialNode> nodes_back;
+  std::vector<SpatialEntry> entries_back;
+  ASSERT_TRUE(decode_spatial_expanded(spatial.data(), spatial.size(), origin, nodes_back,
+                                      entries_back, error))
+      << error;
+  ASSERT_EQ(entries_back.size(), grid.size());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    EXPECT_EQ(entries_back[i].slot, grid[i].slot) << i;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(double(entries_back[i].min[a]), grid[i].min[a] * kSpatialCellM) << i;
+      EXPECT_GE(double(entries_back[i].max[a]), grid[i].max[a] * kSpatialCellM) << i;
+    }
+  }
+  for (const SpatialNode& node : nodes_back) {
+    for (uint32_t k = node.first; node.count > 0 && k < node.first + node.count; ++k) {
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_LE(node.min[a], entries_back[k].min[a]);
+        EXPECT_GE(node.max[a], entries_back[k].max[a]);
+      }
+    }
+  }
 
   for (size_t n = 0; n < keys.size(); ++n) {
     EXPECT_FALSE(decode_key_slots(keys.data(), n, keys_back, error)) << n;
@@ -608,6 +874,8 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
   }
   for (size_t n = 0; n < spatial.size(); ++n) {
     EXPECT_FALSE(decode_spatial(spatial.data(), n, origin, grid_back, error)) << n;
+    EXPECT_FALSE(decode_spatial_expanded(spatial.data(), n, origin, nodes_back, entries_back, error))
+        << n;
   }
   for (uint8_t value : {uint8_t(0x00), uint8_t(0x7f), uint8_t(0xff)}) {
     for (auto* bytes : {&keys, &runs, &spatial}) {
@@ -617,6 +885,7 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
         decode_key_slots(bad.data(), bad.size(), keys_back, error);
         decode_slot_runs(bad.data(), bad.size(), 5000, runs_back, error);
         decode_spatial(bad.data(), bad.size(), origin, grid_back, error);
+        decode_spatial_expanded(bad.data(), bad.size(), origin, nodes_back, entries_back, error);
       }
     }
   }

@@ -179,6 +179,21 @@ bool ColumnWriter::flush(MDB_txn* txn, std::string& error) {
 ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget)
     : dbi_(dbi), shape_(shape), byte_budget_(byte_budget), entries_(capacity) {}
 
+ChunkCache::~ChunkCache() { release_touched(); }
+
+void ChunkCache::touched(const uint8_t* begin, const uint8_t* end) {
+  touched_begin_ = touched_begin_ ? std::min(touched_begin_, begin) : begin;
+  touched_end_ = std::max(touched_end_, end);
+  if (++reads_since_release_ == kReadsPerRelease) release_touched();
+}
+
+void ChunkCache::release_touched() {
+  if (!touched_begin_) return;
+  release_map_pages(touched_begin_, size_t(touched_end_ - touched_begin_));
+  touched_begin_ = touched_end_ = nullptr;
+  reads_since_release_ = 0;
+}
+
 bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
                         std::string& why) {
   const uint32_t chunk = shape_.chunk_of(slot);
@@ -200,11 +215,14 @@ bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<
         return false;
       }
       const auto frame = frames_[shape_.chunk_in_block(slot)];
+      const bool inflated = frame.empty() || inflate_frame(dctx, frame, entry->bytes, why);
+      // After inflating, so that the pages it brought in count.
+      const auto* value = static_cast<const uint8_t*>(v.mv_data);
+      touched(value, frame.empty() ? value + shape_.chunks_per_block() * 4
+                                   : frame.data() + frame.size());
+      if (!inflated) return false;
       if (!frame.empty()) {
-        if (!inflate_frame(dctx, frame, entry->bytes, why) ||
-            !check_chunk(entry->bytes, shape_.chunk_slots, entry->ends, why)) {
-          return false;
-        }
+        if (!check_chunk(entry->bytes, shape_.chunk_slots, entry->ends, why)) return false;
         entry->present = true;
       }
     } else if (rc != MDB_NOTFOUND) {

@@ -63,10 +63,18 @@ class ColumnWriter {
 
 // Reads records of one column in a read transaction, keeping the `capacity` most recently used
 // decompressed chunks (fewer when they hold more than `byte_budget` bytes together), so that
-// neighbouring slots cost one decompression. Belongs to one view.
+// neighbouring slots cost one decompression. Belongs to one view; must be destroyed while the
+// environment is open.
+// Every kReadsPerRelease chunks read from the map, and on destruction, the span of the map read
+// since is taken out of the process's resident set (release_map_pages): a view that reads the
+// whole store would otherwise end up holding the data file in its memory. (Releasing after every
+// chunk costs more than it saves: a madvise takes about as long as inflating a chunk.)
 class ChunkCache {
  public:
   ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget);
+  ~ChunkCache();
+  ChunkCache(const ChunkCache&) = delete;
+  ChunkCache& operator=(const ChunkCache&) = delete;
   // The record in `slot` (empty: none). Valid until the next call. False with a reason (without
   // the store or slot, which the caller adds) on an LMDB error or a corrupt block or chunk.
   bool record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
@@ -80,10 +88,20 @@ class ChunkCache {
     std::vector<uint8_t> bytes;
     std::vector<uint32_t> ends;  // check_chunk()
   };
+  static constexpr uint32_t kReadsPerRelease = 256;
+  // Notes mapped bytes [begin, end) as read (after reading them), releasing what was read when
+  // it is time.
+  void touched(const uint8_t* begin, const uint8_t* end);
+  void release_touched();
+
   MDB_dbi dbi_;
   ColumnShape shape_;
   size_t byte_budget_;
   std::vector<Entry> entries_;
+  // The span of the mapping read since the last release (null: none).
+  const uint8_t* touched_begin_ = nullptr;
+  const uint8_t* touched_end_ = nullptr;
+  uint32_t reads_since_release_ = 0;
   uint64_t clock_ = 0;
   std::vector<std::span<const uint8_t>> frames_;
 };

@@ -2,7 +2,10 @@
 #pragma once
 
 #include <lmdb.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
+#include <cstdint>
 #include <cstring>
 #include <string>
 #include <string_view>
@@ -69,6 +72,31 @@ class LmdbCursor {
  private:
   MDB_cursor* cursor_ = nullptr;
 };
+
+// Pages of LMDB's file mapping. LMDB hands out values in place in its read-only mapping of the
+// data file; every page read stays counted in the process's memory (RSS) until the kernel wants
+// it back, and with MDB_NORDAHEAD the kernel reads only the pages touched, one fault at a time.
+// Both calls are advice (failures are harmless) and work on whole pages, so neighbouring values
+// on the edge pages are affected too. Only for values read in a read transaction: a write
+// transaction may hand out its own copies of pages, which live in ordinary memory.
+
+// Starts reading [data, data + size) from the file at once (a value about to be read whole).
+inline void prefetch_map_pages(const void* data, size_t size) {
+  static const uintptr_t page = uintptr_t(sysconf(_SC_PAGESIZE));
+  const uintptr_t begin = uintptr_t(data) & ~(page - 1);
+  madvise(reinterpret_cast<void*>(begin), uintptr_t(data) + size - begin, MADV_WILLNEED);
+}
+
+// Takes the pages under [data, data + size) out of this process's resident set (a value read
+// once: an index decoded, a chunk inflated into a cache). The page cache keeps them: reading
+// them again maps them back in (a minor fault), for this or any other view.
+inline void release_map_pages(const void* data, size_t size) {
+  static const uintptr_t page = uintptr_t(sysconf(_SC_PAGESIZE));
+  if (size == 0) return;
+  const uintptr_t begin = uintptr_t(data) & ~(page - 1);
+  const uintptr_t end = (uintptr_t(data) + size + page - 1) & ~(page - 1);
+  madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
 
 inline MDB_val as_val(const void* data, size_t size) {
   return MDB_val{size, const_cast<void*>(data)};

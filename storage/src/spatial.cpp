@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 
 #include "varint.h"
 
@@ -24,17 +25,130 @@ bool fits_int32(int64_t v) {
   return v >= std::numeric_limits<int32_t>::min() && v <= std::numeric_limits<int32_t>::max();
 }
 
-// Leaves as entry ranges, in entry order.
-std::vector<NodeRange> leaves_in_order(uint32_t n) {
-  std::vector<SpatialNode> nodes;
-  std::vector<NodeRange> ranges, leaves;
-  spatial_topology(n, nodes, ranges);
-  for (size_t i = 0; i < nodes.size(); ++i) {
-    if (nodes[i].count > 0) leaves.push_back(ranges[i]);
+// Calls visit(first, count) for every leaf of a topology, in entry order: depth first, first
+// child first (it holds the lower half of its parent's entries).
+template <typename Visit>
+void for_each_leaf(const std::vector<SpatialNode>& nodes, Visit&& visit) {
+  if (nodes.empty()) return;
+  uint32_t stack[64];  // the depth is about log2(n / kLeafSize) + 1
+  int depth = 0;
+  stack[depth++] = 0;
+  while (depth > 0) {
+    const SpatialNode& node = nodes[stack[--depth]];
+    if (node.count > 0) {
+      visit(node.first, node.count);
+    } else {
+      stack[depth++] = node.first + 1;
+      stack[depth++] = node.first;
+    }
   }
-  std::sort(leaves.begin(), leaves.end(),
-            [](const NodeRange& a, const NodeRange& b) { return a.begin < b.begin; });
-  return leaves;
+}
+
+// The exact node count of spatial_topology(n): ranges of one depth have at most two sizes, so
+// counting them level by level takes a few dozen steps.
+size_t topology_node_count(uint32_t n) {
+  if (n == 0) return 0;
+  std::map<uint32_t, size_t> level{{n, 1}}, next;
+  size_t nodes = 0;
+  while (!level.empty()) {
+    next.clear();
+    for (const auto& [size, count] : level) {
+      nodes += count;
+      if (size > kLeafSize) {
+        next[size / 2] += count;
+        next[size - size / 2] += count;
+      }
+    }
+    level.swap(next);
+  }
+  return nodes;
+}
+
+// Reads the stored form's header: the origin and the entry count, checked against the bytes
+// left. Afterwards `r` is at the first leaf.
+bool read_spatial_header(const uint8_t* data, size_t size, glm::dvec3& origin, uint64_t& n,
+                         VarintReader& r, std::string& error) {
+  if (size < 24) {
+    error = "spatial index is truncated";
+    return false;
+  }
+  std::memcpy(&origin, data, 24);
+  if (!std::isfinite(origin.x) || !std::isfinite(origin.y) || !std::isfinite(origin.z)) {
+    error = "spatial origin is not finite";
+    return false;
+  }
+  r = VarintReader(data + 24, size - 24);
+  // An entry takes at least 7 bytes: the count is checked before anything is allocated.
+  if (!r.get(n) || n > r.remaining() / 7) {
+    error = "spatial index is truncated";
+    return false;
+  }
+  return true;
+}
+
+// Reads the entries of the topology `nodes`, leaf by leaf, calling put(k, entry) for entry k in
+// tree order; then checks that the bytes end there.
+template <typename Put>
+bool read_spatial_entries(VarintReader& r, const std::vector<SpatialNode>& nodes, Put&& put,
+                          std::string& error) {
+  int64_t leaf_min[3] = {0, 0, 0}, slot = 0;
+  bool ok = true;
+  for_each_leaf(nodes, [&](uint32_t first, uint32_t count) {
+    if (!ok) return;
+    ok = false;
+    for (int a = 0; a < 3; ++a) {
+      int64_t delta;
+      if (!r.get_signed(delta)) {
+        error = "spatial index is truncated";
+        return;
+      }
+      leaf_min[a] += delta;
+      if (!fits_int32(leaf_min[a])) {
+        error = "spatial index has bounds out of range";
+        return;
+      }
+    }
+    for (uint32_t k = first; k < first + count; ++k) {
+      GridEntry e;
+      uint64_t v[6];
+      int64_t slot_delta;
+      for (uint64_t& x : v) {
+        if (!r.get(x)) {
+          error = "spatial index is truncated";
+          return;
+        }
+      }
+      if (!r.get_signed(slot_delta)) {
+        error = "spatial index is truncated";
+        return;
+      }
+      for (int a = 0; a < 3; ++a) {
+        // Varints are below 2^64; anything past int32 is out of range whichever way it adds up.
+        if (v[a] > UINT32_MAX || v[3 + a] > UINT32_MAX ||
+            !fits_int32(leaf_min[a] + int64_t(v[a])) ||
+            !fits_int32(leaf_min[a] + int64_t(v[a]) + int64_t(v[3 + a]))) {
+          error = "spatial index has bounds out of range";
+          return;
+        }
+        e.min[a] = int32_t(leaf_min[a] + int64_t(v[a]));
+        e.max[a] = int32_t(e.min[a] + int64_t(v[3 + a]));
+      }
+      slot += slot_delta;
+      if (slot < 0 || slot > int64_t(UINT32_MAX)) {
+        error = "spatial index has a slot out of range";
+        return;
+      }
+      e.slot = uint32_t(slot);
+      put(k, e);
+    }
+    ok = true;
+  });
+  if (!ok) return false;
+  if (!r.at_end()) {
+    error = "trailing bytes after the spatial index";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -76,8 +190,9 @@ void spatial_topology(uint32_t n, std::vector<SpatialNode>& nodes, std::vector<N
   nodes.clear();
   ranges.clear();
   if (n == 0) return;
-  nodes.reserve(2 * (n / kLeafSize + 1));
-  ranges.reserve(nodes.capacity());
+  const size_t count = topology_node_count(n);
+  nodes.reserve(count);
+  ranges.reserve(count);
   std::vector<uint32_t> stack{0};
   nodes.push_back({});
   ranges.push_back({0, n});
@@ -146,112 +261,73 @@ void encode_spatial(const glm::dvec3& origin, const std::vector<GridEntry>& entr
   out.resize(24);
   std::memcpy(out.data(), &origin, 24);
   put_varint(out, entries.size());
+  std::vector<SpatialNode> nodes;
+  std::vector<NodeRange> ranges;
+  spatial_topology(uint32_t(entries.size()), nodes, ranges);
   int64_t previous_min[3] = {0, 0, 0}, previous_slot = 0;
-  for (const NodeRange& leaf : leaves_in_order(uint32_t(entries.size()))) {
+  for_each_leaf(nodes, [&](uint32_t first, uint32_t count) {
     int64_t leaf_min[3];
     for (int a = 0; a < 3; ++a) {
       leaf_min[a] = std::numeric_limits<int64_t>::max();
-      for (uint32_t k = leaf.begin; k < leaf.end; ++k) {
+      for (uint32_t k = first; k < first + count; ++k) {
         leaf_min[a] = std::min<int64_t>(leaf_min[a], entries[k].min[a]);
       }
       put_varint(out, zigzag(leaf_min[a] - previous_min[a]));
       previous_min[a] = leaf_min[a];
     }
-    for (uint32_t k = leaf.begin; k < leaf.end; ++k) {
+    for (uint32_t k = first; k < first + count; ++k) {
       const GridEntry& e = entries[k];
       for (int a = 0; a < 3; ++a) put_varint(out, uint64_t(e.min[a] - leaf_min[a]));
       for (int a = 0; a < 3; ++a) put_varint(out, uint64_t(int64_t(e.max[a]) - e.min[a]));
       put_varint(out, zigzag(int64_t(e.slot) - previous_slot));
       previous_slot = e.slot;
     }
-  }
+  });
 }
 
 bool decode_spatial(const uint8_t* data, size_t size, glm::dvec3& origin,
                     std::vector<GridEntry>& entries, std::string& error) {
   entries.clear();
-  if (size < 24) {
-    error = "spatial index is truncated";
-    return false;
-  }
-  std::memcpy(&origin, data, 24);
-  if (!std::isfinite(origin.x) || !std::isfinite(origin.y) || !std::isfinite(origin.z)) {
-    error = "spatial origin is not finite";
-    return false;
-  }
-  VarintReader r(data + 24, size - 24);
+  VarintReader r(data, 0);
   uint64_t n = 0;
-  // An entry takes at least 7 bytes: the count is checked before anything is allocated.
-  if (!r.get(n) || n > r.remaining() / 7) {
-    error = "spatial index is truncated";
-    return false;
-  }
+  if (!read_spatial_header(data, size, origin, n, r, error)) return false;
+  std::vector<SpatialNode> nodes;
+  std::vector<NodeRange> ranges;
+  spatial_topology(uint32_t(n), nodes, ranges);
+  ranges = {};
   entries.resize(n);
-  int64_t leaf_min[3] = {0, 0, 0}, slot = 0;
-  for (const NodeRange& leaf : leaves_in_order(uint32_t(n))) {
-    for (int a = 0; a < 3; ++a) {
-      int64_t delta;
-      if (!r.get_signed(delta)) {
-        error = "spatial index is truncated";
-        return false;
-      }
-      leaf_min[a] += delta;
-      if (!fits_int32(leaf_min[a])) {
-        error = "spatial index has bounds out of range";
-        return false;
-      }
-    }
-    for (uint32_t k = leaf.begin; k < leaf.end; ++k) {
-      GridEntry& e = entries[k];
-      uint64_t v[6];
-      int64_t slot_delta;
-      for (uint64_t& x : v) {
-        if (!r.get(x)) {
-          error = "spatial index is truncated";
-          return false;
-        }
-      }
-      if (!r.get_signed(slot_delta)) {
-        error = "spatial index is truncated";
-        return false;
-      }
-      for (int a = 0; a < 3; ++a) {
-        // Varints are below 2^64; anything past int32 is out of range whichever way it adds up.
-        if (v[a] > UINT32_MAX || v[3 + a] > UINT32_MAX ||
-            !fits_int32(leaf_min[a] + int64_t(v[a])) ||
-            !fits_int32(leaf_min[a] + int64_t(v[a]) + int64_t(v[3 + a]))) {
-          error = "spatial index has bounds out of range";
-          return false;
-        }
-        e.min[a] = int32_t(leaf_min[a] + int64_t(v[a]));
-        e.max[a] = int32_t(e.min[a] + int64_t(v[3 + a]));
-      }
-      slot += slot_delta;
-      if (slot < 0 || slot > int64_t(UINT32_MAX)) {
-        error = "spatial index has a slot out of range";
-        return false;
-      }
-      e.slot = uint32_t(slot);
-    }
-  }
-  if (!r.at_end()) {
-    error = "trailing bytes after the spatial index";
-    return false;
-  }
-  return true;
+  return read_spatial_entries(
+      r, nodes, [&entries](uint32_t k, const GridEntry& e) { entries[k] = e; }, error);
 }
 
-void expand_spatial(const std::vector<GridEntry>& entries, std::vector<SpatialNode>& nodes,
-                    std::vector<SpatialEntry>& packed) {
-  std::vector<NodeRange> ranges;
-  spatial_topology(uint32_t(entries.size()), nodes, ranges);
-  packed.resize(entries.size());
-  for (size_t k = 0; k < entries.size(); ++k) {
-    for (int a = 0; a < 3; ++a) {
-      packed[k].min[a] = round_down(double(entries[k].min[a]) * kSpatialCellM);
-      packed[k].max[a] = round_up(double(entries[k].max[a]) * kSpatialCellM);
-    }
-    packed[k].slot = entries[k].slot;
+bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origin,
+                             std::vector<SpatialNode>& nodes, std::vector<SpatialEntry>& entries,
+                             std::string& error) {
+  nodes.clear();
+  entries.clear();
+  VarintReader r(data, 0);
+  uint64_t n = 0;
+  if (!read_spatial_header(data, size, origin, n, r, error)) return false;
+  {
+    std::vector<NodeRange> ranges;  // not needed here: leaves name their entries
+    spatial_topology(uint32_t(n), nodes, ranges);
+  }
+  entries.resize(n);
+  const bool ok = read_spatial_entries(
+      r, nodes,
+      [&entries](uint32_t k, const GridEntry& e) {
+        SpatialEntry& out = entries[k];
+        for (int a = 0; a < 3; ++a) {
+          out.min[a] = round_down(double(e.min[a]) * kSpatialCellM);
+          out.max[a] = round_up(double(e.max[a]) * kSpatialCellM);
+        }
+        out.slot = e.slot;
+      },
+      error);
+  if (!ok) {
+    nodes = {};
+    entries = {};
+    return false;
   }
   // Children come after their parent: fill bounds from the last node back.
   for (size_t i = nodes.size(); i-- > 0;) {
@@ -268,13 +344,14 @@ void expand_spatial(const std::vector<GridEntry>& entries, std::vector<SpatialNo
     };
     if (node.count > 0) {
       for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-        extend(packed[k].min, packed[k].max);
+        extend(entries[k].min, entries[k].max);
       }
     } else {
       extend(nodes[node.first].min, nodes[node.first].max);
       extend(nodes[node.first + 1].min, nodes[node.first + 1].max);
     }
   }
+  return true;
 }
 
 }  // namespace plantview::detail

@@ -45,7 +45,8 @@ DAabb grid_bounds(const GridEntry& entry, const glm::dvec3& origin);
 struct NodeRange {
   uint32_t begin, end;
 };
-// The hierarchy over n entries: nodes with first and count set (bounds left unset) and ranges.
+// The hierarchy over n entries: nodes with first and count set (bounds left unset) and ranges,
+// each allocated to its exact size (32 and 8 bytes a node; about n / 4 nodes).
 void spatial_topology(uint32_t n, std::vector<SpatialNode>& nodes, std::vector<NodeRange>& ranges);
 
 // Puts `entries` in tree order (see Shape above).
@@ -54,13 +55,15 @@ void build_spatial_tree(std::vector<GridEntry>& entries);
 // `entries` in tree order.
 void encode_spatial(const glm::dvec3& origin, const std::vector<GridEntry>& entries,
                     std::vector<uint8_t>& out);
-// False with a message on malformed bytes.
+// The stored form back on the grid (for an import, which rebuilds the hierarchy). False with a
+// message on malformed bytes.
 bool decode_spatial(const uint8_t* data, size_t size, glm::dvec3& origin,
                     std::vector<GridEntry>& entries, std::string& error);
-
-// The readers' form: float bounds relative to the origin, rounded outward; node bounds the union
-// of their entries.
-void expand_spatial(const std::vector<GridEntry>& entries, std::vector<SpatialNode>& nodes,
-                    std::vector<SpatialEntry>& packed);
+// The stored form straight into the readers' form: float bounds relative to the origin, rounded
+// outward; node bounds the union of their entries. Allocates exactly the two arrays (and a
+// transient 8 bytes per node), never the grid entries. False with a message on malformed bytes.
+bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origin,
+                             std::vector<SpatialNode>& nodes, std::vector<SpatialEntry>& entries,
+                             std::string& error);
 
 }  // namespace plantview::detail

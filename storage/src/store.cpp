@@ -124,9 +124,16 @@ struct Databases {
   MDB_dbi meta, objects, attributes, indexes, sources;
 };
 
+// How the pages of a value read in place stay after reading it (release_map_pages).
+enum class MapPages {
+  keep,      // a write transaction (its values may be its own copies of pages)
+  read_once  // a read transaction that inflates the value and never looks at it again
+};
+
 // An index value (indexes/<key>): a zstd frame, inflated into `raw`. `found` false if absent.
 bool read_index(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
-                std::vector<uint8_t>& raw, bool& found, std::string& why) {
+                std::vector<uint8_t>& raw, bool& found, std::string& why,
+                MapPages pages = MapPages::keep) {
   MDB_val k = as_val(key), v;
   const int rc = mdb_get(txn, dbi, &k, &v);
   found = rc == MDB_SUCCESS;
@@ -136,10 +143,16 @@ bool read_index(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx
     why = mdb_strerror(rc);
     return false;
   }
-  return detail::inflate_frame(dctx, {static_cast<const uint8_t*>(v.mv_data), v.mv_size}, raw, why);
+  const std::span<const uint8_t> frame(static_cast<const uint8_t*>(v.mv_data), v.mv_size);
+  if (pages == MapPages::keep) return detail::inflate_frame(dctx, frame, raw, why);
+  // Without readahead (MDB_NORDAHEAD) ask for the whole frame at once; drop it once inflated.
+  detail::prefetch_map_pages(v.mv_data, v.mv_size);
+  const bool ok = detail::inflate_frame(dctx, frame, raw, why);
+  detail::release_map_pages(v.mv_data, v.mv_size);
+  return ok;
 }
 
-// The key/slot table under indexes/<key> (empty if absent).
+// The key/slot table under indexes/<key> (empty if absent), whole: for an import.
 bool read_table(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
                 std::vector<KeySlot>& table, std::string& why) {
   std::vector<uint8_t> raw;
@@ -149,19 +162,112 @@ bool read_table(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx
   return !found || detail::decode_key_slots(raw.data(), raw.size(), table, why);
 }
 
-bool by_slot(const KeySlot& a, const KeySlot& b) { return a.slot < b.slot; }
+// An entry of the name table as read views keep it (sorted by hash, then slot): the name hash
+// fits in 32 bits.
+struct NameSlot {
+  uint32_t hash, slot;
+};
 
-// What read views need decoded from one committed state of the store: built by the first view
-// of that state and shared by every later one (read-only once built).
+// A table a snapshot builds on first use: once, by whichever view first needs it (in that
+// view's own read transaction, which reads the same committed state as every other view of the
+// snapshot), and read-only afterwards.
+template <typename Table>
+struct LazyTable {
+  std::once_flag once;
+  Table table;
+  std::string error;  // set (and the table left empty) if the stored table could not be read
+};
+
+// What read views need decoded from one committed state of the store, shared by every view of
+// that state. Sizes per object (slot) at 4 million objects in comments.
 struct Snapshot {
   size_t txn_id = 0;
-  std::vector<KeySlot> ids;       // key: id; sorted by id
-  std::vector<KeySlot> slot_ids;  // key: id; sorted by slot
-  std::vector<KeySlot> names;     // key: name hash; sorted by hash
+  // Decoded by the first view of the state (Store::read):
+  std::vector<uint64_t> id_by_slot;  // 0: no object in that slot; up to the highest slot (8 B)
   glm::dvec3 origin{0.0};
-  std::vector<SpatialNode> nodes;
-  std::vector<SpatialEntry> entries;
+  std::vector<SpatialNode> nodes;     // about one per 4 objects (32 B each)
+  std::vector<SpatialEntry> entries;  // one per object with geometry (28 B)
+  // Built by the first slot_of() or slots_named() that needs them:
+  mutable LazyTable<std::vector<uint32_t>> slots_by_id;  // every slot, by (id, slot) (4 B)
+  mutable LazyTable<std::vector<NameSlot>> names;        // sorted (8 B)
 };
+
+// The id of every slot from the id table (checking the table on the way): an array indexed by
+// slot, allocated once to its exact size. `next_slot` bounds the slots (and so the memory a
+// corrupt table can ask for).
+bool decode_id_by_slot(const std::vector<uint8_t>& raw, uint32_t next_slot,
+                       std::vector<uint64_t>& id_by_slot, std::string& why) {
+  detail::KeySlotReader reader;
+  KeySlot pair;
+  // First pass: check every pair and find the highest slot.
+  if (!reader.open(raw.data(), raw.size(), why)) return false;
+  uint32_t end = 0;
+  for (uint64_t i = 0; i < reader.size(); ++i) {
+    if (!reader.next(pair, why)) return false;
+    if (pair.key == 0) {
+      why = "entry " + std::to_string(i) + " has id 0";
+      return false;
+    }
+    if (pair.slot >= next_slot) {
+      why = "entry " + std::to_string(i) + " has slot " + std::to_string(pair.slot) +
+            ", beyond the store's next slot " + std::to_string(next_slot);
+      return false;
+    }
+    end = std::max(end, pair.slot + 1);
+  }
+  if (!reader.finish(why)) return false;
+  // Second pass: fill in the ids.
+  id_by_slot.assign(end, 0);
+  reader.open(raw.data(), raw.size(), why);  // checked above
+  for (uint64_t i = 0; i < reader.size(); ++i) {
+    reader.next(pair, why);
+    if (id_by_slot[pair.slot] != 0) {
+      why = "slot " + std::to_string(pair.slot) + " has two ids";
+      return false;
+    }
+    id_by_slot[pair.slot] = pair.key;
+  }
+  return true;
+}
+
+// The slots of the id table in its order (by id, then slot), to be looked up through
+// `id_by_slot` (which was decoded from the same table).
+bool decode_slots_by_id(const std::vector<uint8_t>& raw, const std::vector<uint64_t>& id_by_slot,
+                        std::vector<uint32_t>& slots, std::string& why) {
+  detail::KeySlotReader reader;
+  KeySlot pair;
+  if (!reader.open(raw.data(), raw.size(), why)) return false;
+  slots.reserve(reader.size());
+  for (uint64_t i = 0; i < reader.size(); ++i) {
+    if (!reader.next(pair, why)) return false;
+    // The table was checked against the store's slots when the snapshot was made; this keeps
+    // lookups within id_by_slot should the bytes have changed since (a damaged disk).
+    if (pair.slot >= id_by_slot.size()) {
+      why = "entry " + std::to_string(i) + " has slot " + std::to_string(pair.slot) +
+            ", beyond the highest slot the snapshot was opened with";
+      return false;
+    }
+    slots.push_back(pair.slot);
+  }
+  return reader.finish(why);
+}
+
+bool decode_names(const std::vector<uint8_t>& raw, std::vector<NameSlot>& names,
+                  std::string& why) {
+  detail::KeySlotReader reader;
+  KeySlot pair;
+  if (!reader.open(raw.data(), raw.size(), why)) return false;
+  names.reserve(reader.size());
+  for (uint64_t i = 0; i < reader.size(); ++i) {
+    if (!reader.next(pair, why)) return false;
+    if (pair.key > UINT32_MAX) {
+      why = "entry " + std::to_string(i) + " has a name hash over 32 bits";
+      return false;
+    }
+    names.push_back({uint32_t(pair.key), pair.slot});
+  }
+  return reader.finish(why);
+}
 
 }  // namespace
 
@@ -183,6 +289,8 @@ struct Store::State {
   std::string fail(std::string_view what, int rc) const { return lmdb_message(directory, what, rc); }
 
   // The decoded snapshot a read transaction sees (decoding it unless the latest is that one).
+  // Each stage frees its buffers before the next allocates, so that the peak stays near what is
+  // kept.
   std::shared_ptr<const Snapshot> snapshot_for(MDB_txn* txn, std::string& error) {
     const size_t txn_id = mdb_txn_id(txn);
     std::lock_guard lock(snapshot_mutex);
@@ -191,25 +299,34 @@ struct Store::State {
     s->txn_id = txn_id;
     detail::ZstdDCtx dctx(ZSTD_createDCtx());
     std::string why;
-    if (!read_table(txn, dbs.indexes, "ids", dctx.get(), s->ids, why)) {
-      error = "store " + directory + ": id table: " + why;
-      return nullptr;
-    }
-    s->slot_ids = s->ids;
-    std::sort(s->slot_ids.begin(), s->slot_ids.end(), by_slot);
-    if (!read_table(txn, dbs.indexes, "names", dctx.get(), s->names, why)) {
-      error = "store " + directory + ": name table: " + why;
-      return nullptr;
-    }
-    std::vector<uint8_t> raw;
-    std::vector<GridEntry> grid;
     bool found;
-    if (!read_index(txn, dbs.indexes, "spatial", dctx.get(), raw, found, why) ||
-        (found && !detail::decode_spatial(raw.data(), raw.size(), s->origin, grid, why))) {
-      error = "store " + directory + ": spatial index: " + why;
-      return nullptr;
+    // The id of every slot, for object() and for_each_object() (the slot lookups wait until
+    // slot_of() or slots_named() is called).
+    {
+      uint32_t next_slot = 0;
+      MDB_val k = as_val("next_slot"), v;
+      if (mdb_get(txn, dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
+        std::memcpy(&next_slot, v.mv_data, 4);
+      }
+      std::vector<uint8_t> raw;
+      if (!read_index(txn, dbs.indexes, "ids", dctx.get(), raw, found, why,
+                      MapPages::read_once) ||
+          (found && !decode_id_by_slot(raw, next_slot, s->id_by_slot, why))) {
+        error = "store " + directory + ": id table: " + why;
+        return nullptr;
+      }
     }
-    detail::expand_spatial(grid, s->nodes, s->entries);
+    // The spatial hierarchy, straight into the readers' form.
+    {
+      std::vector<uint8_t> raw;
+      if (!read_index(txn, dbs.indexes, "spatial", dctx.get(), raw, found, why,
+                      MapPages::read_once) ||
+          (found && !detail::decode_spatial_expanded(raw.data(), raw.size(), s->origin, s->nodes,
+                                                     s->entries, why))) {
+        error = "store " + directory + ": spatial index: " + why;
+        return nullptr;
+      }
+    }
     if (!latest || latest->txn_id < txn_id) latest = s;
     return s;
   }
@@ -537,6 +654,50 @@ struct ReadView::State {
         objects(s->dbs.objects, detail::kObjectShape, kObjectChunksCached, kChunkCacheBytes),
         attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
                    kChunkCacheBytes) {}
+
+  // Builds a lazy table of the snapshot from indexes/<key> unless it is built already (by this
+  // or another view of the snapshot). False with a message naming the store and `what`.
+  template <typename Table, typename Decode>
+  bool build_once(LazyTable<Table>& lazy, std::string_view key, std::string_view what,
+                  Decode decode, std::string& error) {
+    std::call_once(lazy.once, [&] {
+      lazy.table = {};  // a decoding that threw (out of memory) may have left some behind
+      std::vector<uint8_t> raw;
+      bool found;
+      std::string why;
+      if (!read_index(txn.get(), store->dbs.indexes, key, dctx.get(), raw, found, why,
+                      MapPages::read_once) ||
+          (found && !decode(raw, lazy.table, why))) {
+        lazy.table = {};
+        lazy.error = "store " + store->directory + ": " + std::string(what) + ": " + why;
+      }
+    });
+    if (!lazy.error.empty()) {
+      error = lazy.error;
+      return false;
+    }
+    return true;
+  }
+  bool slots_by_id_ready(std::string& error) {
+    return build_once(
+        snapshot->slots_by_id, "ids", "id table",
+        [this](const std::vector<uint8_t>& raw, std::vector<uint32_t>& slots, std::string& why) {
+          return decode_slots_by_id(raw, snapshot->id_by_slot, slots, why);
+        },
+        error);
+  }
+  bool names_ready(std::string& error) {
+    return build_once(snapshot->names, "names", "name table", decode_names, error);
+  }
+  // The entries of the names table with the hash of `name` (after names_ready()).
+  std::span<const NameSlot> name_candidates(std::string_view name) const {
+    const auto& names = snapshot->names.table;
+    const uint32_t hash = name_hash(name);
+    const auto [first, last] = std::equal_range(
+        names.begin(), names.end(), NameSlot{hash, 0},
+        [](const NameSlot& a, const NameSlot& b) { return a.hash < b.hash; });
+    return {first, last};
+  }
 };
 
 ReadView::ReadView(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -572,9 +733,8 @@ glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->origin; }
 
 bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const {
   State& s = *state_;
-  const auto& slot_ids = s.snapshot->slot_ids;
-  const auto it = std::lower_bound(slot_ids.begin(), slot_ids.end(), KeySlot{0, slot}, by_slot);
-  if (it == slot_ids.end() || it->slot != slot) {
+  const auto& id_by_slot = s.snapshot->id_by_slot;
+  if (slot >= id_by_slot.size() || id_by_slot[slot] == 0) {
     error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
     return false;
   }
@@ -589,7 +749,7 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
     error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
     return false;
   }
-  out.id = it->key;
+  out.id = id_by_slot[slot];
   if (!with_attributes) return true;
   ok = s.attributes.record(s.txn.get(), s.dctx.get(), slot, record, why);
   if (ok && record.empty()) {
@@ -604,33 +764,57 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
   return true;
 }
 
+bool ReadView::slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& error) const {
+  State& s = *state_;
+  slot.reset();
+  if (!s.slots_by_id_ready(error)) return false;
+  const auto& id_by_slot = s.snapshot->id_by_slot;
+  const auto& slots = s.snapshot->slots_by_id.table;
+  const auto it = std::partition_point(slots.begin(), slots.end(),
+                                       [&](uint32_t k) { return id_by_slot[k] < id; });
+  if (it != slots.end() && id_by_slot[*it] == id) slot = *it;
+  return true;
+}
+
 std::optional<uint32_t> ReadView::slot_of(uint64_t id) const {
-  const auto& ids = state_->snapshot->ids;
-  const auto it = std::lower_bound(ids.begin(), ids.end(), KeySlot{id, 0});
-  if (it == ids.end() || it->key != id) return std::nullopt;
-  return it->slot;
+  std::optional<uint32_t> slot;
+  std::string error;
+  slot_of(id, slot, error);
+  return slot;
+}
+
+bool ReadView::slots_named(std::string_view name, std::vector<uint32_t>& slots,
+                           std::string& error) const {
+  slots.clear();
+  if (!state_->names_ready(error)) return false;
+  // A hash may collide: confirm by the name itself.
+  for (const NameSlot& e : state_->name_candidates(name)) {
+    Object o;
+    if (!object(e.slot, o, false, error)) return false;
+    if (o.name == name) slots.push_back(e.slot);
+  }
+  return true;
 }
 
 std::vector<uint32_t> ReadView::slots_named(std::string_view name) const {
-  const auto& names = state_->snapshot->names;
-  const uint32_t hash = name_hash(name);
   std::vector<uint32_t> out;
-  // A hash may collide: confirm by the name itself.
-  for (auto it = std::lower_bound(names.begin(), names.end(), KeySlot{hash, 0});
-       it != names.end() && it->key == hash; ++it) {
+  std::string error;
+  if (!state_->names_ready(error)) return out;
+  for (const NameSlot& e : state_->name_candidates(name)) {
     Object o;
-    std::string error;
-    if (object(it->slot, o, false, error) && o.name == name) out.push_back(it->slot);
+    if (object(e.slot, o, false, error) && o.name == name) out.push_back(e.slot);
   }
   return out;
 }
 
 bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn,
                                bool with_attributes, std::string& error) const {
-  for (const KeySlot& e : state_->snapshot->slot_ids) {
+  const auto& id_by_slot = state_->snapshot->id_by_slot;
+  for (uint32_t slot = 0; slot < id_by_slot.size(); ++slot) {
+    if (id_by_slot[slot] == 0) continue;  // removed (or replaced) objects leave their slot empty
     Object o;
-    if (!object(e.slot, o, with_attributes, error)) return false;
-    if (!fn(e.slot, std::move(o))) return true;
+    if (!object(slot, o, with_attributes, error)) return false;
+    if (!fn(slot, std::move(o))) return true;
   }
   return true;
 }
@@ -660,7 +844,9 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 8);
   if (rc == MDB_SUCCESS) rc = mdb_env_set_mapsize(state->env.get(), kMapSizeBytes);
   if (rc == MDB_SUCCESS) rc = mdb_env_set_maxreaders(state->env.get(), 254);
-  const unsigned flags = MDB_NOTLS | (mode == Mode::read_only ? MDB_RDONLY : 0u);
+  // No readahead: readers fetch chunks of a few kilobytes at random, and readahead would bring
+  // (and count in the process's memory) most of the file around them.
+  const unsigned flags = MDB_NOTLS | MDB_NORDAHEAD | (mode == Mode::read_only ? MDB_RDONLY : 0u);
   if (rc == MDB_SUCCESS) rc = mdb_env_open(state->env.get(), directory.c_str(), flags, 0644);
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(directory, "opening", rc);

@@ -1,6 +1,6 @@
 #include "tables.h"
 
-#include "varint.h"
+#include <cassert>
 
 namespace plantview::detail {
 
@@ -15,46 +15,74 @@ void encode_key_slots(const std::vector<KeySlot>& table, std::vector<uint8_t>& o
   for (const KeySlot& e : table) put_varint(out, e.slot);
 }
 
-bool decode_key_slots(const uint8_t* data, size_t size, std::vector<KeySlot>& table,
-                      std::string& error) {
+bool KeySlotReader::open(const uint8_t* data, size_t size, std::string& error) {
   VarintReader r(data, size);
-  uint64_t n = 0;
-  table.clear();
+  count_ = read_ = 0;
+  previous_ = {};
   // Every pair takes at least two bytes: the count is checked before anything is allocated.
-  if (!r.get(n) || n > r.remaining() / 2) {
+  if (!r.get(count_) || count_ > r.remaining() / 2) {
+    count_ = 0;
     error = "table is truncated";
     return false;
   }
-  table.resize(n);
+  // The slot column starts after the key column: walk the keys once to find it.
+  keys_ = r;
   uint64_t key = 0;
-  for (KeySlot& e : table) {
+  for (uint64_t i = 0; i < count_; ++i) {
     uint64_t delta;
     if (!r.get(delta)) {
+      count_ = 0;
       error = "table is truncated";
       return false;
     }
     if (key + delta < key) {
+      count_ = 0;
       error = "table keys overflow";
       return false;
     }
     key += delta;
-    e.key = key;
   }
-  for (size_t i = 0; i < table.size(); ++i) {
-    if (!r.get_u32(table[i].slot)) {
-      error = "table is truncated";
-      return false;
-    }
-    if (i > 0 && !(table[i - 1] < table[i])) {
-      error = "table is out of order at entry " + std::to_string(i);
-      return false;
-    }
+  slots_ = r;
+  return true;
+}
+
+bool KeySlotReader::next(KeySlot& pair, std::string& error) {
+  assert(read_ < count_ && "KeySlotReader::next() past the end of the table");
+  uint64_t delta = 0;
+  keys_.get(delta);  // checked by open()
+  pair.key = previous_.key + delta;
+  if (!slots_.get_u32(pair.slot)) {
+    error = "table is truncated";
+    return false;
   }
-  if (!r.at_end()) {
+  if (read_ > 0 && !(previous_ < pair)) {
+    error = "table is out of order at entry " + std::to_string(read_);
+    return false;
+  }
+  previous_ = pair;
+  ++read_;
+  return true;
+}
+
+bool KeySlotReader::finish(std::string& error) const {
+  assert(read_ == count_ && "KeySlotReader::finish() before the last pair");
+  if (!slots_.at_end()) {
     error = "trailing bytes after the table";
     return false;
   }
   return true;
+}
+
+bool decode_key_slots(const uint8_t* data, size_t size, std::vector<KeySlot>& table,
+                      std::string& error) {
+  KeySlotReader reader;
+  table.clear();
+  if (!reader.open(data, size, error)) return false;
+  table.resize(reader.size());
+  for (KeySlot& e : table) {
+    if (!reader.next(e, error)) return false;
+  }
+  return reader.finish(error);
 }
 
 void encode_slot_runs(const std::vector<uint32_t>& slots, std::vector<uint8_t>& out) {

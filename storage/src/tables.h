@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "varint.h"
+
 namespace plantview::detail {
 
 struct KeySlot {
@@ -26,6 +28,25 @@ void encode_key_slots(const std::vector<KeySlot>& table, std::vector<uint8_t>& o
 // False with a message if the bytes are malformed or out of order.
 bool decode_key_slots(const uint8_t* data, size_t size, std::vector<KeySlot>& table,
                       std::string& error);
+
+// Reads a key/slot table where it lies, pair by pair, so that a reader keeps only what it needs
+// of it (never the 16-byte pairs). Messages are those of decode_key_slots. Allocates nothing.
+class KeySlotReader {
+ public:
+  // Checks the count and the key column; `data` must outlive the reader. False with a message.
+  bool open(const uint8_t* data, size_t size, std::string& error);
+  uint64_t size() const { return count_; }
+  // The next pair in table order. Call it size() times, then finish(). False with a message if
+  // the slot column is malformed or the pair is out of order.
+  bool next(KeySlot& pair, std::string& error);
+  // False with a message unless the table ended exactly at the end of the bytes.
+  bool finish(std::string& error) const;
+
+ private:
+  VarintReader keys_{nullptr, 0}, slots_{nullptr, 0};
+  uint64_t count_ = 0, read_ = 0;
+  KeySlot previous_{};
+};
 
 // `slots` sorted ascending, without duplicates.
 void encode_slot_runs(const std::vector<uint32_t>& slots, std::vector<uint8_t>& out);

@@ -29,14 +29,33 @@
 //     store (LMDB serialises writers, across processes too).
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
-//   - The indexes are decoded into memory once per committed state of the store, by the first
-//     view that reads that state, and shared by the later views of it (read() is then cheap).
+//   - What views need of the indexes is decoded into memory once per committed state of the
+//     store and shared by every view of that state; a view keeps its state's memory alive.
+//     * The first view of a state (read()) decodes the id of every slot (8 bytes a slot, up to
+//       the highest slot in use: for object() and for_each_object()) and the spatial hierarchy
+//       (28 bytes an object with geometry and a 32-byte node per 4 or so): about 45 MB per
+//       million objects, in about 0.4 s per million. It checks the id table on the way.
+//     * The lookup tables wait for their first use, on whichever view of the state asks first
+//       (another asking meanwhile waits for it): slot_of() builds the slots by id (4 bytes an
+//       object), slots_named() the name hashes (8 bytes an object); about 80 ms per million
+//       objects each. A renderer that never asks never pays.
+//     * Decoding holds one index's inflated bytes at a time, besides what it keeps (10 to 12
+//       bytes an object), and frees them before going on.
 //     Spans a view returns point into that memory and are valid until the view is destroyed.
+//   - Values are read in place from LMDB's mapping of the data file, and every page read counts
+//     in the process's resident memory until the kernel reclaims it. So the environment reads
+//     no more than is asked for (no readahead), index values are dropped from the resident set
+//     once decoded, and a view drops the pages of the chunks it has decompressed every 256
+//     chunks and when destroyed (the kernel's page cache keeps them all: reading them again
+//     costs a minor fault). A view that has read the whole store holds about a twentieth of
+//     the file (pages the kernel maps around those read), not all of it.
 //   - object() decompresses the 64-slot chunk holding the slot and keeps the view's 32 most
 //     recently used chunks: fetching neighbouring slots costs one decompression per chunk.
 //
 // Errors: every fallible call returns false (or an empty optional) and sets a message that
-// names the store directory and the operation or slot (and the LMDB or zstd reason).
+// names the store directory and the operation or slot (and the LMDB or zstd reason). slot_of()
+// and slots_named() also have short forms without a message, for callers that treat "cannot
+// tell" as "none".
 #pragma once
 
 #include <cstdint>
@@ -131,9 +150,21 @@ class ReadView {
   // chunk is decompressed once. Slots follow import order, which keeps a pipe run's parts
   // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
+
+  // The slot of the object with this id: `slot` empty if there is none. Binary search (1 to 2
+  // microseconds at 4 million objects). The first call on any view of a committed state builds
+  // the lookup table (see "Transactions and lifetimes"); false with a message naming the store
+  // if the stored id table cannot be read then (and on every later call on views of that state).
+  bool slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& error) const;
+  // The same, empty also when the id table cannot be read.
   std::optional<uint32_t> slot_of(uint64_t id) const;
-  // Slots of the objects with this exact name (usually one). Binary search, then each candidate
-  // is confirmed by its record.
+  // Slots of the objects with this exact name (usually one), in slot order. Binary search, then
+  // each candidate is confirmed by its record. The first call on any view of a committed state
+  // builds the lookup table; false with a message naming the store if the stored name table,
+  // or a candidate's record, cannot be read.
+  bool slots_named(std::string_view name, std::vector<uint32_t>& slots, std::string& error) const;
+  // The same, empty when the name table cannot be read; a candidate whose record cannot be read
+  // is left out.
   std::vector<uint32_t> slots_named(std::string_view name) const;
   // Calls fn for every object in slot order until it returns false.
   bool for_each_object(const std::function<bool(uint32_t slot, Object&&)>& fn, bool with_attributes,
@@ -159,7 +190,8 @@ class Store {
   // Starts the (only) write transaction. Fails on a read-only store.
   std::unique_ptr<Import> begin_import(std::string& error);
   // Starts a read snapshot. May be called from any thread; the view stays on that thread. The
-  // first view of a newly committed state decodes its indexes (about 30 ms for preset c).
+  // first view of a newly committed state decodes its indexes (see "Transactions and
+  // lifetimes"); a failure there (a corrupt id table or spatial index) fails read().
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;
