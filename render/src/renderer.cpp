@@ -53,9 +53,14 @@ struct Known {
   Colour colour;
   glm::dvec3 origin_m{0.0};
   uint64_t pipeline_id = 0;
-  std::vector<Primitive> primitives;  // owns facet groups' triangles that plans point into
+  // The primitives, while needed: until the object is first resident, and always for facet
+  // groups (whose plans point into them) and merged runs (which the store does not hold); other
+  // objects are decoded again from the store when they must be tessellated again.
+  std::vector<Primitive> primitives;
+  std::vector<MeshPlan> own_plans;  // facet groups' plans (others share the renderer's)
+  bool keeps_primitives = false;
   struct Part {
-    MeshPlan plan;
+    const MeshPlan* plan;   // shared per template (errors zeroed: see error_m), or own_plans
     uint32_t first_vertex;  // within the object's vertices
     uint32_t primitive;     // index into primitives
     // While resident: the part's first vertex within what the arena holds of the object, and
@@ -80,6 +85,17 @@ struct Known {
   uint8_t base = 0;
   uint32_t resident_centreline_first = 0;
   uint64_t last_seen = 0;           // frame
+};
+
+// Template plans are shared by every primitive of the template and winding; their errors are
+// zeroed (they differ with the placement's scale: Known::error_m holds the object's).
+struct PlanKey {
+  const uint32_t* finest;  // the template's level-0 indices: unique per template
+  bool flip;
+  bool operator==(const PlanKey&) const = default;
+};
+struct PlanKeyHash {
+  size_t operator()(const PlanKey& k) const { return std::hash<const void*>()(k.finest) ^ size_t(k.flip); }
 };
 
 // A template's levels from `base` on, over only the vertices they use: what an object resident
@@ -230,6 +246,7 @@ struct Renderer::State {
   // Residency (in vertices) and what is known of decoded objects and runs, by residency key.
   detail::Residency residency{0};
   std::unordered_map<uint32_t, Known> known;
+  std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans;  // few: per template and winding
   std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions;  // few: per template
   // Pipeline HLOD: runs found so far, the run of each member slot, pipelines analysed.
   std::vector<detail::PipelineRun> runs;
@@ -275,9 +292,9 @@ struct Renderer::State {
   // faces culled), open opaque meshes, see-through triangles, lines.
   enum List : uint8_t { kClosed, kOpen, kTransparent, kLines, kListCount };
   static List list_of(const Known& k, const Known::Part& part) {
-    if (part.plan.topology == Topology::lines) return kLines;
+    if (part.plan->topology == Topology::lines) return kLines;
     if (k.colour.a < 255) return kTransparent;
-    return part.plan.closed ? kClosed : kOpen;
+    return part.plan->closed ? kClosed : kOpen;
   }
   std::array<size_t, kListCount> list_counts{};
   std::vector<Visible> visible;
@@ -325,6 +342,7 @@ struct Renderer::State {
   void bind_arena();
   bool ensure_framebuffer(uint32_t w, uint32_t h, std::string& error);
   bool open_view(std::string& error);
+  void fill_known(Known& k, Object& o, bool keeps_primitives);
   Known* know(uint32_t slot, std::string& error);
   void analyse_pipeline(uint64_t pipeline_id, std::string& error);
   Known* know_run(uint32_t run);
@@ -540,7 +558,7 @@ bool Renderer::State::open_view(std::string& error) {
 }
 
 // Fills a Known from an object (primitives moved out of it).
-static void fill_known(Known& k, Object& o) {
+void Renderer::State::fill_known(Known& k, Object& o, bool keeps_primitives) {
   k.id = o.id;
   k.object_class = o.object_class;
   k.colour = o.colour;
@@ -548,22 +566,38 @@ static void fill_known(Known& k, Object& o) {
   k.pipeline_id = o.pipeline_id;
   k.primitives = std::move(o.primitives);
   o.primitives.clear();
+  k.keeps_primitives = keeps_primitives;
   k.parts.clear();
   k.parts.reserve(k.primitives.size());
+  k.own_plans.clear();
+  size_t facet_groups = 0;
+  for (const Primitive& p : k.primitives) facet_groups += std::holds_alternative<FacetGroup>(p.shape);
+  k.own_plans.reserve(facet_groups);  // never reallocated: parts point into it
+  k.keeps_primitives |= facet_groups > 0;
   uint32_t vertex_count = 0;
   for (uint32_t i = 0; i < k.primitives.size(); ++i) {
-    Known::Part part{plan_mesh(k.primitives[i]), vertex_count, i};
-    if (part.plan.vertex_count == 0) continue;
-    vertex_count += part.plan.vertex_count;
-    if (part.plan.topology == Topology::lines) {
+    MeshPlan plan = plan_mesh(k.primitives[i]);
+    if (plan.vertex_count == 0) continue;
+    vertex_count += plan.vertex_count;
+    if (plan.topology == Topology::lines) {
       k.has_lines = true;
     } else {
       k.has_triangles = true;
-      k.level_count = std::max(k.level_count, part.plan.level_count);
+      k.level_count = std::max(k.level_count, plan.level_count);
       for (uint32_t l = 0; l < kMaxLevels; ++l)
-        k.error_m[l] = std::max(k.error_m[l], part.plan.error_m[part.plan.clamp_level(l)]);
+        k.error_m[l] = std::max(k.error_m[l], plan.error_m[plan.clamp_level(l)]);
     }
-    k.parts.push_back(part);
+    const MeshPlan* shared;
+    if (std::holds_alternative<FacetGroup>(k.primitives[i].shape)) {
+      shared = &k.own_plans.emplace_back(plan);
+    } else {
+      plan.error_m = {};
+      const auto [it, added] = plans.try_emplace(PlanKey{plan.indices[0].data(), plan.flip_winding}, plan);
+      assert(it->second.vertex_count == plan.vertex_count && it->second.closed == plan.closed &&
+             it->second.topology == plan.topology && it->second.level_count == plan.level_count);
+      shared = &it->second;
+    }
+    k.parts.push_back({shared, vertex_count - plan.vertex_count, i});
   }
   if (o.object_class == ObjectClass::pipe && !o.centreline.empty()) {
     k.centreline = o.centreline;
@@ -578,7 +612,7 @@ Known* Renderer::State::know(uint32_t slot, std::string& error) {
   if (const auto it = known.find(slot); it != known.end()) return &it->second;
   if (!view->object(slot, object, false, error)) return nullptr;
   Known& k = known[slot];
-  fill_known(k, object);
+  fill_known(k, object, false);
   if (options.hlod && k.pipeline_id != 0 &&
       (k.object_class == ObjectClass::pipe || k.object_class == ObjectClass::component)) {
     if (!pipelines_analysed.count(k.pipeline_id)) {
@@ -642,7 +676,7 @@ Known* Renderer::State::know_run(uint32_t run) {
   o.primitives.push_back(detail::merged_cylinder(r, r.start_m));
   o.centreline.push_back({glm::vec3(0.0f), glm::vec3(r.end_m - r.start_m), r.diameter_m});
   Known& k = known[key];
-  fill_known(k, o);
+  fill_known(k, o, true);
   return &k;
 }
 
@@ -672,10 +706,15 @@ const Compaction& Renderer::State::compaction(const MeshPlan& plan, uint8_t base
 bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats,
                                     std::string& error, bool& fits) {
   base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  const std::vector<Primitive>* primitives = &k.primitives;
+  if (k.primitives.empty() && !k.parts.empty()) {  // dropped after an earlier upload
+    if (!view->object(key, object, false, error)) return false;
+    primitives = &object.primitives;
+  }
   vertices.resize(k.vertex_count);
   for (const auto& part : k.parts) {
-    write_vertices(k.primitives[part.primitive], part.plan, glm::dvec3(0.0),
-                   std::span<PackedVertex>(vertices.data() + part.first_vertex, part.plan.vertex_count));
+    write_vertices((*primitives)[part.primitive], *part.plan, glm::dvec3(0.0),
+                   std::span<PackedVertex>(vertices.data() + part.first_vertex, part.plan->vertex_count));
   }
   for (size_t s = 0; s < k.centreline.size(); ++s) {
     vertices[k.centreline_first + 2 * s] = {k.centreline[s].start_m, 0u};
@@ -691,14 +730,14 @@ bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameS
     // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
     compacted.clear();
     for (Known::Part& part : k.parts) {
-      const uint8_t part_base = uint8_t(part.plan.clamp_level(base));
+      const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
       part.resident_first = uint32_t(compacted.size());
       if (part_base == 0) {  // a one-level part (facet groups among them): all of it
         compacted.insert(compacted.end(), vertices.begin() + part.first_vertex,
-                         vertices.begin() + part.first_vertex + part.plan.vertex_count);
+                         vertices.begin() + part.first_vertex + part.plan->vertex_count);
         continue;
       }
-      const Compaction& c = compaction(part.plan, part_base);
+      const Compaction& c = compaction(*part.plan, part_base);
       part.resident_plan = &c.plan;
       for (const uint32_t v : c.kept) compacted.push_back(vertices[part.first_vertex + v]);
     }
@@ -731,6 +770,10 @@ bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameS
                        GLsizeiptr(count * sizeof(uint32_t)), vertex_objects.data());
   stats.objects_tessellated += 1;
   stats.arena_bytes_uploaded += uint64_t(count) * kBytesPerVertex;
+  if (!k.keeps_primitives) {
+    k.primitives.clear();
+    k.primitives.shrink_to_fit();
+  }
   return true;
 }
 
@@ -1020,10 +1063,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       continue;
     }
     for (const Known::Part& part : k.parts) {
-      const uint32_t l = part.plan.clamp_level(level);
-      const uint32_t n = part.plan.index_count(l);
+      const uint32_t l = part.plan->clamp_level(level);
+      const uint32_t n = part.plan->index_count(l);
       list_counts[list_of(k, part)] += n;
-      if (part.plan.topology == Topology::lines) {
+      if (part.plan->topology == Topology::lines) {
         stats.lines += n / 2;
       } else {
         stats.triangles += n / 3;
@@ -1082,7 +1125,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       continue;
     }
     for (const Known::Part& part : k.parts) {
-      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : part.plan;
+      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
       uint32_t*& at = cursor[list_of(k, part)];
       at += write_indices(plan, d.level, d.arena_first + part.resident_first,
                           std::span<uint32_t>(at, plan.index_count(d.level)));
