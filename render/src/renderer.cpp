@@ -285,6 +285,7 @@ struct Renderer::State {
     uint8_t level;
     bool centreline;
     const Visible* visible;
+    double distance_m = 0;    // from the eye to the nearest point of its bounds
     bool drawn = false;       // resident this frame (else a proxy box or nothing)
     uint32_t arena_first = 0;  // the object's first vertex in the arena, once drawn
   };
@@ -297,6 +298,7 @@ struct Renderer::State {
     return part.plan->closed ? kClosed : kOpen;
   }
   std::array<size_t, kListCount> list_counts{};
+  std::vector<uint32_t> draw_order;
   std::vector<Visible> visible;
   std::vector<Draw> draws;
   std::vector<uint32_t> stack, count_stack;
@@ -516,11 +518,11 @@ bool Renderer::State::open_view(std::string& error) {
   spatial_origin = view->spatial_origin();
   const ModelStatistics statistics = view->info().statistics;
   bounds = statistics.bounds;
-  // A model that would fill the budget at full resolution gets the whole arena now: growing it
-  // later copies it, and the old and new buffers together would exceed the budget for a moment.
-  // (Full-resolution meshes have fewer vertices than triangles.)
-  if (!grow_arena(std::min(options.vertex_budget_bytes / kBytesPerVertex, statistics.triangles), error))
-    return false;
+  // A model larger than the budget at full resolution (one that will fill it) gets the whole
+  // arena now: growing it later copies it, and the old and new buffers together would exceed
+  // the budget for a moment. Smaller ones grow as they need (a new buffer costs zeroing it).
+  const uint64_t budget_vertices = options.vertex_budget_bytes / kBytesPerVertex;
+  if (statistics.triangles > budget_vertices && !grow_arena(budget_vertices, error)) return false;
   // Forget everything: the snapshot may differ. The proxy cube stays at offset 0.
   known.clear();
   runs.clear();
@@ -981,7 +983,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
           uint8_t level;
           bool centreline;
           choose(*rk, d, px, glm::length(run.end_m - run.start_m), level, centreline);
-          draws.push_back({kRunKeyBit | r, rk, level, centreline, nullptr});
+          draws.push_back({kRunKeyBit | r, rk, level, centreline, nullptr, d});
           stats.hlod_merges += 1;
         }
       }
@@ -993,7 +995,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     uint8_t level;
     bool centreline;
     choose(*k, v.distance_m, v.px_per_m, extent(v), level, centreline);
-    draws.push_back({v.slot, k, level, centreline, &v});
+    draws.push_back({v.slot, k, level, centreline, &v, v.distance_m});
   }
   stats.ms.choose = ms_since(t_choose) - decode_ms;
 
@@ -1116,12 +1118,19 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   }
   std::array<uint32_t*, kListCount> cursor;
   for (int list = 0; list < kListCount; ++list) cursor[list] = indices + list_first[list];
-  for (const Draw& d : draws) {
-    if (!d.drawn) continue;
+  // Nearest first: hidden fragments then fail the depth test before they are shaded.
+  draw_order.clear();
+  for (uint32_t i = 0; i < draws.size(); ++i)
+    if (draws[i].drawn) draw_order.push_back(i);
+  std::sort(draw_order.begin(), draw_order.end(), [&](uint32_t a, uint32_t b) {
+    return draws[a].distance_m < draws[b].distance_m;
+  });
+  for (const uint32_t i : draw_order) {
+    const Draw& d = draws[i];
     const Known& k = *d.known;
     if (d.centreline) {
       const uint32_t first = d.arena_first + k.resident_centreline_first;
-      for (uint32_t i = 0; i < 2 * k.centreline.size(); ++i) *cursor[kLines]++ = first + i;
+      for (uint32_t c = 0; c < 2 * k.centreline.size(); ++c) *cursor[kLines]++ = first + c;
       continue;
     }
     for (const Known::Part& part : k.parts) {
