@@ -1110,8 +1110,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     index_capacity = std::max(index_bytes, index_capacity * 3 / 2);
     glNamedBufferData(index_buffer, GLsizeiptr(index_capacity), nullptr, GL_STREAM_DRAW);
   }
+  // Unsynchronised: the previous frame was finished (read back) before this one began, and
+  // invalidating would make the driver allocate (and zero) new storage every frame.
   auto* indices = static_cast<uint32_t*>(glMapNamedBufferRange(
-      index_buffer, 0, GLsizeiptr(index_bytes), GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT));
+      index_buffer, 0, GLsizeiptr(index_bytes), GL_MAP_WRITE_BIT | GL_MAP_UNSYNCHRONIZED_BIT));
   if (!indices) {
     error = "renderer: cannot map " + std::to_string(index_bytes >> 20) + " MB of index buffer";
     return false;
@@ -1154,9 +1156,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     if (bytes > capacity) {
       capacity = std::max(bytes, capacity * 3 / 2);
       glNamedBufferData(buffer, GLsizeiptr(capacity), nullptr, GL_STREAM_DRAW);
-    } else {
-      glInvalidateBufferData(buffer);
-    }
+    }  // (no invalidation: the buffer is idle, and new storage would be zeroed every frame)
     size_t at = 0;
     for (const auto& [data, size] : parts) {
       if (size) glNamedBufferSubData(buffer, GLintptr(at), GLsizeiptr(size), data);
