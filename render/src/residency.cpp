@@ -74,7 +74,8 @@ std::optional<uint64_t> Residency::offset(uint32_t key) const {
 
 uint32_t Residency::counter(uint32_t key) const {
   const auto it = entries_.find(key);
-  return it == entries_.end() ? 0 : it->second.counter;
+  if (it == entries_.end() || it->second.visible_frame >= ended_) return 0;
+  return uint32_t(ended_ - it->second.visible_frame);
 }
 
 std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
@@ -87,11 +88,12 @@ std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
       candidates_.clear();
       for (const auto& [k, e] : entries_)
         if (e.visible_frame != frame_) candidates_.push_back(k);
-      // Best candidate last: largest counter, then largest size, then key for determinism.
+      // Best candidate last: largest counter (the longest unseen), then largest size, then key
+      // for determinism.
       std::sort(candidates_.begin(), candidates_.end(), [&](uint32_t a, uint32_t b) {
         const Entry& ea = entries_.at(a);
         const Entry& eb = entries_.at(b);
-        if (ea.counter != eb.counter) return ea.counter < eb.counter;
+        if (ea.visible_frame != eb.visible_frame) return ea.visible_frame > eb.visible_frame;
         if (ea.units != eb.units) return ea.units < eb.units;
         return a > b;
       });
@@ -112,7 +114,7 @@ std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
     evicted.emplace_back(victim, e.units);
     place = allocator_.allocate(units);
   }
-  entries_.emplace(key, Entry{*place, units, 0, frame_});
+  entries_.emplace(key, Entry{*place, units, frame_});
   return place;
 }
 
@@ -123,8 +125,6 @@ void Residency::drop(uint32_t key) {
   entries_.erase(it);
 }
 
-void Residency::end_frame() {
-  for (auto& [k, e] : entries_) e.counter = e.visible_frame == frame_ ? 0 : e.counter + 1;
-}
+
 
 }  // namespace plantview::detail

@@ -55,8 +55,9 @@ class Residency {
                                 std::vector<std::pair<uint32_t, uint64_t>>& evicted);
   // Drops a resident object (e.g. when its data could not be written).
   void drop(uint32_t key);
-  // Ages every object not visible this frame.
-  void end_frame();
+  // Ages every object not visible this frame. (No work per object: a counter is the number of
+  // ended frames since the object was last visible.)
+  void end_frame() { ended_ = frame_; }
 
   uint64_t used_units() const { return allocator_.used(); }
   uint64_t capacity_units() const { return allocator_.capacity(); }
@@ -65,12 +66,11 @@ class Residency {
  private:
   struct Entry {
     uint64_t offset = 0, units = 0;
-    uint32_t counter = 0;
     uint64_t visible_frame = 0;
   };
   RangeAllocator allocator_;
   std::unordered_map<uint32_t, Entry> entries_;
-  uint64_t frame_ = 0;
+  uint64_t frame_ = 0, ended_ = 0;
   // This frame's eviction candidates, best last (popped from the back).
   std::vector<uint32_t> candidates_;
   bool candidates_built_ = false;
