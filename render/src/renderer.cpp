@@ -31,7 +31,7 @@ constexpr uint32_t kProxyVertices = 24;   // the unit cube of budget proxies, at
 constexpr uint32_t kProxyKey = UINT32_MAX;
 constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run index
 constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
-constexpr uint64_t kInitialArenaVertices = 1u << 20;  // the GPU buffers grow from here
+constexpr uint64_t kInitialArenaVertices = 1u << 16;  // the GPU buffers grow from here
 constexpr size_t kKnownObjectsKept = 20000;  // decoded objects kept beyond the resident ones
 constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
 constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
@@ -349,6 +349,17 @@ struct Renderer::State {
   void analyse_pipeline(uint64_t pipeline_id, std::string& error);
   Known* know_run(uint32_t run);
   const Compaction& compaction(const MeshPlan& plan, uint8_t base);
+  // Vertices an object takes in the arena when resident from level `base` on.
+  uint64_t resident_vertices(const Known& k, uint8_t base) {
+    base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+    if (base == 0) return k.vertex_count;
+    uint64_t n = 2 * k.centreline.size();
+    for (const Known::Part& part : k.parts) {
+      const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
+      n += part_base == 0 ? part.plan->vertex_count : compaction(*part.plan, part_base).kept.size();
+    }
+    return n;
+  }
   bool make_resident(uint32_t key, Known& k, uint8_t base, FrameStats& stats, std::string& error,
                      bool& fits);
   void release(uint32_t key, Known& k) {
@@ -436,11 +447,11 @@ void Renderer::State::bind_arena() {
 }
 
 // The GPU buffers hold at least `vertices_needed` (never more than the budget), keeping what
-// they held.
+// they held. They grow at least by half, so that a slowly filling arena is not copied often.
 bool Renderer::State::grow_arena(uint64_t vertices_needed, std::string& error) {
   if (vertices_needed <= arena_vertices_gl) return true;
   const uint64_t budget = options.vertex_budget_bytes / kBytesPerVertex;
-  const uint64_t size = std::min(budget, std::max(vertices_needed, 2 * arena_vertices_gl));
+  const uint64_t size = std::min(budget, std::max(vertices_needed, arena_vertices_gl * 3 / 2));
   GLuint buffers[2];
   glCreateBuffers(2, buffers);
   glNamedBufferStorage(buffers[0], GLsizeiptr(size * sizeof(PackedVertex)), nullptr, GL_DYNAMIC_STORAGE_BIT);
@@ -1018,6 +1029,20 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     pick_ids.push_back(id);
     e.pick = uint32_t(pick_ids.size());
   };
+  // Grow the GPU buffers once for what this frame will stream (at most: with the level slack),
+  // rather than object by object: every new buffer is zeroed and the old one copied into it.
+  {
+    const bool roomy = residency.used_units() * 2 < residency.capacity_units();
+    uint64_t needed = 0;
+    for (const Draw& d : draws) {
+      const Known& k = *d.known;
+      if (residency.resident(d.key) && d.level >= k.base) continue;
+      const uint8_t base = options.lod_policy == LodPolicy::none ? 0
+                           : uint8_t(d.level > 0 && roomy ? d.level - 1 : d.level);
+      needed += resident_vertices(k, base);
+    }
+    if (needed && !grow_arena(residency.used_units() + needed, error)) return false;
+  }
   for (Draw& d : draws) {
     Known& k = *d.known;
     uint32_t level = d.level;
