@@ -449,8 +449,9 @@ void Renderer::State::bind_arena() {
 // The GPU buffers hold at least `vertices_needed` (never more than the budget), keeping what
 // they held. They grow at least by half, so that a slowly filling arena is not copied often.
 bool Renderer::State::grow_arena(uint64_t vertices_needed, std::string& error) {
-  if (vertices_needed <= arena_vertices_gl) return true;
   const uint64_t budget = options.vertex_budget_bytes / kBytesPerVertex;
+  vertices_needed = std::min(vertices_needed, budget);  // (a full arena evicts instead)
+  if (vertices_needed <= arena_vertices_gl) return true;
   const uint64_t size = std::min(budget, std::max(vertices_needed, arena_vertices_gl * 3 / 2));
   GLuint buffers[2];
   glCreateBuffers(2, buffers);
