@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <deque>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -124,15 +125,15 @@ layout(location = 1) in vec4 a_normal;
 layout(location = 2) in uint a_object;
 layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
 uniform mat4 u_view_projection;
-out vec3 v_position;
+// Per-object values are flat, and the view direction is rebuilt per fragment from its window
+// position: fewer interpolated values make each triangle cheaper to set up and to bin.
 out vec3 v_normal;
-out vec4 v_colour;
+flat out vec4 v_colour;
 flat out uint v_pick;
 void main() {
   vec4 a = objects[2u * a_object];
   vec4 b = objects[2u * a_object + 1u];
   vec3 p = a_position * b.xyz + a.xyz;
-  v_position = p;
   v_normal = a_normal.xyz;
   v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
   v_pick = floatBitsToUint(b.w);
@@ -141,13 +142,16 @@ void main() {
 )";
 
 const char* kFragmentShader = R"(#version 450 core
-in vec3 v_position;
 in vec3 v_normal;
-in vec4 v_colour;
+flat in vec4 v_colour;
 flat in uint v_pick;
 layout(location = 0) out vec4 o_colour;
 layout(location = 1) out uint o_pick;
 uniform vec3 u_sun;  // unit, towards the light, in the camera-relative frame
+// The ray through a window position: u_ray * vec3(position * u_window_scale - 1, -1), in the
+// camera-relative frame (not normalised).
+uniform mat3 u_ray;
+uniform vec2 u_window_scale;
 void main() {
   vec3 base = v_colour.rgb;
   float n_length = length(v_normal);
@@ -156,7 +160,7 @@ void main() {
     lit = base * 0.8;  // lines have no normal
   } else {
     vec3 n = v_normal / n_length;
-    vec3 to_eye = normalize(-v_position);
+    vec3 to_eye = -normalize(u_ray * vec3(gl_FragCoord.xy * u_window_scale - 1.0, -1.0));
     if (dot(n, to_eye) < 0.0) n = -n;  // two-sided: open meshes and facet groups
     float head = max(dot(n, to_eye), 0.0);
     float sun = max(dot(n, u_sun), 0.0);
@@ -249,7 +253,8 @@ struct Renderer::State {
   std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans;  // few: per template and winding
   std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions;  // few: per template
   // Pipeline HLOD: runs found so far, the run of each member slot, pipelines analysed.
-  std::vector<detail::PipelineRun> runs;
+  std::deque<detail::PipelineRun> runs;  // (a deque: growing it copies nothing)
+  std::vector<detail::PipelineRun> branch_runs;
   std::vector<uint64_t> run_decided_frame;
   std::vector<uint8_t> run_merged, run_drawn;
   std::unordered_map<uint32_t, uint32_t> run_of_slot;
@@ -264,7 +269,7 @@ struct Renderer::State {
   GLuint program = 0, vao = 0, proxy_vao = 0, arena = 0, arena_objects = 0, index_buffer = 0,
          table_buffer = 0, proxy_buffer = 0, cube_indices = 0;
   uint64_t arena_vertices_gl = 0;  // size of the GPU buffers, in vertices (<= the budget)
-  GLint u_view_projection = -1, u_sun = -1;
+  GLint u_view_projection = -1, u_sun = -1, u_ray = -1, u_window_scale = -1;
   // Drawing goes to `framebuffer` (multisampled when samples > 1), then is resolved into
   // `resolved` (single-sampled) for reading back.
   GLuint framebuffer = 0, colour_rb = 0, pick_rb = 0, depth_rb = 0;
@@ -405,6 +410,8 @@ bool Renderer::State::init_gl(std::string& error) {
   }
   u_view_projection = glGetUniformLocation(program, "u_view_projection");
   u_sun = glGetUniformLocation(program, "u_sun");
+  u_ray = glGetUniformLocation(program, "u_ray");
+  u_window_scale = glGetUniformLocation(program, "u_window_scale");
 
   glCreateBuffers(1, &index_buffer);
   glCreateBuffers(1, &table_buffer);
@@ -662,7 +669,9 @@ void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error)
     branch.clear();
     for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
     const size_t first = runs.size();
-    detail::find_runs(branch, runs);
+    branch_runs.clear();
+    detail::find_runs(branch, branch_runs);
+    for (auto& run : branch_runs) runs.push_back(std::move(run));
     for (size_t r = first; r < runs.size(); ++r) {
       for (const uint32_t m : runs[r].members) {
         run_of_slot[m] = uint32_t(r);
@@ -1216,6 +1225,11 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   glUniformMatrix4fv(u_view_projection, 1, GL_FALSE, glm::value_ptr(view_projection));
   const glm::vec3 sun = glm::normalize(glm::mat3(view_rotation) * glm::vec3(0.3f, 0.5f, 0.8f));
   glUniform3fv(u_sun, 1, glm::value_ptr(sun));
+  // View space to the camera-relative frame, with the half-angle tangents of the view.
+  const glm::mat3 ray = glm::transpose(glm::mat3(view_rotation)) *
+                        glm::mat3(glm::vec3(aspect / focal, 0, 0), glm::vec3(0, 1.0f / focal, 0), glm::vec3(0, 0, 1));
+  glUniformMatrix3fv(u_ray, 1, GL_FALSE, glm::value_ptr(ray));
+  glUniform2f(u_window_scale, 2.0f / float(w), 2.0f / float(h));
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer);
   glDisablei(GL_BLEND, 0);
   glBindVertexArray(vao);
