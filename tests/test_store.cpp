@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -15,6 +16,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <span>
 #include <thread>
 
 #include "plantview/store.h"
@@ -67,6 +69,21 @@ Object sample_object(const std::string& source, const std::string& name, glm::dv
   o.centreline = {{{0, 0, 0}, {2, 0, 0}, 0.3f}};
   o.branches = {{"B1", {1, 2, 3}}};
   return o;
+}
+
+// Every entry's bounds (entry_bounds() through the leaf that holds it), by entry index.
+std::vector<std::array<float, 6>> entry_boxes(std::span<const SpatialNode> nodes, size_t entries,
+                                              std::span<const SpatialEntry> entry_list) {
+  std::vector<std::array<float, 6>> boxes(entries);
+  for (const SpatialNode& node : nodes) {
+    for (uint32_t k = node.first; node.count > 0 && k < node.first + node.count; ++k) {
+      entry_bounds(node, entry_list[k], boxes[k].data(), boxes[k].data() + 3);
+    }
+  }
+  return boxes;
+}
+std::vector<std::array<float, 6>> entry_boxes(const ReadView& view) {
+  return entry_boxes(view.spatial_nodes(), view.spatial_entries().size(), view.spatial_entries());
 }
 
 std::unique_ptr<Store> open_store(const std::string& dir, Store::Mode mode = Store::Mode::read_write) {
@@ -257,6 +274,7 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
   const auto entries = view->spatial_entries();
   ASSERT_EQ(entries.size(), 500u);
   std::set<uint32_t> seen;
+  std::vector<SpatialNode> leaf_of(entries.size());
   // Walk from the root: every entry is reached once, inside every node above it.
   struct Item { uint32_t node; SpatialNode parent; };
   std::vector<Item> stack{{0, nodes[0]}};
@@ -275,22 +293,30 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
     }
     for (uint32_t i = n.first; i < n.first + n.count; ++i) {
       EXPECT_TRUE(seen.insert(entries[i].slot).second);
+      leaf_of[i] = n;
+      float lo[3], hi[3];
+      entry_bounds(n, entries[i], lo, hi);
       for (int a = 0; a < 3; ++a) {
-        EXPECT_GE(entries[i].min[a], n.min[a]);
-        EXPECT_LE(entries[i].max[a], n.max[a]);
+        EXPECT_GE(lo[a], n.min[a]);
+        EXPECT_LE(hi[a], n.max[a]);
       }
     }
   }
   EXPECT_EQ(seen.size(), 500u);
-  // Entries contain their objects' true bounds (rounded outward).
+  // Entries contain their objects' true bounds (rounded outward), and not by much more: the
+  // grid and float rounding, and two of the leaf's 1/65535 steps.
   const glm::dvec3 origin = view->spatial_origin();
-  for (const SpatialEntry& e : entries) {
+  const auto boxes = entry_boxes(*view);
+  for (size_t i = 0; i < entries.size(); ++i) {
     Object o;
-    ASSERT_TRUE(view->object(e.slot, o, false, error));
+    ASSERT_TRUE(view->object(entries[i].slot, o, false, error));
     const DAabb b = object_bounds(o);
     for (int a = 0; a < 3; ++a) {
-      EXPECT_LE(origin[a] + e.min[a], b.min[a]);
-      EXPECT_GE(origin[a] + e.max[a], b.max[a]);
+      EXPECT_LE(origin[a] + boxes[i][a], b.min[a]);
+      EXPECT_GE(origin[a] + boxes[i][3 + a], b.max[a]);
+      const double slack_m = 0.002 + 2.0 * (leaf_of[i].max[a] - leaf_of[i].min[a]) / 65535;
+      EXPECT_NEAR(origin[a] + boxes[i][a], b.min[a], slack_m);
+      EXPECT_NEAR(origin[a] + boxes[i][3 + a], b.max[a], slack_m);
     }
   }
 }
@@ -369,11 +395,13 @@ TEST(Store, ReplacingAnObjectInTheMiddleOfAChunkKeepsItsNeighbours) {
   }
   // The replacement's bounds are in the spatial index, the old ones are not.
   size_t entries_for_slot = 0;
-  for (const SpatialEntry& e : view->spatial_entries()) {
+  const auto boxes = entry_boxes(*view);
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    const SpatialEntry& e = view->spatial_entries()[i];
     EXPECT_NE(e.slot, old_slot);
     if (e.slot == *slot) {
       ++entries_for_slot;
-      EXPECT_LE(view->spatial_origin().x + e.min[0], -50.0);
+      EXPECT_LE(view->spatial_origin().x + boxes[i][0], -50.0);
     }
   }
   EXPECT_EQ(entries_for_slot, 1u);
@@ -609,28 +637,50 @@ TEST(Store, TwoThreadsLookUpSlotsOnViewsOfTheSameStateAtOnce) {
   EXPECT_EQ(wrong_b, 0u);
 }
 
+// The stored spatial index's grid boxes by slot (no Store open on `dir`).
+std::map<uint32_t, std::array<int32_t, 6>> stored_grid_boxes(const std::string& dir) {
+  std::map<uint32_t, std::array<int32_t, 6>> out;
+  MDB_env* env = nullptr;
+  EXPECT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 8);
+  EXPECT_EQ(mdb_env_open(env, dir.c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  EXPECT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
+  EXPECT_EQ(mdb_dbi_open(txn, "indexes", 0, &dbi), MDB_SUCCESS);
+  MDB_val k{7, const_cast<char*>("spatial")}, v;
+  EXPECT_EQ(mdb_get(txn, dbi, &k, &v), MDB_SUCCESS);
+  std::vector<uint8_t> raw;
+  std::string error;
+  detail::ZstdDCtx dctx(ZSTD_createDCtx());
+  EXPECT_TRUE(detail::inflate_frame(dctx.get(), {static_cast<const uint8_t*>(v.mv_data), v.mv_size}, raw, error));
+  glm::dvec3 origin;
+  std::vector<detail::GridEntry> grid;
+  EXPECT_TRUE(detail::decode_spatial(raw.data(), raw.size(), origin, grid, error)) << error;
+  for (const auto& e : grid) out[e.slot] = {e.min[0], e.min[1], e.min[2], e.max[0], e.max[1], e.max[2]};
+  mdb_txn_abort(txn);
+  mdb_env_close(env);
+  return out;
+}
+
+// What is stored does not move when the index is rebuilt (readers' boxes are quantised within
+// their leaf, whose members may change, but always contain the stored ones).
 TEST(Store, SpatialBoundsDoNotDriftWhenOtherSourcesAreReimported) {
   TempDir dir;
-  auto store = open_store(dir.str());
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> at(-300, 300);
   std::vector<Object> objects;
   for (int i = 0; i < 100; ++i) objects.push_back(box_object("a", i, {at(rng), at(rng), at(rng)}));
-  import_objects(*store, objects, "a");
-  auto entries_by_slot = [&] {
-    std::string error;
-    auto view = store->read(error);
-    std::map<uint32_t, std::vector<float>> out;
-    for (const SpatialEntry& e : view->spatial_entries()) {
-      out[e.slot] = {e.min[0], e.min[1], e.min[2], e.max[0], e.max[1], e.max[2]};
+  import_objects(*open_store(dir.str()), objects, "a");
+  const auto before = stored_grid_boxes(dir.str());
+  ASSERT_EQ(before.size(), 100u);
+  {
+    auto store = open_store(dir.str());
+    for (int round = 0; round < 5; ++round) {
+      import_objects(*store, {box_object("b", round, {at(rng), at(rng), at(rng)})}, "b");
     }
-    return out;
-  };
-  const auto before = entries_by_slot();
-  for (int round = 0; round < 5; ++round) {
-    import_objects(*store, {box_object("b", round, {at(rng), at(rng), at(rng)})}, "b");
   }
-  auto after = entries_by_slot();
+  auto after = stored_grid_boxes(dir.str());
   for (const auto& [slot, bounds] : before) EXPECT_EQ(after[slot], bounds) << "slot " << slot;
 }
 
@@ -850,18 +900,19 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
                                       entries_back, error))
       << error;
   ASSERT_EQ(entries_back.size(), grid.size());
+  const auto boxes = entry_boxes(nodes_back, entries_back.size(), entries_back);
   for (size_t i = 0; i < grid.size(); ++i) {
     EXPECT_EQ(entries_back[i].slot, grid[i].slot) << i;
     for (int a = 0; a < 3; ++a) {
-      EXPECT_LE(double(entries_back[i].min[a]), grid[i].min[a] * kSpatialCellM) << i;
-      EXPECT_GE(double(entries_back[i].max[a]), grid[i].max[a] * kSpatialCellM) << i;
+      EXPECT_LE(double(boxes[i][a]), grid[i].min[a] * kSpatialCellM) << i;
+      EXPECT_GE(double(boxes[i][3 + a]), grid[i].max[a] * kSpatialCellM) << i;
     }
   }
   for (const SpatialNode& node : nodes_back) {
     for (uint32_t k = node.first; node.count > 0 && k < node.first + node.count; ++k) {
       for (int a = 0; a < 3; ++a) {
-        EXPECT_LE(node.min[a], entries_back[k].min[a]);
-        EXPECT_GE(node.max[a], entries_back[k].max[a]);
+        EXPECT_LE(node.min[a], boxes[k][a]);
+        EXPECT_GE(node.max[a], boxes[k][3 + a]);
       }
     }
   }

@@ -905,17 +905,15 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
       continue;
     }
     for (uint32_t e = node.first; e < node.first + node.count; ++e) {
-      const SpatialEntry& entry = entries[e];
-      if (outside(entry.min, entry.max)) continue;
-      Visible v{entry.slot, {}, {}, 0.0, 0.0};
-      std::copy(entry.min, entry.min + 3, v.min);
-      std::copy(entry.max, entry.max + 3, v.max);
-      v.distance_m = nearest_distance(entry.min, entry.max);
+      Visible v{entries[e].slot, {}, {}, 0.0, 0.0};
+      entry_bounds(node, entries[e], v.min, v.max);
+      if (outside(v.min, v.max)) continue;
+      v.distance_m = nearest_distance(v.min, v.max);
       v.px_per_m = focal_px / std::max(v.distance_m, detail::kNearPlaneM);
       // Screen-space policy: an object whose whole extent is under the pixel error is left out
       // (it is not even decoded); that is what keeps far views of huge plants cheap.
-      if (subpixel_culling && v.px_per_m * std::max({entry.max[0] - entry.min[0], entry.max[1] - entry.min[1],
-                                                   entry.max[2] - entry.min[2]}) < options.pixel_error) {
+      if (subpixel_culling && v.px_per_m * std::max({v.max[0] - v.min[0], v.max[1] - v.min[1],
+                                                   v.max[2] - v.min[2]}) < options.pixel_error) {
         stats.objects_subpixel += 1;
         continue;
       }

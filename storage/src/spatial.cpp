@@ -313,15 +313,57 @@ bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origi
     spatial_topology(uint32_t(n), nodes, ranges);
   }
   entries.resize(n);
+  // Entries arrive leaf by leaf: a leaf's float bounds are gathered, the leaf's bounds are
+  // their union, and then each is quantised within them (rounded outward: a step is taken
+  // back whenever float rounding of entry_bounds() would cut into the float bounds).
+  std::vector<std::pair<uint32_t, uint32_t>> leaves;  // (first entry, node index)
+  leaves.reserve(nodes.size() / 2 + 1);
+  for (uint32_t i = 0; i < nodes.size(); ++i)
+    if (nodes[i].count > 0) leaves.emplace_back(nodes[i].first, i);
+  std::sort(leaves.begin(), leaves.end());
+  size_t leaf = 0;
+  float bounds[kLeafSize][6];
+  uint32_t slots[kLeafSize];
   const bool ok = read_spatial_entries(
       r, nodes,
-      [&entries](uint32_t k, const GridEntry& e) {
-        SpatialEntry& out = entries[k];
+      [&](uint32_t k, const GridEntry& e) {
+        SpatialNode& node = nodes[leaves[leaf].second];
+        const uint32_t at = k - node.first;
         for (int a = 0; a < 3; ++a) {
-          out.min[a] = round_down(double(e.min[a]) * kSpatialCellM);
-          out.max[a] = round_up(double(e.max[a]) * kSpatialCellM);
+          bounds[at][a] = round_down(double(e.min[a]) * kSpatialCellM);
+          bounds[at][3 + a] = round_up(double(e.max[a]) * kSpatialCellM);
         }
-        out.slot = e.slot;
+        slots[at] = e.slot;
+        if (at + 1 < node.count) return;
+        for (int a = 0; a < 3; ++a) {
+          node.min[a] = INFINITY;
+          node.max[a] = -INFINITY;
+          for (uint32_t j = 0; j < node.count; ++j) {
+            node.min[a] = std::min(node.min[a], bounds[j][a]);
+            node.max[a] = std::max(node.max[a], bounds[j][3 + a]);
+          }
+        }
+        for (uint32_t j = 0; j < node.count; ++j) {
+          SpatialEntry& out = entries[node.first + j];
+          out.slot = slots[j];
+          for (int a = 0; a < 3; ++a) {
+            const float extent = node.max[a] - node.min[a];
+            const double scale = extent > 0 ? 65535.0 / extent : 0.0;
+            out.min[a] = uint16_t(std::clamp(std::floor((bounds[j][a] - node.min[a]) * scale), 0.0, 65535.0));
+            out.max[a] = uint16_t(std::clamp(std::ceil((bounds[j][3 + a] - node.min[a]) * scale), 0.0, 65535.0));
+          }
+          float lo[3], hi[3];
+          for (;;) {
+            entry_bounds(node, out, lo, hi);
+            bool moved = false;
+            for (int a = 0; a < 3; ++a) {
+              if (lo[a] > bounds[j][a] && out.min[a] > 0) out.min[a] -= 1, moved = true;
+              if (hi[a] < bounds[j][3 + a] && out.max[a] < 65535) out.max[a] += 1, moved = true;
+            }
+            if (!moved) break;
+          }
+        }
+        ++leaf;
       },
       error);
   if (!ok) {
@@ -332,6 +374,7 @@ bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origi
   // Children come after their parent: fill bounds from the last node back.
   for (size_t i = nodes.size(); i-- > 0;) {
     SpatialNode& node = nodes[i];
+    if (node.count > 0) continue;  // leaves were bounded as their entries came
     for (int a = 0; a < 3; ++a) {
       node.min[a] = INFINITY;
       node.max[a] = -INFINITY;
@@ -342,14 +385,8 @@ bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origi
         node.max[a] = std::max(node.max[a], hi[a]);
       }
     };
-    if (node.count > 0) {
-      for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-        extend(entries[k].min, entries[k].max);
-      }
-    } else {
-      extend(nodes[node.first].min, nodes[node.first].max);
-      extend(nodes[node.first + 1].min, nodes[node.first + 1].max);
-    }
+    extend(nodes[node.first].min, nodes[node.first].max);
+    extend(nodes[node.first + 1].min, nodes[node.first + 1].max);
   }
   return true;
 }

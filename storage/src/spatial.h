@@ -60,8 +60,10 @@ void encode_spatial(const glm::dvec3& origin, const std::vector<GridEntry>& entr
 bool decode_spatial(const uint8_t* data, size_t size, glm::dvec3& origin,
                     std::vector<GridEntry>& entries, std::string& error);
 // The stored form straight into the readers' form: float bounds relative to the origin, rounded
-// outward; node bounds the union of their entries. Allocates exactly the two arrays (and a
-// transient 8 bytes per node), never the grid entries. False with a message on malformed bytes.
+// outward; a leaf's bounds the union of its entries', each entry quantised within them (see
+// SpatialEntry); an inner node's the union of its children's. Allocates exactly the two arrays
+// (and a transient 8 bytes per leaf), never the grid entries. False with a message on malformed
+// bytes.
 bool decode_spatial_expanded(const uint8_t* data, size_t size, glm::dvec3& origin,
                              std::vector<SpatialNode>& nodes, std::vector<SpatialEntry>& entries,
                              std::string& error);

@@ -186,7 +186,7 @@ struct Snapshot {
   std::vector<uint64_t> id_by_slot;  // 0: no object in that slot; up to the highest slot (8 B)
   glm::dvec3 origin{0.0};
   std::vector<SpatialNode> nodes;     // about one per 4 objects (32 B each)
-  std::vector<SpatialEntry> entries;  // one per object with geometry (28 B)
+  std::vector<SpatialEntry> entries;  // one per object with geometry (16 B)
   // Built by the first slot_of() or slots_named() that needs them:
   mutable LazyTable<std::vector<uint32_t>> slots_by_id;  // every slot, by (id, slot) (4 B)
   mutable LazyTable<std::vector<NameSlot>> names;        // sorted (8 B)
