@@ -347,6 +347,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::printf("device: %s\n", context->description().c_str());
+    preload_image_io();  // as `plantview render` does, once the context exists
     if (!ooc) {
       RenderOptions options;
       options.vertex_budget_bytes = uint64_t(budget_mb) << 20;

@@ -1,4 +1,5 @@
-// The plantview program end to end: gen, import, info, export, and what bad input does.
+// The plantview program end to end: gen, import, info, export, and what bad input (or a missing
+// image module) does.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -39,9 +40,11 @@ class Cli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  Outcome run(const std::string& args) {
+  // `environment`: NAME=VALUE settings for this run only, as the shell reads them.
+  Outcome run(const std::string& args, const std::string& environment = "") {
     const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
+    const std::string cmd = environment + " " + std::string(PLANTVIEW_BIN) + " " + args + " >" +
+                            out.string() + " 2>" + err.string();
     const int raw = std::system(cmd.c_str());
     Outcome r;
     r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -130,6 +133,14 @@ TEST_F(Cli, ExportedXmlImportsToTheSameModel) {
   a.erase("store_bytes");
   b.erase("store_bytes");
   EXPECT_EQ(a, b);
+}
+
+TEST_F(Cli, CompareWithoutTheImageModuleFailsNamingWhereItLooked) {
+  const std::string a = (dir_ / "a.png").string(), b = (dir_ / "b.png").string();
+  const Outcome r = run("compare " + a + " " + b, "PLANTVIEW_IMAGE_MODULE=" + (dir_ / "none.so").string());
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("cannot load the image module"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("PLANTVIEW_IMAGE_MODULE=" + (dir_ / "none.so").string()), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, AGenKilledPartWayLeavesTheStoreAsItWas) {

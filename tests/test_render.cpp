@@ -188,6 +188,44 @@ TEST(RenderImage, ComparisonReportsIdenticalAndDifferentImages) {
   EXPECT_NE(error.find("sizes differ"), std::string::npos);
 }
 
+// Every image call with PLANTVIEW_IMAGE_MODULE pointing at nothing; prints each error on
+// stderr. 0 when each call failed and wrote nothing.
+int image_calls_without_the_module(const fs::path& png) {
+  ::setenv("PLANTVIEW_IMAGE_MODULE", "/nonexistent/plantview_image_oiio.so", 1);
+  preload_image_io();
+  preload_image_io();  // harmless twice
+  Image image;
+  image.width = 4;
+  image.height = 2;
+  image.rgba.assign(32, 128);
+  std::string error;
+  std::vector<uint8_t> bytes{1, 2, 3};
+  const bool encoded = encode_image(image, ImageFormat::png, 90, bytes, error);
+  std::fprintf(stderr, "encode_image: %s\n", error.c_str());
+  error.clear();
+  const bool written = write_image(png.string(), image, 90, error);
+  std::fprintf(stderr, "write_image: %s\n", error.c_str());
+  error.clear();
+  Image back;
+  const bool read = read_image(png.string(), back, error);
+  std::fprintf(stderr, "read_image: %s\n", error.c_str());
+  return !encoded && bytes.empty() && !written && !fs::exists(png) && !read ? 0 : 1;
+}
+
+// The image module is loaded once per process, so this runs in a child process of its own
+// (re-executed: "threadsafe" death-test style).
+TEST(RenderImage, AMissingImageModuleFailsEachCallNamingThePathTried) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  // Not a TempDir: the child exits without unwinding.
+  const fs::path png = fs::temp_directory_path() /
+                       ("plantview-render-test-no-module-" + std::to_string(::getpid()) + ".png");
+  EXPECT_EXIT(std::exit(image_calls_without_the_module(png)), ::testing::ExitedWithCode(0),
+              "encode_image: image: cannot load the image module \\(OpenImageIO\\); tried "
+              "PLANTVIEW_IMAGE_MODULE=/nonexistent/plantview_image_oiio.so: .*No such file.*\n"
+              "write_image: image: cannot load the image module.*/nonexistent/.*\n"
+              "read_image: image: cannot load the image module.*/nonexistent/");
+}
+
 // --- culling and picking ----------------------------------------------------------------------
 
 TEST(RenderCull, ObjectsOutsideTheFrustumAreNotDrawnAndVisibleOnesAre) {

@@ -1,18 +1,169 @@
-// Image files and comparison through OpenImageIO.
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/imageio.h>
+// Image files and comparison: checks the caller's images here, and leaves the files themselves to
+// the image module (OpenImageIO, image_oiio.cpp), loaded on first use or by preload_image_io().
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <cstdlib>
+#include <filesystem>
 #include <limits>
+#include <mutex>
+#include <string>
+#include <system_error>
+#include <thread>
+#include <vector>
 
+#include "image_module_api.h"
 #include "plantview/render.h"
 
 namespace plantview {
 
 namespace {
+
+// --- the module ---------------------------------------------------------------------------------
+
+struct LoadedModule {
+  const PlantviewImageApiV1* api = nullptr;  // null: not loaded, `error` says why
+  std::string error;
+};
+
+// dlerror() usually starts with the path; the path is already said.
+std::string without_path(std::string why, const std::string& path) {
+  if (why.rfind(path + ": ", 0) == 0) why.erase(0, path.size() + 2);
+  return why;
+}
+
+// Loads the module from the first place where it loads, in order:
+//   1. $PLANTVIEW_IMAGE_MODULE when set, and then only there (the operator or a test chose it);
+//   2. beside the running executable (an installed program);
+//   3. where the build wrote it (the build tree).
+// The module is never unloaded: OpenImageIO keeps threads and static state to the end.
+LoadedModule load_module_from_paths() {
+  std::vector<std::string> paths;
+  const char* chosen = std::getenv("PLANTVIEW_IMAGE_MODULE");
+  if (chosen && *chosen) {
+    paths.push_back(chosen);
+  } else {
+    std::error_code ec;
+    const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) paths.push_back((exe.parent_path() / PLANTVIEW_IMAGE_MODULE_NAME).string());
+    if (paths.empty() || paths.back() != PLANTVIEW_IMAGE_MODULE_PATH)
+      paths.push_back(PLANTVIEW_IMAGE_MODULE_PATH);
+  }
+  std::string tried;
+  for (const auto& path : paths) {
+    std::string why;
+    if (void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL); !handle) {
+      const char* e = dlerror();
+      why = without_path(e ? e : "cannot be loaded", path);
+    } else if (auto entry = reinterpret_cast<PlantviewImageApiV1Entry>(
+                   dlsym(handle, PLANTVIEW_IMAGE_API_SYMBOL));
+               !entry) {
+      why = "no symbol " PLANTVIEW_IMAGE_API_SYMBOL " (not a plantview image module)";
+      dlclose(handle);
+    } else if (const PlantviewImageApiV1* api = entry();
+               !api || api->version != PLANTVIEW_IMAGE_API_VERSION ||
+               api->struct_size != sizeof(PlantviewImageApiV1)) {
+      why = "interface version " + std::to_string(api ? api->version : 0) + ", size " +
+            std::to_string(api ? api->struct_size : 0) + "; this program needs version " +
+            std::to_string(PLANTVIEW_IMAGE_API_VERSION) + ", size " +
+            std::to_string(sizeof(PlantviewImageApiV1)) + " (a module from another build?)";
+      dlclose(handle);
+    } else {
+      return {api, {}};
+    }
+    if (!tried.empty()) tried += "; ";
+    tried += (chosen && *chosen ? "PLANTVIEW_IMAGE_MODULE=" : "") + path + ": " + why;
+  }
+  return {nullptr, "image: cannot load the image module (OpenImageIO); tried " + tried};
+}
+
+// The same, for a thread of its own: no exception leaves it.
+LoadedModule load_module() noexcept {
+  try {
+    return load_module_from_paths();
+  } catch (const std::exception& e) {
+    return {nullptr, std::string("image: cannot load the image module: ") + e.what()};
+  }
+}
+
+// The module, loaded once per process: on a background thread after start(), else by the first
+// image call. Thread-safe; image calls wait for a load in progress.
+class ImageModule {
+ public:
+  static ImageModule& instance() {
+    static ImageModule module;
+    return module;
+  }
+
+  void start() {
+    std::lock_guard lock(mutex_);
+    if (state_ != State::idle) return;
+    try {
+      loader_ = std::thread([this] { finish(load_module()); });
+      state_ = State::loading;
+    } catch (const std::system_error&) {
+      // No thread to spare: the first image call loads it instead.
+    }
+  }
+
+  // The module's functions, or null with `error` set when it cannot be loaded.
+  const PlantviewImageApiV1* api(std::string& error) {
+    std::unique_lock lock(mutex_);
+    if (state_ == State::idle) {
+      state_ = State::loading;
+      lock.unlock();
+      finish(load_module());
+      lock.lock();
+    }
+    loaded_.wait(lock, [this] { return state_ == State::loaded; });
+    if (!module_.api) error = module_.error;
+    return module_.api;
+  }
+
+  // At exit, a load still in progress is waited for: its thread uses this object.
+  ~ImageModule() {
+    if (loader_.joinable()) loader_.join();
+  }
+
+ private:
+  enum class State { idle, loading, loaded };
+
+  ImageModule() = default;
+  void finish(LoadedModule module) {
+    {
+      std::lock_guard lock(mutex_);
+      module_ = std::move(module);
+      state_ = State::loaded;
+    }
+    loaded_.notify_all();
+  }
+
+  std::mutex mutex_;
+  std::condition_variable loaded_;
+  State state_ = State::idle;
+  LoadedModule module_;
+  std::thread loader_;
+};
+
+// Error text from the module: a message of a line or two.
+struct ErrorText {
+  char text[4096] = {};
+};
+
+// The module's `allocate` for a std::vector<uint8_t>.
+uint8_t* resize_vector(void* context, size_t bytes) noexcept {
+  try {
+    auto& v = *static_cast<std::vector<uint8_t>*>(context);
+    v.resize(bytes);
+    return v.data();
+  } catch (...) {
+    return nullptr;
+  }
+}
+
+// --- checks -------------------------------------------------------------------------------------
 
 bool check_image(const Image& image, std::string& error) {
   if (image.width == 0 || image.height == 0 || image.width > kMaxImageSide ||
@@ -24,52 +175,21 @@ bool check_image(const Image& image, std::string& error) {
   return true;
 }
 
-OIIO::ImageBuf as_buffer(const Image& image) {
-  OIIO::ImageSpec spec(int(image.width), int(image.height), 4, OIIO::TypeDesc::UINT8);
-  // Wraps the caller's pixels without a copy; the buffer must not outlive `image`.
-  return OIIO::ImageBuf(spec, const_cast<uint8_t*>(image.rgba.data()));
-}
-
-// Writes RGB to an opened-by-name output, to a file or through an in-memory proxy.
-bool write_rgb(const Image& image, ImageFormat format, int jpeg_quality, const std::string& name,
-               OIIO::Filesystem::IOProxy* proxy, std::string& error) {
-  if (!check_image(image, error)) return false;
+bool check_quality(ImageFormat format, int jpeg_quality, std::string& error) {
   if (format == ImageFormat::jpeg && (jpeg_quality < 1 || jpeg_quality > 100)) {
     error = "image: JPEG quality must be 1..100, got " + std::to_string(jpeg_quality);
-    return false;
-  }
-  auto out = OIIO::ImageOutput::create(format == ImageFormat::png ? "png" : "jpg");
-  if (!out) {
-    error = "image: no " + std::string(format == ImageFormat::png ? "PNG" : "JPEG") +
-            " writer (" + OIIO::geterror() + ")";
-    return false;
-  }
-  OIIO::ImageSpec spec(int(image.width), int(image.height), 3, OIIO::TypeDesc::UINT8);
-  if (format == ImageFormat::jpeg) {
-    spec.attribute("Compression", "jpeg:" + std::to_string(jpeg_quality));
-    spec.attribute("CompressionQuality", jpeg_quality);
-  } else {
-    spec.attribute("png:compressionLevel", 3);  // fast; review images are large
-  }
-  if (proxy && !out->set_ioproxy(proxy)) {
-    error = "image: the encoder cannot write to memory";
-    return false;
-  }
-  if (!out->open(name, spec)) {
-    error = "image: cannot write " + name + ": " + out->geterror();
-    return false;
-  }
-  // RGBA pixels, 4 bytes apart: the writer reads the first three channels of each.
-  const bool ok = out->write_image(OIIO::TypeDesc::UINT8, image.rgba.data(), 4);
-  const bool closed = out->close();
-  if (!ok || !closed) {
-    error = "image: writing " + name + " failed: " + out->geterror();
     return false;
   }
   return true;
 }
 
+int module_format(ImageFormat format) {
+  return format == ImageFormat::png ? PLANTVIEW_IMAGE_PNG : PLANTVIEW_IMAGE_JPEG;
+}
+
 }  // namespace
+
+void preload_image_io() { ImageModule::instance().start(); }
 
 bool image_format_from_name(std::string_view name, ImageFormat& format) {
   std::string lower(name);
@@ -89,9 +209,17 @@ bool image_format_from_name(std::string_view name, ImageFormat& format) {
 bool encode_image(const Image& image, ImageFormat format, int jpeg_quality,
                   std::vector<uint8_t>& out, std::string& error) {
   out.clear();
-  OIIO::Filesystem::IOVecOutput proxy(out);
-  return write_rgb(image, format, jpeg_quality,
-                   format == ImageFormat::png ? "frame.png" : "frame.jpg", &proxy, error);
+  if (!check_image(image, error) || !check_quality(format, jpeg_quality, error)) return false;
+  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  if (!api) return false;
+  ErrorText why;
+  if (!api->encode(image.rgba.data(), image.width, image.height, module_format(format),
+                   jpeg_quality, resize_vector, &out, why.text, sizeof why.text)) {
+    out.clear();
+    error = why.text;
+    return false;
+  }
+  return true;
 }
 
 bool write_image(const std::string& path, const Image& image, int jpeg_quality,
@@ -101,38 +229,29 @@ bool write_image(const std::string& path, const Image& image, int jpeg_quality,
     error = "image: " + path + ": unknown format (use .png, .jpg or .jpeg)";
     return false;
   }
-  return write_rgb(image, format, jpeg_quality, path, nullptr, error);
+  if (!check_image(image, error) || !check_quality(format, jpeg_quality, error)) return false;
+  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  if (!api) return false;
+  ErrorText why;
+  if (!api->write(path.c_str(), image.rgba.data(), image.width, image.height,
+                  module_format(format), jpeg_quality, why.text, sizeof why.text)) {
+    error = why.text;
+    return false;
+  }
+  return true;
 }
 
 bool read_image(const std::string& path, Image& out, std::string& error) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    error = "image: cannot read " + path + ": " + OIIO::geterror();
+  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  if (!api) return false;
+  Image image;
+  ErrorText why;
+  if (!api->read(path.c_str(), kMaxImageSide, &image.width, &image.height, resize_vector,
+                 &image.rgba, why.text, sizeof why.text)) {
+    error = why.text;
     return false;
   }
-  const auto& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.width > int(kMaxImageSide) ||
-      spec.height > int(kMaxImageSide) || spec.nchannels < 1) {
-    error = "image: " + path + ": unsupported size " + std::to_string(spec.width) + "x" +
-            std::to_string(spec.height);
-    return false;
-  }
-  const int channels = spec.nchannels;
-  std::vector<uint8_t> pixels(size_t(spec.width) * spec.height * size_t(channels));
-  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, pixels.data())) {
-    error = "image: " + path + ": " + in->geterror();
-    return false;
-  }
-  out.width = uint32_t(spec.width);
-  out.height = uint32_t(spec.height);
-  out.rgba.assign(size_t(out.width) * out.height * 4, 255);
-  out.object_ids.clear();
-  for (size_t p = 0; p < size_t(out.width) * out.height; ++p) {
-    for (int c = 0; c < 4; ++c) {
-      if (c < 3) out.rgba[p * 4 + size_t(c)] = pixels[p * size_t(channels) + size_t(std::min(c, channels - 1))];
-      else if (channels >= 4) out.rgba[p * 4 + 3] = pixels[p * size_t(channels) + 3];
-    }
-  }
+  out = std::move(image);
   return true;
 }
 
@@ -143,22 +262,21 @@ bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::s
             " and " + std::to_string(b.width) + "x" + std::to_string(b.height) + ")";
     return false;
   }
-  const OIIO::ImageBuf A = as_buffer(a), B = as_buffer(b);
-  OIIO::ROI rgb = A.roi();
-  rgb.chbegin = 0;
-  rgb.chend = 3;
+  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  if (!api) return false;
   // A pixel "differs" when any channel is more than one 8-bit step apart.
-  const float step = 1.5f / 255.0f;
-  const auto result = OIIO::ImageBufAlgo::compare(A, B, step, step, rgb);
-  // result.error is also set when pixels fail the threshold; only a message means failure.
-  if (const std::string why = OIIO::geterror(); result.error && !why.empty()) {
-    error = "compare: " + why;
+  const double step = 1.5 / 255.0;
+  PlantviewImageDifference d{};
+  ErrorText why;
+  if (!api->compare(a.rgba.data(), b.rgba.data(), a.width, a.height, step, &d, why.text,
+                    sizeof why.text)) {
+    error = why.text;
     return false;
   }
-  out.max_difference = result.maxerror;
-  out.differing_share = double(result.nfail) / (double(a.width) * a.height);
-  out.psnr_db = result.rms_error > 0 ? 20.0 * std::log10(1.0 / result.rms_error)
-                                     : std::numeric_limits<double>::infinity();
+  out.max_difference = d.max_error;
+  out.differing_share = double(d.failing_pixels) / (double(a.width) * a.height);
+  out.psnr_db = d.rms_error > 0 ? 20.0 * std::log10(1.0 / d.rms_error)
+                                : std::numeric_limits<double>::infinity();
   return true;
 }
 

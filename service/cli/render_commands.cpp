@@ -1,4 +1,7 @@
 // `plantview render`, `compare` and `path`: review images, image comparison and camera paths.
+#include <time.h>
+#include <unistd.h>
+
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -60,6 +63,31 @@ bool read_text(const std::string& path, std::string& out, std::string& error) {
   return true;
 }
 
+// Seconds since this process was created, or a negative number when /proc cannot be read. The
+// kernel's start time (/proc/self/stat, field 22) is taken at fork, in clock ticks (10 ms) of
+// CLOCK_BOOTTIME, rounded down; so this includes exec, loading the program's libraries and
+// their constructors (the user's wait before main), and reads up to one tick too much.
+double seconds_since_process_start() {
+  std::ifstream in("/proc/self/stat");
+  std::string stat;
+  std::getline(in, stat);
+  // Field 2, the command name, is in parentheses and may hold spaces: count from its end.
+  const size_t name_end = stat.rfind(')');
+  if (name_end == std::string::npos) return -1;
+  std::istringstream fields(stat.substr(name_end + 1));
+  std::string field;
+  for (int i = 3; i <= 22 && fields >> field; ++i) {}  // fields 3 (state) .. 22 (starttime)
+  unsigned long long start_ticks = 0;
+  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), start_ticks);
+  const long ticks_per_s = ::sysconf(_SC_CLK_TCK);
+  timespec now{};
+  if (ec != std::errc() || end != field.data() + field.size() || ticks_per_s <= 0 ||
+      ::clock_gettime(CLOCK_BOOTTIME, &now) != 0)
+    return -1;
+  return double(now.tv_sec) + double(now.tv_nsec) * 1e-9 -
+         double(start_ticks) / double(ticks_per_s);
+}
+
 int fail(const std::string& message) {
   std::cerr << "plantview: " << message << "\n";
   return 1;
@@ -117,6 +145,10 @@ int run_render(const RenderArgs& a) {
   if (!store) return fail(error);
   auto context = GpuContext::create(a.device, error);
   if (!context) return fail(error);
+  // Images are needed from here on. Not before the context: EGL loads its drivers (libLLVM for
+  // llvmpipe) under the dynamic loader's lock, which loading the module holds throughout. So
+  // does libepoxy at the first call of each GL function: those calls wait for the load too.
+  preload_image_io();
   std::cerr << "plantview: rendering on " << context->description() << "\n";
   auto renderer = Renderer::create(*store, options, error);
   if (!renderer) return fail(error);
@@ -148,9 +180,16 @@ int run_render(const RenderArgs& a) {
     line.insert(1, "\"view\":" + std::to_string(i) + ",\"file\":\"" + file + "\",");
     if (many) stats_file << line << "\n";
     else std::cout << line << "\n";
-    if (done == 0) {
-      const double first_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-      if (!many) std::cerr << "plantview: first image written " << first_s << " s after start\n";
+    if (done == 0 && !many) {
+      const double since_process = seconds_since_process_start();
+      if (since_process >= 0) {
+        std::cerr << "plantview: first image written " << since_process << " s after start\n";
+      } else {
+        const double since_command =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+        std::cerr << "plantview: first image written " << since_command
+                  << " s after the command started (no process start time in /proc)\n";
+      }
     }
     ++done;
     progress.update(double(done) / double(total), std::to_string(done) + "/" + std::to_string(total));
@@ -162,6 +201,7 @@ int run_render(const RenderArgs& a) {
 int run_compare(const std::string& a, const std::string& b, bool json, const std::string& diff,
                 double min_psnr) {
   std::string error;
+  preload_image_io();  // nothing to overlap here: reading waits for it
   Image ia, ib;
   if (!read_image(a, ia, error) || !read_image(b, ib, error)) return fail(error);
   ImageComparison c;

@@ -793,6 +793,9 @@ int run_server(const ServerOptions& options, std::string& error) {
     return 1;
   }
   std::fprintf(stderr, "plantview serve: rendering on %s\n", s.worker.device_description().c_str());
+  // Frames are encoded through the image module: it loads while the server listens. Not earlier:
+  // the render thread's EGL initialisation loads its drivers under the same loader lock.
+  preload_image_io();
 
   sockaddr_storage address{};
   if (uv_ip4_addr(options.host.c_str(), options.port, reinterpret_cast<sockaddr_in*>(&address)) != 0 &&

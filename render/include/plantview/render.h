@@ -142,6 +142,13 @@ struct FrameStats {
 
 // ---------------------------------------------------------------------------------------------
 // Images.
+//
+// Image files, encoding and comparison go through OpenImageIO in a loadable module
+// (plantview_image_oiio), loaded once per process by the first call below that needs it, or
+// earlier by preload_image_io(). Looked for at $PLANTVIEW_IMAGE_MODULE when that is set (and
+// only there), else beside the running executable, else where the build wrote it. When it
+// cannot be loaded, every call that needs it fails with a message naming each path tried and
+// why. All functions here may be called from any thread.
 
 // A rendered frame. Row 0 is the top. `object_ids` holds, per pixel, the id (model.h) of the
 // object drawn there, 0 where there is none.
@@ -153,6 +160,14 @@ struct Image {
 
 // Largest image the renderer and encoders accept in either direction.
 inline constexpr uint32_t kMaxImageSide = 16384;
+
+// Starts loading the image module on a background thread and returns at once (loading it
+// takes about half a second on Debian, where OpenImageIO brings some 260 libraries). Image calls
+// made meanwhile wait for it; a second call does nothing; a failed load is reported by the first
+// image call. The load holds the dynamic loader's lock throughout, so other threads' dlopen and
+// dlsym wait for it meanwhile: EGL initialisation, and libepoxy at the first call of each GL
+// function. Call it once images are sure to be needed, after GpuContext::create.
+void preload_image_io();
 
 enum class ImageFormat { png, jpeg };
 // From a file name's extension (.png, .jpg, .jpeg) or a format name ("png", "jpeg", "jpg").
