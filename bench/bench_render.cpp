@@ -347,7 +347,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::printf("device: %s\n", context->description().c_str());
-    preload_image_io();  // as `plantview render` does, once the context exists
+    // As `plantview render` does, once the context exists; not out of core, which writes no
+    // image (OpenImageIO's libraries would count in its peak).
+    if (!ooc) preload_image_io();
     if (!ooc) {
       RenderOptions options;
       options.vertex_budget_bytes = uint64_t(budget_mb) << 20;

@@ -33,7 +33,7 @@ constexpr uint32_t kProxyKey = UINT32_MAX;
 constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run index
 constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
 constexpr uint64_t kInitialArenaVertices = 1u << 16;  // the GPU buffers grow from here
-constexpr size_t kKnownObjectsKept = 20000;  // decoded objects kept beyond the resident ones
+constexpr size_t kKnownObjectsKept = 10000;  // decoded objects kept beyond the resident ones
 constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
 constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
 
@@ -257,8 +257,9 @@ struct Renderer::State {
   std::vector<detail::PipelineRun> branch_runs;
   std::vector<uint64_t> run_decided_frame;
   std::vector<uint8_t> run_merged, run_drawn;
-  std::unordered_map<uint32_t, uint32_t> run_of_slot;
-  std::unordered_set<uint64_t> pipelines_analysed;
+  // Pipelines analysed, with their runs: [first, first + count) of `runs` (a member finds its
+  // run there: a pipeline has few runs, and a map by member would cost 40 bytes a member).
+  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> pipeline_runs;
 
   // The object table: entries handed to resident objects, and to proxies for one frame.
   std::vector<TableEntry> table;
@@ -548,8 +549,7 @@ bool Renderer::State::open_view(std::string& error) {
   run_decided_frame.clear();
   run_merged.clear();
   run_drawn.clear();
-  run_of_slot.clear();
-  pipelines_analysed.clear();
+  pipeline_runs.clear();
   table_free.clear();
   table_used = 0;
   residency = detail::Residency(options.vertex_budget_bytes / kBytesPerVertex);
@@ -636,17 +636,30 @@ Known* Renderer::State::know(uint32_t slot, std::string& error) {
   fill_known(k, object, false);
   if (options.hlod && k.pipeline_id != 0 &&
       (k.object_class == ObjectClass::pipe || k.object_class == ObjectClass::component)) {
-    if (!pipelines_analysed.count(k.pipeline_id)) {
+    auto it = pipeline_runs.find(k.pipeline_id);
+    if (it == pipeline_runs.end()) {
       std::string ignored;  // a pipeline that cannot be read is simply not merged
       analyse_pipeline(k.pipeline_id, ignored);
+      it = pipeline_runs.find(k.pipeline_id);
     }
-    if (const auto r = run_of_slot.find(slot); r != run_of_slot.end()) k.run = int32_t(r->second);
+    const auto [first, count] = it->second;
+    for (uint32_t r = first; r < first + count && k.run < 0; ++r) {
+      const auto& members = runs[r].members;
+      if (std::find(members.begin(), members.end(), slot) != members.end()) k.run = int32_t(r);
+    }
   }
   return &k;
 }
 
 void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
-  pipelines_analysed.insert(pipeline_id);
+  const uint32_t pipeline_first = uint32_t(runs.size());
+  // Whatever happens below, the pipeline counts as analysed, with the runs found.
+  struct Record {
+    State& state;
+    uint64_t id;
+    uint32_t first;
+    ~Record() { state.pipeline_runs[id] = {first, uint32_t(state.runs.size()) - first}; }
+  } record{*this, pipeline_id, pipeline_first};
   const auto slot = view->slot_of(pipeline_id);
   Object pipeline;
   if (!slot || !view->object(*slot, pipeline, false, error)) return;
@@ -674,7 +687,6 @@ void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error)
     for (auto& run : branch_runs) runs.push_back(std::move(run));
     for (size_t r = first; r < runs.size(); ++r) {
       for (const uint32_t m : runs[r].members) {
-        run_of_slot[m] = uint32_t(r);
         if (const auto it = known.find(m); it != known.end()) it->second.run = int32_t(r);
       }
     }
