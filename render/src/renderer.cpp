@@ -246,6 +246,7 @@ struct Renderer::State {
   glm::dvec3 spatial_origin{0.0};
   DAabb bounds;
   uint64_t frame_number = 0;
+  bool drop_primitives = false;  // see open_view
 
   // Residency (in vertices) and what is known of decoded objects and runs, by residency key.
   detail::Residency residency{0};
@@ -455,12 +456,14 @@ void Renderer::State::bind_arena() {
 }
 
 // The GPU buffers hold at least `vertices_needed` (never more than the budget), keeping what
-// they held. They grow at least by half, so that a slowly filling arena is not copied often.
+// they held. They at least double, so that a slowly filling arena is not copied often (a new
+// buffer is zeroed by the driver and page-faulted in, and the old one copied: about 1 ms a MB
+// on llvmpipe).
 bool Renderer::State::grow_arena(uint64_t vertices_needed, std::string& error) {
   const uint64_t budget = options.vertex_budget_bytes / kBytesPerVertex;
   vertices_needed = std::min(vertices_needed, budget);  // (a full arena evicts instead)
   if (vertices_needed <= arena_vertices_gl) return true;
-  const uint64_t size = std::min(budget, std::max(vertices_needed, arena_vertices_gl * 3 / 2));
+  const uint64_t size = std::min(budget, std::max(vertices_needed, arena_vertices_gl * 2));
   GLuint buffers[2];
   glCreateBuffers(2, buffers);
   glNamedBufferStorage(buffers[0], GLsizeiptr(size * sizeof(PackedVertex)), nullptr, GL_DYNAMIC_STORAGE_BIT);
@@ -543,6 +546,9 @@ bool Renderer::State::open_view(std::string& error) {
   // the budget for a moment. Smaller ones grow as they need (a new buffer costs zeroing it).
   const uint64_t budget_vertices = options.vertex_budget_bytes / kBytesPerVertex;
   if (statistics.triangles > budget_vertices && !grow_arena(budget_vertices, error)) return false;
+  // Such a model also drops the primitives of what is resident (decoding them again when they
+  // must be tessellated again); a smaller one keeps them, for speed.
+  drop_primitives = statistics.triangles > budget_vertices;
   // Forget everything: the snapshot may differ. The proxy cube stays at offset 0.
   known.clear();
   runs.clear();
@@ -805,7 +811,7 @@ bool Renderer::State::make_resident(uint32_t key, Known& k, uint8_t base, FrameS
                        GLsizeiptr(count * sizeof(uint32_t)), vertex_objects.data());
   stats.objects_tessellated += 1;
   stats.arena_bytes_uploaded += uint64_t(count) * kBytesPerVertex;
-  if (!k.keeps_primitives) {
+  if (!k.keeps_primitives && drop_primitives) {
     k.primitives.clear();
     k.primitives.shrink_to_fit();
   }
@@ -1219,6 +1225,9 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   for (const uint32_t t : proxy_tables) table_free.push_back(t);
 
   glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+  // The object ids are written only when they are read back.
+  const GLenum draw_buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
+  glNamedFramebufferDrawBuffers(framebuffer, 2, draw_buffers);
   glViewport(0, 0, GLsizei(w), GLsizei(h));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
