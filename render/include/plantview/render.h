@@ -13,7 +13,11 @@
 //               cylinder where the components' relief projects under the pixel error;
 //   3. stream   vertices of newly visible objects are tessellated from their parameters into one
 //               GPU vertex arena of fixed size (20 bytes a vertex: position, packed normal and
-//               the object-table index; the GPU buffer grows on demand up to the budget). An
+//               the object-table index). The GPU buffer grows to what each frame needs,
+//               doubling, up to the budget; a model larger than the budget at full resolution
+//               gets the whole budget at once (growing copies the buffer, and old plus new would
+//               exceed it), and its resident objects keep only what drawing needs (their
+//               primitives are decoded again from the store if they must be tessellated again). An
 //               object is made resident from one level below its chosen one (from the chosen
 //               one once the arena is half full): the vertices of a level serve every coarser
 //               level, so coarsening, and refining within that slack, only changes the index
@@ -29,6 +33,8 @@
 //               (computed in double precision), its colour and its pick id; so plants
 //               kilometres from the origin do not jitter, and the draw-call count does not grow
 //               with the object count;
+//               Nearest objects are drawn first, so that hidden fragments fail the depth test
+//               before they are shaded; object ids are drawn only when asked for;
 //   5. read back colour (RGBA8, sRGB values) and object ids (after resolving multisampling).
 //
 // Units: lengths in metres, angles in degrees where the name says _deg, times in milliseconds.
