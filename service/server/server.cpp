@@ -718,6 +718,10 @@ void begin_shutdown(Server& s) {
         server.worker.stop();
         uv_timer_stop(t);
         uv_close(reinterpret_cast<uv_handle_t*>(t), nullptr);
+        // Everything is finished; only the store's clean close remains. A repeated signal
+        // (a second Ctrl-C, a supervisor's retry) must not cut that short.
+        std::signal(SIGINT, SIG_IGN);
+        std::signal(SIGTERM, SIG_IGN);
         uv_close(reinterpret_cast<uv_handle_t*>(&server.sigint), nullptr);
         uv_close(reinterpret_cast<uv_handle_t*>(&server.sigterm), nullptr);
       },
