@@ -134,6 +134,17 @@ std::map<uint64_t, Object> objects_by_id(const Store& store) {
 
 // Every object is found by its id and its name (with the other objects of that name), at the
 // slot it is read from.
+// The store holds exactly `expected` (by id), each object as it went in.
+void expect_objects_exactly(const Store& store, const std::map<uint64_t, Object>& expected) {
+  const auto back = objects_by_id(store);
+  ASSERT_EQ(back.size(), expected.size());
+  for (const auto& [id, o] : expected) {
+    auto it = back.find(id);
+    ASSERT_NE(it, back.end()) << o.name;
+    EXPECT_TRUE(it->second == o) << o.name << " of " << o.source;
+  }
+}
+
 void expect_indexes_agree(const Store& store) {
   std::string error;
   auto view = store.read(error);
@@ -338,13 +349,7 @@ TEST(Store, ObjectsOnEitherSideOfChunkAndBlockBoundariesComeBack) {
     import_objects(*store, more, source);
     for (const Object& o : more) expected.emplace(o.id, o);
   }
-  const auto back = objects_by_id(*store);
-  ASSERT_EQ(back.size(), expected.size());
-  for (const auto& [id, o] : expected) {
-    auto it = back.find(id);
-    ASSERT_NE(it, back.end()) << o.name;
-    EXPECT_TRUE(it->second == o) << o.name << " of " << o.source;
-  }
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
   // Slots read one by one across the boundaries (the view's chunk cache misses and hits).
   std::string error;
   auto view = store->read(error);
@@ -431,13 +436,7 @@ TEST(Store, ReplacingASourceKeepsAnotherSourcesObjectsInTheSameChunks) {
   std::map<uint64_t, Object> expected;
   for (const Object& o : b) expected.emplace(o.id, o);
   for (const Object& o : a2) expected.emplace(o.id, o);
-  const auto back = objects_by_id(*store);
-  ASSERT_EQ(back.size(), expected.size());
-  for (const auto& [id, o] : expected) {
-    auto it = back.find(id);
-    ASSERT_NE(it, back.end()) << o.name;
-    EXPECT_TRUE(it->second == o) << o.name << " of " << o.source;
-  }
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
   std::string error;
   auto view = store->read(error);
   EXPECT_EQ(view->info().objects, 350u);

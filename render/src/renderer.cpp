@@ -658,14 +658,11 @@ Known* Renderer::State::know(uint32_t slot, std::string& error) {
 }
 
 void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
-  const uint32_t pipeline_first = uint32_t(runs.size());
-  // Whatever happens below, the pipeline counts as analysed, with the runs found.
-  struct Record {
-    State& state;
-    uint64_t id;
-    uint32_t first;
-    ~Record() { state.pipeline_runs[id] = {first, uint32_t(state.runs.size()) - first}; }
-  } record{*this, pipeline_id, pipeline_first};
+  // Analysed from now on, with no runs unless some are found below (a pipeline that cannot be
+  // read keeps none).
+  auto& [pipeline_first, pipeline_count] = pipeline_runs[pipeline_id];
+  pipeline_first = uint32_t(runs.size());
+  pipeline_count = 0;
   const auto slot = view->slot_of(pipeline_id);
   Object pipeline;
   if (!slot || !view->object(*slot, pipeline, false, error)) return;
@@ -697,6 +694,7 @@ void Renderer::State::analyse_pipeline(uint64_t pipeline_id, std::string& error)
       }
     }
   }
+  pipeline_count = uint32_t(runs.size()) - pipeline_first;
   run_decided_frame.resize(runs.size(), 0);
   run_merged.resize(runs.size(), 0);
   run_drawn.resize(runs.size(), 0);
