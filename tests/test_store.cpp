@@ -973,6 +973,125 @@ TEST(Store, ReadOnlyOpeningOfAMissingStoreFailsWithItsPath) {
   EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
 }
 
+std::string file_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Opening fails in both modes with a message holding every one of `expected`, and data.mdb keeps
+// its bytes.
+void expect_refused_untouched(const std::string& dir, const std::vector<std::string>& expected) {
+  const fs::path data = fs::path(dir) / "data.mdb";
+  const std::string before = file_bytes(data);
+  for (auto mode : {Store::Mode::read_only, Store::Mode::read_write}) {
+    std::string error;
+    EXPECT_FALSE(Store::open(dir, mode, error));
+    for (const std::string& part : expected) {
+      EXPECT_NE(error.find(part), std::string::npos) << "missing \"" << part << "\" in: " << error;
+    }
+  }
+  EXPECT_TRUE(file_bytes(data) == before) << "data.mdb changed";
+}
+
+TEST(Store, ATruncatedDataFileIsRefusedNamingItsSizeInsteadOfFaulting) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 3000; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  const fs::path data = fs::path(dir.str()) / "data.mdb";
+  const uintmax_t size = fs::file_size(data);
+  ASSERT_GT(size, 16u * 4096u);
+  // A partial copy: half the file, then only the two meta pages and a bit.
+  for (uintmax_t cut : {size / 2, uintmax_t(2 * 4096 + 100)}) {
+    fs::resize_file(data, cut);
+    expect_refused_untouched(dir.str(), {dir.str(), "data.mdb is truncated",
+                                         std::to_string(cut) + " bytes", std::to_string(size)});
+  }
+  // Shorter than LMDB's meta pages.
+  fs::resize_file(data, 100);
+  expect_refused_untouched(dir.str(), {dir.str(), "100 bytes", "truncated copy"});
+}
+
+TEST(Store, ADataFileCutShortWhileOpenFailsTheNextViewInsteadOfFaulting) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 3000; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  auto store = open_store(dir.str(), Store::Mode::read_only);
+  const fs::path data = fs::path(dir.str()) / "data.mdb";
+  fs::resize_file(data, fs::file_size(data) / 2);
+  std::string error;
+  EXPECT_FALSE(store->read(error));
+  EXPECT_NE(error.find("data.mdb is truncated"), std::string::npos) << error;
+}
+
+TEST(Store, AnEmptyDataFileIsRefusedAsNotAStoreAndStaysEmpty) {
+  TempDir dir;
+  fs::create_directories(dir.str());
+  std::ofstream(fs::path(dir.str()) / "data.mdb").close();
+  expect_refused_untouched(dir.str(), {(fs::path(dir.str()) / "data.mdb").string() +
+                                       " is empty: not a plantview store"});
+  EXPECT_EQ(fs::file_size(fs::path(dir.str()) / "data.mdb"), 0u);
+}
+
+// Overwrites meta/"statistics" with `value` (no Store open on `dir`).
+void put_statistics(const std::string& dir, const std::string& value) {
+  MDB_env* env = nullptr;
+  ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 8);
+  ASSERT_EQ(mdb_env_open(env, dir.c_str(), 0, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
+  ASSERT_EQ(mdb_dbi_open(txn, "meta", 0, &dbi), MDB_SUCCESS);
+  MDB_val k{10, const_cast<char*>("statistics")};
+  MDB_val v{value.size(), const_cast<char*>(value.data())};
+  ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
+  ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
+  mdb_env_close(env);
+}
+
+TEST(Store, StatisticsOfTheWrongShapeAreRefusedNamingTheKey) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+  }
+  const std::pair<std::string, std::string> cases[] = {
+      {R"({"objects":"many"})", "\"objects\" is a JSON string"},
+      {R"([1,2,3])", "a JSON array, not an object"},
+      {R"({"objects_by_class":5})", "\"objects_by_class\" is a JSON number"},
+      {R"({"primitives_by_kind":{"box":-1}})", "\"primitives_by_kind.box\""},
+      {R"({"triangles_by_class":{"pipe":1.5}})", "\"triangles_by_class.pipe\""},
+      {R"({"bounds_m":{"min":[0,0]}})", "\"bounds_m.min\""},
+      {R"({"bounds_m":{"min":[0,0,0]}})", "\"bounds_m.max\""},
+      {"{\"objects\": 3", "not JSON"},
+  };
+  for (const auto& [value, why] : cases) {
+    SCOPED_TRACE(value);
+    put_statistics(dir.str(), value);
+    expect_refused_untouched(dir.str(), {dir.str(), "meta/\"statistics\" is damaged", why});
+  }
+  // The form the store writes reads back.
+  ModelStatistics s;
+  s.objects = 7;
+  s.objects_by_class[0] = 7;
+  s.bounds.extend(glm::dvec3(1, 2, 3));
+  put_statistics(dir.str(), statistics_json(s));
+  auto store = open_store(dir.str(), Store::Mode::read_only);
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_EQ(view->info().objects, 7u);
+  EXPECT_EQ(view->info().statistics.bounds.max, glm::dvec3(1, 2, 3));
+}
+
 TEST(Store, AnImportKilledPartWayLeavesExactlyTheEarlierContents) {
   TempDir dir;
   {

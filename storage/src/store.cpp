@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -11,6 +12,8 @@
 #include <nlohmann/json.hpp>
 #include <unordered_map>
 #include <unordered_set>
+
+#include <sys/stat.h>
 
 #include "columns.h"
 #include "lmdb_guard.h"
@@ -65,29 +68,108 @@ nlohmann::json statistics_to_json(const ModelStatistics& s) {
   return j;
 }
 
-ModelStatistics statistics_from_json(const nlohmann::json& j) {
-  ModelStatistics s;
-  s.objects = j.value("objects", uint64_t(0));
-  s.primitives = j.value("primitives", uint64_t(0));
-  s.triangles = j.value("triangles_full_resolution", uint64_t(0));
+// Reads meta/"statistics" (statistics_to_json's form; absent keys count 0). False, with `why`
+// naming the key, when the value is not JSON or a key holds the wrong type: the value is input
+// like any other byte of the file, and a damaged one must not take down every command.
+bool statistics_from_json(std::string_view text, ModelStatistics& s, std::string& why) {
+  s = ModelStatistics{};
+  const auto j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded()) {
+    why = "not JSON";
+    return false;
+  }
+  if (!j.is_object()) {
+    why = std::string("a JSON ") + j.type_name() + ", not an object";
+    return false;
+  }
+  const auto count = [&](const nlohmann::json& in, const std::string& path, const std::string& key,
+                         uint64_t& out) {
+    const auto it = in.find(key);
+    if (it == in.end()) return true;
+    if (!it->is_number_unsigned()) {
+      why = "\"" + path + key + "\" is a JSON " + it->type_name() + ", not a count";
+      return false;
+    }
+    out = it->get<uint64_t>();
+    return true;
+  };
+  // A map of counts by name: absent, or an object.
+  const auto map = [&](const std::string& key) -> const nlohmann::json* {
+    static const nlohmann::json kEmpty = nlohmann::json::object();
+    const auto it = j.find(key);
+    if (it == j.end()) return &kEmpty;
+    if (!it->is_object()) {
+      why = "\"" + key + "\" is a JSON " + it->type_name() + ", not an object";
+      return nullptr;
+    }
+    return &*it;
+  };
+  if (!count(j, "", "objects", s.objects) || !count(j, "", "primitives", s.primitives) ||
+      !count(j, "", "triangles_full_resolution", s.triangles)) {
+    return false;
+  }
+  const nlohmann::json* objects_by_class = map("objects_by_class");
+  const nlohmann::json* primitives_by_class = map("primitives_by_class");
+  const nlohmann::json* triangles_by_class = map("triangles_by_class");
+  const nlohmann::json* primitives_by_kind = map("primitives_by_kind");
+  const nlohmann::json* triangles_by_kind = map("triangles_by_kind");
+  if (!objects_by_class || !primitives_by_class || !triangles_by_class || !primitives_by_kind ||
+      !triangles_by_kind) {
+    return false;
+  }
   for (int c = 0; c < kObjectClassCount; ++c) {
     const std::string name(class_name(ObjectClass(c)));
-    s.objects_by_class[c] = j["objects_by_class"].value(name, uint64_t(0));
-    s.primitives_by_class[c] = j["primitives_by_class"].value(name, uint64_t(0));
-    s.triangles_by_class[c] = j["triangles_by_class"].value(name, uint64_t(0));
+    if (!count(*objects_by_class, "objects_by_class.", name, s.objects_by_class[c]) ||
+        !count(*primitives_by_class, "primitives_by_class.", name, s.primitives_by_class[c]) ||
+        !count(*triangles_by_class, "triangles_by_class.", name, s.triangles_by_class[c])) {
+      return false;
+    }
   }
   for (int k = 0; k < kPrimitiveKindCount; ++k) {
     const std::string name(kind_name(PrimitiveKind(k)));
-    s.primitives_by_kind[k] = j["primitives_by_kind"].value(name, uint64_t(0));
-    s.triangles_by_kind[k] = j["triangles_by_kind"].value(name, uint64_t(0));
-  }
-  if (j.contains("bounds_m")) {
-    for (int i = 0; i < 3; ++i) {
-      s.bounds.min[i] = j["bounds_m"]["min"][i].get<double>();
-      s.bounds.max[i] = j["bounds_m"]["max"][i].get<double>();
+    if (!count(*primitives_by_kind, "primitives_by_kind.", name, s.primitives_by_kind[k]) ||
+        !count(*triangles_by_kind, "triangles_by_kind.", name, s.triangles_by_kind[k])) {
+      return false;
     }
   }
-  return s;
+  const auto bounds = j.find("bounds_m");
+  if (bounds != j.end()) {
+    for (const char* end : {"min", "max"}) {
+      const nlohmann::json* corner = bounds->is_object() && bounds->contains(end)
+                                         ? &(*bounds)[end]
+                                         : nullptr;
+      bool ok = corner && corner->is_array() && corner->size() == 3;
+      for (size_t i = 0; ok && i < 3; ++i) ok = (*corner)[i].is_number();
+      if (!ok) {
+        why = std::string("\"bounds_m.") + end + "\" is not an array of 3 numbers";
+        return false;
+      }
+      glm::dvec3& out = end[1] == 'i' ? s.bounds.min : s.bounds.max;
+      for (int i = 0; i < 3; ++i) out[i] = (*corner)[size_t(i)].get<double>();
+    }
+  }
+  return true;
+}
+
+// meta/"statistics" as committed in `txn` (zero counts when absent). False with `error` naming
+// the store and the key when the value is damaged (statistics_from_json).
+bool read_statistics(MDB_txn* txn, MDB_dbi meta, const std::string& directory,
+                     ModelStatistics& statistics, std::string& error) {
+  statistics = ModelStatistics{};
+  MDB_val k = as_val("statistics"), v;
+  const int rc = mdb_get(txn, meta, &k, &v);
+  if (rc == MDB_NOTFOUND) return true;
+  std::string why;
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+  } else if (statistics_from_json(
+                 std::string_view(static_cast<const char*>(v.mv_data), v.mv_size), statistics,
+                 why)) {
+    return true;
+  }
+  statistics = ModelStatistics{};
+  error = "store " + directory + ": meta/\"statistics\" is damaged: " + why;
+  return false;
 }
 
 void subtract(ModelStatistics& total, const ModelStatistics& part) {
@@ -267,6 +349,34 @@ bool decode_names(const std::vector<uint8_t>& raw, std::vector<NameSlot>& names,
     names.push_back({uint32_t(pair.key), pair.slot});
   }
   return reader.finish(why);
+}
+
+// Whether the data file holds every page the environment's newest meta page says is in use.
+// LMDB maps the file and reads pages in place, so a page beyond the end of the file (a partial
+// copy, a full disk, a file cut short while open) would be a SIGBUS at the first read, not an
+// error. False with a message naming the file, its size and the size it needs.
+bool data_file_complete(MDB_env* env, const std::string& directory, std::string& error) {
+  MDB_envinfo info;
+  MDB_stat stat;
+  mdb_filehandle_t fd;
+  struct stat file;
+  int rc = mdb_env_info(env, &info);
+  if (rc == MDB_SUCCESS) rc = mdb_env_stat(env, &stat);
+  if (rc == MDB_SUCCESS) rc = mdb_env_get_fd(env, &fd);
+  if (rc == MDB_SUCCESS && fstat(fd, &file) != 0) rc = errno;
+  if (rc != MDB_SUCCESS) {
+    error = lmdb_message(directory, "checking the size of data.mdb", rc);
+    return false;
+  }
+  const uint64_t needed = (uint64_t(info.me_last_pgno) + 1) * stat.ms_psize;
+  if (uint64_t(file.st_size) >= needed) return true;
+  error = "store " + directory + ": " +
+          (std::filesystem::path(directory) / "data.mdb").string() + " is truncated: " +
+          std::to_string(file.st_size) + " bytes, but its pages in use (0 to " +
+          std::to_string(info.me_last_pgno) + ", " + std::to_string(stat.ms_psize) +
+          " bytes each) need " + std::to_string(needed) +
+          " (a partial copy, or a disk that was full)";
+  return false;
 }
 
 }  // namespace
@@ -711,12 +821,10 @@ StoreInfo ReadView::info() const {
   if (mdb_get(txn, dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
     std::memcpy(&info.format_version, v.mv_data, 4);
   }
-  k = as_val("statistics");
-  if (mdb_get(txn, dbs.meta, &k, &v) == MDB_SUCCESS) {
-    const auto j = nlohmann::json::parse(
-        std::string_view(static_cast<const char*>(v.mv_data), v.mv_size), nullptr, false);
-    if (!j.is_discarded()) info.statistics = statistics_from_json(j);
-  }
+  // Store::open refused a store whose statistics are damaged; should they be damaged since (a
+  // disk fault), info() has no error to give and reports zero counts and no bounds.
+  std::string ignored;
+  read_statistics(txn, dbs.meta, state_->store->directory, info.statistics, ignored);
   info.objects = info.statistics.objects;
   std::error_code ec;
   const auto size = std::filesystem::file_size(
@@ -840,6 +948,15 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
     error = "store " + directory + ": no store there (no data.mdb)";
     return nullptr;
   }
+  // An empty data file is refused before LMDB sees it: opened for writing, LMDB would take it
+  // for a new environment and write to it.
+  const std::filesystem::path data_file = std::filesystem::path(directory) / "data.mdb";
+  if (std::filesystem::is_regular_file(data_file, ec) &&
+      std::filesystem::file_size(data_file, ec) == 0 && !ec) {
+    error = "store " + directory + ": " + data_file.string() +
+            " is empty: not a plantview store (or a truncated copy)";
+    return nullptr;
+  }
   int rc = mdb_env_create(state->env.out());
   if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 8);
   if (rc == MDB_SUCCESS) rc = mdb_env_set_mapsize(state->env.get(), kMapSizeBytes);
@@ -850,8 +967,17 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   if (rc == MDB_SUCCESS) rc = mdb_env_open(state->env.get(), directory.c_str(), flags, 0644);
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(directory, "opening", rc);
+    // LMDB reads its two meta pages with read(): a file too short to hold them is "not an LMDB
+    // file"; say how short.
+    const auto size = std::filesystem::file_size(data_file, ec);
+    if (rc == MDB_INVALID && !ec) {
+      error += " (" + data_file.string() + " is " + std::to_string(size) +
+               " bytes: not a plantview store, or a truncated copy)";
+    }
     return nullptr;
   }
+  // Before anything reads a page through the mapping.
+  if (!data_file_complete(state->env.get(), directory, error)) return nullptr;
   // Open (or create) the named databases once; their handles serve every later transaction.
   detail::LmdbTxn txn;
   rc = txn.begin(state->env.get(), mode == Mode::read_only ? MDB_RDONLY : 0u);
@@ -880,6 +1006,10 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
       return nullptr;
     }
   }
+  // Statistics that cannot be read would leave `info` without counts and an import without its
+  // totals: refuse the store now, naming the key, rather than misreport it later.
+  ModelStatistics statistics;
+  if (!read_statistics(txn.get(), d.meta, directory, statistics, error)) return nullptr;
   struct Named {
     const char* name;
     MDB_dbi* dbi;
@@ -917,13 +1047,10 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
     return nullptr;
   }
   MDB_txn* txn = s->txn.get();
-  MDB_val k = as_val("statistics"), v;
-  if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS) {
-    const auto j = nlohmann::json::parse(
-        std::string_view(static_cast<const char*>(v.mv_data), v.mv_size), nullptr, false);
-    if (!j.is_discarded()) s->totals = statistics_from_json(j);
+  if (!read_statistics(txn, state_->dbs.meta, state_->directory, s->totals, error)) {
+    return nullptr;
   }
-  k = as_val("next_slot");
+  MDB_val k = as_val("next_slot"), v;
   if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
     std::memcpy(&s->next_slot, v.mv_data, 4);
   }
@@ -949,6 +1076,9 @@ std::unique_ptr<ReadView> Store::read(std::string& error) const {
     error = state_->fail("starting a read", rc);
     return nullptr;
   }
+  // The data file may have been cut short since the store was opened (another process, a copy
+  // over it): refuse the view rather than fault on its first page.
+  if (!data_file_complete(state_->env.get(), state_->directory, error)) return nullptr;
   s->snapshot = state_->snapshot_for(s->txn.get(), error);
   if (!s->snapshot) return nullptr;
   return std::unique_ptr<ReadView>(new ReadView(std::move(s)));

@@ -56,6 +56,15 @@
 // names the store directory and the operation or slot (and the LMDB or zstd reason). slot_of()
 // and slots_named() also have short forms without a message, for callers that treat "cannot
 // tell" as "none".
+//
+// Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an
+// empty data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter
+// than the pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps
+// the file, and reading a page past its end would kill the process with SIGBUS), another format
+// version, and meta/"statistics" that is not JSON of the form statistics_json() writes (the
+// message names the key). read() checks the file's length again, so a file cut short while the
+// store is open fails the next view instead of faulting; a cut during a view's life is not
+// caught (the view's pages past the new end fault, as any mapped file's would).
 #pragma once
 
 #include <cstdint>
