@@ -135,6 +135,61 @@ TEST_F(Cli, ExportedXmlImportsToTheSameModel) {
   EXPECT_EQ(a, b);
 }
 
+// A damaged store: `info` and `render` exit 1 (not a signal) with the reason on stderr, and
+// data.mdb keeps its bytes.
+class DamagedStore : public Cli {
+ protected:
+  void expect_refused(const fs::path& store, const std::string& reason) {
+    const std::string before = slurp(store / "data.mdb");
+    const std::string commands[] = {
+        "info --store " + store.string(),
+        "info --json --store " + store.string(),
+        "render --store " + store.string() + " --out " + (dir_ / "frame.png").string(),
+    };
+    for (const std::string& command : commands) {
+      SCOPED_TRACE(command);
+      const Outcome r = run(command);
+      EXPECT_EQ(r.status, 1) << "a status over 128 is a signal: " << r.err;
+      EXPECT_NE(r.err.find(reason), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find(store.string()), std::string::npos) << r.err;
+    }
+    EXPECT_TRUE(slurp(store / "data.mdb") == before) << "data.mdb changed";
+  }
+};
+
+TEST_F(DamagedStore, ATruncatedDataFileFailsInfoAndRenderWithAMessage) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  fs::resize_file(store / "data.mdb", fs::file_size(store / "data.mdb") / 2);
+  expect_refused(store, "data.mdb is truncated");
+}
+
+TEST_F(DamagedStore, AnEmptyDataFileFailsInfoAndRenderWithAMessage) {
+  const fs::path store = dir_ / "store";
+  fs::create_directories(store);
+  std::ofstream(store / "data.mdb").close();
+  expect_refused(store, "data.mdb is empty: not a plantview store");
+  EXPECT_EQ(run("import " + (kHuldra / "WD1-PSUP.RVM").string() + " --store " + store.string()).status, 1);
+  EXPECT_EQ(fs::file_size(store / "data.mdb"), 0u) << "an import must not take it for a new store";
+}
+
+TEST_F(DamagedStore, StatisticsOfTheWrongShapeFailInfoAndRenderNamingTheKey) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  // meta/"statistics" starts with {"bounds_m": keys in order; make its first key a string
+  // of the same length so that the JSON stays JSON but has the wrong shape.
+  std::string bytes = slurp(store / "data.mdb");
+  const std::string key = R"({"bounds_m":{"max":[)";
+  const size_t at = bytes.find(key);
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at, key.size(), R"({"bounds_m":{"max":")");
+  const size_t close = bytes.find(']', at);
+  ASSERT_NE(close, std::string::npos);
+  bytes[close] = '"';
+  std::ofstream(store / "data.mdb", std::ios::binary | std::ios::trunc) << bytes;
+  expect_refused(store, "meta/\"statistics\" is damaged: \"bounds_m.max\"");
+}
+
 TEST_F(Cli, CompareWithoutTheImageModuleFailsNamingWhereItLooked) {
   const std::string a = (dir_ / "a.png").string(), b = (dir_ / "b.png").string();
   const Outcome r = run("compare " + a + " " + b, "PLANTVIEW_IMAGE_MODULE=" + (dir_ / "none.so").string());
