@@ -190,6 +190,24 @@ TEST_F(DamagedStore, StatisticsOfTheWrongShapeFailInfoAndRenderNamingTheKey) {
   expect_refused(store, "meta/\"statistics\" is damaged: \"bounds_m.max\"");
 }
 
+TEST_F(Cli, ADirectoryGivenAsAnRvmOrAttributeFileFailsNamingIt) {
+  if (!fs::exists(kHuldra)) GTEST_SKIP() << "no " << kHuldra;
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  const auto before = info(store);
+  const fs::path rvm_dir = dir_ / "MODEL.RVM", att_dir = dir_ / "WD1-PSUP.txt";
+  fs::create_directories(rvm_dir);
+  fs::create_directories(att_dir);
+  Outcome r = run("import " + rvm_dir.string() + " --store " + store.string());
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find(rvm_dir.string() + ": is a directory"), std::string::npos) << r.err;
+  r = run("import " + (kHuldra / "WD1-PSUP.RVM").string() + " " + att_dir.string() + " --store " +
+          store.string());
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find(att_dir.string() + ": is a directory"), std::string::npos) << r.err;
+  EXPECT_EQ(info(store), before);
+}
+
 TEST_F(Cli, CompareWithoutTheImageModuleFailsNamingWhereItLooked) {
   const std::string a = (dir_ / "a.png").string(), b = (dir_ / "b.png").string();
   const Outcome r = run("compare " + a + " " + b, "PLANTVIEW_IMAGE_MODULE=" + (dir_ / "none.so").string());

@@ -2,6 +2,7 @@
 // primitive kind, every truncation and byte corruption of it, the known exporter variants,
 // degenerate primitives and hostile counts.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -803,6 +804,42 @@ TEST(RvmParser, NestingIsLimited) {
       EXPECT_TRUE(contains(parsed.error().message, "groups nest deeper than"));
     }
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// load_file.
+
+TEST(LoadFile, ADirectoryIsRefusedNamingItNotReadAsAHugeFile) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("plantview-load-file-" + std::to_string(::getpid()) + ".rvm");
+  std::filesystem::create_directories(dir);
+  const auto bytes = load_file(dir);
+  std::filesystem::remove_all(dir);
+  ASSERT_FALSE(bytes);
+  EXPECT_EQ(bytes.error().message, dir.string() + ": is a directory, not a file");
+}
+
+TEST(LoadFile, AMissingFileIsRefusedWithTheSystemsReason) {
+  const auto bytes = load_file("/nonexistent/plantview/test.rvm");
+  ASSERT_FALSE(bytes);
+  EXPECT_TRUE(contains(bytes.error().message, "/nonexistent/plantview/test.rvm: cannot open"))
+      << bytes.error().message;
+}
+
+TEST(LoadFile, AFileComesBackWhole) {
+  const std::filesystem::path path = std::filesystem::temp_directory_path() /
+                                     ("plantview-load-file-" + std::to_string(::getpid()) + ".txt");
+  {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    std::fputs("abc\n", f);
+    std::fclose(f);
+  }
+  const auto bytes = load_file(path);
+  std::filesystem::remove(path);
+  ASSERT_TRUE(bytes) << bytes.error().message;
+  ASSERT_EQ(bytes.value().size(), 4u);
+  EXPECT_EQ(char(bytes.value()[0]), 'a');
 }
 
 // ---------------------------------------------------------------------------------------------

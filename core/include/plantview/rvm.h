@@ -76,7 +76,8 @@ class ParseResult {
   std::variant<T, ParseError> state_;
 };
 
-// Reads a whole file into memory. Errors name the path and the system's reason.
+// Reads a whole file into memory. Errors name the path and the system's reason (a directory is
+// refused as such).
 ParseResult<std::vector<std::byte>> load_file(const std::filesystem::path& path);
 
 // ---------------------------------------------------------------------------------------------
