@@ -216,6 +216,44 @@ TEST(AttributeParser, IndexKeepsTheFirstOfRepeatedNames) {
   EXPECT_EQ(*index.at("A")->find("n"), "1");
 }
 
+// The header may declare keywords megabytes long; finding them stays linear in the text (a
+// naive search took 4 minutes here for one 4 MB keyword over an 8 MB line: at every position it
+// compared most of the keyword).
+TEST(AttributeParser, MultiMegabyteKeywordsParseInLinearTime) {
+  const size_t m = size_t(4) << 20;
+  const std::string a(m, 'a');
+  std::string pairs;  // "a'" m / 2 times: every quote in it followed by most of the separator
+  for (size_t i = 0; i < m / 2; ++i) pairs += "a'";
+  struct Case {
+    std::string name, text;
+    Attributes expected;
+  } cases[] = {
+      // name_end = a..ab: at every 'a' of the line a near match.
+      {"name_end", "F , start: NEW , end: END , name_end: " + a + "b\nNEW x\n" + a + a + "b v\nEND\n",
+       {{a, "v"}}},
+      // sep = a..ab, an unquoted value of a's before it.
+      {"sep", "F , start: NEW , end: END , name_end: := , sep: " + a + "b\nNEW x\nk := " + a + a +
+                  "b j := 2\nEND\n",
+       {{"k", a}, {"j", "2"}}},
+      // sep = a'a'..a'b, a quoted value of a'a'..: every quote a candidate for closing it.
+      {"sep after quotes", "F , start: NEW , end: END , name_end: := , sep: " + pairs.substr(0, m / 2) +
+                               "b\nNEW x\nk := '" + pairs + pairs.substr(0, m / 2) + "b x := 1\nEND\n",
+       // The separator's only occurrence follows the last quote of the first `pairs`.
+       {{"k", pairs.substr(0, pairs.size() - 1)}, {"x", "1"}}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const auto start = std::chrono::steady_clock::now();
+    const auto parsed = parse_attributes(c.text, kSource);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ASSERT_TRUE(parsed) << parsed.error().message;
+    ASSERT_EQ(parsed.value().blocks.size(), 1u);
+    EXPECT_TRUE(parsed.value().blocks[0].attributes == c.expected);
+    EXPECT_LT(seconds, 5.0) << c.text.size() << " bytes";
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The Huldra sample (../shared/data/huldra): the attribute file of WD1-PSUP.RVM.
 

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "plantview/rvm.h"
 
@@ -24,6 +25,67 @@ std::string_view trim(std::string_view s) {
   while (n > 0 && is_blank(s[n - 1])) --n;
   return s.substr(0, n);
 }
+
+// Finds a keyword the file's header declared (name_end, sep) in time linear in the text searched
+// plus the keyword (Knuth-Morris-Pratt). The header may declare keywords megabytes long, and a
+// naive search (std::string_view::find) costs their length at every position it tries.
+class KeywordSearch {
+ public:
+  // O(keyword.size()) time and memory.
+  void assign(std::string_view keyword) {
+    keyword_ = keyword;
+    border_.assign(keyword_.size(), 0);
+    for (size_t i = 1, k = 0; i < keyword_.size(); ++i) {
+      while (k > 0 && keyword_[i] != keyword_[k]) k = border_[k - 1];
+      if (keyword_[i] == keyword_[k]) ++k;
+      border_[i] = k;
+    }
+  }
+  size_t size() const { return keyword_.size(); }
+  // The length of the longest prefix of the keyword ending with `c` after a match of `state`
+  // characters.
+  size_t advance(size_t state, char c) const {
+    if (state == keyword_.size()) state = border_[state - 1];
+    while (state > 0 && keyword_[state] != c) state = border_[state - 1];
+    return keyword_[state] == c ? state + 1 : 0;
+  }
+  // The first occurrence at or after `from`, npos when none (nor for an empty keyword). Reads
+  // text only up to the end of the occurrence found.
+  size_t find(std::string_view text, size_t from = 0) const {
+    if (keyword_.empty()) return std::string_view::npos;
+    for (size_t i = from, state = 0; i < text.size(); ++i) {
+      state = advance(state, text[i]);
+      if (state == keyword_.size()) return i + 1 - keyword_.size();
+    }
+    return std::string_view::npos;
+  }
+  std::string_view keyword() const { return keyword_; }
+
+ private:
+  std::string keyword_;
+  std::vector<size_t> border_;  // border_[i]: longest proper border of keyword_[0, i]
+};
+
+// Whether the keyword starts at given positions of one text, asked in nondecreasing order: one
+// pass over the text for all the questions together.
+class KeywordStarts {
+ public:
+  KeywordStarts(const KeywordSearch& search, std::string_view text)
+      : search_(search), text_(text) {}
+  bool at(size_t p) {
+    const size_t m = search_.size();
+    if (m == 0 || p + m > text_.size()) return false;
+    if (read_ > p + m) return text_.substr(p, m) == search_.keyword();  // asked out of order
+    for (; read_ < p + m; ++read_) state_ = search_.advance(state_, text_[read_]);
+    return state_ == m;
+  }
+
+ private:
+  const KeywordSearch& search_;
+  std::string_view text_;
+  size_t read_ = 0;   // characters of text_ read
+  size_t state_ = 0;  // matched prefix of the keyword ending at read_
+};
 
 class AttributeParser {
  public:
@@ -52,6 +114,7 @@ class AttributeParser {
   std::optional<ParseError> error_;
   AttributeFile file_;
   std::vector<AttributeBlock> open_;  // blocks opened and not yet closed, outermost first
+  KeywordSearch name_end_, separator_;  // the header's keywords
 };
 
 bool AttributeParser::fail(uint32_t line, uint64_t offset, const std::string& what) {
@@ -119,6 +182,8 @@ bool AttributeParser::parse_header(std::string_view line) {
                                   "name_end keywords; missing ") +
                           (!has_start ? "start" : !has_end ? "end" : "name_end"));
   }
+  name_end_.assign(k.name_end);
+  separator_.assign(k.separator);
   return true;
 }
 
@@ -146,11 +211,12 @@ bool AttributeParser::close_block() {
 
 // The first quote at or after `from` that can close a quoted value: one followed, after blanks,
 // by the separator or the end of the line; npos when there is none. The answer for a later `from`
-// is never earlier, which lets a caller reuse it along the line.
-size_t closing_quote(std::string_view line, size_t from, std::string_view separator) {
+// is never earlier, which lets a caller reuse it along the line. `separator_at` answers for the
+// line: the quotes tried move forward, over one line and across calls.
+size_t closing_quote(std::string_view line, size_t from, KeywordStarts& separator_at) {
   for (size_t q = line.find('\'', from); q != std::string_view::npos; q = line.find('\'', q + 1)) {
     const std::string_view after = trim_left(line.substr(q + 1));
-    if (after.empty() || (!separator.empty() && after.starts_with(separator))) return q;
+    if (after.empty() || separator_at.at(line.size() - after.size())) return q;
   }
   return std::string_view::npos;
 }
@@ -162,9 +228,10 @@ bool AttributeParser::parse_attribute_line(std::string_view line) {
   // closing_quote's last answer, reused while it lies ahead, so that a line costs one pass.
   size_t close = std::string_view::npos;
   bool close_known = false;
+  KeywordStarts separator_at(separator_, line);
   std::string_view rest = line;
   while (!rest.empty()) {
-    const size_t assign = rest.find(k.name_end);
+    const size_t assign = name_end_.find(rest);
     const uint64_t at = static_cast<uint64_t>(rest.data() - text_.data());
     if (assign == std::string_view::npos) {
       return fail(line_, at, "expected '" + k.name_end + "' after an attribute name");
@@ -179,7 +246,7 @@ bool AttributeParser::parse_attribute_line(std::string_view line) {
     if (!rest.empty() && rest[0] == '\'') {
       const size_t open = static_cast<size_t>(rest.data() - line.data());
       if (!close_known || (close != std::string_view::npos && close <= open)) {
-        close = closing_quote(line, open + 1, k.separator);
+        close = closing_quote(line, open + 1, separator_at);
         close_known = true;
       }
       if (close != std::string_view::npos) {
@@ -189,7 +256,7 @@ bool AttributeParser::parse_attribute_line(std::string_view line) {
       }
     }
     if (!quoted) {
-      const size_t sep = k.separator.empty() ? std::string_view::npos : rest.find(k.separator);
+      const size_t sep = separator_.find(rest);
       value = trim(rest.substr(0, sep));
       rest = sep == std::string_view::npos ? std::string_view() : rest.substr(sep);
     }
