@@ -357,6 +357,54 @@ TEST(FacetTriangulation, ThousandVertexStarFinishesQuickly) {
   EXPECT_NEAR(triangle_area(g), polygon_area({p}), 1e-4 * polygon_area({p}));
 }
 
+// A perforated plate: a cols x rows grid of square holes (half a cell wide) in one rectangle.
+PlanePolygon perforated_plate(int cols, int rows) {
+  PlanePolygon p{{rectangle(0, 0, cols, rows)}};
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      p.rings.push_back(rectangle(c + 0.25, r + 0.25, c + 0.75, r + 0.75));
+    }
+  }
+  return p;
+}
+
+// 20,000 holes took a minute (every hole walked the whole ring to find its bridge, and filtered
+// it whole); the work is now bounded by a multiple of the points (facet_group.cpp).
+TEST(FacetTriangulation, TwentyThousandHolesTriangulateInTimeProportionalToThePoints) {
+  const PlanePolygon plate = perforated_plate(200, 100);
+  FacetGroup g = group_of({plate});
+  const auto start = std::chrono::steady_clock::now();
+  const uint32_t skipped = g.triangulate();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(seconds, 20.0);
+  expect_indices_in_range(g);
+  // Whole: the plate's area exactly (no triangle lost, none overlapping), and no more triangles
+  // than a triangulation of its 80,004 points and 20,000 holes has (V + 2H - 2).
+  EXPECT_EQ(skipped, 0u);
+  EXPECT_NEAR(triangle_area(g), polygon_area({plate}), 1e-6 * polygon_area({plate}));
+  EXPECT_LE(g.triangles.size() / 3, g.vertices.size() + 2 * 20000 - 2);
+  EXPECT_GE(g.triangles.size() / 3, 20000u * 4);  // each hole's 4 corners meet triangles
+}
+
+// The work budget is linear in the points past 64 (it was 64 n^2: hours for this ring). A
+// polygon that spends it keeps the triangles made so far and is counted as skipped.
+TEST(FacetTriangulation, ATwentyThousandPointRandomRingEndsWithinTheLinearBudget) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coord(-1.0, 1.0);
+  // Random points: a self-intersecting ring that keeps every fallback busy.
+  PlanePolygon knot{{Ring{}}};
+  for (int i = 0; i < 20000; ++i) knot.rings[0].push_back({coord(rng), coord(rng)});
+  FacetGroup g = group_of({knot});
+  const auto start = std::chrono::steady_clock::now();
+  const uint32_t skipped = g.triangulate();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(seconds, 20.0);
+  EXPECT_LE(skipped, 1u);
+  expect_indices_in_range(g);
+}
+
 TEST(FacetTriangulation, SelfIntersectingAndRandomInputTerminates) {
   std::mt19937 rng(12345);
   std::uniform_real_distribution<double> coord(-1.0, 1.0);
