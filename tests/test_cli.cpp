@@ -176,16 +176,20 @@ TEST_F(DamagedStore, AnEmptyDataFileFailsInfoAndRenderWithAMessage) {
 TEST_F(DamagedStore, StatisticsOfTheWrongShapeFailInfoAndRenderNamingTheKey) {
   const fs::path store = dir_ / "store";
   ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
-  // meta/"statistics" starts with {"bounds_m": keys in order; make its first key a string
-  // of the same length so that the JSON stays JSON but has the wrong shape.
+  // meta/"statistics" starts with {"bounds_m":{"max":[x,y,z] (keys in order): make that array a
+  // string of the same length, so that the JSON stays JSON but has the wrong shape. Every copy
+  // (a page an earlier commit left behind may hold one too).
   std::string bytes = slurp(store / "data.mdb");
   const std::string key = R"({"bounds_m":{"max":[)";
-  const size_t at = bytes.find(key);
-  ASSERT_NE(at, std::string::npos);
-  bytes.replace(at, key.size(), R"({"bounds_m":{"max":")");
-  const size_t close = bytes.find(']', at);
-  ASSERT_NE(close, std::string::npos);
-  bytes[close] = '"';
+  int copies = 0;
+  for (size_t at = bytes.find(key); at != std::string::npos; at = bytes.find(key, at + 1)) {
+    bytes[at + key.size() - 1] = '"';
+    const size_t close = bytes.find(']', at);
+    ASSERT_NE(close, std::string::npos);
+    bytes[close] = '"';
+    ++copies;
+  }
+  ASSERT_GE(copies, 1);
   std::ofstream(store / "data.mdb", std::ios::binary | std::ios::trunc) << bytes;
   expect_refused(store, "meta/\"statistics\" is damaged: \"bounds_m.max\"");
 }
