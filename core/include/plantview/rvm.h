@@ -187,8 +187,9 @@ struct RvmParseOptions {
 // Warnings: a CNTE at the root that closes no group (an AVEVA Marine variant; ignored); next-chunk
 // disagreements in `warn` mode; skipped unknown chunks; transparency above 100 (clamped);
 // facet-group polygons that triangulation skipped. Bytes after the END: chunk are ignored.
-// Allocation is linear in bytes.size(); the parse takes time linear in it as well (facet-group
-// triangulation aside).
+// Allocation is linear in bytes.size(); the parse takes time linear in it as well, facet-group
+// triangulation included (a work budget linear in each polygon's points: a polygon that spends
+// it is left partly triangulated, with the warning above).
 ParseResult<RvmFile> parse_rvm(std::span<const std::byte> bytes, std::string_view source_name,
                                const RvmParseOptions& options = {});
 
