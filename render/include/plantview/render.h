@@ -37,8 +37,14 @@
 //               before they are shaded; object ids are drawn only when asked for;
 //   5. read back colour (RGBA8, sRGB values) and object ids (after resolving multisampling).
 //
+// Inside, the renderer is a frontend and a backend (as Filament separates them): the frame plan
+// (camera -> view, cull, choose; no GL), the decoded objects, arena streaming and the GL backend
+// (GL resources, draw, read back), one file each under render/src.
+//
 // Units: lengths in metres, angles in degrees where the name says _deg, times in milliseconds.
-// Threads: a GpuContext and every Renderer made with it belong to the thread that made them.
+// Threads: a GpuContext and every Renderer made with it belong to the thread that made them;
+//          so does the store snapshot a Renderer reads (read_view()).
+// Lifetimes: the GpuContext and the Store must outlive every Renderer made with them.
 // Errors: fallible calls return false (or null) and fill `error` with what and where.
 //
 // Cameras (camera.h) and images (image.h) have headers of their own; this one includes both.
@@ -56,6 +62,7 @@
 
 namespace plantview {
 
+class ReadView;
 class Store;
 
 // ---------------------------------------------------------------------------------------------
@@ -135,30 +142,45 @@ class GpuContext {
   std::unique_ptr<State> state_;
 };
 
-// Renders frames of one store. Holds one read snapshot of the store for its life (call
-// refresh() to see later imports) and the GPU resources of its arena. Uses the GpuContext
-// current on its thread; the context must outlive it.
+// Renders frames of one store. Holds one read snapshot of the store (a ReadView) for its life
+// (refresh() starts a new one, to see later imports), what it has decoded of the store's
+// objects, and the GPU resources of its arena.
+// Lifetimes: keeps a pointer to the Store, which must outlive the Renderer; uses the
+// GpuContext current on its thread when created, which must stay current on that thread and
+// outlive it.
+// Threads: every call on the thread that created it; one frame at a time.
+// Memory: the vertex arena never exceeds options.vertex_budget_bytes of GPU memory; the
+// decoded-object cache keeps the resident objects and 10,000 more.
 class Renderer {
  public:
+  // Errors: a budget outside 1 MB .. 64 GB, a pixel error that is not a positive number, no
+  // current OpenGL 4.5 context, or a store that cannot be read.
   static std::unique_ptr<Renderer> create(const Store& store, const RenderOptions& options,
                                           std::string& error);
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
 
-  // Renders one frame of width x height (1..kMaxImageSide). with_ids: also read back the
-  // object-id buffer. Fills `stats` (ms.encode is left to the caller).
+  // Renders one frame of width x height (1..kMaxImageSide) through `camera` (valid: see
+  // validate_camera). with_ids: also read back the object-id buffer. Fills `stats` (ms.encode
+  // is left to the caller).
   bool render(const Camera& camera, uint32_t width, uint32_t height, bool with_ids, Image& out,
               FrameStats& stats, std::string& error);
-  // Culls and chooses levels without drawing (LOD statistics for a view).
+  // Culls and chooses levels without drawing (LOD statistics for a view). It streams like a
+  // frame, so the arena is left as render() would leave it.
   bool statistics(const Camera& camera, uint32_t width, uint32_t height, FrameStats& stats,
                   std::string& error);
 
-  // Starts a new read snapshot and forgets everything resident.
+  // Starts a new read snapshot and forgets everything decoded and resident. If the store cannot
+  // be read, the renderer keeps its current snapshot (and what it holds) and stays usable.
   bool refresh(std::string& error);
   void set_options(const RenderOptions& options);  // the vertex budget is fixed at creation
   const RenderOptions& options() const;
-  const DAabb& model_bounds() const;
+  const DAabb& model_bounds() const;  // of the current snapshot
+  // The snapshot every frame is drawn from: picking or reading attributes through it sees the
+  // same commit as the frames. Valid until a refresh() reads a new snapshot or the renderer is
+  // destroyed; like the renderer, it belongs to the renderer's thread.
+  const ReadView& read_view() const;
 
  private:
   struct State;
