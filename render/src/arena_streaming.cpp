@@ -195,7 +195,8 @@ void ArenaStreaming::begin_frame(const FramePlan& plan) {
   // Every visible object (merged runs' members and objects without geometry too), and the
   // merged runs.
   for (const VisibleObject& v : plan.visible()) residency_.mark_visible(v.slot);
-  for (const Draw& d : plan.draws()) residency_.mark_visible(d.key);
+  for (const Draw& d : plan.draws())
+    if (d.key & kRunKeyBit) residency_.mark_visible(d.key);
   counts_.fill(0);
   for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
   proxy_tables_.clear();

@@ -18,8 +18,8 @@
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
 //   the eye (so that plants kilometres from the origin keep float precision).
 // Ownership: a FramePlan owns its lists and reuses them frame after frame (no allocation once
-//   warm); they are valid until the next cull(). A Draw points to its Known in DecodedObjects
-//   and to its VisibleObject in this plan.
+//   warm); visible() and node_boxes() are valid until the next cull(), draws() until the next
+//   choose(). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
 // Threads: the renderer's thread.
 #pragma once
 
