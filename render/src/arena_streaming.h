@@ -11,7 +11,8 @@
 //     tessellates it again (objects_refined). Over budget, it is made resident at its coarsest
 //     level (budget_coarsened), else drawn as its box (budget_proxies; merged runs are then
 //     skipped, their members' boxes would be drawn one by one).
-//   - The GPU buffers are grown once a frame, before streaming, for what the frame may need.
+//   - The GPU buffers grow once a frame, before streaming, for what the frame may need (and
+//     again only if a placement lands beyond them).
 //   - Object-table entries: resident objects hold one while resident; proxy boxes hold one
 //     until the next frame streams. Entry offsets are relative to the eye (double
 //     precision until the final subtraction).
