@@ -476,7 +476,7 @@ TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
   auto r = make_renderer(*store, options);
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-10, 90);
-  uint64_t evictions = 0, proxies = 0;
+  uint64_t evictions = 0;
   for (int frame = 0; frame < 30; ++frame) {
     const glm::dvec3 eye(u(rng), u(rng), 3 + 0.2 * u(rng));
     const glm::dvec3 target(u(rng), u(rng), 0);
@@ -484,7 +484,6 @@ TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
     Frame f = render(*r, look(eye, target), 96, 64);
     EXPECT_LE(f.stats.arena_bytes_resident, options.vertex_budget_bytes) << frame;
     evictions += f.stats.objects_evicted;
-    proxies += f.stats.budget_proxies;
     EXPECT_LE(ids_in(f.image).size(), f.stats.objects_visible);
   }
   EXPECT_GT(evictions, 0u);
@@ -531,6 +530,51 @@ TEST(RenderArena, AResidentObjectIsNotTessellatedAgain) {
   EXPECT_EQ(b.stats.objects_tessellated, 0u);
   EXPECT_EQ(b.stats.arena_bytes_uploaded, 0u);
   EXPECT_LT(b.stats.triangles, a.stats.triangles);
+}
+
+// --- statistics and snapshots -------------------------------------------------------------------
+
+TEST(RenderStatistics, CountWhatRenderingTheSameViewDraws) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 30; ++i)
+    objects.push_back(make_object("C" + std::to_string(i), ObjectClass::equipment,
+                                  {(i % 6) * 3.0, (i / 6) * 4.0, 0}, Cylinder{0.5f, 2.0f}));
+  auto store = make_store(dir, objects);
+  auto drawing = make_renderer(*store);
+  auto counting = make_renderer(*store);
+  for (const double d : {6.0, 25.0, 120.0}) {
+    const Camera camera = look({7.5, -d, 3}, {7.5, 8, 0});
+    Frame f = render(*drawing, camera, 320, 240);
+    FrameStats counted;
+    std::string error;
+    ASSERT_TRUE(counting->statistics(camera, 320, 240, counted, error)) << error;
+    f.stats.ms = counted.ms = {};
+    EXPECT_EQ(counted.to_json(), f.stats.to_json()) << "at " << d << " m";
+    EXPECT_GT(counted.triangles, 0u);
+  }
+}
+
+TEST(RenderSnapshot, FramesAndTheReadViewSeeOneCommitUntilRefresh) {
+  TempDir dir;
+  const Object first = make_object("first", ObjectClass::equipment, {0, 0, 0}, Box{1, 1, 1});
+  const Object second = make_object("second", ObjectClass::equipment, {2, 0, 0}, Box{1, 1, 1});
+  auto store = make_store(dir, {first});
+  auto r = make_renderer(*store);
+  const Camera camera = look({1, -8, 1}, {1, 0, 0});
+  EXPECT_EQ(ids_in(render(*r, camera).image), std::set<uint64_t>{first.id});
+  std::string error;
+  auto import = store->begin_import(error);
+  ASSERT_TRUE(import) << error;
+  ASSERT_TRUE(import->put(second, error)) << error;
+  ASSERT_TRUE(import->commit(error)) << error;
+  // The renderer's snapshot predates the import: neither frames nor its view see `second`.
+  EXPECT_EQ(ids_in(render(*r, camera).image), std::set<uint64_t>{first.id});
+  EXPECT_FALSE(r->read_view().slot_of(second.id));
+  EXPECT_TRUE(r->read_view().slot_of(first.id));
+  ASSERT_TRUE(r->refresh(error)) << error;
+  EXPECT_TRUE(r->read_view().slot_of(second.id));
+  EXPECT_EQ(ids_in(render(*r, camera).image), (std::set<uint64_t>{first.id, second.id}));
 }
 
 // --- precision --------------------------------------------------------------------------------
@@ -583,6 +627,38 @@ TEST(RenderCamera, ParsesTheCommandLineFormAndRejectsBadOnes) {
     EXPECT_FALSE(parse_camera(bad, c, error)) << bad;
     EXPECT_NE(error.find("camera"), std::string::npos);
   }
+}
+
+TEST(RenderCamera, ValidationRejectsWhatTheRendererCannotDraw) {
+  std::string error;
+  Camera c = look({0, -5, 1}, {0, 0, 1});
+  EXPECT_TRUE(validate_camera(c, error)) << error;
+  const auto rejected = [&](Camera bad, const char* why) {
+    error.clear();
+    EXPECT_FALSE(validate_camera(bad, error)) << why;
+    EXPECT_NE(error.find("camera:"), std::string::npos) << why;
+  };
+  Camera bad = c;
+  bad.target_m = bad.eye_m;
+  rejected(bad, "eye on the target");
+  bad = c;
+  bad.up = {0, 1, 0};
+  rejected(bad, "up along the view");
+  bad = c;
+  bad.up = {0, 0, 0};
+  rejected(bad, "zero up");
+  bad = c;
+  bad.fov_deg = 179.0;
+  rejected(bad, "fov too wide");
+  bad = c;
+  bad.eye_m.x = INFINITY;
+  rejected(bad, "infinite eye");
+  bad = c;
+  bad.target_m.z = NAN;
+  rejected(bad, "NaN target");
+  bad = c;
+  bad.fov_deg = NAN;
+  rejected(bad, "NaN fov");
 }
 
 TEST(RenderCamera, PathsRoundTripThroughJsonAndWalkIntoThePlant) {

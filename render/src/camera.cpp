@@ -5,7 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "plantview/render.h"
+#include "plantview/camera.h"
 #include "plantview/store.h"
 
 namespace plantview {
@@ -19,7 +19,17 @@ bool parse_number(std::string_view text, double& out) {
   return ec == std::errc() && end == text.data() + text.size() && std::isfinite(out);
 }
 
-bool check_camera(const Camera& c, std::string& error) {
+bool finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace
+
+bool validate_camera(const Camera& c, std::string& error) {
+  if (!finite(c.eye_m) || !finite(c.target_m) || !finite(c.up) || !std::isfinite(c.fov_deg)) {
+    error = "camera: eye, target, up and fov must be finite numbers";
+    return false;
+  }
   const glm::dvec3 view = c.target_m - c.eye_m;
   if (glm::length(view) < 1e-6) {
     error = "camera: the eye is on the target";
@@ -35,8 +45,6 @@ bool check_camera(const Camera& c, std::string& error) {
   }
   return true;
 }
-
-}  // namespace
 
 bool parse_camera(std::string_view text, Camera& out, std::string& error) {
   // Tokens split on commas; a token "key=number" starts a key, bare numbers continue it.
@@ -65,7 +73,9 @@ bool parse_camera(std::string_view text, Camera& out, std::string& error) {
     fields.back().second.push_back(v);
     if (comma == text.size()) break;
   }
-  for (const auto& [key, values] : fields) {
+  for (const auto& field : fields) {
+    const std::string& key = field.first;  // (not structured bindings: clang 14 cannot capture those)
+    const std::vector<double>& values = field.second;
     const auto vec = [&](glm::dvec3& v) {
       if (values.size() != 3) {
         error = "camera: '" + key + "' needs 3 numbers, got " + std::to_string(values.size());
@@ -97,7 +107,7 @@ bool parse_camera(std::string_view text, Camera& out, std::string& error) {
     error = "camera: eye=X,Y,Z and target=X,Y,Z are required";
     return false;
   }
-  if (!check_camera(camera, error)) return false;
+  if (!validate_camera(camera, error)) return false;
   out = camera;
   return true;
 }
@@ -188,7 +198,7 @@ bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::str
       c.fov_deg = item["fov"].get<double>();
     }
     std::string why;
-    if (!check_camera(c, why)) {
+    if (!validate_camera(c, why)) {
       error = where + ": " + why;
       return false;
     }

@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "image_module_api.h"
-#include "plantview/render.h"
+#include "plantview/image.h"
 
 namespace plantview {
 

@@ -3,7 +3,9 @@
 // Screen-space error: a length of e metres at distance d (to the nearest point of the object's
 // bounds, at least the near plane) spans e * pixels_per_metre(d) pixels on an image of height H
 // and vertical field of view fov: H / (2 tan(fov / 2) d). The level chosen is the coarsest
-// whose error spans at most the allowed pixels.
+// whose error spans at most the allowed pixels. The focal length is derived here once, rounded
+// to float as the projection matrix holds it, and the frame's view (frame_plan.h), culling,
+// level choice and the tests all take it from here: what is chosen is what is drawn.
 //
 // Distance (the papers' rules): Zhou et al. pick a LOD node by the distance to its bounds over
 // its size; here level 0 holds up to 8 sizes away and each doubling of the distance beyond
@@ -16,6 +18,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include <glm/glm.hpp>
+
 namespace plantview::detail {
 
 inline constexpr double kNearPlaneM = 0.05;
@@ -26,9 +30,21 @@ inline constexpr double kMergeRadii = 100.0;
 // drawn as its box.
 inline constexpr double kNodeProxyPixels = 3.0;
 
+// The projection's focal length for a vertical field of view: 1 / tan(fov / 2), in half image
+// heights.
+inline float focal_length(double fov_deg) {
+  return float(1.0 / std::tan(glm::radians(fov_deg) / 2.0));
+}
+// The same in pixels, for an image height_px high: what a metre spans at a distance of 1 m.
+inline double focal_length_px(double fov_deg, uint32_t height_px) {
+  return height_px * 0.5 * focal_length(fov_deg);
+}
+// Pixels a metre spans at distance_m (no nearer than the near plane).
+inline double pixels_per_metre(double distance_m, double focal_px) {
+  return focal_px / std::max(distance_m, kNearPlaneM);
+}
 inline double pixels_per_metre(double distance_m, double fov_deg, uint32_t height_px) {
-  const double focal = height_px / (2.0 * std::tan(fov_deg * M_PI / 360.0));
-  return focal / std::max(distance_m, kNearPlaneM);
+  return pixels_per_metre(distance_m, focal_length_px(fov_deg, height_px));
 }
 
 // error_m[l] for l < level_count, non-increasing in precision (growing with l).

@@ -37,9 +37,17 @@
 //               before they are shaded; object ids are drawn only when asked for;
 //   5. read back colour (RGBA8, sRGB values) and object ids (after resolving multisampling).
 //
+// Inside, the renderer is a frontend and a backend (as Filament separates them): the frame plan
+// (camera -> view, cull, choose; no GL), the decoded objects, arena streaming and the GL backend
+// (GL resources, draw, read back), one file each under render/src.
+//
 // Units: lengths in metres, angles in degrees where the name says _deg, times in milliseconds.
-// Threads: a GpuContext and every Renderer made with it belong to the thread that made them.
+// Threads: a GpuContext and every Renderer made with it belong to the thread that made them;
+//          so does the store snapshot a Renderer reads (read_view()).
+// Lifetimes: the GpuContext and the Store must outlive every Renderer made with them.
 // Errors: fallible calls return false (or null) and fill `error` with what and where.
+//
+// Cameras (camera.h) and images (image.h) have headers of their own; this one includes both.
 #pragma once
 
 #include <array>
@@ -47,53 +55,15 @@
 #include <memory>
 #include <string>
 #include <string_view>
-#include <vector>
 
-#include <glm/glm.hpp>
-
+#include "plantview/camera.h"
+#include "plantview/image.h"
 #include "plantview/model.h"
 
 namespace plantview {
 
+class ReadView;
 class Store;
-
-// ---------------------------------------------------------------------------------------------
-// Cameras.
-
-// A perspective camera in model space. `fov_deg` is the vertical field of view.
-struct Camera {
-  glm::dvec3 eye_m{0.0, -10.0, 0.0};
-  glm::dvec3 target_m{0.0};
-  glm::dvec3 up{0.0, 0.0, 1.0};
-  double fov_deg = 50.0;
-  bool operator==(const Camera&) const = default;
-};
-
-// Parses "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG]" (the --camera form). Rejects missing or
-// non-finite numbers, an eye on the target, an up along the view, and fov outside (0, 179).
-bool parse_camera(std::string_view text, Camera& out, std::string& error);
-std::string format_camera(const Camera& camera);  // the form parse_camera reads
-// A camera that frames the whole of `bounds` from above one corner, for an image of `aspect`
-// (width / height).
-Camera default_camera(const DAabb& bounds, double aspect);
-
-// A camera path: what `plantview path` writes and `render --path` reads. JSON: a list of
-// {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov": deg}.
-std::string camera_path_json(const std::vector<Camera>& cameras);
-bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::string& error);
-
-enum class PathKind { walkthrough, orbit };
-bool parse_path_kind(std::string_view name, PathKind& kind);
-// A path of `frames` cameras. orbit: around the plant's bounds, looking at their centre.
-// walkthrough: starts outside the plant, approaches it and walks into it at eye height along
-// the gaps between its equipment (the objects of class equipment, given by their bounds), like
-// Zhou et al.'s Fig. 6 run.
-std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& plant_bounds,
-                                     const std::vector<DAabb>& equipment_bounds);
-// The same for a store's plant: its bounds, and the bounds of its equipment (every object is
-// read once). False with a message if the store cannot be read or holds no geometry.
-bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
-                      std::string& error);
 
 // ---------------------------------------------------------------------------------------------
 // Options and statistics.
@@ -147,57 +117,6 @@ struct FrameStats {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Images.
-//
-// Image files, encoding and comparison go through OpenImageIO in a loadable module
-// (plantview_image_oiio), loaded once per process by the first call below that needs it, or
-// earlier by preload_image_io(). Looked for at $PLANTVIEW_IMAGE_MODULE when that is set (and
-// only there), else beside the running executable, else where the build wrote it. When it
-// cannot be loaded, every call that needs it fails with a message naming each path tried and
-// why. All functions here may be called from any thread.
-
-// A rendered frame. Row 0 is the top. `object_ids` holds, per pixel, the id (model.h) of the
-// object drawn there, 0 where there is none.
-struct Image {
-  uint32_t width = 0, height = 0;
-  std::vector<uint8_t> rgba;          // width * height * 4
-  std::vector<uint64_t> object_ids;   // width * height (empty if not asked for)
-};
-
-// Largest image the renderer and encoders accept in either direction.
-inline constexpr uint32_t kMaxImageSide = 16384;
-
-// Starts loading the image module on a background thread and returns at once (loading it
-// takes about half a second on Debian, where OpenImageIO brings some 260 libraries). Image calls
-// made meanwhile wait for it; a second call does nothing; a failed load is reported by the first
-// image call. The load holds the dynamic loader's lock throughout, so other threads' dlopen and
-// dlsym wait for it meanwhile: EGL initialisation, and libepoxy at the first call of each GL
-// function. Call it once images are sure to be needed, after GpuContext::create.
-void preload_image_io();
-
-enum class ImageFormat { png, jpeg };
-// From a file name's extension (.png, .jpg, .jpeg) or a format name ("png", "jpeg", "jpg").
-bool image_format_from_name(std::string_view name, ImageFormat& format);
-// Encodes RGB (alpha dropped) into memory; jpeg_quality 1..100.
-bool encode_image(const Image& image, ImageFormat format, int jpeg_quality,
-                  std::vector<uint8_t>& out, std::string& error);
-bool write_image(const std::string& path, const Image& image, int jpeg_quality,
-                 std::string& error);
-// Reads an image file as RGBA8.
-bool read_image(const std::string& path, Image& out, std::string& error);
-
-struct ImageComparison {
-  double psnr_db = 0;          // over RGB, 8-bit; +infinity for identical images
-  double max_difference = 0;   // largest channel difference, 0..1
-  double differing_share = 0;  // share of pixels with any channel differing by more than 1/255
-};
-// Compares two images of the same size (error otherwise). If diff_path is given, writes an
-// image of the per-pixel absolute differences, amplified, there.
-bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::string& error);
-bool write_difference_image(const Image& a, const Image& b, const std::string& path,
-                            std::string& error);
-
-// ---------------------------------------------------------------------------------------------
 // The GPU context and the renderer.
 
 // An OpenGL 4.5 core context with no display: EGL_EXT_platform_device first (hardware devices
@@ -223,30 +142,45 @@ class GpuContext {
   std::unique_ptr<State> state_;
 };
 
-// Renders frames of one store. Holds one read snapshot of the store for its life (call
-// refresh() to see later imports) and the GPU resources of its arena. Uses the GpuContext
-// current on its thread; the context must outlive it.
+// Renders frames of one store. Holds one read snapshot of the store (a ReadView) for its life
+// (refresh() starts a new one, to see later imports), what it has decoded of the store's
+// objects, and the GPU resources of its arena.
+// Lifetimes: keeps a pointer to the Store, which must outlive the Renderer; uses the
+// GpuContext current on its thread when created, which must stay current on that thread and
+// outlive it.
+// Threads: every call on the thread that created it; one frame at a time.
+// Memory: the vertex arena never exceeds options.vertex_budget_bytes of GPU memory; the
+// decoded-object cache keeps the resident objects and 10,000 more.
 class Renderer {
  public:
+  // Errors: a budget outside 1 MB .. 64 GB, a pixel error that is not a positive number, no
+  // current OpenGL 4.5 context, or a store that cannot be read.
   static std::unique_ptr<Renderer> create(const Store& store, const RenderOptions& options,
                                           std::string& error);
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
 
-  // Renders one frame of width x height (1..kMaxImageSide). with_ids: also read back the
-  // object-id buffer. Fills `stats` (ms.encode is left to the caller).
+  // Renders one frame of width x height (1..kMaxImageSide) through `camera` (valid: see
+  // validate_camera). with_ids: also read back the object-id buffer. Fills `stats` (ms.encode
+  // is left to the caller).
   bool render(const Camera& camera, uint32_t width, uint32_t height, bool with_ids, Image& out,
               FrameStats& stats, std::string& error);
-  // Culls and chooses levels without drawing (LOD statistics for a view).
+  // Culls and chooses levels without drawing (LOD statistics for a view). It streams like a
+  // frame, so the arena is left as render() would leave it.
   bool statistics(const Camera& camera, uint32_t width, uint32_t height, FrameStats& stats,
                   std::string& error);
 
-  // Starts a new read snapshot and forgets everything resident.
+  // Starts a new read snapshot and forgets everything decoded and resident. If the store cannot
+  // be read, the renderer keeps its current snapshot (and what it holds) and stays usable.
   bool refresh(std::string& error);
   void set_options(const RenderOptions& options);  // the vertex budget is fixed at creation
   const RenderOptions& options() const;
-  const DAabb& model_bounds() const;
+  const DAabb& model_bounds() const;  // of the current snapshot
+  // The snapshot every frame is drawn from: picking or reading attributes through it sees the
+  // same commit as the frames. Valid until a refresh() reads a new snapshot or the renderer is
+  // destroyed; like the renderer, it belongs to the renderer's thread.
+  const ReadView& read_view() const;
 
  private:
   struct State;

@@ -1,0 +1,64 @@
+// plantview/image.h: rendered images, image files, encoding and comparison.
+//
+// Image files, encoding and comparison go through OpenImageIO in a loadable module
+// (plantview_image_oiio), loaded once per process by the first call below that needs it, or
+// earlier by preload_image_io(). Looked for at $PLANTVIEW_IMAGE_MODULE when that is set (and
+// only there), else beside the running executable, else where the build wrote it. When it
+// cannot be loaded, every call that needs it fails with a message naming each path tried and
+// why.
+//
+// Pixels: RGBA8 holding sRGB values, row 0 at the top.
+// Threads: every function here may be called from any thread; an Image is a plain value.
+// Errors: fallible calls return false and fill `error` with what and where (the file, the size).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace plantview {
+
+// A rendered frame. Row 0 is the top. `object_ids` holds, per pixel, the id (model.h) of the
+// object drawn there, 0 where there is none.
+struct Image {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> rgba;          // width * height * 4
+  std::vector<uint64_t> object_ids;   // width * height (empty if not asked for)
+};
+
+// Largest image the renderer and encoders accept in either direction.
+inline constexpr uint32_t kMaxImageSide = 16384;
+
+// Starts loading the image module on a background thread and returns at once (loading it
+// takes about half a second on Debian, where OpenImageIO brings some 260 libraries). Image calls
+// made meanwhile wait for it; a second call does nothing; a failed load is reported by the first
+// image call. The load holds the dynamic loader's lock throughout, so other threads' dlopen and
+// dlsym wait for it meanwhile: EGL initialisation, and libepoxy at the first call of each GL
+// function. Call it once images are sure to be needed, after GpuContext::create.
+void preload_image_io();
+
+enum class ImageFormat { png, jpeg };
+// From a file name's extension (.png, .jpg, .jpeg) or a format name ("png", "jpeg", "jpg").
+bool image_format_from_name(std::string_view name, ImageFormat& format);
+// Encodes RGB (alpha dropped) into memory; jpeg_quality 1..100.
+bool encode_image(const Image& image, ImageFormat format, int jpeg_quality,
+                  std::vector<uint8_t>& out, std::string& error);
+bool write_image(const std::string& path, const Image& image, int jpeg_quality,
+                 std::string& error);
+// Reads an image file as RGBA8.
+bool read_image(const std::string& path, Image& out, std::string& error);
+
+struct ImageComparison {
+  double psnr_db = 0;          // over RGB, 8-bit; +infinity for identical images
+  double max_difference = 0;   // largest channel difference, 0..1
+  double differing_share = 0;  // share of pixels with any channel differing by more than 1/255
+};
+// Compares two images of the same size (error otherwise).
+bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::string& error);
+// Writes an image of the per-channel absolute differences of a and b (same size), times 8, to
+// `path` (its format from the extension).
+bool write_difference_image(const Image& a, const Image& b, const std::string& path,
+                            std::string& error);
+
+}  // namespace plantview

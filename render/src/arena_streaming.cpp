@@ -1,0 +1,340 @@
+// Arena streaming: residency, tessellation into the arena, the object table and the index
+// lists (rules in arena_streaming.h).
+#include "arena_streaming.h"
+
+#include <algorithm>
+
+#include "decoded_objects.h"
+#include "frame_plan.h"
+
+namespace plantview::detail {
+
+namespace {
+
+IndexList list_of(const Known& k, const Known::Part& part) {
+  if (part.plan->topology == Topology::lines) return kLines;
+  if (k.colour.a < 255) return kTransparent;
+  return part.plan->closed ? kClosed : kOpen;
+}
+
+}  // namespace
+
+// --- the object table ---------------------------------------------------------------------------
+
+void ObjectTable::reset() {
+  free_.clear();
+  used_ = 0;
+}
+
+uint32_t ObjectTable::acquire() {
+  if (!free_.empty()) {
+    const uint32_t t = free_.back();
+    free_.pop_back();
+    return t;
+  }
+  if (used_ == entries_.size()) entries_.resize(std::max<size_t>(1024, entries_.size() * 2));
+  return used_++;
+}
+
+void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec3& scale,
+                      Colour c, uint64_t id) {
+  TableEntry& e = entries_[entry];
+  e.offset_m[0] = float(offset_m.x);
+  e.offset_m[1] = float(offset_m.y);
+  e.offset_m[2] = float(offset_m.z);
+  e.colour = uint32_t(c.r) | uint32_t(c.g) << 8 | uint32_t(c.b) << 16 | uint32_t(c.a) << 24;
+  e.scale[0] = scale.x;
+  e.scale[1] = scale.y;
+  e.scale[2] = scale.z;
+  pick_ids_.push_back(id);
+  e.pick = uint32_t(pick_ids_.size());
+}
+
+// --- residency ----------------------------------------------------------------------------------
+
+bool ArenaStreaming::reset(uint64_t budget_vertices, bool drop_primitives, std::string& error) {
+  drop_primitives_ = drop_primitives;
+  table_.reset();
+  proxy_tables_.clear();
+  residency_ = Residency(budget_vertices);
+  residency_.begin_frame();
+  if (residency_.admit(kProxyKey, kProxyVertices, evicted_) != 0u) {
+    error = "renderer: the vertex budget is too small";
+    return false;
+  }
+  PackedVertex cube[kProxyVertices];
+  const glm::vec3 normals[6] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+  for (int f = 0; f < 6; ++f) {
+    const int axis = f / 2;
+    const float side = float(f % 2);
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const float corners[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    for (int c = 0; c < 4; ++c) {
+      glm::vec3 p;
+      p[axis] = side;
+      p[u] = corners[c][0];
+      p[v] = corners[c][1];
+      cube[f * 4 + c] = {p, pack_normal(normals[f])};
+    }
+  }
+  backend_.upload(0, cube, {});
+  return true;
+}
+
+const ArenaStreaming::Compaction& ArenaStreaming::compaction(const MeshPlan& plan, uint8_t base) {
+  const CompactionKey key{plan.indices[0].data(), base, plan.flip_winding};
+  if (const auto it = compactions_.find(key); it != compactions_.end()) return it->second;
+  Compaction& c = compactions_[key];
+  c.plan = plan;
+  remap_.assign(plan.vertex_count, UINT32_MAX);
+  for (uint32_t l = base; l < plan.level_count; ++l) {
+    for (const uint32_t v : plan.indices[l]) {
+      if (remap_[v] == UINT32_MAX) {
+        remap_[v] = uint32_t(c.kept.size());
+        c.kept.push_back(v);
+      }
+      c.indices[l].push_back(remap_[v]);
+    }
+  }
+  for (uint32_t l = 0; l < kMaxLevels; ++l)
+    c.plan.indices[l] = c.indices[std::max<uint32_t>(l, base)];  // finer levels are never asked
+  c.plan.vertex_count = uint32_t(c.kept.size());
+  return c;
+}
+
+uint64_t ArenaStreaming::resident_vertices(const Known& k, uint8_t base) {
+  base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  if (base == 0) return k.vertex_count;
+  uint64_t n = 2 * k.centreline.size();
+  for (const Known::Part& part : k.parts) {
+    const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
+    n += part_base == 0 ? part.plan->vertex_count : compaction(*part.plan, part_base).kept.size();
+  }
+  return n;
+}
+
+bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, DecodedObjects& objects,
+                                   FrameStats& stats, std::string& error, bool& fits) {
+  base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  const std::vector<Primitive>* primitives = objects.primitives(key, k, error);
+  if (!primitives) return false;
+  vertices_.resize(k.vertex_count);
+  for (const auto& part : k.parts) {
+    write_vertices((*primitives)[part.primitive], *part.plan, glm::dvec3(0.0),
+                   std::span<PackedVertex>(vertices_.data() + part.first_vertex, part.plan->vertex_count));
+  }
+  for (size_t s = 0; s < k.centreline.size(); ++s) {
+    vertices_[k.centreline_first + 2 * s] = {k.centreline[s].start_m, 0u};
+    vertices_[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, 0u};
+  }
+  const std::vector<PackedVertex>* upload = &vertices_;
+  k.resident_centreline_first = k.centreline_first;
+  for (Known::Part& part : k.parts) {
+    part.resident_first = part.first_vertex;
+    part.resident_plan = nullptr;
+  }
+  if (base > 0) {
+    // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
+    compacted_.clear();
+    for (Known::Part& part : k.parts) {
+      const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
+      part.resident_first = uint32_t(compacted_.size());
+      if (part_base == 0) {  // a one-level part (facet groups among them): all of it
+        compacted_.insert(compacted_.end(), vertices_.begin() + part.first_vertex,
+                          vertices_.begin() + part.first_vertex + part.plan->vertex_count);
+        continue;
+      }
+      const Compaction& c = compaction(*part.plan, part_base);
+      part.resident_plan = &c.plan;
+      for (const uint32_t v : c.kept) compacted_.push_back(vertices_[part.first_vertex + v]);
+    }
+    k.resident_centreline_first = uint32_t(compacted_.size());
+    compacted_.insert(compacted_.end(), vertices_.begin() + k.centreline_first,
+                      vertices_.begin() + k.centreline_first + 2 * k.centreline.size());
+    upload = &compacted_;
+  }
+  const uint32_t count = uint32_t(upload->size());
+
+  evicted_.clear();
+  const auto offset = residency_.admit(key, count, evicted_);
+  for (const auto& [victim, units] : evicted_) {
+    if (Known* v = objects.find(victim); v && v->table != UINT32_MAX) {
+      table_.release(v->table);
+      v->table = UINT32_MAX;
+    }
+    stats.objects_evicted += 1;
+    stats.arena_bytes_evicted += units * kBytesPerVertex;
+  }
+  fits = offset.has_value();
+  if (!fits) return true;
+  if (!backend_.grow_arena(*offset + count, error)) return false;
+  k.base = base;
+  k.table = table_.acquire();
+  vertex_objects_.assign(count, k.table);
+  backend_.upload(*offset, *upload, vertex_objects_);
+  stats.objects_tessellated += 1;
+  stats.arena_bytes_uploaded += uint64_t(count) * kBytesPerVertex;
+  if (!k.keeps_primitives && drop_primitives_) {
+    k.primitives.clear();
+    k.primitives.shrink_to_fit();
+  }
+  return true;
+}
+
+void ArenaStreaming::release(uint32_t key, Known& k) {
+  residency_.drop(key);
+  if (k.table != UINT32_MAX) table_.release(k.table);
+  k.table = UINT32_MAX;
+}
+
+// --- a frame ------------------------------------------------------------------------------------
+
+void ArenaStreaming::begin_frame(const FramePlan& plan) {
+  residency_.begin_frame();
+  residency_.mark_visible(kProxyKey);
+  // Every visible object (merged runs' members and objects without geometry too), and the
+  // merged runs.
+  for (const VisibleObject& v : plan.visible()) residency_.mark_visible(v.slot);
+  for (const Draw& d : plan.draws())
+    if (d.key & kRunKeyBit) residency_.mark_visible(d.key);
+  counts_.fill(0);
+  for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
+  proxy_tables_.clear();
+  table_.begin_frame();
+}
+
+bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std::string& error) {
+  const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
+  uint64_t needed = 0;
+  for (const Draw& d : draws) {
+    const Known& k = *d.known;
+    if (residency_.resident(d.key) && d.level >= k.base) continue;
+    needed += resident_vertices(k, resident_base(d.level, policy, roomy));
+  }
+  return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
+}
+
+bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
+                            const RenderOptions& options, FrameStats& stats, std::string& error) {
+  begin_frame(plan);
+  if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
+  for (Draw& d : plan.draws()) {
+    bool resident = false;
+    if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident)) return false;
+    if (resident) {
+      place(d, view, stats);
+    } else if (d.visible) {
+      // Over budget: the object's box, which costs no arena space (merged runs are skipped:
+      // their members' boxes would be drawn one by one, and runs are small).
+      const VisibleObject& v = *d.visible;
+      stats.budget_proxies += 1;
+      add_box(view.spatial_origin_m + glm::dvec3(v.min[0], v.min[1], v.min[2]) - view.eye_m,
+              glm::vec3(v.max[0] - v.min[0], v.max[1] - v.min[1], v.max[2] - v.min[2]),
+              d.known->colour, d.known->id, stats);
+    }
+  }
+  for (const auto& b : plan.node_boxes()) {
+    add_box(view.spatial_origin_m + glm::dvec3(b[0], b[1], b[2]) - view.eye_m,
+            glm::vec3(b[3] - b[0], b[4] - b[1], b[5] - b[2]), Colour{150, 150, 150, 255}, 0, stats);
+  }
+  residency_.end_frame();
+  stats.objects_resident = residency_.resident_count() - 1;  // not the proxy cube
+  stats.arena_bytes_resident = residency_.used_units() * kBytesPerVertex;
+  stats.draw_commands = proxy_tables_.empty() ? 0 : 1;
+  for (const size_t n : counts_) stats.draw_commands += n ? 1 : 0;
+  return true;
+}
+
+bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy,
+                                     FrameStats& stats, std::string& error, bool& resident) {
+  Known& k = *d.known;
+  if (residency_.resident(d.key) && d.level < k.base) {
+    release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
+    stats.objects_refined += 1;
+  }
+  resident = residency_.resident(d.key);
+  if (resident) return true;
+  const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
+  const uint8_t base = resident_base(d.level, policy, roomy);
+  if (!make_resident(d.key, k, base, objects, stats, error, resident)) return false;
+  if (!resident && base + 1u < k.level_count) {
+    // Over budget: the coarsest level's vertices may still fit.
+    if (!make_resident(d.key, k, uint8_t(k.level_count - 1), objects, stats, error, resident))
+      return false;
+    if (resident) stats.budget_coarsened += 1;
+  }
+  return true;
+}
+
+void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
+  const Known& k = *d.known;
+  const uint32_t level = std::max<uint32_t>(d.level, k.base);
+  d.level = uint8_t(level);
+  d.drawn = true;
+  d.arena_first = uint32_t(*residency_.offset(d.key));
+  table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id);
+  if (d.centreline) {
+    stats.centreline_pipes += 1;
+    stats.lines += k.centreline.size();
+    counts_[kLines] += 2 * k.centreline.size();
+    return;
+  }
+  for (const Known::Part& part : k.parts) {
+    const uint32_t l = part.plan->clamp_level(level);
+    const uint32_t n = part.plan->index_count(l);
+    counts_[list_of(k, part)] += n;
+    if (part.plan->topology == Topology::lines) {
+      stats.lines += n / 2;
+    } else {
+      stats.triangles += n / 3;
+      stats.triangles_by_level[l] += n / 3;
+    }
+  }
+}
+
+void ArenaStreaming::add_box(const glm::dvec3& offset_m, const glm::vec3& size_m, Colour colour,
+                             uint64_t id, FrameStats& stats) {
+  const uint32_t t = table_.acquire();
+  proxy_tables_.push_back(t);
+  table_.set(t, offset_m, size_m, colour, id);
+  stats.triangles += 12;
+}
+
+bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string& error) {
+  size_t total = 0;
+  std::array<size_t, kIndexListCount> first{};
+  for (int list = 0; list < kIndexListCount; ++list) {
+    first[list] = total;
+    total += counts_[list];
+  }
+  uint32_t* indices = backend_.map_indices(total, error);
+  if (!indices) return false;
+  std::array<uint32_t*, kIndexListCount> cursor;
+  for (int list = 0; list < kIndexListCount; ++list) cursor[list] = indices + first[list];
+  // Nearest first: hidden fragments then fail the depth test before they are shaded.
+  draw_order_.clear();
+  for (uint32_t i = 0; i < draws.size(); ++i)
+    if (draws[i].drawn) draw_order_.push_back(i);
+  std::sort(draw_order_.begin(), draw_order_.end(), [&](uint32_t a, uint32_t b) {
+    return draws[a].distance_m < draws[b].distance_m;
+  });
+  for (const uint32_t i : draw_order_) {
+    const Draw& d = draws[i];
+    const Known& k = *d.known;
+    if (d.centreline) {
+      const uint32_t at = d.arena_first + k.resident_centreline_first;
+      for (uint32_t c = 0; c < 2 * k.centreline.size(); ++c) *cursor[kLines]++ = at + c;
+      continue;
+    }
+    for (const Known::Part& part : k.parts) {
+      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
+      uint32_t*& at = cursor[list_of(k, part)];
+      at += write_indices(plan, d.level, d.arena_first + part.resident_first,
+                          std::span<uint32_t>(at, plan.index_count(d.level)));
+    }
+  }
+  backend_.unmap_indices();
+  return true;
+}
+
+}  // namespace plantview::detail

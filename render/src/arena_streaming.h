@@ -1,0 +1,152 @@
+// Arena streaming (Zhou et al. section 4): makes the frame's draws resident in the GPU vertex
+// arena, tessellating objects from their parameters, evicting by visibility counter
+// (residency.h), and hands each draw an object-table entry; then writes the frame's index
+// lists.
+//
+// Rules
+//   - The arena never exceeds its budget (Residency's capacity, in vertices). It holds the
+//     proxy cube at offset 0 (kProxyVertices) from reset() on.
+//   - An object is made resident from resident_base() of its chosen level (frame_plan.h): the
+//     vertices of that level serve every coarser one. Refining below the resident base
+//     tessellates it again (objects_refined). Over budget, it is made resident at its coarsest
+//     level (budget_coarsened), else drawn as its box (budget_proxies; merged runs are then
+//     skipped, their members' boxes would be drawn one by one).
+//   - The GPU buffers grow once a frame, before streaming, for what the frame may need (and
+//     again only if a placement lands beyond them).
+//   - Object-table entries: resident objects hold one while resident; proxy boxes hold one
+//     until the next frame streams. Entry offsets are relative to the eye (double
+//     precision until the final subtraction).
+//   - Index lists: each drawn object's indices at its level, nearest first (hidden fragments
+//     then fail the depth test before they are shaded), into the list of its kind.
+// Units: arena offsets and sizes in vertices (kBytesPerVertex bytes each); metres.
+// Ownership: owns the residency, the object table, the templates' compactions (kept for the
+//   renderer's life: Known::Part::resident_plan points into them) and its scratch buffers
+//   (reused: no allocation per frame once warm). Uses the GlBackend it is given, which must
+//   outlive it.
+// Threads: the renderer's thread (it calls GL through the backend).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "gl_backend.h"
+#include "plantview/render.h"
+#include "residency.h"
+
+namespace plantview::detail {
+
+struct Draw;
+struct FrameView;
+struct Known;
+class DecodedObjects;
+class FramePlan;
+
+inline constexpr uint32_t kProxyKey = UINT32_MAX;  // the proxy cube's residency key
+
+// The per-frame object table the vertex shader reads, and the frame's pick ids (the value a
+// pixel's pick p stands for is pick_ids[p - 1]).
+class ObjectTable {
+ public:
+  void reset();
+  uint32_t acquire();
+  void release(uint32_t entry) { free_.push_back(entry); }
+  // Fills `entry` for this frame and gives it the next pick id.
+  void set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec3& scale, Colour colour,
+           uint64_t id);
+  void begin_frame() { pick_ids_.clear(); }
+  std::span<const TableEntry> entries() const { return {entries_.data(), used_}; }
+  std::span<const uint64_t> pick_ids() const { return pick_ids_; }
+
+ private:
+  std::vector<TableEntry> entries_;
+  std::vector<uint32_t> free_;
+  uint32_t used_ = 0;  // high-water mark
+  std::vector<uint64_t> pick_ids_;
+};
+
+class ArenaStreaming {
+ public:
+  explicit ArenaStreaming(GlBackend& backend) : backend_(backend) {}
+
+  // Forgets everything resident (a new snapshot): an empty arena of budget_vertices holding
+  // only the proxy cube. drop_primitives: resident objects give up their primitives (models
+  // larger than the budget). False if the budget cannot hold the cube.
+  bool reset(uint64_t budget_vertices, bool drop_primitives, std::string& error);
+
+  // Makes the plan's draws resident (or boxes), fills each drawn one's arena_first and level,
+  // the object table, the proxy boxes (over-budget objects and the plan's node boxes) and the
+  // index counts; counts triangles, lines and the arena statistics. False on a GL or store
+  // error.
+  bool stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
+              const RenderOptions& options, FrameStats& stats, std::string& error);
+  // Writes the index lists of the draws streamed into the backend's index buffer.
+  bool write_index_lists(std::span<const Draw> draws, std::string& error);
+
+  const Residency& residency() const { return residency_; }
+  const IndexCounts& index_counts() const { return counts_; }
+  const ObjectTable& table() const { return table_; }
+  std::span<const uint32_t> proxy_tables() const { return proxy_tables_; }
+
+ private:
+  // A template's levels from `base` on, over only the vertices they use: what an object
+  // resident from a coarser base draws with. Depends on the template alone (its index spans,
+  // the base and the winding), so it is built once and shared by every object of that template.
+  struct Compaction {
+    std::vector<uint32_t> kept;  // template vertex numbers, in the compacted order
+    std::array<std::vector<uint32_t>, kMaxLevels> indices;  // levels >= base, into `kept`
+    MeshPlan plan;  // the template's plan with these indices; vertex_count = kept.size()
+  };
+  struct CompactionKey {
+    const uint32_t* finest;  // the template's level-0 indices: unique per template
+    uint8_t base;
+    bool flip;
+    bool operator==(const CompactionKey&) const = default;
+  };
+  struct CompactionKeyHash {
+    size_t operator()(const CompactionKey& k) const {
+      return std::hash<const void*>()(k.finest) ^ (size_t(k.base) << 1) ^ (size_t(k.flip) << 5);
+    }
+  };
+
+  const Compaction& compaction(const MeshPlan& plan, uint8_t base);
+  // Vertices an object takes in the arena when resident from level `base` on.
+  uint64_t resident_vertices(const Known& k, uint8_t base);
+  // Tessellates `k` into the arena from level `base` on, evicting if needed. fits = false when
+  // it cannot be placed without evicting what this frame shows.
+  bool make_resident(uint32_t key, Known& k, uint8_t base, DecodedObjects& objects,
+                     FrameStats& stats, std::string& error, bool& fits);
+  void release(uint32_t key, Known& k);
+  // Makes a draw's object resident at the level chosen (or coarser, over budget) unless its
+  // resident vertices serve it. resident = false: it cannot be, even at its coarsest level.
+  bool ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy, FrameStats& stats,
+                       std::string& error, bool& resident);
+  // A resident draw: its level (no finer than the resident base), arena offset, table entry,
+  // and its indices counted into their lists.
+  void place(Draw& d, const FrameView& view, FrameStats& stats);
+  // A proxy box for this frame: `offset_m` (its min corner, eye-relative) and `size_m`.
+  void add_box(const glm::dvec3& offset_m, const glm::vec3& size_m, Colour colour, uint64_t id,
+               FrameStats& stats);
+  // Marks what the frame shows visible, so that nothing it shows is evicted.
+  void begin_frame(const FramePlan& plan);
+  // Grows the GPU buffers once for what the frame may stream (with the level slack), rather
+  // than object by object: every new buffer is zeroed and the old one copied into it.
+  bool grow_for(std::span<const Draw> draws, LodPolicy policy, std::string& error);
+
+  GlBackend& backend_;
+  Residency residency_{0};
+  ObjectTable table_;
+  bool drop_primitives_ = false;
+  std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions_;  // few
+  IndexCounts counts_{};
+  // Scratch, reused.
+  std::vector<uint32_t> proxy_tables_;
+  std::vector<PackedVertex> vertices_, compacted_;
+  std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
+  std::vector<std::pair<uint32_t, uint64_t>> evicted_;
+};
+
+}  // namespace plantview::detail

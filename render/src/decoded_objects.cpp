@@ -1,0 +1,184 @@
+// Decoded objects: decoding, pipeline analysis and the bounded cache (rules in decoded_objects.h).
+#include "decoded_objects.h"
+
+#include <algorithm>
+#include <cassert>
+
+#include "frame_plan.h"
+#include "plantview/store.h"
+#include "residency.h"
+
+namespace plantview::detail {
+
+void DecodedObjects::reset(const ReadView& view) {
+  view_ = &view;
+  known_.clear();
+  runs_.clear();
+  decisions_.clear();
+  pipeline_runs_.clear();
+}
+
+Known* DecodedObjects::find(uint32_t key) {
+  const auto it = known_.find(key);
+  return it == known_.end() ? nullptr : &it->second;
+}
+
+bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
+                            std::string& error) {
+  new_slots_.clear();
+  for (const VisibleObject& v : visible)
+    if (!known_.count(v.slot)) new_slots_.push_back(v.slot);
+  std::sort(new_slots_.begin(), new_slots_.end());
+  for (const uint32_t slot : new_slots_) {
+    if (!view_->object(slot, object_, false, error)) return false;
+    Known& k = add(slot, object_, false);
+    if (!hlod || k.pipeline_id == 0 ||
+        (k.object_class != ObjectClass::pipe && k.object_class != ObjectClass::component))
+      continue;
+    auto it = pipeline_runs_.find(k.pipeline_id);
+    if (it == pipeline_runs_.end()) {
+      std::string ignored;  // a pipeline that cannot be read is simply not merged
+      analyse_pipeline(k.pipeline_id, ignored);
+      it = pipeline_runs_.find(k.pipeline_id);
+    }
+    const auto [first, count] = it->second;
+    for (uint32_t r = first; r < first + count && k.run < 0; ++r) {
+      const auto& members = runs_[r].members;
+      if (std::find(members.begin(), members.end(), slot) != members.end()) k.run = int32_t(r);
+    }
+  }
+  return true;
+}
+
+// Makes the Known of `key` from an object (its primitives moved out of it): its parts, their
+// shared plans, its levels and their errors, its centreline.
+Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
+  Known& k = known_[key];
+  k.id = o.id;
+  k.object_class = o.object_class;
+  k.colour = o.colour;
+  k.origin_m = o.origin_m;
+  k.pipeline_id = o.pipeline_id;
+  k.primitives = std::move(o.primitives);
+  o.primitives.clear();
+  k.keeps_primitives = keeps_primitives;
+  k.parts.clear();
+  k.parts.reserve(k.primitives.size());
+  k.own_plans.clear();
+  size_t facet_groups = 0;
+  for (const Primitive& p : k.primitives) facet_groups += std::holds_alternative<FacetGroup>(p.shape);
+  k.own_plans.reserve(facet_groups);  // never reallocated: parts point into it
+  k.keeps_primitives |= facet_groups > 0;
+  uint32_t vertex_count = 0;
+  for (uint32_t i = 0; i < k.primitives.size(); ++i) {
+    MeshPlan plan = plan_mesh(k.primitives[i]);
+    if (plan.vertex_count == 0) continue;
+    vertex_count += plan.vertex_count;
+    if (plan.topology == Topology::lines) {
+      k.has_lines = true;
+    } else {
+      k.has_triangles = true;
+      k.level_count = std::max(k.level_count, plan.level_count);
+      for (uint32_t l = 0; l < kMaxLevels; ++l)
+        k.error_m[l] = std::max(k.error_m[l], plan.error_m[plan.clamp_level(l)]);
+    }
+    const MeshPlan* shared;
+    if (std::holds_alternative<FacetGroup>(k.primitives[i].shape)) {
+      shared = &k.own_plans.emplace_back(plan);
+    } else {
+      plan.error_m = {};
+      const auto [it, added] = plans_.try_emplace(PlanKey{plan.indices[0].data(), plan.flip_winding}, plan);
+      assert(it->second.vertex_count == plan.vertex_count && it->second.closed == plan.closed &&
+             it->second.topology == plan.topology && it->second.level_count == plan.level_count);
+      shared = &it->second;
+    }
+    k.parts.push_back({shared, vertex_count - plan.vertex_count, i});
+  }
+  if (o.object_class == ObjectClass::pipe && !o.centreline.empty()) {
+    k.centreline = o.centreline;
+    k.centreline_first = vertex_count;
+    vertex_count += uint32_t(2 * o.centreline.size());
+    for (const auto& s : o.centreline) k.pipe_diameter_m = std::max(k.pipe_diameter_m, s.diameter_m);
+  }
+  k.vertex_count = vertex_count;
+  return k;
+}
+
+void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
+  // Analysed from now on, with no runs unless some are found below (a pipeline that cannot be
+  // read keeps none).
+  auto& [pipeline_first, pipeline_count] = pipeline_runs_[pipeline_id];
+  pipeline_first = uint32_t(runs_.size());
+  pipeline_count = 0;
+  const auto slot = view_->slot_of(pipeline_id);
+  Object pipeline;
+  if (!slot || !view_->object(*slot, pipeline, false, error)) return;
+  std::vector<Object> members;
+  std::vector<std::pair<uint32_t, const Object*>> branch;
+  for (const Branch& b : pipeline.branches) {
+    members.clear();
+    members.reserve(b.members.size());
+    std::vector<uint32_t> slots;
+    for (const uint64_t id : b.members) {
+      const auto s = view_->slot_of(id);
+      if (!s) continue;
+      members.emplace_back();
+      if (!view_->object(*s, members.back(), false, error)) {
+        members.pop_back();
+        continue;
+      }
+      slots.push_back(*s);
+    }
+    branch.clear();
+    for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
+    const size_t first = runs_.size();
+    branch_runs_.clear();
+    find_runs(branch, branch_runs_);
+    for (auto& run : branch_runs_) runs_.push_back(std::move(run));
+    for (size_t r = first; r < runs_.size(); ++r) {
+      for (const uint32_t m : runs_[r].members) {
+        if (const auto it = known_.find(m); it != known_.end()) it->second.run = int32_t(r);
+      }
+    }
+  }
+  pipeline_count = uint32_t(runs_.size()) - pipeline_first;
+  decisions_.resize(runs_.size());
+}
+
+Known& DecodedObjects::know_run(uint32_t run) {
+  const uint32_t key = kRunKeyBit | run;
+  if (const auto it = known_.find(key); it != known_.end()) return it->second;
+  const PipelineRun& r = runs_[run];
+  Object o;
+  o.id = 0;
+  if (!r.members.empty()) {
+    if (const auto it = known_.find(r.members.front()); it != known_.end()) o.id = it->second.pipeline_id;
+  }
+  o.object_class = ObjectClass::pipe;
+  o.colour = r.colour;
+  o.origin_m = r.start_m;
+  o.primitives.push_back(merged_cylinder(r, r.start_m));
+  o.centreline.push_back({glm::vec3(0.0f), glm::vec3(r.end_m - r.start_m), r.diameter_m});
+  return add(key, o, true);
+}
+
+const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Known& k,
+                                                         std::string& error) {
+  if (!k.primitives.empty() || k.parts.empty()) return &k.primitives;
+  // Dropped after an earlier upload (never for runs, which keep theirs).
+  if (!view_->object(key, object_, false, error)) return nullptr;
+  return &object_.primitives;
+}
+
+void DecodedObjects::forget_old(uint64_t frame, const Residency& residency) {
+  if (known_.size() <= kKnownObjectsKept + residency.resident_count()) return;
+  for (int pass = 0; pass < 2 && known_.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {
+    for (auto it = known_.begin(); it != known_.end();) {
+      const bool old = pass == 1 || it->second.last_seen < frame;
+      if (old && !residency.resident(it->first)) it = known_.erase(it);
+      else ++it;
+    }
+  }
+}
+
+}  // namespace plantview::detail

@@ -1,0 +1,153 @@
+// Decoded objects: what the renderer knows of the store's objects and of the pipeline runs it
+// merges (Su et al. section 5.3), decoded once and kept while they are resident and a while
+// after. No GL: the frame plan chooses levels from it and arena streaming tessellates from it.
+//
+// Rules
+//   - Objects are decoded from the renderer's read view, a frame's new ones in slot order (the
+//     store compresses neighbouring slots together, so each chunk is decompressed once).
+//   - A Known keeps its primitives until it is first resident; after that only while needed:
+//     facet groups (their plans point into them) and merged runs (the store does not hold them)
+//     always keep them, and others keep them unless the renderer drops them (models larger than
+//     the arena budget), in which case they are decoded again when tessellated again.
+//   - The cache is bounded: forget_old() keeps the resident objects and kKnownObjectsKept more.
+//   - A pipeline is analysed for runs the first time one of its pipes or components is decoded
+//     (with HLOD on); a pipeline that cannot be read simply has no runs.
+// Ownership: Known objects live in an unordered_map: a Known* stays valid until forget_old()
+//   or reset() (a frame's draws hold them for the frame). Part::plan points into this cache's
+//   template plans (kept for the renderer's life) or into the Known's own_plans.
+// Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
+// Threads: the renderer's thread.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "hlod.h"
+#include "plantview/model.h"
+#include "plantview/primitives.h"
+
+namespace plantview {
+class ReadView;
+}
+
+namespace plantview::detail {
+
+class Residency;
+struct VisibleObject;
+
+inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run
+inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
+
+// A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
+// indices at any level.
+struct Known {
+  uint64_t id = 0;
+  ObjectClass object_class = ObjectClass::other;
+  Colour colour;
+  glm::dvec3 origin_m{0.0};
+  uint64_t pipeline_id = 0;
+  // The primitives, while needed (see the rules above).
+  std::vector<Primitive> primitives;
+  std::vector<MeshPlan> own_plans;  // facet groups' plans (others share the cache's)
+  bool keeps_primitives = false;
+  struct Part {
+    const MeshPlan* plan;   // shared per template (errors zeroed: see error_m), or own_plans
+    uint32_t first_vertex;  // within the object's vertices
+    uint32_t primitive;     // index into primitives
+    // While resident: the part's first vertex within what the arena holds of the object, and
+    // the plan whose indices address those vertices (the template's own at base 0, else its
+    // compaction, shared by every object of that template; null: `plan` itself).
+    uint32_t resident_first = 0;
+    const MeshPlan* resident_plan = nullptr;
+  };
+  std::vector<Part> parts;
+  std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
+  uint32_t vertex_count = 0;
+  uint32_t centreline_first = 0;
+  uint8_t level_count = 1;
+  bool has_lines = false, has_triangles = false;
+  std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
+  float pipe_diameter_m = 0;
+  int32_t run = -1;                 // the pipeline run it belongs to, if any
+  uint32_t table = UINT32_MAX;      // object-table entry while resident
+  // While resident: the finest level whose vertices are in the arena. At base 0 every vertex
+  // is there and the templates' indices serve every level; above 0 only the vertices of levels
+  // >= base are, compacted part by part (see Part::resident_plan).
+  uint8_t base = 0;
+  uint32_t resident_centreline_first = 0;
+  uint64_t last_seen = 0;           // frame
+};
+
+// Whether a pipeline run is drawn merged, decided once per frame by its first visible member.
+struct RunDecision {
+  uint64_t frame = 0;
+  bool merged = false;
+};
+
+class DecodedObjects {
+ public:
+  // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
+  void reset(const ReadView& view);
+
+  // Decodes the visible objects not known yet, in slot order. hlod: also find the runs of the
+  // pipelines their pipes and components belong to. False if an object cannot be decoded.
+  bool decode(std::span<const VisibleObject> visible, bool hlod, std::string& error);
+  // A known object or run (null if not known).
+  Known* find(uint32_t key);
+  // A known object; it must be known (decoded this frame or before).
+  Known& at(uint32_t slot) { return known_.at(slot); }
+  // The merged cylinder of run `run`, made the first time it is asked for.
+  Known& know_run(uint32_t run);
+
+  const PipelineRun& run(uint32_t r) const { return runs_[r]; }
+  RunDecision& decision(uint32_t r) { return decisions_[r]; }
+
+  // The primitives to tessellate `k` (the object or run of residency key `key`) from: its own,
+  // or, where they were dropped, decoded again (valid until the next call). Null on a read
+  // error.
+  const std::vector<Primitive>* primitives(uint32_t key, const Known& k, std::string& error);
+
+  // Keeps the cache bounded: objects neither resident nor seen in frame `frame` go first, the
+  // longest unseen first; those seen (drawn as boxes because the arena was full) only if that
+  // is not enough.
+  void forget_old(uint64_t frame, const Residency& residency);
+
+ private:
+  Known& add(uint32_t key, Object& object, bool keeps_primitives);
+  void analyse_pipeline(uint64_t pipeline_id, std::string& error);
+
+  // Template plans are shared by every primitive of the template and winding; their errors are
+  // zeroed (they differ with the placement's scale: Known::error_m holds the object's).
+  struct PlanKey {
+    const uint32_t* finest;  // the template's level-0 indices: unique per template
+    bool flip;
+    bool operator==(const PlanKey&) const = default;
+  };
+  struct PlanKeyHash {
+    size_t operator()(const PlanKey& k) const {
+      return std::hash<const void*>()(k.finest) ^ size_t(k.flip);
+    }
+  };
+
+  const ReadView* view_ = nullptr;
+  std::unordered_map<uint32_t, Known> known_;
+  std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans_;  // few: per template and winding
+  // Pipeline HLOD: runs found so far (a deque: growing it copies nothing), this frame's
+  // decision per run, and the pipelines analysed with their runs: [first, first + count) of
+  // runs_ (a member finds its run there: a pipeline has few runs, and a map by member would
+  // cost 40 bytes a member).
+  std::deque<PipelineRun> runs_;
+  std::vector<RunDecision> decisions_;
+  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> pipeline_runs_;
+  // Scratch, reused.
+  std::vector<PipelineRun> branch_runs_;
+  std::vector<uint32_t> new_slots_;
+  Object object_;  // decode target
+};
+
+}  // namespace plantview::detail

@@ -1,0 +1,136 @@
+// Frame plan: the renderer's frontend, no GL. From a camera the frame's view; from the store's
+// spatial tree what is visible (cull); from the decoded objects a level per visible object and
+// the pipeline runs drawn merged (choose); and the rule for which level an object is made
+// resident from. Occlusion culling will be a stage here, between cull and choose.
+//
+// Rules
+//   - One derivation of the view: the focal length comes from lod.h (focal_length), rounded to
+//     float as the projection matrix holds it, and every pixels-per-metre figure (culling,
+//     level choice, node boxes) is focal_px / distance, the distance to the nearest point of
+//     the bounds and no nearer than the near plane. What is chosen is what is drawn.
+//   - cull: nodes and objects outside the frustum are dropped (no far plane). Screen-space
+//     policy with subpixel culling: an object whose extent spans under the pixel error is left
+//     out, and a node spanning under kNodeProxyPixels x the pixel error is kept as one box,
+//     that size doubling until at most kMaxVisibleObjects objects remain. The visible objects
+//     are ordered largest on screen first, so that the arena's budget goes where it shows most.
+//   - choose: LodPolicy; merged runs replace their visible members (one draw per run).
+//   - resident_base: one level of slack (see there).
+// Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
+//   the eye (so that plants kilometres from the origin keep float precision).
+// Ownership: a FramePlan owns its lists and reuses them frame after frame (no allocation once
+//   warm); visible() and node_boxes() are valid until the next cull(), draws() until the next
+//   choose(). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
+// Threads: the renderer's thread.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "plantview/render.h"
+
+namespace plantview {
+class ReadView;
+}
+
+namespace plantview::detail {
+
+struct Known;
+class DecodedObjects;
+
+inline constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
+inline constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
+
+// A camera's view of the store for one frame.
+struct FrameView {
+  glm::dvec3 eye_m{0.0};
+  glm::dvec3 spatial_origin_m{0.0};  // the store's: what cull's bounds are relative to
+  glm::vec3 shift_m{0.0f};           // spatial_origin_m - eye_m: spatial bounds to the eye frame
+  uint32_t width = 0, height = 0;    // pixels
+  glm::mat4 rotation{1.0f};          // model axes to view axes (looking down -z)
+  // Eye-relative model space to clip space: infinite far plane, reversed depth (near -> 1,
+  // infinity -> 0).
+  glm::mat4 view_projection{1.0f};
+  float focal = 1.0f;                // 1 / tan(fov / 2)
+  float aspect = 1.0f;               // width / height
+  double focal_px = 1.0;             // pixels a metre spans at 1 m
+  // Frustum planes (x, y, z, w), eye-relative: inside where dot(p, xyz) + w >= 0; no far plane.
+  std::array<glm::vec4, 5> planes{};
+
+  // Whether a box (relative to the spatial origin) lies wholly outside one plane.
+  bool outside(const float min[3], const float max[3]) const;
+  // From the eye to the nearest point of a box (relative to the spatial origin); 0 inside it.
+  double nearest_distance_m(const float min[3], const float max[3]) const;
+};
+
+// `camera` must be valid (validate_camera); width, height >= 1.
+FrameView make_frame_view(const Camera& camera, uint32_t width, uint32_t height,
+                          const glm::dvec3& spatial_origin_m);
+
+// An object in the frustum (and not under the pixel error).
+struct VisibleObject {
+  uint32_t slot;
+  float min[3], max[3];  // metres, relative to the spatial origin
+  double distance_m;     // to the nearest point of its bounds
+  double px_per_m;       // pixels a metre spans there
+  float extent_m() const { return std::max({max[0] - min[0], max[1] - min[1], max[2] - min[2]}); }
+};
+
+// One object, or one merged run, to draw: its level chosen here, its place in the arena filled
+// in by streaming.
+struct Draw {
+  uint32_t key;                    // residency key: slot, or kRunKeyBit | run
+  Known* known;
+  uint8_t level;                   // chosen; streaming may coarsen it to the resident base
+  bool centreline;                 // drawn as its centreline
+  const VisibleObject* visible;    // null for merged runs
+  double distance_m = 0;           // from the eye to the nearest point of its bounds
+  bool drawn = false;              // resident this frame (else a proxy box or nothing)
+  uint32_t arena_first = 0;        // the object's first vertex in the arena, once drawn
+};
+
+// The level an object is made resident from when `level` is chosen: one level of slack below
+// it, so that coming nearer only swaps the index range drawn, while the arena is roomy (under
+// half full); once it is not, every vertex counts and the chosen level is used. Policy none
+// draws level 0 only.
+inline bool arena_roomy(uint64_t used_units, uint64_t capacity_units) {
+  return used_units * 2 < capacity_units;
+}
+inline uint8_t resident_base(uint32_t level, LodPolicy policy, bool roomy) {
+  if (policy == LodPolicy::none) return 0;
+  return uint8_t(level > 0 && roomy ? level - 1 : level);
+}
+
+class FramePlan {
+ public:
+  // 1. Cull: fills visible() and node_boxes(), largest on screen first, and the statistics
+  //    objects_visible, objects_culled, objects_subpixel, node_proxies, node_proxy_pixels and
+  //    objects_in_node_proxies. The view's spans must be valid for the call.
+  void cull(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
+            FrameStats& stats);
+  // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
+  //    hlod_members counted). Every visible object must be decoded in `objects`; those seen
+  //    get last_seen = frame. Merged runs are decoded (made) here.
+  void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
+              uint64_t frame, FrameStats& stats);
+
+  std::span<const VisibleObject> visible() const { return visible_; }
+  // Boxes of tree nodes drawn whole: min xyz, max xyz, relative to the spatial origin.
+  std::span<const std::array<float, 6>> node_boxes() const { return node_boxes_; }
+  std::span<Draw> draws() { return draws_; }
+  std::span<const Draw> draws() const { return draws_; }
+
+ private:
+  bool cull_pass(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
+                 double node_proxy_px, FrameStats& stats);
+  std::vector<VisibleObject> visible_;
+  std::vector<std::array<float, 6>> node_boxes_;
+  std::vector<Draw> draws_;
+  std::vector<uint32_t> stack_, count_stack_;
+};
+
+}  // namespace plantview::detail

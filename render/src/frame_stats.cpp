@@ -1,0 +1,56 @@
+// Frame statistics: stage times and the JSON form of FrameStats (render.h).
+#include <cstdio>
+#include <string>
+
+#include "frame_stats.h"
+#include "plantview/render.h"
+
+namespace plantview {
+
+std::string FrameStats::to_json() const {
+  std::string levels;
+  for (size_t l = 0; l < triangles_by_level.size(); ++l)
+    levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
+  char times[400];
+  std::snprintf(times, sizeof times,
+                "{\"cull\":%.3f,\"choose\":%.3f,\"stream\":%.3f,\"draw\":%.3f,"
+                "\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
+                ms.cull, ms.choose, ms.stream, ms.draw, ms.read_back, ms.encode, ms.total);
+  return "{\"objects_visible\":" + std::to_string(objects_visible) +
+         ",\"objects_culled\":" + std::to_string(objects_culled) +
+         ",\"triangles\":" + std::to_string(triangles) + ",\"lines\":" + std::to_string(lines) +
+         ",\"triangles_by_level\":[" + levels + "]" +
+         ",\"centreline_pipes\":" + std::to_string(centreline_pipes) +
+         ",\"hlod_merges\":" + std::to_string(hlod_merges) +
+         ",\"hlod_members\":" + std::to_string(hlod_members) +
+         ",\"budget_proxies\":" + std::to_string(budget_proxies) +
+         ",\"budget_coarsened\":" + std::to_string(budget_coarsened) +
+         ",\"objects_refined\":" + std::to_string(objects_refined) +
+         ",\"objects_subpixel\":" + std::to_string(objects_subpixel) +
+         ",\"node_proxies\":" + std::to_string(node_proxies) +
+         ",\"node_proxy_pixels\":" + std::to_string(node_proxy_pixels) +
+         ",\"objects_in_node_proxies\":" + std::to_string(objects_in_node_proxies) +
+         ",\"draw_commands\":" + std::to_string(draw_commands) +
+         ",\"arena_bytes_budget\":" + std::to_string(arena_bytes_budget) +
+         ",\"arena_bytes_resident\":" + std::to_string(arena_bytes_resident) +
+         ",\"arena_bytes_uploaded\":" + std::to_string(arena_bytes_uploaded) +
+         ",\"arena_bytes_evicted\":" + std::to_string(arena_bytes_evicted) +
+         ",\"objects_resident\":" + std::to_string(objects_resident) +
+         ",\"objects_tessellated\":" + std::to_string(objects_tessellated) +
+         ",\"objects_evicted\":" + std::to_string(objects_evicted) + ",\"ms\":" + times + "}";
+}
+
+namespace detail {
+
+void report_times(const StageTimes& stages, double total_ms, FrameStats::Times& ms) {
+  ms.cull = stages.cull;
+  ms.choose = stages.choose + stages.index_lists;
+  ms.stream = stages.stream + stages.decode;
+  ms.draw = stages.draw;
+  ms.read_back = stages.read_back;
+  ms.total = total_ms;
+}
+
+}  // namespace detail
+
+}  // namespace plantview
