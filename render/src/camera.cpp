@@ -19,7 +19,9 @@ bool parse_number(std::string_view text, double& out) {
   return ec == std::errc() && end == text.data() + text.size() && std::isfinite(out);
 }
 
-bool check_camera(const Camera& c, std::string& error) {
+}  // namespace
+
+bool validate_camera(const Camera& c, std::string& error) {
   const glm::dvec3 view = c.target_m - c.eye_m;
   if (glm::length(view) < 1e-6) {
     error = "camera: the eye is on the target";
@@ -35,8 +37,6 @@ bool check_camera(const Camera& c, std::string& error) {
   }
   return true;
 }
-
-}  // namespace
 
 bool parse_camera(std::string_view text, Camera& out, std::string& error) {
   // Tokens split on commas; a token "key=number" starts a key, bare numbers continue it.
@@ -97,7 +97,7 @@ bool parse_camera(std::string_view text, Camera& out, std::string& error) {
     error = "camera: eye=X,Y,Z and target=X,Y,Z are required";
     return false;
   }
-  if (!check_camera(camera, error)) return false;
+  if (!validate_camera(camera, error)) return false;
   out = camera;
   return true;
 }
@@ -188,7 +188,7 @@ bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::str
       c.fov_deg = item["fov"].get<double>();
     }
     std::string why;
-    if (!check_camera(c, why)) {
+    if (!validate_camera(c, why)) {
       error = where + ": " + why;
       return false;
     }

@@ -1377,5 +1377,6 @@ void Renderer::set_options(const RenderOptions& options) {
 
 const RenderOptions& Renderer::options() const { return state_->options; }
 const DAabb& Renderer::model_bounds() const { return state_->bounds; }
+const ReadView& Renderer::read_view() const { return *state_->view; }
 
 }  // namespace plantview

@@ -56,6 +56,7 @@
 namespace plantview {
 
 class Store;
+class ReadView;
 
 // ---------------------------------------------------------------------------------------------
 // Cameras.
@@ -72,6 +73,10 @@ struct Camera {
 // Parses "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG]" (the --camera form). Rejects missing or
 // non-finite numbers, an eye on the target, an up along the view, and fov outside (0, 179).
 bool parse_camera(std::string_view text, Camera& out, std::string& error);
+// The rules parse_camera applies to a camera however it was made: false with a message ("camera:
+// the eye is on the target", "camera: 'up' is zero or along the view direction", "camera: fov
+// must be in (0, 179) degrees").
+bool validate_camera(const Camera& camera, std::string& error);
 std::string format_camera(const Camera& camera);  // the form parse_camera reads
 // A camera that frames the whole of `bounds` from above one corner, for an image of `aspect`
 // (width / height).
@@ -247,6 +252,9 @@ class Renderer {
   void set_options(const RenderOptions& options);  // the vertex budget is fixed at creation
   const RenderOptions& options() const;
   const DAabb& model_bounds() const;
+  // The read snapshot frames are drawn from: a pick reads its object from the same commit as the
+  // frame it picks in. Valid until refresh() or destruction; the renderer's thread only.
+  const ReadView& read_view() const;
 
  private:
   struct State;
