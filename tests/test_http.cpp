@@ -445,6 +445,9 @@ const std::string& six_boxes() {
     EXPECT_TRUE(import->commit(error)) << error;
     return d.string();
   }();
+  static const struct RemovedAtExit {
+    ~RemovedAtExit() { fs::remove_all(dir); }
+  } removed_at_exit;
   return dir;
 }
 
