@@ -20,7 +20,6 @@
 #include <uv.h>
 
 #include <algorithm>
-#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
@@ -216,14 +215,12 @@ void Server::begin_shutdown() {
   // Every 50 ms until the work in flight is done.
   uv_timer_start(
       &shutdown_timer,
-      [](uv_timer_t* t) {
-        if (static_cast<Server*>(t->data)->finish_shutdown()) uv_timer_stop(t);
-      },
+      [](uv_timer_t* t) { static_cast<Server*>(t->data)->finish_shutdown(); },
       0, 50);
 }
 
 // Closes finished connections; once nothing is left in flight, stops the render thread and
-// closes the server's handles (true).
+// closes the server's handles, this timer's too (true).
 bool Server::finish_shutdown() {
   std::vector<Connection*> done;
   for (Connection* c : connections)
