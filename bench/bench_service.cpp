@@ -7,11 +7,8 @@
 //   --quick   preset a, 320x180, 1 and 4 clients for 3 s each (the CTest smoke run)
 // The store is generated into a temporary directory (preset c) unless --store names one.
 // Prints a table, then "json: " lines.
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,6 +29,7 @@
 
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/http_client.h"
 
 namespace {
 
@@ -68,48 +66,6 @@ uint64_t peak_rss_of(pid_t pid) {
     if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
   return 0;
 }
-
-// One keep-alive connection; get() returns the status (0 on failure) and fills body length.
-class Connection {
- public:
-  explicit Connection(int port) {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(uint16_t(port));
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    ok_ = connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-  }
-  ~Connection() { close(fd_); }
-  int get(const std::string& target, size_t& body_bytes) {
-    const std::string request = "GET " + target + " HTTP/1.1\r\nHost: bench\r\n\r\n";
-    if (!ok_ || send(fd_, request.data(), request.size(), MSG_NOSIGNAL) != ssize_t(request.size())) return 0;
-    size_t end;
-    while ((end = buffer_.find("\r\n\r\n")) == std::string::npos)
-      if (!fill()) return 0;
-    const int status = std::atoi(buffer_.c_str() + 9);
-    const size_t at = buffer_.find("Content-Length: ");
-    const size_t length = at < end ? std::stoul(buffer_.substr(at + 16)) : 0;
-    buffer_.erase(0, end + 4);
-    while (buffer_.size() < length)
-      if (!fill()) return 0;
-    buffer_.erase(0, length);
-    body_bytes = length;
-    return status;
-  }
-
- private:
-  bool fill() {
-    char chunk[65536];
-    const ssize_t n = recv(fd_, chunk, sizeof chunk, 0);
-    if (n <= 0) return false;
-    buffer_.append(chunk, size_t(n));
-    return true;
-  }
-  int fd_ = -1;
-  bool ok_ = false;
-  std::string buffer_;
-};
 
 std::string camera_query(const Camera& c) {
   char buf[512];
@@ -195,7 +151,7 @@ int main(int argc, char** argv) {
     std::vector<std::thread> threads;
     for (int c = 0; c < clients; ++c) {
       threads.emplace_back([&, c] {
-        Connection connection(port);
+        test_support::HttpClient connection(port, 0);  // no receive timeout: frames may be slow
         size_t step = size_t(c) * path.size() / size_t(clients);
         std::vector<double> mine;
         while (Clock::now() < deadline) {
@@ -203,9 +159,9 @@ int main(int argc, char** argv) {
           const std::string target = "/api/frame?" + camera_query(camera) + "&w=" + std::to_string(w) +
                                      "&h=" + std::to_string(h) + "&format=jpeg&quality=85&client=c" + std::to_string(c);
           const auto t = Clock::now();
-          size_t bytes = 0;
-          const int status = connection.get(target, bytes);
-          if (status != 200 || bytes == 0) {
+          const test_support::HttpResponse response = connection.request(target);
+          const int status = response.status;
+          if (status != 200 || response.body.empty()) {
             errors += 1;
             if (status == 0) break;
             continue;

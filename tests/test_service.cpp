@@ -1,11 +1,8 @@
 // The HTTP service over real loopback sockets: every endpoint, malformed and abusive requests,
 // pipelining, many clients at once, the token rule and shutdown. Runs the built plantview binary.
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -20,6 +17,7 @@
 
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/http_client.h"
 
 namespace plantview {
 namespace {
@@ -111,88 +109,8 @@ class Server {
   int status_ = -1;
 };
 
-struct Response {
-  int status = 0;
-  std::map<std::string, std::string> headers;  // lower-case names
-  std::string body;
-};
-
-class Client {
- public:
-  explicit Client(int port) {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(uint16_t(port));
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    connected_ = connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-    timeval tv{60, 0};
-    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  }
-  ~Client() { close(fd_); }
-  bool connected() const { return connected_; }
-  bool send(const std::string& data) {
-    size_t at = 0;
-    while (at < data.size()) {
-      const ssize_t n = ::send(fd_, data.data() + at, data.size() - at, MSG_NOSIGNAL);
-      if (n <= 0) return false;
-      at += size_t(n);
-    }
-    return true;
-  }
-  bool get(const std::string& target, const std::string& headers = "") {
-    return send("GET " + target + " HTTP/1.1\r\nHost: test\r\n" + headers + "\r\n");
-  }
-  // Reads one response; status 0 if the connection closed first.
-  Response read() {
-    Response r;
-    size_t end;
-    while ((end = buffer_.find("\r\n\r\n")) == std::string::npos)
-      if (!fill()) return r;
-    const std::string head = buffer_.substr(0, end);
-    buffer_.erase(0, end + 4);
-    r.status = std::atoi(head.c_str() + 9);
-    size_t line = head.find("\r\n");
-    while (line != std::string::npos) {
-      const size_t next = head.find("\r\n", line + 2);
-      const std::string h = head.substr(line + 2, next == std::string::npos ? std::string::npos : next - line - 2);
-      const size_t colon = h.find(':');
-      if (colon != std::string::npos) {
-        std::string name = h.substr(0, colon);
-        for (auto& ch : name) ch = char(std::tolower(ch));
-        r.headers[name] = h.substr(colon + 2);
-      }
-      line = next;
-    }
-    const size_t length = std::stoul(r.headers.count("content-length") ? r.headers["content-length"] : "0");
-    while (buffer_.size() < length)
-      if (!fill()) return Response{};
-    r.body = buffer_.substr(0, length);
-    buffer_.erase(0, length);
-    return r;
-  }
-  Response request(const std::string& target, const std::string& headers = "") {
-    if (!get(target, headers)) return {};
-    return read();
-  }
-  // True if the server closed the connection (read returns 0) within the timeout.
-  bool closed_by_server() {
-    char c;
-    return recv(fd_, &c, 1, 0) == 0;
-  }
-
- private:
-  bool fill() {
-    char chunk[65536];
-    const ssize_t n = recv(fd_, chunk, sizeof chunk, 0);
-    if (n <= 0) return false;
-    buffer_.append(chunk, size_t(n));
-    return true;
-  }
-  int fd_ = -1;
-  bool connected_ = false;
-  std::string buffer_;
-};
+using Response = test_support::HttpResponse;
+using Client = test_support::HttpClient;
 
 // Decodes an image answer and checks its size.
 bool is_image(const Response& r, uint32_t w, uint32_t h, const std::string& ext) {

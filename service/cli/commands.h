@@ -23,7 +23,7 @@ Action add_import_command(CLI::App& app);
 // `plantview render`, `compare` and `path`: review images, comparing them, camera paths.
 Action add_render_commands(CLI::App& app);
 
-// `plantview serve`: the HTTP service (service/server/server.h).
+// `plantview serve`: the HTTP service (plantview/server.h).
 Action add_serve_command(CLI::App& app);
 
 }  // namespace plantview::cli

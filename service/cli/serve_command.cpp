@@ -3,7 +3,7 @@
 #include <memory>
 
 #include "cli/commands.h"
-#include "server/server.h"
+#include "plantview/server.h"
 
 namespace plantview::cli {
 

@@ -102,10 +102,11 @@ std::string json_string(std::string_view bytes) {
                                                    nlohmann::json::error_handler_t::replace);
 }
 
+std::string error_body(std::string_view message) { return "{\"error\":" + json_string(message) + "}\n"; }
+
 std::string http_error(int status, std::string_view message, bool keep_alive,
                        const Fields& headers) {
-  return http_response(status, "application/json",
-                       "{\"error\":" + json_string(message) + "}\n", keep_alive, headers);
+  return http_response(status, "application/json", error_body(message), keep_alive, headers);
 }
 
 }  // namespace plantview::service

@@ -1,5 +1,5 @@
-// HTTP/1.1 pieces of the service: query strings and response bytes. Parsing of the request
-// itself is http-parser's, in server.cpp.
+// HTTP/1.1 pieces of the service: query strings and response bytes. Pure functions, any thread.
+// Requests themselves are parsed in request_parser.h.
 #pragma once
 
 #include <string>
@@ -21,6 +21,8 @@ std::string_view status_text(int status);
 // body.
 std::string http_response(int status, std::string_view content_type, std::string_view body,
                           bool keep_alive, const Fields& headers = {});
+// The JSON body of an error answer: {"error": message} and a newline.
+std::string error_body(std::string_view message);
 // {"error": message} with that status.
 std::string http_error(int status, std::string_view message, bool keep_alive,
                        const Fields& headers = {});

@@ -4,16 +4,14 @@
 
 namespace plantview::service {
 
-bool object_json(const Store& store, uint64_t id, std::string& json, std::string& error) {
-  auto view = store.read(error);
-  if (!view) return false;
-  const auto slot = view->slot_of(id);
+bool object_json(const ReadView& view, uint64_t id, std::string& json, std::string& error) {
+  const auto slot = view.slot_of(id);
   if (!slot) {
     error = "no object " + std::to_string(id);
     return false;
   }
   Object o;
-  if (!view->object(*slot, o, true, error)) return false;
+  if (!view.object(*slot, o, true, error)) return false;
   nlohmann::json attributes = nlohmann::json::array();
   for (const auto& a : o.attributes) attributes.push_back({{"key", a.key}, {"value", a.value}});
   nlohmann::json j = {{"id", std::to_string(o.id)},

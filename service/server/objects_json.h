@@ -10,8 +10,8 @@
 
 namespace plantview::service {
 
-// Looks the object up in a fresh read view of the store (any thread). False with a message when
-// there is no such object or it cannot be read.
-bool object_json(const Store& store, uint64_t id, std::string& json, std::string& error);
+// Looks the object up in `view` (on the view's thread). False with a message when there is no
+// such object ("no object <id>") or it cannot be read (the store's message).
+bool object_json(const ReadView& view, uint64_t id, std::string& json, std::string& error);
 
 }  // namespace plantview::service

@@ -1,3 +1,4 @@
+// Rules: render_worker.h.
 #include "server/render_worker.h"
 
 #include <cstdio>
@@ -9,22 +10,10 @@ namespace plantview::service {
 RenderWorker::~RenderWorker() { stop(); }
 
 bool RenderWorker::start(const Store& store, uint64_t vertex_budget_bytes, int device,
-                         uint32_t max_queue, uv_loop_t* loop,
-                         std::function<void(RenderResult&&)> on_done, std::string& error) {
+                         uint32_t max_queue, std::function<void()> notify, std::string& error) {
   max_queue_ = max_queue;
   budget_ = vertex_budget_bytes;
-  on_done_ = std::move(on_done);
-  async_ = new uv_async_t;
-  async_->data = this;
-  uv_async_init(loop, async_, [](uv_async_t* handle) {
-    auto* self = static_cast<RenderWorker*>(handle->data);
-    std::vector<RenderResult> results;
-    {
-      std::lock_guard lock(self->mutex_);
-      results.swap(self->done_);
-    }
-    for (auto& r : results) self->on_done_(std::move(r));
-  });
+  notify_ = std::move(notify);
   bool ready = false;
   std::string thread_error;
   thread_ = std::thread(&RenderWorker::run, this, &store, device, &thread_error, &ready);
@@ -33,9 +22,6 @@ bool RenderWorker::start(const Store& store, uint64_t vertex_budget_bytes, int d
   if (!thread_error.empty()) {
     lock.unlock();
     thread_.join();
-    uv_close(reinterpret_cast<uv_handle_t*>(async_),
-             [](uv_handle_t* h) { delete reinterpret_cast<uv_async_t*>(h); });
-    async_ = nullptr;
     error = thread_error;
     return false;
   }
@@ -58,6 +44,13 @@ RenderWorker::Submitted RenderWorker::submit(RenderJob job, uint64_t& dropped) {
   return Submitted::queued;
 }
 
+std::vector<RenderResult> RenderWorker::take_results() {
+  std::vector<RenderResult> results;
+  std::lock_guard lock(mutex_);
+  results.swap(done_);
+  return results;
+}
+
 size_t RenderWorker::queue_depth() const {
   std::lock_guard lock(mutex_);
   return queue_.size();
@@ -76,11 +69,6 @@ void RenderWorker::stop() {
   }
   wake_.notify_all();
   thread_.join();
-  if (async_) {
-    uv_close(reinterpret_cast<uv_handle_t*>(async_),
-             [](uv_handle_t* h) { delete reinterpret_cast<uv_async_t*>(h); });
-    async_ = nullptr;
-  }
 }
 
 void RenderWorker::run(const Store* store, int device, std::string* error, bool* ready) {
@@ -111,19 +99,19 @@ void RenderWorker::run(const Store* store, int device, std::string* error, bool*
       queue_.pop_front();
       running_job_ = true;
     }
-    RenderResult result = execute(job, *renderer, *store);
+    RenderResult result = execute_job(job, *renderer);
     {
       std::lock_guard lock(mutex_);
       done_.push_back(std::move(result));
       running_job_ = false;
     }
-    uv_async_send(async_);
+    notify_();
   }
   renderer.reset();
   context.reset();
 }
 
-RenderResult RenderWorker::execute(const RenderJob& job, Renderer& renderer, const Store& store) {
+RenderResult execute_job(const RenderJob& job, Renderer& renderer) {
   RenderResult r;
   r.ticket = job.ticket;
   RenderOptions options = renderer.options();
@@ -139,7 +127,7 @@ RenderResult RenderWorker::execute(const RenderJob& job, Renderer& renderer, con
   if (!ok) {
     r.status = 500;
     r.content_type = "application/json";
-    r.body = "{\"error\":" + json_string(error) + "}\n";
+    r.body = error_body(error);
     return r;
   }
   r.rendered = true;
@@ -156,7 +144,7 @@ RenderResult RenderWorker::execute(const RenderJob& job, Renderer& renderer, con
         break;
       }
       std::string json;
-      if (!object_json(store, id, json, error)) {
+      if (!object_json(renderer.read_view(), id, json, error)) {
         // Picked, but not an object of the store (a merged pipeline run has its pipeline's id,
         // which is one): report the id alone.
         json = "{\"id\":\"" + std::to_string(id) + "\"}";

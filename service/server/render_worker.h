@@ -1,16 +1,26 @@
-// The render thread of the service: owns the EGL context and the renderer, runs frame,
-// statistics and pick jobs one at a time, and hands results back to the libuv loop.
-// Threads: submit(), queue_depth() and stop() are called on the loop thread; results are
-// delivered on the loop thread (through a uv_async handle) to the callback given to start().
+// The render thread of the service: owns the EGL context and the renderer, and runs frame,
+// statistics and pick jobs one at a time, in the order they wait.
+//
+// Threads
+//   - start(), submit(), take_results(), queue_depth(), idle() and stop() are called by one
+//     owning thread (the server's loop thread; a test's thread). They lock a mutex, briefly:
+//     never while a job renders.
+//   - `notify` (given to start) is called on the render thread each time a result is ready; it
+//     must not block and must be safe from any thread (the server passes uv_async_send).
+//   - The EGL context and renderer are made, used and destroyed on the render thread only.
+// Queueing: a job whose client key matches a waiting one replaces it in its place in line (the
+// older one's ticket is returned, to be answered 409); at most max_queue jobs wait, beyond that
+// submit() refuses (busy). A running job is never replaced.
+// Picks read their object from the renderer's snapshot of the store: the commit the frame was
+// drawn from.
+// Errors: start() fails with a message when the GPU context or renderer cannot be made; a job
+// that fails gives a 500 result with the renderer's message.
 #pragma once
-
-#include <uv.h>
 
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
-#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -18,76 +28,54 @@
 
 #include "plantview/render.h"
 #include "plantview/store.h"
-#include "server/http.h"
+#include "server/render_job.h"
 
 namespace plantview::service {
-
-struct RenderJob {
-  enum class Kind { frame, stats, pick } kind = Kind::frame;
-  Camera camera;
-  uint32_t width = 0, height = 0;
-  ImageFormat format = ImageFormat::jpeg;
-  int quality = 85;
-  LodPolicy policy = LodPolicy::screen_space;
-  double pixel_error = 1.0;
-  uint32_t x = 0, y = 0;    // pick
-  std::string client;       // latest-wins key
-  uint64_t ticket = 0;      // the response it answers
-};
-
-struct RenderResult {
-  uint64_t ticket = 0;
-  int status = 200;
-  std::string content_type;
-  std::string body;
-  Fields headers;
-  bool rendered = false;    // stats below are meaningful
-  FrameStats stats;
-  // Frames: the pixels, encoded off the render thread (on libuv's pool) so that the next
-  // frame renders while this one encodes. body is empty until then.
-  bool needs_encoding = false;
-  Image image;
-  ImageFormat format = ImageFormat::jpeg;
-  int quality = 85;
-};
 
 class RenderWorker {
  public:
   RenderWorker() = default;
-  ~RenderWorker();
+  ~RenderWorker();  // stop()
   RenderWorker(const RenderWorker&) = delete;
   RenderWorker& operator=(const RenderWorker&) = delete;
 
-  // Starts the thread and waits until its context and renderer exist (or failed: error).
+  // Starts the thread and waits until its context and renderer exist (or failed: false, error).
+  // `store` must outlive the worker.
   bool start(const Store& store, uint64_t vertex_budget_bytes, int device, uint32_t max_queue,
-             uv_loop_t* loop, std::function<void(RenderResult&&)> on_done, std::string& error);
+             std::function<void()> notify, std::string& error);
 
   enum class Submitted { queued, replaced, busy };
   // Queues a job. replaced: a waiting job of the same client was dropped (its ticket in
   // `dropped`); busy: the queue is full and nothing was queued.
   Submitted submit(RenderJob job, uint64_t& dropped);
+  // The results ready so far, in the order their jobs ran.
+  std::vector<RenderResult> take_results();
   size_t queue_depth() const;
-  bool idle() const;  // nothing queued or running
-  // Lets queued jobs finish, then ends the thread and closes the async handle.
+  bool idle() const;  // nothing queued, running or waiting to be taken
+  // Lets queued jobs finish, then ends the thread. Results not yet taken stay to be taken.
   void stop();
+  // Set by a successful start(), then constant.
   const std::string& device_description() const { return device_; }
   uint64_t vertex_budget_bytes() const { return budget_; }
 
  private:
   void run(const Store* store, int device, std::string* error, bool* ready);
-  RenderResult execute(const RenderJob& job, Renderer& renderer, const Store& store);
 
   mutable std::mutex mutex_;
   std::condition_variable wake_, started_;
-  std::deque<RenderJob> queue_;
-  std::vector<RenderResult> done_;
-  bool running_job_ = false, stopping_ = false;
-  uint32_t max_queue_ = 64;
-  uint64_t budget_ = 0;
-  std::string device_;
+  std::deque<RenderJob> queue_;         // guarded by mutex_
+  std::vector<RenderResult> done_;      // guarded by mutex_
+  bool running_job_ = false;            // guarded by mutex_
+  bool stopping_ = false;               // guarded by mutex_
+  uint32_t max_queue_ = 64;             // set before the thread starts
+  uint64_t budget_ = 0;                 // set before the thread starts
+  std::string device_;                  // written by the thread before start() returns
+  std::function<void()> notify_;        // set before the thread starts
   std::thread thread_;
-  uv_async_t* async_ = nullptr;
-  std::function<void(RenderResult&&)> on_done_;
 };
+
+// Runs one job on the renderer (the render thread): the renderer's options take the job's LOD
+// policy and pixel error. Frames come back with needs_encoding and the pixels.
+RenderResult execute_job(const RenderJob& job, Renderer& renderer);
 
 }  // namespace plantview::service

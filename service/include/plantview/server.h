@@ -1,4 +1,4 @@
-// The plantview HTTP service: frames, LOD statistics, picking and object attributes of one
+// plantview/server.h: the plantview HTTP service: frames, LOD statistics, picking and object attributes of one
 // store over HTTP/1.1, and the browser viewer page from web/.
 //
 // Threads
@@ -26,6 +26,10 @@
 //
 // Shutdown: SIGINT or SIGTERM stops accepting and reading; requests in flight finish and are
 // sent; then the render thread stops and the store is closed.
+//
+// This is the module's only public header. Inside (service/server/, private): the request
+// parser (bytes to requests, pure), routes (a request to a response or a job, pure), metrics,
+// connections (libuv), the render worker, frame encoding and the loop that joins them.
 #pragma once
 
 #include <cstdint>

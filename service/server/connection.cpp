@@ -1,0 +1,214 @@
+// Rules: connection.h.
+#include "server/connection.h"
+
+namespace plantview::service {
+
+namespace {
+
+constexpr size_t kMaxAnswersOwed = 16;  // answers a connection may owe before it stops being read
+
+struct WriteRequest {
+  uv_write_t req{};
+  std::string data;  // owned until the write completes
+};
+
+uv_stream_t* stream(uv_tcp_t& tcp) { return reinterpret_cast<uv_stream_t*>(&tcp); }
+uv_handle_t* handle(auto& h) { return reinterpret_cast<uv_handle_t*>(&h); }
+
+}  // namespace
+
+Connection::Connection(ConnectionHost& host, uint64_t id)
+    : host_(host), id_(id), parser_(host.connection_limits().request) {}
+
+void Connection::on_closed(uv_handle_t* h) {
+  auto* self = static_cast<Connection*>(h->data);
+  if (--self->open_handles_ == 0) delete self;
+}
+
+Connection* Connection::accept(uv_stream_t* listener, ConnectionHost& host, uint64_t id) {
+  auto* c = new Connection(host, id);
+  uv_tcp_init(listener->loop, &c->tcp_);
+  uv_timer_init(listener->loop, &c->timer_);
+  c->tcp_.data = c;
+  c->timer_.data = c;
+  if (uv_accept(listener, stream(c->tcp_)) != 0) {
+    c->closing_ = true;
+    uv_close(handle(c->timer_), on_closed);
+    uv_close(handle(c->tcp_), on_closed);
+    return nullptr;
+  }
+  uv_tcp_nodelay(&c->tcp_, 1);
+  return c;
+}
+
+void Connection::start() {
+  restart_timer(host_.connection_limits().idle_timeout_ms);
+  start_reading();
+}
+
+void Connection::refuse(const Reply& reply) {
+  no_more_ = true;
+  Reply closing = reply;
+  closing.close = true;
+  answer(push_pending("refused"), closing);
+}
+
+std::shared_ptr<Pending> Connection::push_pending(std::string endpoint) {
+  auto p = std::make_shared<Pending>();
+  p->endpoint = std::move(endpoint);
+  pending_.push_back(p);
+  return p;
+}
+
+void Connection::answer(const std::shared_ptr<Pending>& p, const Reply& reply, bool count) {
+  if (reply.close) p->keep_alive = false;
+  if (count) host_.on_answered(p->endpoint, reply.status);
+  p->bytes = http_response(reply.status, reply.content_type, reply.body, p->keep_alive, reply.headers);
+  p->ready = true;
+  flush();
+}
+
+void Connection::close() {
+  if (closing_) return;
+  closing_ = true;
+  host_.on_closing(*this);
+  pending_.clear();
+  uv_timer_stop(&timer_);
+  uv_close(handle(timer_), on_closed);
+  uv_close(handle(tcp_), on_closed);
+}
+
+void Connection::stop_reading() {
+  uv_read_stop(stream(tcp_));
+  reading_ = false;
+}
+
+// --- reading ------------------------------------------------------------------------------------
+
+void Connection::start_reading() {
+  reading_ = true;
+  uv_read_start(
+      stream(tcp_),
+      [](uv_handle_t*, size_t suggested, uv_buf_t* buf) {
+        *buf = uv_buf_init(new char[suggested], unsigned(suggested));
+      },
+      [](uv_stream_t* s, ssize_t n, const uv_buf_t* buf) {
+        static_cast<Connection*>(s->data)->on_read(n, buf);
+      });
+}
+
+void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
+  const std::unique_ptr<char[]> owned(buf->base);
+  if (closing_) return;
+  if (n < 0) {
+    close();  // EOF or reset: answers still owed are dropped with the connection
+    return;
+  }
+  if (n > 0 && !no_more_) read_bytes(std::string_view(buf->base, size_t(n)));
+}
+
+// Hands each complete request to the host, in order, until the bytes run out or the
+// connection will read no more.
+void Connection::read_bytes(std::string_view bytes) {
+  const ConnectionLimits& limits = host_.connection_limits();
+  while (!bytes.empty() && !no_more_ && !closing_) {
+    const bool was_in_request = parser_.in_request();
+    size_t used = 0;
+    const RequestParser::Result result = parser_.feed(bytes, used);
+    bytes.remove_prefix(used);
+    if (result == RequestParser::Result::error) return fail(parser_.error());
+    if (result == RequestParser::Result::need_more) {
+      if (!was_in_request && parser_.in_request()) restart_timer(limits.request_timeout_ms);
+      return;
+    }
+    restart_timer(limits.idle_timeout_ms);
+    const Request& request = parser_.request();
+    auto p = push_pending(endpoint_of(request.path));
+    p->keep_alive = request.keep_alive;
+    host_.on_request(*this, request, p);
+    if (closing_) return;
+    if (!p->keep_alive) no_more_ = true;
+  }
+}
+
+void Connection::fail(const RequestError& error) {
+  no_more_ = true;
+  stop_reading();
+  answer(push_pending("malformed"), error_reply(error.status, error.message, {}, true));
+}
+
+// --- timers -------------------------------------------------------------------------------------
+
+void Connection::restart_timer(uint32_t ms) {
+  uv_timer_start(&timer_, [](uv_timer_t* t) { static_cast<Connection*>(t->data)->on_timer(); }, ms, 0);
+}
+
+void Connection::on_timer() {
+  if (closing_) return;
+  if (parser_.in_request() && !no_more_) {
+    // Too slow to send its request: answer and close.
+    no_more_ = true;
+    stop_reading();
+    answer(push_pending("timeout"), error_reply(408, "the request did not arrive in time", {}, true));
+  } else if (finished()) {
+    close();  // idle keep-alive connection
+  } else {
+    restart_timer(host_.connection_limits().idle_timeout_ms);
+  }
+}
+
+// --- writing ------------------------------------------------------------------------------------
+
+void Connection::write(std::string data) {
+  auto* w = new WriteRequest;
+  w->data = std::move(data);
+  w->req.data = this;
+  unsent_bytes_ += w->data.size();
+  uv_buf_t buf = uv_buf_init(w->data.data(), unsigned(w->data.size()));
+  const auto on_done = [](uv_write_t* req, int status) {
+    auto* done = reinterpret_cast<WriteRequest*>(req);
+    auto* self = static_cast<Connection*>(req->data);
+    const size_t bytes = done->data.size();
+    delete done;
+    self->on_written(bytes, status);
+  };
+  if (uv_write(&w->req, stream(tcp_), &buf, 1, on_done) != 0) {
+    unsent_bytes_ -= w->data.size();
+    delete w;
+    close();
+  }
+}
+
+void Connection::on_written(size_t bytes, int status) {
+  unsent_bytes_ -= bytes;
+  if (status < 0) return close();
+  if (closing_) return;
+  // A slow reader has caught up: read its next requests.
+  if (!reading_ && !no_more_ && unsent_bytes_ <= host_.connection_limits().max_unsent_bytes / 4 &&
+      pending_.size() < kMaxAnswersOwed && !host_.shutting_down())
+    start_reading();
+  if ((no_more_ || host_.shutting_down()) && finished()) close();
+}
+
+// Writes the ready answers at the front, in order.
+void Connection::flush() {
+  if (closing_) return;
+  while (!pending_.empty() && pending_.front()->ready) {
+    const auto p = pending_.front();
+    pending_.pop_front();
+    if (!p->keep_alive) no_more_ = true;
+    write(std::move(p->bytes));
+    if (closing_) return;
+    if (!p->keep_alive) {
+      // Nothing after a closing answer: later pipelined requests are dropped.
+      for (auto& later : pending_) later->ready = false;
+      pending_.clear();
+      break;
+    }
+  }
+  // Stop reading a connection that does not read its answers, or floods requests.
+  if (reading_ && (unsent_bytes_ > host_.connection_limits().max_unsent_bytes || pending_.size() >= kMaxAnswersOwed))
+    stop_reading();
+}
+
+}  // namespace plantview::service

@@ -1,0 +1,114 @@
+// Connections: one per accepted socket. Reads requests (request_parser.h), hands each to the
+// host (the server) in order, and writes the answers back in request order (pipelining).
+//
+// Rules
+//   - Threads: the loop thread only, like every libuv handle.
+//   - Ownership: a Connection owns its TCP and timer handles and deletes itself in the close
+//     callback of the last of them. Anyone holding a Connection* learns of its end through
+//     ConnectionHost::on_closing (called once, before the handles close) and must drop it then.
+//   - Answers are Pending entries, queued when the request completes and filled (answer())
+//     now or later; the front is written as soon as it is filled. A Pending stays valid for
+//     its holder after the connection closes (it is shared), but filling it then does nothing.
+//   - Limits: a request must arrive within request_timeout_ms of its first byte (else 408 and
+//     close); a connection idle for idle_timeout_ms closes; one with more than max_unsent_bytes
+//     written but not yet sent, or 16 answers owed, stops being read until the client catches
+//     up. A request line and headers over the parser's limits, or malformed HTTP, is answered
+//     (431, 413 or 400) and the connection closes.
+//   - After an answer with "Connection: close" nothing more is read or answered.
+// Errors: a failed write or a reset closes the connection; answers still owed are dropped.
+#pragma once
+
+#include <uv.h>
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string>
+
+#include "server/request_parser.h"
+#include "server/routes.h"
+
+namespace plantview::service {
+
+// One request's place in its connection's answer order.
+struct Pending {
+  bool ready = false;
+  bool keep_alive = true;
+  std::string bytes;     // the whole response, once ready
+  std::string endpoint;  // for the metrics
+};
+
+struct ConnectionLimits {
+  RequestLimits request;
+  uint32_t request_timeout_ms = 10000;
+  uint32_t idle_timeout_ms = 120000;
+  uint64_t max_unsent_bytes = 32ull << 20;
+};
+
+class Connection;
+
+// What a connection needs of its server (loop thread).
+class ConnectionHost {
+ public:
+  virtual const ConnectionLimits& connection_limits() const = 0;
+  virtual bool shutting_down() const = 0;
+  // A complete request: answer it through connection.answer(pending, ...), now or later.
+  virtual void on_request(Connection& connection, const Request& request,
+                          const std::shared_ptr<Pending>& pending) = 0;
+  // An answer left for the client (for the metrics).
+  virtual void on_answered(const std::string& endpoint, int status) = 0;
+  // The connection is closing: forget it (its answers owed will not be sent).
+  virtual void on_closing(Connection& connection) = 0;
+
+ protected:
+  ~ConnectionHost() = default;
+};
+
+class Connection {
+ public:
+  // Accepts a connection from `listener`; null if that failed (nothing to clean up then). It
+  // reads nothing until start() or refuse().
+  static Connection* accept(uv_stream_t* listener, ConnectionHost& host, uint64_t id);
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  void start();                                 // reads requests
+  void refuse(const Reply& reply);  // answers once (with reply, e.g. 503) and closes
+  uint64_t id() const { return id_; }
+
+  // Fills `pending` with the reply (counted in the metrics unless `count` is false) and writes
+  // what is ready. reply.close, or a request without keep-alive: the connection closes after it.
+  void answer(const std::shared_ptr<Pending>& pending, const Reply& reply, bool count = true);
+  void stop_reading();
+  bool finished() const { return pending_.empty() && unsent_bytes_ == 0; }  // nothing owed
+  void close();
+
+ private:
+  Connection(ConnectionHost& host, uint64_t id);
+  ~Connection() = default;  // in the last close callback
+  static void on_closed(uv_handle_t* handle);
+
+  void on_read(ssize_t n, const uv_buf_t* buf);
+  void on_written(size_t bytes, int status);
+  void on_timer();
+  void read_bytes(std::string_view bytes);
+  void fail(const RequestError& error);  // answers a request that cannot be parsed, and closes
+  void write(std::string data);
+  void flush();
+  void start_reading();
+  void restart_timer(uint32_t ms);
+  std::shared_ptr<Pending> push_pending(std::string endpoint);
+
+  uv_tcp_t tcp_{};
+  uv_timer_t timer_{};
+  int open_handles_ = 2;
+  ConnectionHost& host_;
+  uint64_t id_ = 0;
+  RequestParser parser_;
+  std::deque<std::shared_ptr<Pending>> pending_;  // answers in request order
+  uint64_t unsent_bytes_ = 0;
+  bool reading_ = false, closing_ = false;
+  bool no_more_ = false;  // a request said Connection: close, or an error is being answered
+};
+
+}  // namespace plantview::service

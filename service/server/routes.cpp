@@ -1,0 +1,273 @@
+// Rules: routes.h.
+#include "server/routes.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <initializer_list>
+#include <optional>
+#include <vector>
+
+namespace plantview::service {
+
+namespace {
+
+constexpr uint32_t kMaxSide = 4096;  // pixels, either side of an image the service renders
+
+bool parse_u32(std::string_view text, uint32_t& out) {
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+  return !text.empty() && ec == std::errc() && end == text.data() + text.size();
+}
+
+bool parse_double(std::string_view text, double& out) {
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+  return !text.empty() && ec == std::errc() && end == text.data() + text.size() && std::isfinite(out);
+}
+
+// --- the camera ---------------------------------------------------------------------------------
+
+// The numbers of one camera field, comma-separated ("+1.5" allowed); false with the message the
+// --camera form gives for a bad number.
+bool parse_numbers(std::string_view key, std::string_view value, std::vector<double>& out,
+                   std::string& error) {
+  out.clear();
+  for (;;) {
+    const size_t comma = std::min(value.find(','), value.size());
+    std::string_view token = value.substr(0, comma);
+    const std::string_view original = token;
+    if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+    double v = 0;
+    if (!parse_double(token, v)) {
+      error = "camera: '" + std::string(key) + "' has a bad number '" + std::string(original) + "'";
+      return false;
+    }
+    out.push_back(v);
+    if (comma == value.size()) return true;
+    value.remove_prefix(comma + 1);
+  }
+}
+
+bool to_vector(std::string_view key, const std::vector<double>& values, glm::dvec3& out, std::string& error) {
+  if (values.size() != 3) {
+    error = "camera: '" + std::string(key) + "' needs 3 numbers, got " + std::to_string(values.size());
+    return false;
+  }
+  out = {values[0], values[1], values[2]};
+  return true;
+}
+
+struct CameraText {
+  std::string_view eye, target;               // empty: not given
+  std::optional<std::string_view> up, fov;    // given empty: a bad number
+};
+
+// Parses eye, target, up and fov into a Camera and validates it. Bad numbers are reported
+// before wrong counts, each in the order eye, target, up, fov.
+bool parse_camera_fields(const CameraText& text, Camera& camera, std::string& error) {
+  std::vector<double> eye, target, up = {0, 0, 1}, fov = {camera.fov_deg};
+  if (!parse_numbers("eye", text.eye, eye, error) || !parse_numbers("target", text.target, target, error) ||
+      (text.up && !parse_numbers("up", *text.up, up, error)) ||
+      (text.fov && !parse_numbers("fov", *text.fov, fov, error)))
+    return false;
+  if (!to_vector("eye", eye, camera.eye_m, error) || !to_vector("target", target, camera.target_m, error) ||
+      !to_vector("up", up, camera.up, error))
+    return false;
+  if (fov.size() != 1) {
+    error = "camera: 'fov' needs 1 number";
+    return false;
+  }
+  camera.fov_deg = fov[0];
+  return validate_camera(camera, error);
+}
+
+// --- the view: camera, size and LOD shared by frame, stats and pick -----------------------------
+
+bool parse_view(const RouteConfig& config, const Fields& query, std::initializer_list<std::string_view> allowed,
+                RenderJob& job, std::string& error) {
+  static constexpr std::string_view common[] = {"eye", "target", "up", "fov", "w", "h", "lod", "px", "client"};
+  CameraText camera;
+  job.width = 1280;
+  job.height = 720;
+  for (const auto& [key, value] : query) {
+    if (std::find(std::begin(common), std::end(common), key) == std::end(common) &&
+        std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
+      error = "unknown parameter '" + key + "'";
+      return false;
+    }
+    if (key == "eye") camera.eye = value;
+    else if (key == "target") camera.target = value;
+    else if (key == "up") camera.up = value;
+    else if (key == "fov") camera.fov = value;
+    else if (key == "client") job.client = value.substr(0, 128);
+    else if (key == "w" || key == "h") {
+      uint32_t v = 0;
+      if (!parse_u32(value, v) || v == 0 || v > kMaxSide) {
+        error = "'" + key + "' must be a whole number of pixels in 1..4096, got '" + value.substr(0, 32) + "'";
+        return false;
+      }
+      (key == "w" ? job.width : job.height) = v;
+    } else if (key == "lod") {
+      if (!parse_lod_policy(value, job.policy)) {
+        error = "'lod' must be screen-space, distance or none";
+        return false;
+      }
+    } else if (key == "px") {
+      if (!parse_double(value, job.pixel_error) || job.pixel_error <= 0 || job.pixel_error > 1000) {
+        error = "'px' must be a pixel error in (0, 1000]";
+        return false;
+      }
+    }
+  }
+  // A query field given empty counts as absent (as the --camera text it once became did).
+  if (camera.eye.empty() != camera.target.empty()) {
+    error = "give both 'eye' and 'target', or neither (the default view)";
+    return false;
+  }
+  if (camera.eye.empty()) {
+    job.camera = default_camera(config.bounds, double(job.width) / job.height);
+    return true;
+  }
+  job.camera = Camera{};
+  return parse_camera_fields(camera, job.camera, error);
+}
+
+bool parse_frame(const Fields& query, RenderJob& job, std::string& error) {
+  for (const auto& [key, value] : query) {
+    if (key == "format" && !image_format_from_name(value, job.format)) {
+      error = "'format' must be jpeg or png";
+      return false;
+    }
+    if (key == "quality") {
+      uint32_t quality = 0;
+      if (!parse_u32(value, quality) || quality < 1 || quality > 100) {
+        error = "'quality' must be 1..100";
+        return false;
+      }
+      job.quality = int(quality);
+    }
+  }
+  return true;
+}
+
+bool parse_pick(const Fields& query, RenderJob& job, std::string& error) {
+  bool have_x = false, have_y = false;
+  for (const auto& [key, value] : query) {
+    if (key != "x" && key != "y") continue;
+    uint32_t v = 0;
+    if (!parse_u32(value, v)) {
+      error = "'" + key + "' must be a pixel position";
+      return false;
+    }
+    (key == "x" ? job.x : job.y) = v;
+    (key == "x" ? have_x : have_y) = true;
+  }
+  if (!have_x || !have_y || job.x >= job.width || job.y >= job.height) {
+    error = "'x' and 'y' must lie inside the w x h image";
+    return false;
+  }
+  return true;
+}
+
+// The render endpoints: a job, or the 400 (or 404) that says why not.
+std::variant<Reply, RenderJob> route_render(const Request& request, const RouteConfig& config,
+                                            uint64_t connection_id) {
+  RenderJob job;
+  std::string error;
+  const std::string& path = request.path;
+  if (path == "/api/frame") {
+    job.kind = RenderJob::Kind::frame;
+    if (!parse_view(config, request.query, {"format", "quality"}, job, error) ||
+        !parse_frame(request.query, job, error))
+      return error_reply(400, error);
+  } else if (path == "/api/stats") {
+    job.kind = RenderJob::Kind::stats;
+    if (!parse_view(config, request.query, {}, job, error)) return error_reply(400, error);
+  } else if (path == "/api/pick") {
+    job.kind = RenderJob::Kind::pick;
+    if (!parse_view(config, request.query, {"x", "y"}, job, error) || !parse_pick(request.query, job, error))
+      return error_reply(400, error);
+  } else {
+    return error_reply(404, "no such resource: " + path.substr(0, 128));
+  }
+  // Latest wins per client and kind of request: a newer frame replaces a waiting frame, not a
+  // waiting pick.
+  if (job.client.empty()) job.client = "connection:" + std::to_string(connection_id);
+  job.client += job.kind == RenderJob::Kind::frame ? "/frame" : job.kind == RenderJob::Kind::stats ? "/stats" : "/pick";
+  return job;
+}
+
+// Compares in constant time over the expected length.
+bool token_matches(std::string_view authorization, const std::string& token) {
+  const std::string expected = "Bearer " + token;
+  unsigned diff = unsigned(authorization.size() ^ expected.size());
+  for (size_t i = 0; i < expected.size(); ++i)
+    diff |= unsigned(uint8_t(expected[i]) ^ uint8_t(i < authorization.size() ? authorization[i] : 0));
+  return diff == 0;
+}
+
+Reply ok(std::string content_type, std::string body) {
+  Reply r;
+  r.content_type = std::move(content_type);
+  r.body = std::move(body);
+  return r;
+}
+
+}  // namespace
+
+std::string endpoint_of(std::string_view path) {
+  std::string endpoint = path.rfind("/api/objects/", 0) == 0 ? "objects"
+                         : path == "/"                        ? "page"
+                                                              : std::string(path.substr(path.rfind('/') + 1));
+  if (endpoint.empty() || endpoint.size() > 16) endpoint = "other";
+  return endpoint;
+}
+
+Reply error_reply(int status, std::string_view message, Fields headers, bool close) {
+  Reply r;
+  r.status = status;
+  r.content_type = "application/json";
+  r.body = error_body(message);
+  r.headers = std::move(headers);
+  r.close = close;
+  return r;
+}
+
+Routed route(const Request& request, const RouteConfig& config, bool shutting_down,
+             uint64_t connection_id) {
+  Routed out{endpoint_of(request.path), Reply{}};
+  auto& decision = out.decision;
+  const std::string& path = request.path;
+  const bool no_parameters = request.query.empty();
+  if (shutting_down) {
+    decision = error_reply(503, "the server is shutting down", {}, true);
+  } else if (!config.token.empty() && !token_matches(request.authorization, config.token)) {
+    decision = error_reply(401, "a valid 'Authorization: Bearer' token is required", {{"WWW-Authenticate", "Bearer"}});
+  } else if (request.method != "GET") {
+    decision = error_reply(405, "only GET is served", {{"Allow", "GET"}});
+  } else if (!request.query_error.empty()) {
+    decision = error_reply(400, request.query_error);
+  } else if (const auto f = config.files.find(path); f != config.files.end()) {
+    decision = no_parameters ? ok(f->second.content_type, f->second.bytes)
+                             : error_reply(400, "the page takes no parameters");
+  } else if (path == "/api/model") {
+    decision = no_parameters ? ok("application/json", config.model_json)
+                             : error_reply(400, "/api/model takes no parameters");
+  } else if (path == "/metrics") {
+    decision = MetricsPage{};
+  } else if (path.rfind("/api/objects/", 0) == 0) {
+    const std::string id_text = path.substr(13);
+    uint64_t id = 0;
+    const auto [end, ec] = std::from_chars(id_text.data(), id_text.data() + id_text.size(), id);
+    if (id_text.empty() || ec != std::errc() || end != id_text.data() + id_text.size() || id == 0)
+      decision = error_reply(400, "an object id is a decimal number, got '" + id_text.substr(0, 32) + "'");
+    else if (!no_parameters)
+      decision = error_reply(400, "/api/objects takes no parameters");
+    else
+      decision = ObjectLookup{id};
+  } else {
+    std::visit([&](auto&& d) { decision = std::move(d); }, route_render(request, config, connection_id));
+  }
+  return out;
+}
+
+}  // namespace plantview::service

@@ -1,0 +1,596 @@
+// The service's parts without a server: the request parser (every truncation and every split of
+// valid input, limits, malformed input), routes (token, method, parameters, the typed camera,
+// the decisions), the metrics text, and the render worker on whatever EGL offers.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <thread>
+#include <variant>
+
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "server/metrics.h"
+#include "server/render_worker.h"
+#include "server/request_parser.h"
+#include "server/routes.h"
+
+namespace plantview::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- the request parser -------------------------------------------------------------------------
+
+// Feeds `bytes` in pieces cut at `cuts` (ascending offsets); collects the requests, and the
+// error if one ends the input.
+struct Parsed {
+  std::vector<Request> requests;
+  std::optional<RequestError> error;
+  bool in_request = false;  // at the end
+};
+
+Parsed parse_in_pieces(std::string_view bytes, const std::vector<size_t>& cuts, RequestLimits limits = {}) {
+  RequestParser parser(limits);
+  Parsed out;
+  size_t from = 0;
+  std::vector<size_t> ends = cuts;
+  ends.push_back(bytes.size());
+  for (const size_t end : ends) {
+    std::string_view piece = bytes.substr(from, end - from);
+    from = end;
+    while (!piece.empty()) {
+      size_t used = 0;
+      const auto result = parser.feed(piece, used);
+      EXPECT_LE(used, piece.size());
+      if (result == RequestParser::Result::error) {
+        out.error = parser.error();
+        return out;
+      }
+      piece.remove_prefix(used);
+      if (result == RequestParser::Result::request) {
+        out.requests.push_back(std::move(parser.request()));
+        if (!out.requests.back().keep_alive) return out;  // a connection reads no further
+      } else {
+        EXPECT_TRUE(piece.empty());
+      }
+    }
+  }
+  out.in_request = parser.in_request();
+  return out;
+}
+
+Parsed parse_whole(std::string_view bytes, RequestLimits limits = {}) { return parse_in_pieces(bytes, {}, limits); }
+
+const std::string kGet =
+    "GET /api/frame?w=64&h=32&eye=1%2C2%2C3&target=0,0,0&client=a+b HTTP/1.1\r\n"
+    "Host: t\r\nauthorization: Bearer s3cret\r\nX-Other: 1\r\n\r\n";
+const std::string kPostWithBody = "POST /api/model HTTP/1.1\r\nHost: t\r\nContent-Length: 5\r\n\r\nhello";
+const std::string kChunked =
+    "GET /metrics HTTP/1.1\r\nHost: t\r\nTransfer-Encoding: chunked\r\n\r\n3\r\nabc\r\n0\r\n\r\n";
+const std::string kClose = "GET /api/model HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n";
+
+TEST(RequestParser, AValidRequestGivesMethodPathDecodedQueryAndTheAuthorizationHeader) {
+  const Parsed p = parse_whole(kGet);
+  ASSERT_FALSE(p.error);
+  ASSERT_EQ(p.requests.size(), 1u);
+  const Request& r = p.requests[0];
+  EXPECT_EQ(r.method, "GET");
+  EXPECT_EQ(r.path, "/api/frame");
+  const Fields expected = {{"w", "64"}, {"h", "32"}, {"eye", "1,2,3"}, {"target", "0,0,0"}, {"client", "a b"}};
+  EXPECT_EQ(r.query, expected);
+  EXPECT_TRUE(r.query_error.empty());
+  EXPECT_EQ(r.authorization, "Bearer s3cret");
+  EXPECT_TRUE(r.keep_alive);
+  EXPECT_FALSE(p.in_request);
+}
+
+TEST(RequestParser, ConnectionCloseAndHttp10WithoutKeepAliveEndTheConnection) {
+  EXPECT_FALSE(parse_whole(kClose).requests.at(0).keep_alive);
+  EXPECT_FALSE(parse_whole("GET / HTTP/1.0\r\n\r\n").requests.at(0).keep_alive);
+  EXPECT_TRUE(parse_whole("GET / HTTP/1.0\r\nConnection: keep-alive\r\n\r\n").requests.at(0).keep_alive);
+}
+
+TEST(RequestParser, EveryTruncationOfAValidRequestWaitsForMore) {
+  for (const std::string& valid : {kGet, kPostWithBody, kChunked, kClose}) {
+    for (size_t n = 1; n < valid.size(); ++n) {
+      const Parsed p = parse_whole(std::string_view(valid).substr(0, n));
+      ASSERT_FALSE(p.error) << n << " bytes of " << valid << ": " << p.error->message;
+      ASSERT_TRUE(p.requests.empty()) << n << " bytes of " << valid;
+      EXPECT_TRUE(p.in_request) << n << " bytes of " << valid;
+    }
+    EXPECT_EQ(parse_whole(valid).requests.size(), 1u) << valid;
+  }
+}
+
+TEST(RequestParser, PipelinedRequestsSplitAtEveryByteParseAsTheWhole) {
+  const std::string stream = kGet + kPostWithBody + kChunked + kGet + kClose + kGet;
+  const Parsed whole = parse_whole(stream);
+  ASSERT_FALSE(whole.error);
+  ASSERT_EQ(whole.requests.size(), 5u);  // nothing after Connection: close
+  EXPECT_EQ(whole.requests[1].method, "POST");
+  EXPECT_EQ(whole.requests[2].path, "/metrics");
+  EXPECT_FALSE(whole.requests[4].keep_alive);
+  for (size_t cut = 1; cut < stream.size(); ++cut) {
+    const Parsed split = parse_in_pieces(stream, {cut});
+    ASSERT_FALSE(split.error) << "cut at " << cut;
+    ASSERT_EQ(split.requests.size(), whole.requests.size()) << "cut at " << cut;
+    for (size_t i = 0; i < whole.requests.size(); ++i) {
+      EXPECT_EQ(split.requests[i].path, whole.requests[i].path) << "cut at " << cut;
+      EXPECT_EQ(split.requests[i].query, whole.requests[i].query) << "cut at " << cut;
+      EXPECT_EQ(split.requests[i].authorization, whole.requests[i].authorization) << "cut at " << cut;
+    }
+  }
+  // And one byte at a time.
+  std::vector<size_t> every;
+  for (size_t i = 1; i < stream.size(); ++i) every.push_back(i);
+  EXPECT_EQ(parse_in_pieces(stream, every).requests.size(), whole.requests.size());
+}
+
+TEST(RequestParser, HeadersOverTheLimitAre431) {
+  const RequestLimits limits{1000, 100};
+  const Parsed big_header = parse_whole("GET / HTTP/1.1\r\nX-Big: " + std::string(2000, 'a') + "\r\n\r\n", limits);
+  ASSERT_TRUE(big_header.error);
+  EXPECT_EQ(big_header.error->status, 431);
+  EXPECT_EQ(big_header.error->message, "request headers larger than 1000 bytes");
+  const Parsed big_url = parse_whole("GET /" + std::string(2000, 'u') + " HTTP/1.1\r\n\r\n", limits);
+  ASSERT_TRUE(big_url.error);
+  EXPECT_EQ(big_url.error->status, 431);
+  // Just under the limit is fine (the limit counts the target, names and values).
+  EXPECT_FALSE(parse_whole("GET / HTTP/1.1\r\nX: " + std::string(990, 'a') + "\r\n\r\n", limits).error);
+  // Many small headers add up.
+  std::string many = "GET / HTTP/1.1\r\n";
+  for (int i = 0; i < 200; ++i) many += "X-H" + std::to_string(i) + ": v\r\n";
+  const Parsed many_headers = parse_whole(many + "\r\n", limits);
+  ASSERT_TRUE(many_headers.error);
+  EXPECT_EQ(many_headers.error->status, 431);
+}
+
+TEST(RequestParser, BodiesOverTheLimitAre413DeclaredOrChunked) {
+  const RequestLimits limits{1000, 100};
+  const Parsed declared = parse_whole("GET / HTTP/1.1\r\nContent-Length: 101\r\n\r\n", limits);
+  ASSERT_TRUE(declared.error);
+  EXPECT_EQ(declared.error->status, 413);
+  EXPECT_EQ(declared.error->message, "request body larger than 100 bytes");
+  const std::string chunk = std::string(60, 'b');
+  const Parsed chunked = parse_whole("GET / HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n3c\r\n" + chunk +
+                                         "\r\n3c\r\n" + chunk + "\r\n0\r\n\r\n",
+                                     limits);
+  ASSERT_TRUE(chunked.error);
+  EXPECT_EQ(chunked.error->status, 413);
+  EXPECT_FALSE(parse_whole("GET / HTTP/1.1\r\nContent-Length: 100\r\n\r\n" + std::string(100, 'x'), limits).error);
+}
+
+TEST(RequestParser, ABadPercentEscapeCompletesTheRequestWithAQueryError) {
+  for (const std::string target : {"/api/frame?w=%zz", "/api/frame?w=%4", "/api/frame?%=1"}) {
+    const Parsed p = parse_whole("GET " + target + " HTTP/1.1\r\n\r\n");
+    ASSERT_EQ(p.requests.size(), 1u) << target;
+    EXPECT_NE(p.requests[0].query_error.find("bad percent escape"), std::string::npos) << target;
+    EXPECT_TRUE(p.requests[0].query.empty()) << target;
+  }
+  EXPECT_NE(parse_whole("GET /a?w=1&w=2 HTTP/1.1\r\n\r\n").requests.at(0).query_error.find("twice"), std::string::npos);
+  EXPECT_NE(parse_whole("GET /a?=2 HTTP/1.1\r\n\r\n").requests.at(0).query_error.find("no name"), std::string::npos);
+}
+
+TEST(RequestParser, MalformedRequestsAre400NamingHttpParsersReason) {
+  for (const std::string bad : {"THIS IS NOT HTTP\r\n\r\n", "FETCH / HTTP/1.1\r\n\r\n", "GET / HTTP/9.x\r\n\r\n",
+                                "GET / HTTP/1.1\r\nBad Header\r\n\r\n",
+                                "GET / HTTP/1.1\r\nContent-Length: x\r\n\r\n"}) {
+    const Parsed p = parse_whole(bad);
+    ASSERT_TRUE(p.error) << bad;
+    EXPECT_EQ(p.error->status, 400) << bad;
+    EXPECT_EQ(p.error->message.rfind("malformed HTTP: ", 0), 0u) << p.error->message;
+    EXPECT_GT(p.error->message.size(), 16u);
+  }
+}
+
+// --- routes -------------------------------------------------------------------------------------
+
+Request get(const std::string& target, std::string authorization = "") {
+  Parsed p = parse_whole("GET " + target + " HTTP/1.1\r\nHost: t\r\n" +
+                         (authorization.empty() ? "" : "Authorization: " + authorization + "\r\n") + "\r\n");
+  EXPECT_EQ(p.requests.size(), 1u) << target;
+  return p.requests.empty() ? Request{} : p.requests[0];
+}
+
+RouteConfig config() {
+  RouteConfig c;
+  c.model_json = "{\"objects\":6}\n";
+  c.bounds = {{-1, -1, -1}, {16, 1, 1}};
+  c.files["/"] = {"text/html; charset=utf-8", "<html></html>"};
+  return c;
+}
+
+Reply reply_of(const Routed& r) {
+  const Reply* reply = std::get_if<Reply>(&r.decision);
+  EXPECT_TRUE(reply) << "not a reply (endpoint " << r.endpoint << ")";
+  return reply ? *reply : Reply{};
+}
+
+// The error message of a 400 (or other error) reply.
+std::string error_of(const Routed& r, int status) {
+  const Reply reply = reply_of(r);
+  EXPECT_EQ(reply.status, status) << reply.body;
+  EXPECT_EQ(reply.content_type, "application/json");
+  return reply.body;
+}
+
+RenderJob job_of(const Routed& r) {
+  const RenderJob* job = std::get_if<RenderJob>(&r.decision);
+  EXPECT_TRUE(job) << (std::holds_alternative<Reply>(r.decision) ? std::get<Reply>(r.decision).body : "");
+  return job ? *job : RenderJob{};
+}
+
+TEST(Routes, TheTokenIsCheckedBeforeAnythingElseButShutdown) {
+  RouteConfig c = config();
+  c.token = "s3cret";
+  const Reply none = reply_of(route(get("/api/model"), c, false, 1));
+  EXPECT_EQ(none.status, 401);
+  EXPECT_EQ(none.headers, (Fields{{"WWW-Authenticate", "Bearer"}}));
+  EXPECT_EQ(reply_of(route(get("/api/model", "Bearer wrong"), c, false, 1)).status, 401);
+  EXPECT_EQ(reply_of(route(get("/api/model", "Bearer s3cret2"), c, false, 1)).status, 401);
+  EXPECT_EQ(reply_of(route(get("/api/model", "Bearer s3cre"), c, false, 1)).status, 401);
+  EXPECT_EQ(reply_of(route(get("/nope?%zz"), c, false, 1)).status, 401);  // before the query
+  const Reply good = reply_of(route(get("/api/model", "Bearer s3cret"), c, false, 1));
+  EXPECT_EQ(good.status, 200);
+  EXPECT_EQ(good.body, c.model_json);
+  const Reply closing = reply_of(route(get("/api/model", "Bearer s3cret"), c, true, 1));
+  EXPECT_EQ(closing.status, 503);
+  EXPECT_TRUE(closing.close);
+}
+
+TEST(Routes, OnlyGetIsServed) {
+  Parsed p = parse_whole(kPostWithBody);
+  const Reply r = reply_of(route(p.requests.at(0), config(), false, 1));
+  EXPECT_EQ(r.status, 405);
+  EXPECT_EQ(r.headers, (Fields{{"Allow", "GET"}}));
+}
+
+TEST(Routes, UnknownPathsAndBadObjectIdsAreRefused) {
+  EXPECT_NE(error_of(route(get("/nope"), config(), false, 1), 404).find("no such resource: /nope"), std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/objects/abc"), config(), false, 1), 400).find("decimal number"), std::string::npos);
+  error_of(route(get("/api/objects/0"), config(), false, 1), 400);
+  error_of(route(get("/api/objects/99999999999999999999999"), config(), false, 1), 400);
+  error_of(route(get("/api/objects/12?x=1"), config(), false, 1), 400);
+  const Routed lookup = route(get("/api/objects/12345"), config(), false, 1);
+  ASSERT_TRUE(std::holds_alternative<ObjectLookup>(lookup.decision));
+  EXPECT_EQ(std::get<ObjectLookup>(lookup.decision).id, 12345u);
+  EXPECT_EQ(lookup.endpoint, "objects");
+}
+
+TEST(Routes, PagesModelAndMetricsTakeNoParameters) {
+  const Reply page = reply_of(route(get("/"), config(), false, 1));
+  EXPECT_EQ(page.status, 200);
+  EXPECT_EQ(page.content_type, "text/html; charset=utf-8");
+  EXPECT_NE(error_of(route(get("/?a=1"), config(), false, 1), 400).find("no parameters"), std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/model?x=1"), config(), false, 1), 400).find("no parameters"), std::string::npos);
+  EXPECT_TRUE(std::holds_alternative<MetricsPage>(route(get("/metrics"), config(), false, 1).decision));
+}
+
+TEST(Routes, AFrameRequestBecomesARenderJobWithItsTypedCamera) {
+  const RenderJob job = job_of(route(get("/api/frame?eye=-6,-12,8.5&target=7.5,0,0&up=0,1,0&fov=40&w=160&h=90"
+                                         "&format=png&quality=70&lod=none&px=2.5"),
+                                     config(), false, 7));
+  EXPECT_EQ(job.kind, RenderJob::Kind::frame);
+  EXPECT_EQ(job.camera.eye_m, glm::dvec3(-6, -12, 8.5));
+  EXPECT_EQ(job.camera.target_m, glm::dvec3(7.5, 0, 0));
+  EXPECT_EQ(job.camera.up, glm::dvec3(0, 1, 0));
+  EXPECT_EQ(job.camera.fov_deg, 40.0);
+  EXPECT_EQ(job.width, 160u);
+  EXPECT_EQ(job.height, 90u);
+  EXPECT_EQ(job.format, ImageFormat::png);
+  EXPECT_EQ(job.quality, 70);
+  EXPECT_EQ(job.policy, LodPolicy::none);
+  EXPECT_EQ(job.pixel_error, 2.5);
+  EXPECT_EQ(job.client, "connection:7/frame");
+}
+
+TEST(Routes, DefaultsAreTheModelsViewUpZAndFifty) {
+  const RenderJob plain = job_of(route(get("/api/frame"), config(), false, 1));
+  EXPECT_EQ(plain.width, 1280u);
+  EXPECT_EQ(plain.height, 720u);
+  EXPECT_EQ(plain.format, ImageFormat::jpeg);
+  EXPECT_EQ(plain.quality, 85);
+  EXPECT_EQ(plain.camera, default_camera(config().bounds, 1280.0 / 720.0));
+  const RenderJob partial = job_of(route(get("/api/stats?eye=%2B1,2,3&target=4,5,6&client=me"), config(), false, 1));
+  EXPECT_EQ(partial.kind, RenderJob::Kind::stats);
+  EXPECT_EQ(partial.camera.eye_m, glm::dvec3(1, 2, 3));
+  EXPECT_EQ(partial.camera.up, glm::dvec3(0, 0, 1));
+  EXPECT_EQ(partial.camera.fov_deg, 50.0);
+  EXPECT_EQ(partial.client, "me/stats");
+}
+
+TEST(Routes, BadParametersAreRefusedNamingTheParameter) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"/api/frame?w=5000&h=10", "'w' must be a whole number of pixels in 1..4096, got '5000'"},
+      {"/api/frame?w=0", "'w'"},
+      {"/api/frame?h=-3", "'h'"},
+      {"/api/frame?zoom=2", "unknown parameter 'zoom'"},
+      {"/api/stats?format=png", "unknown parameter 'format'"},
+      {"/api/pick?quality=5&x=1&y=1", "unknown parameter 'quality'"},
+      {"/api/frame?format=gif", "'format' must be jpeg or png"},
+      {"/api/frame?quality=101", "'quality' must be 1..100"},
+      {"/api/frame?lod=fast", "'lod'"},
+      {"/api/frame?px=0", "'px'"},
+      {"/api/frame?px=inf", "'px'"},
+      {"/api/frame?w=%zz", "bad percent escape"},
+      {"/api/frame?w=1&w=2", "given twice"},
+  };
+  for (const auto& [target, reason] : cases)
+    EXPECT_NE(error_of(route(get(target), config(), false, 1), 400).find(reason), std::string::npos) << target;
+}
+
+TEST(Routes, CameraErrorsAreTheCameraFormsMessages) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"eye=nan,0,0&target=1,1,1", "camera: 'eye' has a bad number 'nan'"},
+      {"eye=inf,0,0&target=1,1,1", "camera: 'eye' has a bad number 'inf'"},
+      {"eye=1,,0&target=1,1,1", "camera: 'eye' has a bad number ''"},
+      {"eye=1,2,3&target=1,x,1", "camera: 'target' has a bad number 'x'"},
+      {"eye=1,2&target=1,1,1", "camera: 'eye' needs 3 numbers, got 2"},
+      {"eye=1,2,3&target=1,1,1,1", "camera: 'target' needs 3 numbers, got 4"},
+      // Bad numbers are found before wrong counts.
+      {"eye=1,2&target=1,1,q", "camera: 'target' has a bad number 'q'"},
+      {"eye=1,1,1&target=1,1,1", "camera: the eye is on the target"},
+      {"eye=0,0,5&target=0,0,0", "camera: 'up' is zero or along the view direction"},
+      {"eye=0,-5,0&target=0,0,0&up=0,0,0", "camera: 'up' is zero or along the view direction"},
+      {"eye=0,-5,0&target=0,0,0&up=", "camera: 'up' has a bad number ''"},
+      {"eye=0,-5,0&target=0,0,0&fov=180", "camera: fov must be in (0, 179) degrees"},
+      {"eye=0,-5,0&target=0,0,0&fov=0", "camera: fov must be in (0, 179) degrees"},
+      {"eye=0,-5,0&target=0,0,0&fov=40,50", "camera: 'fov' needs 1 number"},
+      {"eye=1,1,1", "give both 'eye' and 'target', or neither"},
+      {"target=1,1,1", "give both 'eye' and 'target', or neither"},
+  };
+  for (const auto& [query, reason] : cases) {
+    const std::string body = error_of(route(get("/api/frame?" + query), config(), false, 1), 400);
+    EXPECT_NE(body.find(reason), std::string::npos) << query << ": " << body;
+  }
+}
+
+TEST(Routes, APickNeedsAPixelInsideTheImage) {
+  const RenderJob pick = job_of(route(get("/api/pick?w=100&h=50&x=99&y=49"), config(), false, 3));
+  EXPECT_EQ(pick.kind, RenderJob::Kind::pick);
+  EXPECT_EQ(pick.x, 99u);
+  EXPECT_EQ(pick.y, 49u);
+  EXPECT_EQ(pick.client, "connection:3/pick");
+  for (const std::string q : {"w=100&h=50&x=100&y=0", "w=100&h=50&x=0&y=50", "w=100&h=50", "w=100&h=50&x=1"})
+    EXPECT_NE(error_of(route(get("/api/pick?" + q), config(), false, 1), 400).find("inside the w x h image"),
+              std::string::npos)
+        << q;
+  EXPECT_NE(error_of(route(get("/api/pick?x=-1&y=0"), config(), false, 1), 400).find("'x' must be a pixel position"),
+            std::string::npos);
+}
+
+TEST(Routes, EndpointsAreNamedForTheMetrics) {
+  EXPECT_EQ(endpoint_of("/api/frame"), "frame");
+  EXPECT_EQ(endpoint_of("/api/objects/123"), "objects");
+  EXPECT_EQ(endpoint_of("/"), "page");
+  EXPECT_EQ(endpoint_of("/viewer.js"), "viewer.js");
+  EXPECT_EQ(endpoint_of("/a/"), "other");
+  EXPECT_EQ(endpoint_of("/" + std::string(40, 'x')), "other");
+}
+
+// --- metrics ------------------------------------------------------------------------------------
+
+TEST(Metrics, CountsHistogramAndGaugesAreExposedInPrometheusText) {
+  Metrics m;
+  m.count_answer("frame", 200);
+  m.count_answer("frame", 200);
+  m.count_answer("frame", 400);
+  FrameStats fast, slow;
+  fast.ms.total = 8;
+  fast.ms.encode = 1;  // 9 ms: the 10 ms bucket
+  fast.arena_bytes_resident = 111;
+  fast.objects_evicted = 2;
+  fast.arena_bytes_uploaded = 1000;
+  slow.ms.total = 300;  // the 500 ms bucket
+  slow.arena_bytes_resident = 222;
+  slow.objects_evicted = 3;
+  slow.arena_bytes_uploaded = 500;
+  m.count_rendered(fast);
+  m.count_rendered(slow);
+  m.superseded = 4;
+  m.rejected_busy = 5;
+  const std::string text = metrics_text(m, {1 << 20, 6, 7});
+  for (const std::string line : {
+           "plantview_requests_total{endpoint=\"frame\",status=\"200\"} 2\n",
+           "plantview_requests_total{endpoint=\"frame\",status=\"400\"} 1\n",
+           "plantview_frame_milliseconds_bucket{le=\"10\"} 1\n",
+           "plantview_frame_milliseconds_bucket{le=\"250\"} 1\n",
+           "plantview_frame_milliseconds_bucket{le=\"500\"} 2\n",
+           "plantview_frame_milliseconds_bucket{le=\"10000\"} 2\n",
+           "plantview_frame_milliseconds_bucket{le=\"+Inf\"} 2\n",
+           "plantview_frame_milliseconds_sum 309\n",
+           "plantview_frame_milliseconds_count 2\n",
+           "plantview_arena_bytes 222\n",
+           "plantview_arena_budget_bytes 1048576\n",
+           "plantview_evictions_total 5\n",
+           "plantview_uploaded_bytes_total 1500\n",
+           "plantview_queue_depth 6\n",
+           "plantview_superseded_total 4\n",
+           "plantview_busy_total 5\n",
+           "plantview_connections 7\n",
+           "# TYPE plantview_frame_milliseconds histogram\n",
+       })
+    EXPECT_NE(text.find(line), std::string::npos) << line << "in\n" << text;
+}
+
+// --- the render worker --------------------------------------------------------------------------
+
+// Six 2 m boxes along x (0, 3, ..., 15 m), as the service tests use.
+const std::string& six_boxes() {
+  static const std::string dir = [] {
+    const fs::path d = fs::temp_directory_path() / ("plantview-http-test-" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    std::string error;
+    auto store = Store::open(d.string(), Store::Mode::read_write, error);
+    EXPECT_TRUE(store) << error;
+    auto import = store->begin_import(error);
+    for (int i = 0; i < 6; ++i) {
+      Object o;
+      o.name = "/BOX-" + std::to_string(i);
+      o.source = "test";
+      o.id = object_id(o.source, o.name);
+      o.object_class = ObjectClass::equipment;
+      o.origin_m = {i * 3.0, 0, 0};
+      o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
+      EXPECT_TRUE(import->put(o, error)) << error;
+    }
+    EXPECT_TRUE(import->commit(error)) << error;
+    return d.string();
+  }();
+  static const struct RemovedAtExit {
+    ~RemovedAtExit() { fs::remove_all(dir); }
+  } removed_at_exit;
+  return dir;
+}
+
+// Results as the worker hands them over; `hold` keeps the render thread inside its notify call
+// (after a result, before the next job) until released, so that a test can queue jobs while
+// the worker is known to be between jobs.
+class Results {
+ public:
+  std::function<void()> notifier() {
+    return [this] {
+      std::unique_lock lock(mutex_);
+      ++notified_;
+      changed_.notify_all();
+      changed_.wait(lock, [&] { return !hold_; });
+    };
+  }
+  void hold(bool on) {
+    std::lock_guard lock(mutex_);
+    hold_ = on;
+    changed_.notify_all();
+  }
+  // Waits until `n` results have been announced.
+  bool wait_for(int n) {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, std::chrono::seconds(60), [&] { return notified_ >= n; });
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  int notified_ = 0;
+  bool hold_ = false;
+};
+
+RenderJob frame_job(uint64_t ticket, const std::string& client, uint32_t side = 64) {
+  RenderJob job;
+  job.kind = RenderJob::Kind::frame;
+  job.camera.eye_m = {-6, -12, 8};
+  job.camera.target_m = {7.5, 0, 0};
+  job.width = job.height = side;
+  job.client = client;
+  job.ticket = ticket;
+  return job;
+}
+
+TEST(RenderWorker, ANewerJobOfTheSameClientReplacesTheWaitingOneAndAFullQueueIsBusy) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 2, results.notifier(), error)) << error;
+  results.hold(true);
+  uint64_t dropped = 0;
+  EXPECT_EQ(worker.submit(frame_job(1, "first"), dropped), RenderWorker::Submitted::queued);
+  ASSERT_TRUE(results.wait_for(1));  // job 1 is done; the render thread waits in notify
+  EXPECT_EQ(worker.submit(frame_job(2, "c"), dropped), RenderWorker::Submitted::queued);
+  EXPECT_EQ(worker.submit(frame_job(3, "c", 32), dropped), RenderWorker::Submitted::replaced);
+  EXPECT_EQ(dropped, 2u);
+  EXPECT_EQ(worker.submit(frame_job(4, "d"), dropped), RenderWorker::Submitted::queued);
+  EXPECT_EQ(worker.submit(frame_job(5, "e"), dropped), RenderWorker::Submitted::busy);
+  EXPECT_EQ(worker.queue_depth(), 2u);
+  EXPECT_FALSE(worker.idle());
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(3));
+  worker.stop();
+  std::vector<uint64_t> tickets;
+  for (const RenderResult& r : worker.take_results()) {
+    tickets.push_back(r.ticket);
+    EXPECT_EQ(r.status, 200);
+    EXPECT_TRUE(r.needs_encoding);
+    if (r.ticket == 3) {
+      EXPECT_EQ(r.image.width, 32u);  // the newer one's size
+    }
+  }
+  EXPECT_EQ(tickets, (std::vector<uint64_t>{1, 3, 4}));  // in the order they waited
+  EXPECT_TRUE(worker.idle());
+}
+
+TEST(RenderWorker, JobsSubmittedWhileItRendersAreAllAnsweredAndStopFinishesTheQueue) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 64, results.notifier(), error)) << error;
+  std::set<uint64_t> answered;
+  const auto take = [&] {
+    for (RenderResult& r : worker.take_results()) {
+      EXPECT_EQ(r.status, 200) << r.body;
+      EXPECT_TRUE(answered.insert(r.ticket).second) << "answered twice: " << r.ticket;
+    }
+  };
+  constexpr uint64_t kJobs = 24;
+  for (uint64_t t = 1; t <= kJobs; ++t) {
+    uint64_t dropped = 0;
+    RenderJob job = frame_job(t, "client-" + std::to_string(t), 24 + uint32_t(t));
+    if (t % 3 == 1) job.kind = RenderJob::Kind::stats;
+    ASSERT_EQ(worker.submit(std::move(job), dropped), RenderWorker::Submitted::queued);
+    take();  // while it renders
+  }
+  worker.stop();  // lets the queued jobs finish
+  take();
+  EXPECT_EQ(answered.size(), kJobs);
+  EXPECT_TRUE(worker.idle());
+}
+
+TEST(RenderWorker, APickReadsTheObjectFromTheRenderersSnapshot) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 8, results.notifier(), error)) << error;
+  RenderJob pick;
+  pick.kind = RenderJob::Kind::pick;
+  pick.camera.eye_m = {6, -10, 0};
+  pick.camera.target_m = {6, 0, 0};
+  pick.width = pick.height = 100;
+  pick.x = pick.y = 50;
+  pick.client = "p";
+  pick.ticket = 1;
+  RenderJob miss = pick;
+  miss.x = miss.y = 0;
+  miss.client = "q";
+  miss.ticket = 2;
+  uint64_t dropped = 0;
+  worker.submit(pick, dropped);
+  worker.submit(miss, dropped);
+  ASSERT_TRUE(results.wait_for(2));
+  worker.stop();
+  const auto done = worker.take_results();
+  ASSERT_EQ(done.size(), 2u);
+  EXPECT_EQ(done[0].status, 200);
+  EXPECT_NE(done[0].body.find("\"name\":\"/BOX-2\""), std::string::npos) << done[0].body;
+  EXPECT_EQ(done[1].body, "{\"object\":null}\n");
+}
+
+TEST(RenderWorker, AStoppedWorkerThatNeverStartedStopsCleanly) {
+  RenderWorker worker;
+  worker.stop();
+  EXPECT_TRUE(worker.idle());
+}
+
+}  // namespace
+}  // namespace plantview::service
