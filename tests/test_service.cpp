@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -39,7 +40,7 @@ const std::string& small_store() {
     const fs::path d = scratch("store");
     std::string error;
     auto store = Store::open(d.string(), Store::Mode::read_write, error);
-    auto import = store->begin_import(error);
+    std::vector<Object> objects;
     for (int i = 0; i < 6; ++i) {
       Object o;
       o.name = "/BOX-" + std::to_string(i);
@@ -50,9 +51,10 @@ const std::string& small_store() {
       o.colour = {uint8_t(40 * i), 120, 200, 255};
       o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
       o.attributes = {{"Type", "EQUI"}, {"Index", std::to_string(i)}};
-      EXPECT_TRUE(import->put(o, error)) << error;
+      objects.push_back(std::move(o));
     }
-    EXPECT_TRUE(import->commit(error)) << error;
+    const IngestResult result = ingest_objects(*store, objects);
+    EXPECT_TRUE(result) << result.error().message;
     return d.string();
   }();
   return dir;
