@@ -16,8 +16,8 @@
 // Transactions and sources
 //   - Every call is one store transaction (store.h, Import): nothing is visible until it
 //     commits, and a bad file, an error, a cancellation or a killed process leaves the store
-//     exactly as it was. One call per store at a time (LMDB serialises writers); a call waits
-//     for another process's import to finish.
+//     exactly as it was. One call per store at a time (store.h: one Import per store; LMDB
+//     serialises writers, across processes too).
 //   - Every input is a source: a file's is its canonical path (as weakly_canonical gives it; the
 //     path as given if that fails), a generated plant's "gen:<preset>". What a source brought
 //     before is removed in the same transaction before its objects go in, so importing a file
@@ -46,7 +46,11 @@
 //   Arguments that break a rule stated here (a scale out of range, an unknown preset) are caller
 //   bugs and assert; check them with parse_preset() and kMaxGenerateScale.
 //
-// Threads: any thread may call; progress and the sink callbacks run on the calling thread.
+// Memory: an RVM file is held whole, with its attribute file, its parse and its objects, while it
+// is stored (a few times the files' size: Huldra's 3.6 MB take 15 MB at peak); XML is read in 1 MB blocks and stored object by object; a generated
+// plant holds one plant unit at a time (generate.h). The transaction's own memory is the store's.
+//
+// Threads: any thread may call; the progress and file_done callbacks run on the calling thread.
 #pragma once
 
 #include <cstdint>
@@ -84,14 +88,16 @@ std::string_view stage_name(IngestStage stage);
 
 struct IngestProgress {
   IngestStage stage = IngestStage::parsing;
-  std::string_view path;      // the file at hand as given; empty when not reading a file
-  uint32_t file_index = 0;    // 0-based index among the model files (plan order)
+  std::string_view path;      // the file at hand as given; empty while generating, storing
+                              // objects from memory, or committing
+  uint32_t file_index = 0;    // 0-based index among the model files (plan order); file_count
+                              // while committing
   uint32_t file_count = 0;    // model files in the call; 0 for generated or in-memory objects
   uint64_t done = 0, total = 1;  // in the stage's unit; done <= total, total >= 1
 };
 
 struct IngestControl {
-  // May be empty. Valid only during the call; `path` points into the call's own data.
+  // May be empty. A report (and the text its `path` views) is valid only during the callback.
   std::function<void(const IngestProgress&)> progress;
   // Default: never stops.
   std::stop_token stop;
