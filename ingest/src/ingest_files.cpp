@@ -51,18 +51,22 @@ fs::path attributes_beside(const fs::path& rvm) {
 // Parsing and classifying one RVM, then storing its objects.
 bool ingest_rvm(Transaction& t, const ImportPlan::Model& model, IngestedFile& file) {
   const std::string path = model.path.string();
-  t.report(IngestStage::parsing, 0, 1, path);
+  const fs::path attribute_path = model.attributes.empty() ? attributes_beside(model.path) : model.attributes;
+  // Sizes for progress only: a file that cannot be measured counts 0 (loading it names the error).
+  const auto size_of = [](const fs::path& p) -> uint64_t {
+    std::error_code ec;
+    const uint64_t size = p.empty() ? 0 : uint64_t(fs::file_size(p, ec));
+    return ec ? 0 : size;
+  };
+  const uint64_t rvm_bytes = size_of(model.path), total_bytes = rvm_bytes + size_of(attribute_path);
+  t.report(IngestStage::parsing, 0, total_bytes, path);
   auto bytes = load_file(model.path);
   if (!bytes) return t.fail_input(bytes.error().message, path), false;
   if (!t.check_stop()) return false;
-  const fs::path attribute_path = model.attributes.empty() ? attributes_beside(model.path) : model.attributes;
-  std::error_code ec;
-  const uint64_t attribute_bytes = attribute_path.empty() ? 0 : fs::file_size(attribute_path, ec);
-  const uint64_t total_bytes = bytes.value().size() + (ec ? 0 : attribute_bytes);
   auto rvm = parse_rvm(bytes.value(), path);
   if (!rvm) return t.fail_input(rvm.error().message, path), false;
   bytes = std::vector<std::byte>{};  // the parsed file owns everything it needs
-  t.report(IngestStage::parsing, total_bytes - attribute_bytes, total_bytes, path);
+  t.report(IngestStage::parsing, rvm_bytes, total_bytes, path);
   if (!t.check_stop()) return false;
 
   std::unique_ptr<AttributeFile> attributes;
