@@ -1,5 +1,6 @@
-// Ingest: time from nothing to a committed store, and the store's size, for the generated presets
-// a, b, c and c at scale 10, and for the Huldra RVM sample (parse, classify, store). Then, as a
+// Ingest: time from nothing to a committed store (through plantview/ingest.h, as the program
+// imports), and the store's size, for the generated presets a, b, c and c at scale 10, and for the
+// Huldra RVM sample with its attributes (parse, classify, store). Then, as a
 // renderer would read it: the time for a new view to fetch every object (without attributes) in
 // the order of the spatial hierarchy's entries.
 //
@@ -12,13 +13,12 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include "plantview/generate.h"
-#include "plantview/rvm.h"
-#include "plantview/rvm_import.h"
+#include "plantview/ingest.h"
 #include "plantview/store.h"
 
 namespace {
@@ -64,59 +64,38 @@ bool finish(Store& store, Row& row) {
   return true;
 }
 
-bool ingest_preset(char preset, uint32_t scale, Row& row) {
+// Times one ingest into a new store, from opening it to the commit, then reads it back.
+bool timed_ingest(Row& row, const std::function<IngestResult(Store&)>& ingest) {
   const fs::path dir = scratch_dir(row.name);
   const auto start = Clock::now();
   std::string error;
   auto store = Store::open(dir.string(), Store::Mode::read_write, error);
-  auto import = store ? store->begin_import(error) : nullptr;
-  if (!import) {
+  if (!store) {
     std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
     return false;
   }
-  GenerateOptions options;
-  options.preset = preset;
-  options.scale = scale;
-  bool ok = true;
-  generate_plant(options, [&](Object&& o) {
-    o.source = "gen";
-    ok = ok && import->put(o, error);
-  });
-  ok = ok && import->commit(error);
+  const IngestResult result = ingest(*store);
   row.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-  if (!ok) std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
-  ok = ok && finish(*store, row);
+  if (!result) std::fprintf(stderr, "bench_ingest: %s\n", result.error().message.c_str());
+  const bool ok = result && finish(*store, row);
   store.reset();
   fs::remove_all(dir);
   return ok;
+}
+
+bool ingest_preset(char preset, uint32_t scale, Row& row) {
+  GenerateOptions options;
+  options.preset = preset;
+  options.scale = scale;
+  return timed_ingest(row, [&](Store& store) { return ingest_generated(store, options); });
 }
 
 bool ingest_huldra(const fs::path& shared, Row& row) {
   const fs::path rvm = shared / "data" / "huldra" / "WD1-PSUP.RVM";
   const fs::path txt = shared / "data" / "huldra" / "WD1-PSUP.txt";
   if (!fs::exists(rvm)) return false;
-  const fs::path dir = scratch_dir(row.name);
-  const auto start = Clock::now();
-  auto bytes = load_file(rvm);
-  auto text = load_file(txt);
-  if (!bytes || !text) return false;
-  auto parsed = parse_rvm(bytes.value(), rvm.string());
-  const auto& t = text.value();
-  auto attributes = parse_attributes(std::string_view(reinterpret_cast<const char*>(t.data()), t.size()), txt.string());
-  if (!parsed || !attributes) return false;
-  RvmImportSummary summary;
-  const auto objects = rvm_to_objects(parsed.value(), &attributes.value(), rvm.string(), summary);
-  std::string error;
-  auto store = Store::open(dir.string(), Store::Mode::read_write, error);
-  auto import = store ? store->begin_import(error) : nullptr;
-  bool ok = import != nullptr;
-  for (const Object& o : objects) ok = ok && import->put(o, error);
-  ok = ok && import->commit(error);
-  row.seconds = std::chrono::duration<double>(Clock::now() - start).count();
-  ok = ok && finish(*store, row);
-  store.reset();
-  fs::remove_all(dir);
-  return ok;
+  const ImportPlan plan{{{rvm, false, txt}}};
+  return timed_ingest(row, [&](Store& store) { return ingest_files(store, plan); });
 }
 
 }  // namespace

@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "plantview/generate.h"
+#include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -56,22 +56,16 @@ double generate_store(const fs::path& dir, char preset, uint32_t scale) {
   if (child == 0) {
     std::string error;
     auto store = Store::open(dir.string(), Store::Mode::read_write, error);
-    auto import = store ? store->begin_import(error) : nullptr;
-    if (!import) {
+    if (!store) {
       std::fprintf(stderr, "bench_render: %s\n", error.c_str());
       _exit(1);
     }
     GenerateOptions options;
     options.preset = preset;
     options.scale = scale;
-    bool ok = true;
-    generate_plant(options, [&](Object&& o) {
-      o.source = "gen";
-      ok = ok && import->put(o, error);
-    });
-    ok = ok && import->commit(error);
-    if (!ok) std::fprintf(stderr, "bench_render: %s\n", error.c_str());
-    _exit(ok ? 0 : 1);
+    const IngestResult result = ingest_generated(*store, options);
+    if (!result) std::fprintf(stderr, "bench_render: %s\n", result.error().message.c_str());
+    _exit(result ? 0 : 1);
   }
   int status = 0;
   waitpid(child, &status, 0);

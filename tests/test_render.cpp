@@ -10,6 +10,7 @@
 
 #include "hlod.h"
 #include "lod.h"
+#include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "residency.h"
@@ -65,10 +66,8 @@ std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>&
   std::string error;
   auto store = Store::open(dir.str(), Store::Mode::read_write, error);
   EXPECT_TRUE(store) << error;
-  auto import = store->begin_import(error);
-  EXPECT_TRUE(import) << error;
-  for (const auto& o : objects) EXPECT_TRUE(import->put(o, error)) << error;
-  EXPECT_TRUE(import->commit(error)) << error;
+  const IngestResult result = ingest_objects(*store, objects);
+  EXPECT_TRUE(result) << result.error().message;
   return store;
 }
 

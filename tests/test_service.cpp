@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "support/http_client.h"
@@ -37,7 +38,7 @@ const std::string& small_store() {
     const fs::path d = scratch("store");
     std::string error;
     auto store = Store::open(d.string(), Store::Mode::read_write, error);
-    auto import = store->begin_import(error);
+    std::vector<Object> objects;
     for (int i = 0; i < 6; ++i) {
       Object o;
       o.name = "/BOX-" + std::to_string(i);
@@ -48,9 +49,10 @@ const std::string& small_store() {
       o.colour = {uint8_t(40 * i), 120, 200, 255};
       o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
       o.attributes = {{"Type", "EQUI"}, {"Index", std::to_string(i)}};
-      EXPECT_TRUE(import->put(o, error)) << error;
+      objects.push_back(std::move(o));
     }
-    EXPECT_TRUE(import->commit(error)) << error;
+    const IngestResult result = ingest_objects(*store, objects);
+    EXPECT_TRUE(result) << result.error().message;
     return d.string();
   }();
   return dir;

@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "plantview/generate.h"
+#include "plantview/ingest.h"
 #include "plantview/store.h"
 #include "plantview/xml.h"
 #include "progress.h"
@@ -49,7 +50,6 @@ int run_gen(const GenOptions& o) {
   g.scale = o.scale;
   g.seed = o.seed;
   const auto start = std::chrono::steady_clock::now();
-  const std::string source = "gen:" + std::string(1, g.preset);
   Progress progress("generating preset " + std::string(1, g.preset));
   std::string error;
   bool failed = false;
@@ -83,24 +83,17 @@ int run_gen(const GenOptions& o) {
     std::cerr << "plantview gen: " << error << "\n";
     return 1;
   }
-  auto import = store->begin_import(error);
-  if (!import || !import->remove_source(source, error)) {
-    std::cerr << "plantview gen: " << error << "\n";
-    return 1;
-  }
-  const GenerateSummary summary = generate_plant(
-      g,
-      [&](Object&& obj) {
-        if (failed) return;
-        obj.source = source;
-        if (!import->put(obj, error)) failed = true;
-      },
-      [&](double f) { progress.update(f); });
-  if (failed || !import->commit(error)) {
-    std::cerr << "plantview gen: " << error << " (the store is unchanged)\n";
+  IngestControl control;
+  control.progress = [&](const IngestProgress& p) {
+    if (p.stage == IngestStage::generating) progress.update(double(p.done) / double(p.total));
+  };
+  const IngestResult result = ingest_generated(*store, g, control);
+  if (!result) {
+    std::cerr << "plantview gen: " << result.error().message << " (the store is unchanged)\n";
     return 1;
   }
   progress.finish();
+  const GenerateSummary& summary = result.summary().generated;
   std::fprintf(stderr, "plantview gen: %llu objects, %llu primitives committed to %s in %.2f s\n",
                (unsigned long long)summary.objects, (unsigned long long)summary.primitives,
                o.store.c_str(), seconds_since(start));
