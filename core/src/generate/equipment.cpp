@@ -15,13 +15,8 @@ namespace plantview::gen {
 namespace {
 
 using T = EquipmentType;
-constexpr dvec3 kUp(0, 0, 1), kDown(0, 0, -1), kX(1, 0, 0), kY(0, 1, 0);
-constexpr float kThreeQuarterTurn = 4.712389f;
-constexpr float kHalfTurn = 3.1415927f;
-constexpr float kFullTurn = 6.2831855f;
 // Slope of a 2:1 elliptical head at 0.6 of its radius: atan(0.375).
 constexpr float kHeadSlope_rad = 0.3587707f;
-constexpr float kQuarterPi = 0.7853982f;
 
 const dvec3 kCardinal[4] = {dvec3(1, 0, 0), dvec3(0, 1, 0), dvec3(-1, 0, 0), dvec3(0, -1, 0)};
 

@@ -22,6 +22,16 @@ namespace plantview::gen {
 using glm::dvec3;
 
 // ---------------------------------------------------------------------------------------------
+// Directions (unit-local: x along the unit, y across, z up) and angles every stage builds with.
+// Angles are float literals of the shapes' float fields, so that no stage computes them.
+
+inline constexpr dvec3 kUp(0, 0, 1), kDown(0, 0, -1), kX(1, 0, 0), kY(0, 1, 0);
+inline constexpr float kQuarterPi = 0.7853982f;  // 45 degrees
+inline constexpr float kHalfTurn = 3.1415927f;
+inline constexpr float kThreeQuarterTurn = 4.712389f;
+inline constexpr float kFullTurn = 6.2831855f;
+
+// ---------------------------------------------------------------------------------------------
 // PRNG: xoshiro256** seeded through splitmix64. Integer draws only; doubles come from 53 bits.
 
 uint64_t splitmix64(uint64_t& state);
