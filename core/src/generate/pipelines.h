@@ -149,12 +149,12 @@ class Piping {
   void set_targets();
   void plan();
   // Pipeline kinds; each returns false when it found no valid route (nothing emitted then).
-  bool build_header(int h);                // piping_headers.cpp
-  bool build_drop(Drop& d);                // piping_headers.cpp
-  bool build_pump_suction(int pair);       // piping_pumps.cpp
-  bool build_pump_discharge(int pair);     // piping_pumps.cpp
-  bool build_process(int a, int b);        // piping_process.cpp
-  bool build_battery_limit(int a);         // piping_process.cpp
+  bool build_header(int h);             // piping_headers.cpp
+  bool build_drop(Drop& d);             // piping_headers.cpp
+  bool build_pump_suction(int pair);    // piping_pumps.cpp
+  bool build_pump_discharge(int pair);  // piping_pumps.cpp
+  bool build_process(int a, int b);     // piping_process.cpp
+  bool build_battery_limit(int a);      // piping_process.cpp
 
   // A line's start and end (piping_branch.cpp).
   LineContext new_line(Service service, int bore);
@@ -238,7 +238,7 @@ class Piping {
   dvec3 line_head_{0.0};  // first branch head of the line being built
   Mix pending_;           // chosen for the line being built, not emitted yet
   std::unordered_map<uint32_t, std::vector<Option>> catalogue_;  // inline groups by spec and bore
-  double bend_factor_ = 1.0;  // of the line being built
+  double bend_factor_ = 1.0;  // bend radius factor of the line being built
 };
 
 }  // namespace plantview::gen::pipelines

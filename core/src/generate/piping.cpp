@@ -258,4 +258,3 @@ void build_piping(Unit& unit, const std::function<void(double)>& progress) {
 }
 
 }  // namespace plantview::gen
-

@@ -110,13 +110,12 @@ bool Piping::build_pump_suction(int pair) {
     return false;
   }
   // The near pump's branch: from the tee to its suction flange, with the far pump's end group.
-  finish_branch(line, head, start, pts, segs, end, {feeder},
-                [&](const Slot&, const Port& port) {
-                  Run run(line, int(line.branches.size()) + 1, port);
-                  if (glm::dot(e_near - port.position, port.direction) > 1e-6) run.pipe_to(e_near);
-                  for (const Item& it : end) run.straight(it);
-                  run.finish();
-                });
+  finish_branch(line, head, start, pts, segs, end, {feeder}, [&](const Slot&, const Port& port) {
+    Run run(line, int(line.branches.size()) + 1, port);
+    if (glm::dot(e_near - port.position, port.direction) > 1e-6) run.pipe_to(e_near);
+    for (const Item& it : end) run.straight(it);
+    run.finish();
+  });
   return true;
 }
 
@@ -255,16 +254,14 @@ bool Piping::build_pump_discharge(int pair) {
   }
   const Port head{first.position, kUp, first.bore};
   // The second pump's riser flows up into the tee.
-  finish_branch(line, head, start, pts, segs, end, {target},
-                [&](const Slot&, const Port& port) {
-                  Run run(line, int(line.branches.size()) + 1,
-                          Port{second.position, kUp, second.bore});
-                  for (const Item& it : start) run.straight(it);
-                  if (glm::dot(port.position - run.position(), kUp) > 1e-6) {
-                    run.pipe_to(port.position);
-                  }
-                  run.finish();
-                });
+  finish_branch(line, head, start, pts, segs, end, {target}, [&](const Slot&, const Port& port) {
+    Run run(line, int(line.branches.size()) + 1, Port{second.position, kUp, second.bore});
+    for (const Item& it : start) run.straight(it);
+    if (glm::dot(port.position - run.position(), kUp) > 1e-6) {
+      run.pipe_to(port.position);
+    }
+    run.finish();
+  });
   return true;
 }
 
