@@ -27,6 +27,7 @@ using glm::dvec3;
 
 inline constexpr dvec3 kUp(0, 0, 1), kDown(0, 0, -1), kX(1, 0, 0), kY(0, 1, 0);
 inline constexpr float kQuarterPi = 0.7853982f;  // 45 degrees
+inline constexpr float kQuarterTurn = 1.5707964f;
 inline constexpr float kHalfTurn = 3.1415927f;
 inline constexpr float kThreeQuarterTurn = 4.712389f;
 inline constexpr float kFullTurn = 6.2831855f;
