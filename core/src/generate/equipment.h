@@ -69,6 +69,7 @@ class ItemBuilder {
   // Whether a rung or post is a round bar (a cylinder) rather than a flat one (a box): whichever
   // keeps the equipment's kinds in proportion.
   bool round() const;
+  // A rail post of `height` standing on `foot`, round or flat as round() decides.
   void post(const dvec3& foot, const dvec3& facing, double height);
   EquipmentRecord& rec() { return e_; }
   ObjectBuilder& b() { return b_; }
@@ -85,7 +86,6 @@ class ItemBuilder {
   // is cut along the head's slope there.
   void head_nozzle(const dvec3& head_base, const dvec3& axis, const dvec3& radial, double radius,
                    int bore, NozzleRole role);
-  bool welded_end(NozzleRole role);
 
   // A vertical ladder from z0 to z1 at `foot` (on grade plan position), rungs facing `out`:
   // two rails, rungs every 0.3 m and cage hoops every 1.2 m above 2.5 m, within the allowance.
@@ -127,6 +127,12 @@ class ItemBuilder {
   void finish(const char* description);
 
  private:
+  // Whether a nozzle gets a butt-weld end: never on pumps, compressors and pump suctions, else
+  // drawn at the preset's rate.
+  bool welded_end(NozzleRole role);
+  // The end of a nozzle's neck: a flange (the pipe side starts at its face) or, where
+  // welded_end() draws one, a bevel for a butt weld (the pipe side starts at the neck's end).
+  void nozzle_end(const dvec3& neck_end, const dvec3& dir, int bore, NozzleRole role);
   void add_nozzle(const dvec3& face, const dvec3& dir, int bore, NozzleRole role, bool flanged);
 
   Unit& unit_;

@@ -37,13 +37,7 @@ void ItemBuilder::nozzle(const dvec3& base, const dvec3& dir, int bore, double n
   const PipeSize& s = pipe_size(bore);
   const dvec3 neck_end = base + dir * neck;
   b_.cylinder(base, neck_end, 0.5 * s.od_m);
-  if (welded_end(role)) {
-    add_nozzle(neck_end, dir, bore, role, false);
-    return;
-  }
-  const dvec3 face = neck_end + dir * s.flange_thk_m;
-  b_.cylinder(neck_end, face, 0.5 * s.flange_od_m);
-  add_nozzle(face, dir, bore, role, true);
+  nozzle_end(neck_end, dir, bore, role);
 }
 
 void ItemBuilder::head_nozzle(const dvec3& head_base, const dvec3& axis, const dvec3& radial,
@@ -52,13 +46,18 @@ void ItemBuilder::head_nozzle(const dvec3& head_base, const dvec3& axis, const d
   const dvec3 base = head_base + radial * (0.6 * radius) + axis * (0.4 * radius);
   const dvec3 neck_end = base + axis * (0.35 + 0.2 * radius);
   b_.sheared_cylinder(base, neck_end, 0.5 * s.od_m, radial, -kHeadSlope_rad, 0.0f);
+  nozzle_end(neck_end, axis, bore, role);
+}
+
+void ItemBuilder::nozzle_end(const dvec3& neck_end, const dvec3& dir, int bore, NozzleRole role) {
   if (welded_end(role)) {
-    add_nozzle(neck_end, axis, bore, role, false);
+    add_nozzle(neck_end, dir, bore, role, false);
     return;
   }
-  const dvec3 face = neck_end + axis * s.flange_thk_m;
+  const PipeSize& s = pipe_size(bore);
+  const dvec3 face = neck_end + dir * s.flange_thk_m;
   b_.cylinder(neck_end, face, 0.5 * s.flange_od_m);
-  add_nozzle(face, axis, bore, role, true);
+  add_nozzle(face, dir, bore, role, true);
 }
 
 bool ItemBuilder::welded_end(NozzleRole role) {
