@@ -108,14 +108,21 @@ float max_distance_to_mesh(const std::vector<glm::vec3>& points, const LevelMesh
     tris.push_back(triangle(a, b, c));
     bounds.push_back({glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))});
   }
+  // Samples come in sweeps, so the previous sample's nearest triangle is a close first guess.
+  if (tris.empty()) return points.empty() ? 0.0f : INFINITY;
   double worst = 0.0;
+  size_t nearest = 0;
   for (const glm::vec3& pf : points) {
     const glm::dvec3 p(pf);
-    double best2 = INFINITY;
+    double best2 = distance2_to_triangle(p, tris[nearest]);
     for (size_t t = 0; t < tris.size(); ++t) {
       const glm::dvec3 d = glm::max(glm::max(bounds[t].lo - p, p - bounds[t].hi), glm::dvec3(0.0));
       if (glm::dot(d, d) >= best2) continue;
-      best2 = std::min(best2, distance2_to_triangle(p, tris[t]));
+      const double d2 = distance2_to_triangle(p, tris[t]);
+      if (d2 < best2) {
+        best2 = d2;
+        nearest = t;
+      }
     }
     worst = std::max(worst, std::sqrt(best2));
   }
