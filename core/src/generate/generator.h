@@ -335,9 +335,9 @@ struct Unit {
 
 // Stages, in the order generate_plant runs them for each unit.
 void lay_out_unit(Unit& unit);     // layout.cpp: racks, bands
-void build_equipment(Unit& unit);  // equipment.cpp: places and emits equipment, lists nozzles
+void build_equipment(Unit& unit);  // equipment.h: places and emits equipment, lists nozzles
 void build_structure(Unit& unit);  // structure.cpp: racks and steel structures
-void build_piping(Unit& unit, const std::function<void(double)>& progress);  // piping.cpp
+void build_piping(Unit& unit, const std::function<void(double)>& progress);  // pipelines.h
 
 // Layout services (layout.cpp). Reserves a footprint (x by y) in a band's shelves; returns false
 // when the band is full. `centre` receives the footprint centre on grade.
