@@ -7,6 +7,7 @@
 #include <map>
 #include <set>
 #include <tuple>
+#include <utility>
 
 #include "support/primitive_cases.h"
 
@@ -162,6 +163,30 @@ TEST_P(PrimitiveProperties, ElementCountsMatchTheDocumentation) {
   for (uint32_t level = 0; level < plan.level_count; ++level) {
     EXPECT_EQ(element_count(plan, level), c.expected_elements[level]) << "level " << level;
   }
+}
+
+// The oracle the error test measures with: exact distances to a triangle's face, edges and
+// corners, and to a degenerate (collinear) triangle.
+TEST(MeshDistance, MeasuresToTheNearestFaceEdgeOrCorner) {
+  LevelMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 5}, {1, 0, 5}, {2, 0, 5}};
+  mesh.indices = {0, 1, 2};
+  const std::pair<glm::vec3, float> expected[] = {
+      {{0.2f, 0.2f, 0.5f}, 0.5f},          // over the face
+      {{0.5f, -0.3f, 0.4f}, 0.5f},         // beside edge 01
+      {{1.0f, 1.0f, 0.0f}, 0.70710678f},   // beside edge 12
+      {{-0.3f, -0.4f, 0.0f}, 0.5f},        // off corner 0
+      {{2.0f, -1.0f, 0.0f}, 1.41421356f},  // off corner 1
+  };
+  for (const auto& [point, distance] : expected) {
+    EXPECT_NEAR(max_distance_to_mesh({point}, mesh), distance, 1e-6f)
+        << point.x << " " << point.y << " " << point.z;
+  }
+  mesh.indices = {3, 4, 5};  // collinear: only its segments count
+  EXPECT_NEAR(max_distance_to_mesh({{1, 1, 5}}, mesh), 1.0f, 1e-6f);
+  EXPECT_NEAR(max_distance_to_mesh({{3, 0, 5}}, mesh), 1.0f, 1e-6f);
+  mesh.indices = {0, 1, 2, 3, 4, 5};  // the nearest triangle counts; the farthest point wins
+  EXPECT_NEAR(max_distance_to_mesh({{0.2f, 0.2f, 0.5f}, {0.5f, 0, 4}}, mesh), 1.0f, 1e-6f);
 }
 
 std::string case_name(const ::testing::TestParamInfo<std::tuple<PrimitiveCase, Pose>>& info) {

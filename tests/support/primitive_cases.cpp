@@ -11,26 +11,57 @@ std::vector<CaseFactory>& factories() {
   return list;
 }
 
-// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
-glm::dvec3 closest_on_triangle(glm::dvec3 p, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
-  const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const glm::dvec3 bp = p - b;
-  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
-  const glm::dvec3 cp = p - c;
-  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-  const double denom = 1.0f / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
+// The test's own point-to-triangle distance, by another route than the tessellators' (snout.cpp
+// uses Ericson's Voronoi-region walk): the distance to the triangle's plane when the point lies
+// over the triangle, else the distance to the nearest edge segment. Sharing no code with what it
+// measures, a mistake in one cannot hide in the other.
+struct Triangle {
+  glm::dvec3 a, b, c;
+  glm::dvec3 normal;               // (b - a) x (c - a), not normalised
+  double inverse_normal2;          // 1 / |normal|^2; 0 for a degenerate (collinear) triangle
+  glm::dvec3 in_ab, in_bc, in_ca;  // in-plane edge normals, pointing into the triangle
+};
+
+Triangle triangle(glm::dvec3 a, glm::dvec3 b, glm::dvec3 c) {
+  Triangle t{a, b, c, glm::cross(b - a, c - a), 0.0, {}, {}, {}};
+  const double n2 = glm::dot(t.normal, t.normal);
+  const double scale2 =
+      std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)});
+  if (n2 > 1e-24 * scale2 * scale2) t.inverse_normal2 = 1.0 / n2;
+  t.in_ab = glm::cross(t.normal, b - a);
+  t.in_bc = glm::cross(t.normal, c - b);
+  t.in_ca = glm::cross(t.normal, a - c);
+  return t;
+}
+
+// Squared distance from p to the segment ab: to the foot of the perpendicular, clamped to the
+// segment's ends.
+double distance2_to_segment(glm::dvec3 p, glm::dvec3 a, glm::dvec3 b) {
+  const glm::dvec3 ab = b - a;
+  const double len2 = glm::dot(ab, ab);
+  const double t = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+  const glm::dvec3 d = p - (a + ab * t);
+  return glm::dot(d, d);
+}
+
+double distance2_to_triangle(glm::dvec3 p, const Triangle& t) {
+  if (t.inverse_normal2 == 0.0) {
+    return std::min({distance2_to_segment(p, t.a, t.b), distance2_to_segment(p, t.b, t.c),
+                     distance2_to_segment(p, t.c, t.a)});
+  }
+  const bool over_ab = glm::dot(p - t.a, t.in_ab) >= 0.0;
+  const bool over_bc = glm::dot(p - t.b, t.in_bc) >= 0.0;
+  const bool over_ca = glm::dot(p - t.c, t.in_ca) >= 0.0;
+  if (over_ab && over_bc && over_ca) {
+    const double h = glm::dot(p - t.a, t.normal);
+    return h * h * t.inverse_normal2;
+  }
+  // Off the triangle: its nearest point lies on an edge whose outer side p is on.
+  double best = INFINITY;
+  if (!over_ab) best = std::min(best, distance2_to_segment(p, t.a, t.b));
+  if (!over_bc) best = std::min(best, distance2_to_segment(p, t.b, t.c));
+  if (!over_ca) best = std::min(best, distance2_to_segment(p, t.c, t.a));
+  return best;
 }
 }  // namespace
 
@@ -64,27 +95,34 @@ LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uin
 }
 
 float max_distance_to_mesh(const std::vector<glm::vec3>& points, const LevelMesh& mesh) {
-  // Triangle bounds let most triangles be skipped once a close one is found.
-  struct Tri {
-    glm::dvec3 a, b, c, lo, hi;
+  // Triangle bounds (kept apart, as they are read most) let most triangles be skipped once a
+  // close one is found.
+  struct Bounds {
+    glm::dvec3 lo, hi;
   };
-  std::vector<Tri> tris;
+  std::vector<Triangle> tris;
+  std::vector<Bounds> bounds;
   for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
-    Tri tri{mesh.positions[mesh.indices[t]], mesh.positions[mesh.indices[t + 1]],
-            mesh.positions[mesh.indices[t + 2]], {}, {}};
-    tri.lo = glm::min(tri.a, glm::min(tri.b, tri.c));
-    tri.hi = glm::max(tri.a, glm::max(tri.b, tri.c));
-    tris.push_back(tri);
+    const glm::dvec3 a = mesh.positions[mesh.indices[t]], b = mesh.positions[mesh.indices[t + 1]],
+                     c = mesh.positions[mesh.indices[t + 2]];
+    tris.push_back(triangle(a, b, c));
+    bounds.push_back({glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))});
   }
+  // Samples come in sweeps, so the previous sample's nearest triangle is a close first guess.
+  if (tris.empty()) return points.empty() ? 0.0f : INFINITY;
   double worst = 0.0;
+  size_t nearest = 0;
   for (const glm::vec3& pf : points) {
     const glm::dvec3 p(pf);
-    double best2 = INFINITY;
-    for (const Tri& tri : tris) {
-      const glm::dvec3 d = glm::max(glm::max(tri.lo - p, p - tri.hi), glm::dvec3(0.0));
+    double best2 = distance2_to_triangle(p, tris[nearest]);
+    for (size_t t = 0; t < tris.size(); ++t) {
+      const glm::dvec3 d = glm::max(glm::max(bounds[t].lo - p, p - bounds[t].hi), glm::dvec3(0.0));
       if (glm::dot(d, d) >= best2) continue;
-      const glm::dvec3 q = closest_on_triangle(p, tri.a, tri.b, tri.c);
-      best2 = std::min(best2, glm::dot(q - p, q - p));
+      const double d2 = distance2_to_triangle(p, tris[t]);
+      if (d2 < best2) {
+        best2 = d2;
+        nearest = t;
+      }
     }
     worst = std::max(worst, std::sqrt(best2));
   }

@@ -52,7 +52,9 @@ struct LevelMesh {
 };
 LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uint32_t level);
 
-// Largest distance from any of `points` to the triangle mesh (brute force; for tests only).
+// Largest distance from any of `points` to the triangle mesh: brute force over every triangle,
+// with the test's own point-to-triangle distance (no code shared with the tessellators, which
+// measure twisted snout sides with one of their own). For tests only.
 float max_distance_to_mesh(const std::vector<glm::vec3>& points, const LevelMesh& mesh);
 
 // Placements to exercise: identity, a rotated and translated one, a mirrored one.

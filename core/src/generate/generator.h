@@ -22,6 +22,17 @@ namespace plantview::gen {
 using glm::dvec3;
 
 // ---------------------------------------------------------------------------------------------
+// Directions (unit-local: x along the unit, y across, z up) and angles every stage builds with.
+// Angles are float literals of the shapes' float fields, so that no stage computes them.
+
+inline constexpr dvec3 kUp(0, 0, 1), kDown(0, 0, -1), kX(1, 0, 0), kY(0, 1, 0);
+inline constexpr float kQuarterPi = 0.7853982f;  // 45 degrees
+inline constexpr float kQuarterTurn = 1.5707964f;
+inline constexpr float kHalfTurn = 3.1415927f;
+inline constexpr float kThreeQuarterTurn = 4.712389f;
+inline constexpr float kFullTurn = 6.2831855f;
+
+// ---------------------------------------------------------------------------------------------
 // PRNG: xoshiro256** seeded through splitmix64. Integer draws only; doubles come from 53 bits.
 
 uint64_t splitmix64(uint64_t& state);
@@ -324,9 +335,9 @@ struct Unit {
 
 // Stages, in the order generate_plant runs them for each unit.
 void lay_out_unit(Unit& unit);     // layout.cpp: racks, bands
-void build_equipment(Unit& unit);  // equipment.cpp: places and emits equipment, lists nozzles
+void build_equipment(Unit& unit);  // equipment.h: places and emits equipment, lists nozzles
 void build_structure(Unit& unit);  // structure.cpp: racks and steel structures
-void build_piping(Unit& unit, const std::function<void(double)>& progress);  // piping.cpp
+void build_piping(Unit& unit, const std::function<void(double)>& progress);  // pipelines.h
 
 // Layout services (layout.cpp). Reserves a footprint (x by y) in a band's shelves; returns false
 // when the band is full. `centre` receives the footprint centre on grade.

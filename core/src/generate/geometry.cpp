@@ -146,7 +146,7 @@ void ObjectBuilder::dish(const dvec3& base, const dvec3& axis, double base_radiu
 void ObjectBuilder::elbow(const dvec3& corner, const dvec3& d_in, const dvec3& d_out, double bend_r,
                           double tube_r) {
   const dvec3 centre = corner - d_in * bend_r + d_out * bend_r;
-  add(CircularTorus{float(bend_r), float(tube_r), 1.5707964f},
+  add(CircularTorus{float(bend_r), float(tube_r), kQuarterTurn},
       frame_xz(-d_out, glm::cross(d_in, d_out)), centre);
 }
 

@@ -1,5 +1,6 @@
 // Internal: piping parts and the branch builder shared by piping_parts.cpp (one builder per kind
-// of pipe, fitting, valve and support) and piping.cpp (pipelines: planning, routing, branches).
+// of pipe, fitting, valve and support) and the piping stage's files (pipelines.h: planning,
+// routing, branches).
 #pragma once
 
 #include <string>

@@ -11,10 +11,6 @@ namespace plantview::gen {
 
 namespace {
 
-constexpr dvec3 kUp(0, 0, 1);
-constexpr float kFullTurn = 6.2831855f;
-constexpr float kQuarterPi = 0.7853982f;
-
 constexpr Colour kFlangeGrey{170, 170, 176, 255};
 constexpr Colour kValveRed{205, 58, 48, 255};
 constexpr Colour kInstrumentYellow{232, 204, 48, 255};

@@ -9,8 +9,7 @@ namespace plantview::gen {
 
 namespace {
 
-constexpr dvec3 kUp(0, 0, 1), kX(1, 0, 0), kY(0, 1, 0);
-constexpr float kBraceShear_rad = 0.7853982f;  // 45 degree braces end in horizontal cuts
+constexpr float kBraceShear_rad = kQuarterPi;  // 45 degree braces end in horizontal cuts
 constexpr Colour kSteel{150, 150, 162, 255};
 
 std::string two_digits(int n) { return (n < 10 ? "0" : "") + std::to_string(n); }

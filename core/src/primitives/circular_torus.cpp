@@ -52,10 +52,9 @@ void sweep_directions(float angle_rad, uint32_t segments, uint32_t stations, glm
 }
 
 // Sweep sagitta: the distance from an arc of angle_rad/segments at radius_m to its chord,
-// 2 r sin^2(angle/4 segments) (the 1 - cos form loses precision in float at fine steps).
+// r(1 - cos(angle / 2 segments)).
 float sweep_sagitta(float radius_m, float angle_rad, uint32_t segments) {
-  const float s = std::sin(0.25f * angle_rad / float(segments));
-  return 2.0f * radius_m * s * s;
+  return chord_sagitta(radius_m, 0.5f * angle_rad / float(segments));
 }
 
 // Bounds of the points rho*(cos a, sin a, z) for a in [0, angle_rad], rho in [rho_min, rho_max]

@@ -63,12 +63,6 @@ EllipticalDishParams params_of(const EllipticalDish& d) {
   return p;
 }
 
-// 1 - cos(x) without cancellation.
-float one_minus_cos(float x) {
-  const float s = std::sin(0.5f * x);
-  return 2.0f * s * s;
-}
-
 }  // namespace
 
 void plan(const EllipticalDish& d, MeshPlan& plan, TemplateKey& key) {

@@ -52,8 +52,7 @@ SaddleShape shape_of(const Saddle& s) {
   out.empty = out.length_m == 0.0f || out.width_m == 0.0f;
   if (out.empty) return out;
   out.half_angle_rad = std::asin(std::min(0.5f * out.width_m / out.radius_m, 1.0f));
-  const float half = std::sin(0.5f * out.half_angle_rad);
-  const float depth = 2.0f * out.radius_m * half * half;  // R(1 - cos beta)
+  const float depth = chord_sagitta(out.radius_m, out.half_angle_rad);  // R(1 - cos beta)
   out.height_m = std::max(sane(s.height_m), depth);
   return out;
 }
@@ -80,8 +79,8 @@ void plan(const Saddle& s, MeshPlan& plan, TemplateKey& key) {
   plan.vertex_count = 8 * (a_max + 1) + 8;
   plan.segments = {uint16_t(a_max), 0};
   for (uint32_t l = 0; l < plan.level_count; ++l) {
-    const float half = std::sin(0.5f * shape.half_angle_rad / float(segments_at(a_max, a_min, l)));
-    const float sagitta = 2.0f * shape.radius_m * half * half;  // R(1 - cos(beta / A))
+    const float sagitta = chord_sagitta(  // R(1 - cos(beta / A))
+        shape.radius_m, shape.half_angle_rad / float(segments_at(a_max, a_min, l)));
     plan.error_m[l] = std::min({sagitta, 0.5f * shape.length_m, 0.5f * shape.height_m});
   }
   key.kind = uint8_t(PrimitiveKind::saddle);

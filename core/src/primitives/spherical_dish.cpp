@@ -51,11 +51,6 @@ SphericalDishParams params_of(const SphericalDish& d) {
   return p;
 }
 
-double one_minus_cos(double x) {
-  const double s = std::sin(0.5 * x);
-  return 2.0 * s * s;
-}
-
 }  // namespace
 
 void plan(const SphericalDish& d, MeshPlan& plan, TemplateKey& key) {
