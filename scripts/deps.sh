@@ -6,6 +6,7 @@ set -euo pipefail
 # The one list of build and run dependencies.
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
+  clang libclang-rt-dev            # sanitizer passes of scripts/test.sh, scripts/fuzz.sh
   libglm-dev                       # vector maths (core)
   liblmdb-dev libzstd-dev          # the store (storage)
   libegl-dev libegl-mesa0 libgl1-mesa-dri libepoxy-dev   # headless GL (render)

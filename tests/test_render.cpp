@@ -14,27 +14,14 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "residency.h"
+#include "support/temp_dir.h"
 
 namespace plantview {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("plantview-render-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++));
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-  fs::path path() const { return path_; }
-
- private:
-  fs::path path_;
-  static inline int counter_ = 0;
-};
+using test::TempDir;
 
 // One GL context for the whole test program (contexts are per thread; tests run on one).
 GpuContext& context() {

@@ -24,26 +24,14 @@
 #include "chunks.h"
 #include "spatial.h"
 #include "tables.h"
+#include "support/temp_dir.h"
 
 namespace plantview {
 namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("plantview-store-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++));
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
-  static inline int counter_ = 0;
-};
+using test::TempDir;
 
 // An object with every primitive kind, odd placements, attributes and piping topology.
 Object sample_object(const std::string& source, const std::string& name, glm::dvec3 origin) {

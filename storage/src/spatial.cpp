@@ -25,6 +25,15 @@ bool fits_int32(int64_t v) {
   return v >= std::numeric_limits<int32_t>::min() && v <= std::numeric_limits<int32_t>::max();
 }
 
+// Adds a stored delta to a running value in [lo, hi] (bounds within +-2^62), keeping it there:
+// false, with `value` unchanged, if the sum would leave the range. A corrupt delta may be any
+// int64, so the test is made without forming a sum that could overflow.
+bool add_within(int64_t& value, int64_t delta, int64_t lo, int64_t hi) {
+  if (delta < lo - value || delta > hi - value) return false;
+  value += delta;
+  return true;
+}
+
 // Calls visit(first, count) for every leaf of a topology, in entry order: depth first, first
 // child first (it holds the lower half of its parent's entries).
 template <typename Visit>
@@ -102,8 +111,8 @@ bool read_spatial_entries(VarintReader& r, const std::vector<SpatialNode>& nodes
         error = "spatial index is truncated";
         return;
       }
-      leaf_min[a] += delta;
-      if (!fits_int32(leaf_min[a])) {
+      if (!add_within(leaf_min[a], delta, std::numeric_limits<int32_t>::min(),
+                      std::numeric_limits<int32_t>::max())) {
         error = "spatial index has bounds out of range";
         return;
       }
@@ -133,8 +142,7 @@ bool read_spatial_entries(VarintReader& r, const std::vector<SpatialNode>& nodes
         e.min[a] = int32_t(leaf_min[a] + int64_t(v[a]));
         e.max[a] = int32_t(e.min[a] + int64_t(v[3 + a]));
       }
-      slot += slot_delta;
-      if (slot < 0 || slot > int64_t(UINT32_MAX)) {
+      if (!add_within(slot, slot_delta, 0, int64_t(UINT32_MAX))) {
         error = "spatial index has a slot out of range";
         return;
       }

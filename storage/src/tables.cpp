@@ -121,7 +121,9 @@ bool decode_slot_runs(const uint8_t* data, size_t size, uint32_t slot_limit,
       return false;
     }
     // A run past the limit, or an empty or adjoining run (the encoder writes neither), is corrupt.
-    if (length == 0 || gap > slot_limit || end + gap + length > slot_limit || (i > 0 && gap == 0)) {
+    // (Each term is checked on its own first: the sum of two corrupt varints could wrap around.)
+    if (length == 0 || gap > slot_limit || length > slot_limit || end + gap + length > slot_limit ||
+        (i > 0 && gap == 0)) {
       error = "slot list has an impossible run";
       return false;
     }
