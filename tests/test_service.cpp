@@ -38,6 +38,10 @@ const std::string& small_store() {
     const fs::path d = scratch("store");
     std::string error;
     auto store = Store::open(d.string(), Store::Mode::read_write, error);
+    if (!store) {
+      ADD_FAILURE() << "cannot create the test store: " << error;
+      return d.string();
+    }
     std::vector<Object> objects;
     for (int i = 0; i < 6; ++i) {
       Object o;
