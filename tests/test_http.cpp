@@ -143,8 +143,26 @@ TEST(RequestParser, HeadersOverTheLimitAre431) {
   const Parsed big_url = parse_whole("GET /" + std::string(2000, 'u') + " HTTP/1.1\r\n\r\n", limits);
   ASSERT_TRUE(big_url.error);
   EXPECT_EQ(big_url.error->status, 431);
-  // Just under the limit is fine (the limit counts the target, names and values).
-  EXPECT_FALSE(parse_whole("GET / HTTP/1.1\r\nX: " + std::string(990, 'a') + "\r\n\r\n", limits).error);
+  // The limit counts the head as sent: 1000 bytes are fine, 1001 are not, whole or in pieces.
+  const std::string at_limit = "GET / HTTP/1.1\r\nX: " + std::string(977, 'a') + "\r\n\r\n";
+  ASSERT_EQ(at_limit.size(), 1000u);
+  EXPECT_FALSE(parse_whole(at_limit, limits).error);
+  EXPECT_FALSE(parse_in_pieces(at_limit, {1000 - 3}, limits).error);
+  const std::string over_limit = "GET / HTTP/1.1\r\nX: " + std::string(978, 'a') + "\r\n\r\n";
+  ASSERT_TRUE(parse_whole(over_limit, limits).error);
+  EXPECT_EQ(parse_whole(over_limit, limits).error->status, 431);
+  // A malformed byte past the limit is still 431, however the bytes arrive (the first problem in
+  // byte order decides); one within the limit is 400.
+  const std::string bad_late = "GET / HTTP/1.1\r\nX: " + std::string(1200, 'a') + "\x01\r\n\r\n";
+  const std::string bad_early = "GET / HTTP/1.1\r\nX: a\x01" + std::string(1200, 'a') + "\r\n\r\n";
+  for (size_t cut : {size_t(0), size_t(7), size_t(500), size_t(999), size_t(1001)}) {
+    const Parsed late = cut == 0 ? parse_whole(bad_late, limits) : parse_in_pieces(bad_late, {cut}, limits);
+    ASSERT_TRUE(late.error) << "cut at " << cut;
+    EXPECT_EQ(late.error->status, 431) << "cut at " << cut;
+    const Parsed early = cut == 0 ? parse_whole(bad_early, limits) : parse_in_pieces(bad_early, {cut}, limits);
+    ASSERT_TRUE(early.error) << "cut at " << cut;
+    EXPECT_EQ(early.error->status, 400) << "cut at " << cut;
+  }
   // Many small headers add up.
   std::string many = "GET / HTTP/1.1\r\n";
   for (int i = 0; i < 200; ++i) many += "X-H" + std::to_string(i) + ": v\r\n";

@@ -3,6 +3,7 @@
 #include <http_parser.h>
 #include <strings.h>
 
+#include <algorithm>
 #include <cassert>
 #include <climits>
 
@@ -14,20 +15,19 @@ struct RequestParser::State {
   // The request being parsed.
   std::string url, field, value;
   bool value_last = false;
-  size_t header_bytes = 0, body_bytes = 0;
+  size_t body_bytes = 0;
+  // The head (request line and headers, as sent, with any blank lines before them) is counted
+  // here, byte by byte, not in http-parser's callbacks: those report a token only when it ends or
+  // the buffer does, so whether a malformed byte or the limit came first would depend on how the
+  // bytes were split. Counted as sent, the first of the two in byte order decides.
+  size_t head_bytes = 0;
+  bool in_head = true;
   bool in_request = false, complete = false, failed = false;
   int limit_status = 0;  // set by a callback that stopped http-parser for a limit
   Request request;
   RequestError error;
 
   static State& of(http_parser* p) { return *static_cast<State*>(p->data); }
-
-  bool over_header_limit(size_t n) {
-    header_bytes += n;
-    if (header_bytes <= limits.max_header_bytes) return false;
-    limit_status = 431;
-    return true;
-  }
 
   // Keeps what the server uses of a header (the rest is counted, not kept).
   void end_header() {
@@ -58,20 +58,18 @@ const http_parser_settings& RequestParser::State::settings() {
       st.field.clear();
       st.value.clear();
       st.value_last = false;
-      st.header_bytes = st.body_bytes = 0;
+      st.body_bytes = 0;
       st.request = Request{};
       st.in_request = true;
       return 0;
     };
     s.on_url = [](http_parser* p, const char* at, size_t n) {
       State& st = of(p);
-      if (st.over_header_limit(n)) return 1;
       st.url.append(at, n);
       return 0;
     };
     s.on_header_field = [](http_parser* p, const char* at, size_t n) {
       State& st = of(p);
-      if (st.over_header_limit(n)) return 1;
       if (st.value_last) st.end_header();
       st.value_last = false;
       st.field.append(at, n);
@@ -79,7 +77,6 @@ const http_parser_settings& RequestParser::State::settings() {
     };
     s.on_header_value = [](http_parser* p, const char* at, size_t n) {
       State& st = of(p);
-      if (st.over_header_limit(n)) return 1;
       st.value_last = true;
       st.value.append(at, n);
       return 0;
@@ -87,6 +84,7 @@ const http_parser_settings& RequestParser::State::settings() {
     s.on_headers_complete = [](http_parser* p) {
       State& st = of(p);
       if (st.value_last) st.end_header();
+      st.in_head = false;
       if (p->content_length != ULLONG_MAX && p->content_length > st.limits.max_body_bytes) {
         st.limit_status = 413;
         return -1;  // http-parser: -1 is an error here (1 would mean "no body")
@@ -105,6 +103,8 @@ const http_parser_settings& RequestParser::State::settings() {
       st.finish_request(p);
       st.in_request = false;
       st.complete = true;
+      st.in_head = true;  // what follows is the next request's head
+      st.head_bytes = 0;
       http_parser_pause(p, 1);  // feed() returns here, one request at a time
       return 0;
     };
@@ -128,10 +128,27 @@ RequestParser::Result RequestParser::feed(std::string_view bytes, size_t& used) 
   if (bytes.empty()) return Result::need_more;  // http-parser reads an empty call as end of input
   if (HTTP_PARSER_ERRNO(&st.parser) == HPE_PAUSED) http_parser_pause(&st.parser, 0);
   st.complete = false;
-  used = http_parser_execute(&st.parser, &State::settings(), bytes.data(), bytes.size());
-  if (st.complete) return Result::request;
-  const auto err = HTTP_PARSER_ERRNO(&st.parser);
-  if (err == HPE_OK && used == bytes.size()) return Result::need_more;
+  // In the head, http-parser sees at most what is left of the limit at a time: a head that needs
+  // more is 431 however the bytes arrive, unless a malformed byte within the limit came first.
+  auto err = HPE_OK;
+  while (used < bytes.size()) {
+    size_t n = bytes.size() - used;
+    if (st.in_head) {
+      if (st.head_bytes >= st.limits.max_header_bytes) {
+        st.limit_status = 431;
+        break;
+      }
+      n = std::min<size_t>(n, st.limits.max_header_bytes - st.head_bytes);
+    }
+    const bool was_in_head = st.in_head;
+    const size_t done = http_parser_execute(&st.parser, &State::settings(), bytes.data() + used, n);
+    used += done;
+    if (st.complete) return Result::request;
+    if (was_in_head && st.in_head) st.head_bytes += done;
+    err = HTTP_PARSER_ERRNO(&st.parser);
+    if (err != HPE_OK || done < n) break;
+  }
+  if (err == HPE_OK && st.limit_status == 0 && used == bytes.size()) return Result::need_more;
   st.failed = true;
   st.in_request = false;
   if (st.limit_status == 431 || err == HPE_HEADER_OVERFLOW) {
