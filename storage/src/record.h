@@ -11,7 +11,10 @@
 //   polygon_ends, contour_ends, vertices (f32 position[3], normal[3]), triangles (u32).
 // Placement code: bits 0-5: 1 + permutation * 8 + sign bits for an axis-aligned linear part
 //   (columns are +-scale times unit axes), with bit 7 set when a scale other than 1 follows;
-//   0xff: a general linear part of 9 floats. Exactly lossless either way.
+//   0xff: a general linear part of 9 floats. Lossless either way, bit for bit, with one
+//   exception: the zero entries of an axis-aligned linear part come back as +0.0 whatever their
+//   sign (it has no geometric meaning; preset a has -0.0 there in a third of such placements,
+//   and keeping it would cost the compact code its size).
 // Attribute record: u32 count | (str key, str value)...
 #pragma once
 

