@@ -19,6 +19,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "support/http_client.h"
+#include "support/temp_dir.h"
 
 namespace plantview {
 namespace {
@@ -26,16 +27,12 @@ namespace {
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-fs::path scratch(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("plantview-service-test-" + std::to_string(::getpid()) + "-" + name);
-  fs::remove_all(p);
-  return p;
-}
-
 // A small plant: a few boxes, a pipe and a tee, so that frames are quick on a CPU.
 const std::string& small_store() {
+  // Removed when the test program exits (the servers it started have stopped by then).
+  static const test::TempDir store_dir;
   static const std::string dir = [] {
-    const fs::path d = scratch("store");
+    const fs::path d = store_dir.path();
     std::string error;
     auto store = Store::open(d.string(), Store::Mode::read_write, error);
     if (!store) {
