@@ -390,8 +390,13 @@ TEST(Routes, EndpointsAreNamedForTheMetrics) {
   EXPECT_EQ(endpoint_of("/api/objects/123"), "objects");
   EXPECT_EQ(endpoint_of("/"), "page");
   EXPECT_EQ(endpoint_of("/viewer.js"), "viewer.js");
+  EXPECT_EQ(endpoint_of("/metrics"), "metrics");
   EXPECT_EQ(endpoint_of("/a/"), "other");
   EXPECT_EQ(endpoint_of("/" + std::string(40, 'x')), "other");
+  // Unknown paths share one series, and a client's bytes never reach a label.
+  EXPECT_EQ(endpoint_of("/a\"b"), "other");
+  EXPECT_EQ(endpoint_of("/x\ny"), "other");
+  EXPECT_EQ(endpoint_of("/api/frame/extra"), "other");
 }
 
 // --- metrics ------------------------------------------------------------------------------------

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <initializer_list>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace plantview::service {
@@ -215,11 +216,16 @@ Reply ok(std::string content_type, std::string body) {
 }  // namespace
 
 std::string endpoint_of(std::string_view path) {
-  std::string endpoint = path.rfind("/api/objects/", 0) == 0 ? "objects"
-                         : path == "/"                        ? "page"
-                                                              : std::string(path.substr(path.rfind('/') + 1));
-  if (endpoint.empty() || endpoint.size() > 16) endpoint = "other";
-  return endpoint;
+  // A fixed set: a label value never comes from the client's bytes (a quote or a newline in it
+  // would break every scrape) and unknown paths add no series.
+  static constexpr std::pair<std::string_view, std::string_view> kEndpoints[] = {
+      {"/", "page"},           {"/index.html", "page"},    {"/viewer.js", "viewer.js"},
+      {"/viewer.css", "viewer.css"}, {"/api/model", "model"}, {"/api/frame", "frame"},
+      {"/api/stats", "stats"}, {"/api/pick", "pick"},      {"/metrics", "metrics"}};
+  if (path.rfind("/api/objects/", 0) == 0) return "objects";
+  for (const auto& [known, name] : kEndpoints)
+    if (path == known) return std::string(name);
+  return "other";
 }
 
 Reply error_reply(int status, std::string_view message, Fields headers, bool close) {
