@@ -17,6 +17,7 @@
 #include <random>
 #include <set>
 #include <span>
+#include <string_view>
 #include <thread>
 
 #include "plantview/store.h"
@@ -758,8 +759,9 @@ TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
   EXPECT_NE(error.find("object slot 0"), std::string::npos) << error;
 }
 
-// Overwrites indexes/<key> with `value`, as a damaged disk might (no Store open on `dir`).
-void put_index_value(const std::string& dir, const std::string& key, const std::vector<uint8_t>& value) {
+// Overwrites <database>/<key> with `bytes`, as a damaged disk might (no Store open on `dir`).
+void put_raw(const std::string& dir, const char* database, std::string_view key,
+             std::span<const uint8_t> bytes) {
   MDB_env* env = nullptr;
   ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
   mdb_env_set_maxdbs(env, 8);
@@ -767,12 +769,16 @@ void put_index_value(const std::string& dir, const std::string& key, const std::
   MDB_txn* txn = nullptr;
   MDB_dbi dbi;
   ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
-  ASSERT_EQ(mdb_dbi_open(txn, "indexes", 0, &dbi), MDB_SUCCESS);
+  ASSERT_EQ(mdb_dbi_open(txn, database, 0, &dbi), MDB_SUCCESS);
   MDB_val k{key.size(), const_cast<char*>(key.data())};
-  MDB_val v{value.size(), const_cast<uint8_t*>(value.data())};
+  MDB_val v{bytes.size(), const_cast<uint8_t*>(bytes.data())};
   ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
   ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
   mdb_env_close(env);
+}
+
+void put_index_value(const std::string& dir, const std::string& key, const std::vector<uint8_t>& value) {
+  put_raw(dir, "indexes", key, value);
 }
 
 std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
@@ -1030,19 +1036,8 @@ TEST(Store, AnEmptyDataFileIsRefusedAsNotAStoreAndStaysEmpty) {
 
 // Overwrites meta/"statistics" with `value` (no Store open on `dir`).
 void put_statistics(const std::string& dir, const std::string& value) {
-  MDB_env* env = nullptr;
-  ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
-  mdb_env_set_maxdbs(env, 8);
-  ASSERT_EQ(mdb_env_open(env, dir.c_str(), 0, 0644), MDB_SUCCESS);
-  MDB_txn* txn = nullptr;
-  MDB_dbi dbi;
-  ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
-  ASSERT_EQ(mdb_dbi_open(txn, "meta", 0, &dbi), MDB_SUCCESS);
-  MDB_val k{10, const_cast<char*>("statistics")};
-  MDB_val v{value.size(), const_cast<char*>(value.data())};
-  ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
-  ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
-  mdb_env_close(env);
+  put_raw(dir, "meta", "statistics",
+          std::span(reinterpret_cast<const uint8_t*>(value.data()), value.size()));
 }
 
 TEST(Store, StatisticsOfTheWrongShapeAreRefusedNamingTheKey) {
