@@ -15,12 +15,14 @@
 #include <thread>
 #include <variant>
 
+#include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "server/metrics.h"
 #include "server/render_worker.h"
 #include "server/request_parser.h"
 #include "server/routes.h"
+#include "support/temp_dir.h"
 
 namespace plantview::service {
 namespace {
@@ -448,13 +450,16 @@ TEST(Metrics, CountsHistogramAndGaugesAreExposedInPrometheusText) {
 
 // Six 2 m boxes along x (0, 3, ..., 15 m), as the service tests use.
 const std::string& six_boxes() {
+  // Removed when the test program exits.
+  static const test::TempDir store_dir;
   static const std::string dir = [] {
-    const fs::path d = fs::temp_directory_path() / ("plantview-http-test-" + std::to_string(::getpid()));
-    fs::remove_all(d);
     std::string error;
-    auto store = Store::open(d.string(), Store::Mode::read_write, error);
-    EXPECT_TRUE(store) << error;
-    auto import = store->begin_import(error);
+    auto store = Store::open(store_dir.str(), Store::Mode::read_write, error);
+    if (!store) {
+      ADD_FAILURE() << "cannot create the test store: " << error;
+      return store_dir.str();
+    }
+    std::vector<Object> objects;
     for (int i = 0; i < 6; ++i) {
       Object o;
       o.name = "/BOX-" + std::to_string(i);
@@ -463,14 +468,12 @@ const std::string& six_boxes() {
       o.object_class = ObjectClass::equipment;
       o.origin_m = {i * 3.0, 0, 0};
       o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
-      EXPECT_TRUE(import->put(o, error)) << error;
+      objects.push_back(std::move(o));
     }
-    EXPECT_TRUE(import->commit(error)) << error;
-    return d.string();
+    const IngestResult result = ingest_objects(*store, objects);
+    EXPECT_TRUE(result) << result.error().message;
+    return store_dir.str();
   }();
-  static const struct RemovedAtExit {
-    ~RemovedAtExit() { fs::remove_all(dir); }
-  } removed_at_exit;
   return dir;
 }
 
