@@ -15,18 +15,46 @@ PACKAGES=(
   libpugixml-dev nlohmann-json3-dev libcli11-dev        # XML, JSON, command line
   libgtest-dev libgmock-dev libbenchmark-dev            # tests and benchmarks
   chromium chromium-driver python3                      # the browser test (tests/browser)
+  libtinygltf-dev libmeshoptimizer-dev                  # glTF export (render)
+  nodejs                                                # the Khronos glTF validator (npm, below)
+  f3d xvfb xauth                                        # the glTF viewer test (renders a GLB headless)
+  slurm-wlm munge                                       # the render-farm test (a one-node Slurm)
+  haproxy                                               # the replicas test (a real load balancer)
+  python3-prometheus-client                             # the metrics test (text-format parser)
+  fonts-dejavu-core                                     # caption strips of review images
 )
+
+# npm tools, installed into an ignored folder of the repository (not system-wide).
+NPM_DIR="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/.tools/npm"
+NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-[ ${#missing[@]} -eq 0 ] && exit 0
-
-echo "deps: installing ${missing[*]}" >&2
 SUDO=""
 [ "$(id -u)" -eq 0 ] || SUDO="sudo"
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq >/dev/null
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-echo "deps: done" >&2
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "deps: installing ${missing[*]}" >&2
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq >/dev/null
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  echo "deps: done" >&2
+fi
+
+# Debian's nodejs leaves npm to a package of its own; NodeSource's bundles it (and conflicts with it).
+if ! command -v npm >/dev/null 2>&1; then
+  ${SUDO:-} apt-get install -y -qq --no-install-recommends npm >/dev/null 2>&1 || true
+fi
+
+# The npm tools: quick when present. A machine without the registry keeps going (the tests that
+# need them skip with a message saying so).
+if [ ! -f "$NPM_DIR/.installed" ] || [ "$(cat "$NPM_DIR/.installed")" != "${NPM_PACKAGES[*]}" ]; then
+  echo "deps: installing ${NPM_PACKAGES[*]} into $NPM_DIR" >&2
+  mkdir -p "$NPM_DIR"
+  if npm install --silent --no-audit --no-fund --prefix "$NPM_DIR" "${NPM_PACKAGES[@]}" >/dev/null 2>&1; then
+    echo "${NPM_PACKAGES[*]}" > "$NPM_DIR/.installed"
+  else
+    echo "deps: npm install failed; the glTF validator test will skip" >&2
+  fi
+fi

@@ -5,11 +5,20 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <iostream>
+#include <string>
 
 namespace plantview::cli {
 
 // A subcommand's action, run after parsing when its subcommand was chosen.
 using Action = std::function<int()>;
+
+// A usage error found after parsing (a value out of range, options that do not go together):
+// the message on stderr, exit status 2.
+inline int usage_error(const std::string& message) {
+  std::cerr << "plantview: " << message << "\n";
+  return 2;
+}
 
 // `plantview primitives`: the tessellation of every primitive kind at every level.
 Action add_primitives_command(CLI::App& app);
@@ -20,8 +29,11 @@ Action add_store_commands(CLI::App& app);
 // `plantview import FILE... --store DIR`: RVM and XML files into the store.
 Action add_import_command(CLI::App& app);
 
-// `plantview render`, `compare` and `path`: review images, comparing them, camera paths.
+// `plantview render` and `path`: review images and camera paths.
 Action add_render_commands(CLI::App& app);
+
+// `plantview compare A B`: how far apart two images are.
+Action add_compare_command(CLI::App& app);
 
 // `plantview serve`: the HTTP service (plantview/server.h).
 Action add_serve_command(CLI::App& app);

@@ -19,9 +19,9 @@ struct Options {
 
 int run(const Options& o) {
   if (!(o.diameter_m > 0.0f) || o.diameter_m > 1e4f) {
-    std::cerr << "plantview primitives: --diameter must be in (0, 10000] metres, got "
-              << o.diameter_m << "\n";
-    return 1;
+    char given[32];
+    std::snprintf(given, sizeof given, "%g", double(o.diameter_m));
+    return usage_error(std::string("primitives: --diameter must be in (0, 10000] metres, got ") + given);
   }
   nlohmann::json kinds = nlohmann::json::array();
   for (const Primitive& p : representative_primitives(o.diameter_m)) {

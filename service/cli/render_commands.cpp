@@ -1,4 +1,4 @@
-// `plantview render`, `compare` and `path`: review images, image comparison and camera paths.
+// `plantview render` and `path`: review images and camera paths.
 #include <time.h>
 #include <unistd.h>
 
@@ -198,27 +198,6 @@ int run_render(const RenderArgs& a) {
   return 0;
 }
 
-int run_compare(const std::string& a, const std::string& b, bool json, const std::string& diff,
-                double min_psnr) {
-  std::string error;
-  preload_image_io();  // nothing to overlap here: reading waits for it
-  Image ia, ib;
-  if (!read_image(a, ia, error) || !read_image(b, ib, error)) return fail(error);
-  ImageComparison c;
-  if (!compare_images(ia, ib, c, error)) return fail(error);
-  if (!diff.empty() && !write_difference_image(ia, ib, diff, error)) return fail(error);
-  const std::string psnr = std::isinf(c.psnr_db) ? (json ? "null" : "inf") : std::to_string(c.psnr_db);
-  if (json) {
-    std::cout << "{\"psnr_db\":" << psnr << ",\"max_difference\":" << c.max_difference
-              << ",\"differing_share\":" << c.differing_share << "}\n";
-  } else {
-    std::cout << "PSNR " << psnr << " dB, largest difference " << c.max_difference
-              << ", differing pixels " << 100.0 * c.differing_share << "%\n";
-  }
-  if (min_psnr > 0 && c.psnr_db < min_psnr) return 1;
-  return 0;
-}
-
 int run_path(const std::string& store_dir, const std::string& kind_name, int frames,
              const std::string& out) {
   std::string error;
@@ -261,17 +240,6 @@ Action add_render_commands(CLI::App& app) {
                      "Multisampling per pixel (1: off; default: 4 on a GPU, 1 on a software renderer)")
       ->check(CLI::Range(1u, 16u));
 
-  auto compare_a = std::make_shared<std::string>(), compare_b = std::make_shared<std::string>(),
-       diff = std::make_shared<std::string>();
-  auto compare_json = std::make_shared<bool>(false);
-  auto min_psnr = std::make_shared<double>(0.0);
-  auto* compare = app.add_subcommand("compare", "Compare two images (PSNR, largest difference)");
-  compare->add_option("A", *compare_a, "First image")->required();
-  compare->add_option("B", *compare_b, "Second image")->required();
-  compare->add_flag("--json", *compare_json, "Print JSON");
-  compare->add_option("--diff", *diff, "Write a difference image here");
-  compare->add_option("--min-psnr", *min_psnr, "Exit 1 when the PSNR is below this (dB)");
-
   auto path_store = std::make_shared<std::string>(), path_kind = std::make_shared<std::string>("walkthrough"),
        path_out = std::make_shared<std::string>();
   auto frames = std::make_shared<int>(120);
@@ -283,7 +251,6 @@ Action add_render_commands(CLI::App& app) {
 
   return [=]() -> int {
     if (render->parsed()) return run_render(*args);
-    if (compare->parsed()) return run_compare(*compare_a, *compare_b, *compare_json, *diff, *min_psnr);
     if (path->parsed()) return run_path(*path_store, *path_kind, *frames, *path_out);
     return -1;
   };
