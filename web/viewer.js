@@ -6,16 +6,27 @@
 // in degrees, and the image's aspect ratio is that of the w×h requested. The model's camera is used
 // as given until the first move; orbiting and walking then keep up = +z.
 //
+// Quality: while the camera moves the page asks for mode=interactive frames (cheap: JPEG quality
+// 60, a coarser pixel error); REST_MS after the last move it asks once for a mode=still frame (full
+// quality). Under load the server may render interactive frames cheaper still, and says so in the
+// X-Plantview-* response headers, which the readout shows; a server without them is shown what
+// was asked for.
+//
 // Test hooks (tests/browser/test_viewer.py reads them): window.plantview = {
 //   camera,       the current camera {eye, target, up, fov} (replaced, never mutated, on a change)
+//   home,         the home camera (the model's), which Home flies back to
 //   framesShown,  frames displayed since the page loaded
-//   lastPick,     the object of the last pick ({id, name, class, attributes, bounds}) or null
+//   lastPick,     the object of the last pick or search ({id, name, class, attributes, bounds}) or null
+//   selected,     the object whose box is drawn over the frame (bounds required), or null
+//   flying,       true while the camera flies to an object or home
 //   still,        true while the displayed frame is the full-quality still of the current camera
+//   quality,      what the displayed frame was rendered with: {mode, degraded, pixelError,
+//                 renderSize, requestedSize, queue, renderMs, roundTripMs}, or null before one
 // }
 'use strict';
 
 (() => {
-  const MOVING = { quality: 50, px: 3 };   // while the camera moves: cheap, coarse frames
+  const MOVING = { quality: 60, px: 3 };   // while the camera moves: cheap, coarse frames
   const STILL = { quality: 90, px: 1 };    // once it has rested REST_MS: one full-quality still
   const REST_MS = 250;
   const CLICK_SLOP_PX = 4;                 // a press that moves at most this far is a click (a pick)
@@ -23,30 +34,43 @@
   const ORBIT_RAD_PER_PX = 0.005;
   const ELEVATION_LIMIT_RAD = 89 * Math.PI / 180;  // orbit never flips over the poles
   const MIN_DISTANCE_M = 0.1;              // zoom stops this close to the target
+  const FLY_MS = 800;                      // a fly-to (search, Home) takes this long
+  const FIT_FILL = 0.6;                    // a found object fills this share of the frame
+  const FIT_MIN_HALF_SIZE_M = 0.5;         // ... but a small one is framed as if this large
+  const FIT_ELEVATION_RAD = [15 * Math.PI / 180, 50 * Math.PI / 180];  // look down on it, not along the ground
   const Z_UP = [0, 0, 1];
 
   const frame = document.getElementById('frame');
   const statsLines = document.getElementById('stats-lines');
   const statsError = document.getElementById('stats-error');
   const pickPanel = document.getElementById('pick');
+  const overlay = document.getElementById('overlay');
+  const searchForm = document.getElementById('search');
+  const searchText = document.getElementById('search-text');
+  const homeButton = document.getElementById('home');
 
-  const hooks = { camera: null, framesShown: 0, lastPick: null, still: false };
+  const hooks = { camera: null, home: null, framesShown: 0, lastPick: null, selected: null,
+                  flying: false, still: false, quality: null };
   window.plantview = hooks;
 
   // Identifies this page load to the server, which answers an older waiting request of the same
   // client 409 when a newer one arrives.
-  const clientId = Array.from(crypto.getRandomValues(new Uint32Array(2)), (n) => n.toString(16)).join('');
+  const clientId = Array.from(crypto.getRandomValues(new Uint32Array(4)), (n) => n.toString(16).padStart(8, '0')).join('');
 
   let model = null;           // GET /api/model
   let camera = null;          // the current camera; replaced only by setCamera()
-  let shown = null;           // what the displayed frame was rendered with: {params, w, h, still}
+  let home = null;            // the model's camera: where the page starts and Home returns
+  let shown = null;           // what the displayed frame was rendered with: {params, camera, w, h, still}
   let shownUrl = null;        // object URL of the displayed frame (revoked when replaced)
   let inFlight = false;       // at most one frame request is outstanding
   let lastChangeMs = -Infinity;  // performance.now() of the last camera or size change
   let blockedUntilMs = 0;     // after a 503 or a network error: no frame request before this
   let failedParams = null;    // a request the server refused: not repeated until something changes
   let pumpTimer = 0;
-  let pickSeq = 0;            // only the answer to the latest pick is shown
+  let pickSeq = 0;            // only the answer to the latest pick or search is shown
+  let selected = null;        // the object whose box is drawn (has bounds), or null
+  let flight = null;          // a fly-to in progress: {from, to, startMs}, or null
+  let sendMode = true;        // false once a server has refused the mode parameter (an older one)
   const shownTimesMs = [];    // display times of the recent frames, for the achieved rate
 
   // ---- vectors ([x, y, z] arrays) ----
@@ -68,10 +92,56 @@
     return { forward, right, up: cross(right, forward) };
   }
 
-  function setCamera(eye, target, up) {
-    camera = { eye, target, up, fov: camera.fov };
+  // Where a point of model space lands in an image of cam with aspect (width / height): {x, y}
+  // in 0..1 from the top left, and depth, the distance along the view direction in metres (not
+  // positive: behind the eye, and x, y are meaningless).
+  function project(cam, aspect, p) {
+    const { forward, right, up } = viewBasis(cam);
+    const v = sub(p, cam.eye);
+    const depth = dot(v, forward);
+    const tanY = Math.tan(cam.fov * Math.PI / 360);
+    return { x: 0.5 + 0.5 * dot(v, right) / (depth * tanY * aspect),
+             y: 0.5 - 0.5 * dot(v, up) / (depth * tanY), depth };
+  }
+
+  // A camera that shows the box `bounds` ({min, max}, metres) filling FIT_FILL of the frame's
+  // width or height (whichever is tighter) for an image of `aspect`, looking at its centre from
+  // the side `from` looks from (its azimuth; the elevation kept within FIT_ELEVATION_RAD), up +z,
+  // fov as `from`'s. Every corner of the box lies in front of the eye.
+  function fitCamera(bounds, from, aspect) {
+    const centre = scale(add(bounds.min, bounds.max), 0.5);
+    let half = scale(sub(bounds.max, bounds.min), 0.5);
+    half = half.map((h) => Math.max(h, FIT_MIN_HALF_SIZE_M));
+    const back = sub(from.eye, from.target);  // towards the eye
+    const azimuth = Math.atan2(back[1], back[0]);
+    const elevation = clamp(Math.asin(clamp(back[2] / Math.max(length(back), 1e-9), -1, 1)), ...FIT_ELEVATION_RAD);
+    const c = Math.cos(elevation);
+    const toEye = [c * Math.cos(azimuth), c * Math.sin(azimuth), Math.sin(elevation)];
+    const right = normalize(cross(scale(toEye, -1), Z_UP));
+    const up = cross(right, scale(toEye, -1));
+    const tanY = Math.tan(from.fov * Math.PI / 360) * FIT_FILL;
+    const tanX = tanY * aspect;
+    let distance = 0;
+    for (let corner = 0; corner < 8; ++corner) {
+      const p = [corner & 1 ? half[0] : -half[0], corner & 2 ? half[1] : -half[1], corner & 4 ? half[2] : -half[2]];
+      const towardEye = dot(p, toEye);
+      distance = Math.max(distance, towardEye + Math.abs(dot(p, right)) / tanX,
+                          towardEye + Math.abs(dot(p, up)) / tanY, towardEye + MIN_DISTANCE_M);
+    }
+    return { eye: add(centre, scale(toEye, distance)), target: centre, up: Z_UP, fov: from.fov };
+  }
+
+  // The one place the camera changes: the readout, the hooks and the frame requests follow.
+  function placeCamera(cam) {
+    camera = cam;
     hooks.camera = camera;
     changed();
+  }
+
+  // A move by the user: it ends any fly-to.
+  function setCamera(eye, target, up) {
+    endFlight();
+    placeCamera({ eye, target, up, fov: camera.fov });
   }
 
   // A camera or size change: frames are coarse until REST_MS after the last one.
@@ -118,6 +188,40 @@
     setCamera(add(camera.target, scale(offset, newD / d)), camera.target, camera.up);
   }
 
+  // Fly-to: the camera moves from where it is to `to` in FLY_MS (eased at both ends), eye and
+  // target each along a straight line; frames are interactive on the way and the still follows at
+  // the end. A move by the user ends it where it is.
+  function flyTo(to) {
+    if (!camera) return;
+    flight = { from: camera, to, startMs: performance.now() };
+    hooks.flying = true;
+    requestAnimationFrame(flyStep);
+  }
+
+  function flyStep(nowMs) {
+    if (!flight) return;
+    const t = clamp((nowMs - flight.startMs) / FLY_MS, 0, 1);
+    const s = t * t * (3 - 2 * t);
+    const { from, to } = flight;
+    const lerp = (a, b) => add(a, scale(sub(b, a), s));
+    if (t < 1) {
+      placeCamera({ eye: lerp(from.eye, to.eye), target: lerp(from.target, to.target), up: to.up, fov: to.fov });
+      requestAnimationFrame(flyStep);
+    } else {
+      endFlight();
+      placeCamera({ eye: [...to.eye], target: [...to.target], up: [...to.up], fov: to.fov });  // exactly there
+    }
+  }
+
+  function endFlight() {
+    flight = null;
+    hooks.flying = false;
+  }
+
+  function goHome() {
+    if (home) flyTo(home);
+  }
+
   // Walk: W/S along the horizontal view direction, A/D sideways, Q/E down/up, moving eye and target
   // together. Speed is half the eye–target distance per second (at least 2 m/s), so a walk takes
   // about as long whether one looks at a valve or at the whole plant.
@@ -144,10 +248,21 @@
     requestAnimationFrame(walkStep);
   }
 
+  // Keys typed into the search field are text, not moves.
+  const typing = (e) => e.target instanceof HTMLInputElement || e.target instanceof HTMLTextAreaElement;
   window.addEventListener('keydown', (e) => {
+    if (e.ctrlKey || e.metaKey || e.altKey) return;
+    if (typing(e)) {
+      if (e.key === 'Escape') e.target.blur();
+      return;
+    }
+    if (e.key === 'Home') { e.preventDefault(); goHome(); return; }
+    if (e.key === 'Escape') { pickSeq += 1; select(null); showPick(undefined); return; }
+    if (e.key === '/') { e.preventDefault(); searchText.focus(); searchText.select(); return; }
     const key = e.key.toLowerCase();
-    if (e.ctrlKey || e.metaKey || e.altKey || !'wasdqe'.includes(key) || key.length !== 1) return;
+    if (!'wasdqe'.includes(key) || key.length !== 1 || !camera) return;
     e.preventDefault();
+    endFlight();
     held.add(key);
     if (!walking) { walking = true; requestAnimationFrame(walkStep); }
   });
@@ -160,6 +275,7 @@
   frame.addEventListener('pointerdown', (e) => {
     if (drag || !camera) return;
     e.preventDefault();
+    if (document.activeElement instanceof HTMLElement) document.activeElement.blur();  // keys walk again
     frame.setPointerCapture(e.pointerId);
     drag = { id: e.pointerId, x0: e.clientX, y0: e.clientY, x: e.clientX, y: e.clientY,
              moved: false, pan: e.button !== 0 || e.shiftKey };
@@ -191,7 +307,12 @@
     const linePx = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? window.innerHeight : 1;
     zoom(e.deltaY * linePx);
   }, { passive: false });
-  window.addEventListener('resize', () => { if (camera) changed(); });
+  window.addEventListener('resize', () => { drawOverlay(); if (camera) changed(); });
+  homeButton.addEventListener('click', () => { homeButton.blur(); goHome(); });
+  searchForm.addEventListener('submit', (e) => {
+    e.preventDefault();
+    search(searchText.value);
+  });
 
   // ---- frames ----
 
@@ -230,8 +351,9 @@
     const q = still ? STILL : MOVING;
     inFlight = true;
     const url = `api/frame?${params}&format=jpeg&quality=${q.quality}&lod=screen-space&px=${q.px}` +
-                `&client=${clientId}`;
-    fetchFrame(url, { params, w, h, still }).finally(() => { inFlight = false; pump(); });
+                `${sendMode ? `&mode=${still ? 'still' : 'interactive'}` : ''}&client=${clientId}`;
+    const request = { params, camera, w, h, still, px: q.px, startMs: nowMs };
+    fetchFrame(url, request).finally(() => { inFlight = false; pump(); });
   }
 
   async function fetchFrame(url, request) {
@@ -246,8 +368,13 @@
         return;
       }
       if (!response.ok) {
+        const text = await errorText(response);
+        if (response.status === 400 && sendMode && text.includes("'mode'")) {
+          sendMode = false;  // a server from before mode=interactive|still: ask it without
+          return;
+        }
         failedParams = request.params;
-        showError(`frame: ${await errorText(response)}`);
+        showError(`frame: ${text}`);
         return;
       }
       const url2 = URL.createObjectURL(await response.blob());
@@ -267,7 +394,9 @@
       hooks.framesShown += 1;
       const { w, h } = frameSize();
       hooks.still = request.still && request.params === cameraParams(camera, w, h);
-      showStats(response.headers, request.still);
+      hooks.quality = qualityOf(response.headers, request, performance.now() - request.startMs);
+      showStats(response.headers, hooks.quality);
+      drawOverlay();
       showError('');
     } catch (e) {
       // The network (the server restarting?): try again in a little while.
@@ -286,9 +415,29 @@
 
   function showError(text) { statsError.textContent = text; }
 
-  // The overlay: the displayed frame's statistics (from its response headers) and the frame rate
-  // achieved over the last two seconds.
-  function showStats(headers, still) {
+  // What the displayed frame was rendered with, from the X-Plantview-* headers where the server
+  // sends them, else from what was asked for (and the decoded image's size).
+  function qualityOf(headers, request, roundTripMs) {
+    const num = (name) => { const v = parseFloat(headers.get(name)); return Number.isFinite(v) ? v : null; };
+    const size = /^(\d+)x(\d+)$/.exec(headers.get('X-Plantview-Render-Size') ?? '');
+    const degraded = headers.get('X-Plantview-Degraded');
+    const frameMs = num('X-Frame-Ms'), encodeMs = num('X-Encode-Ms');
+    return {
+      mode: headers.get('X-Plantview-Mode') ?? (request.still ? 'still' : 'interactive'),
+      reported: headers.has('X-Plantview-Mode'),  // false: an older server, the rest is inferred
+      degraded: degraded === null ? [] : degraded.split(',').map((d) => d.trim()).filter((d) => d && d !== 'none'),
+      pixelError: num('X-Plantview-Pixel-Error') ?? request.px,
+      renderSize: size ? [Number(size[1]), Number(size[2])] : [frame.naturalWidth, frame.naturalHeight],
+      requestedSize: [request.w, request.h],
+      queue: num('X-Plantview-Queue'),
+      renderMs: num('X-Plantview-Render-Ms') ?? (frameMs === null ? null : frameMs + (encodeMs ?? 0)),
+      roundTripMs,
+    };
+  }
+
+  // The overlay: the displayed frame's statistics (from its response headers), the quality it was
+  // rendered with and why, and the frame rate achieved over the last two seconds with what limits it.
+  function showStats(headers, quality) {
     const nowMs = performance.now();
     shownTimesMs.push(nowMs);
     while (shownTimesMs.length > 1 && nowMs - shownTimesMs[0] > 2000) shownTimesMs.shift();
@@ -297,14 +446,106 @@
     const num = (name) => { const v = parseFloat(headers.get(name)); return Number.isFinite(v) ? v : null; };
     const count = (v) => (v === null ? '–' : v.toLocaleString('en-US'));
     const mb = (v) => (v === null ? '–' : (v / 1048576).toFixed(1));
-    const frameMs = num('X-Frame-Ms');
+    const ms = (v) => (v === null ? '–' : `${Math.round(v)} ms`);
+    const q = quality;
+    const [rw, rh] = q.renderSize, [qw, qh] = q.requestedSize;
+    const scaled = rw > 0 && (rw !== qw || rh !== qh);
+    const busy = q.queue !== null && q.queue > 0 ? `server busy: ${q.queue} waiting` : null;
+
+    // quality: mode, then what was given up and why, or that nothing was.
+    const parts = [q.mode];
+    if (q.degraded.length > 0) {
+      const what = q.degraded.map((d) => (d === 'pixel-error' ? 'coarser' : d === 'resolution' ? 'smaller' : d)).join(', ');
+      parts.push(`degraded (${what})${busy ? `: ${busy}` : ''}`);
+    } else if (q.mode === 'still') {
+      parts.push('full quality');
+    }
+    parts.push(`px ${q.pixelError}`);
+    parts.push(scaled ? `${rw}x${rh} scaled to ${qw}x${qh}` : `${qw}x${qh}`);
+    if (!q.reported) parts.push('(as asked; the server reports no quality)');
+
+    // rate: at rest there is no rate to speak of, only how long the still took; while moving, the
+    // rate and what takes the time (one frame is requested at a time, so the round trip is it).
+    let rate;
+    const renderOf = q.renderMs === null ? '' : `, render ${ms(q.renderMs)}`;
+    if (q.mode === 'still' && !flight && held.size === 0 && !drag) {
+      rate = `at rest · the still took ${ms(q.roundTripMs)}${renderOf}`;
+    } else {
+      // The page asks for the next frame when one arrives and the camera has moved: a round trip
+      // well under the interval between frames means the server keeps up with the moves.
+      const intervalMs = fps === null ? null : 1000 / fps;
+      const why = busy ?? (intervalMs !== null && q.roundTripMs < 0.6 * intervalMs
+        ? `the server keeps up: ${ms(q.roundTripMs)} a frame`
+        : q.renderMs === null ? `${ms(q.roundTripMs)} a frame`
+        : q.renderMs >= q.roundTripMs / 2 ? `rendering: ${ms(q.renderMs)} of ${ms(q.roundTripMs)} a frame`
+        : `network and queue: ${ms(q.roundTripMs - q.renderMs)} of ${ms(q.roundTripMs)} a frame`);
+      rate = `${fps === null ? '–' : fps.toFixed(1)} fps · ${why}`;
+    }
     statsLines.textContent = [
       `triangles ${count(num('X-Triangles'))}`,
       `objects   ${count(num('X-Objects-Visible'))} visible of ${count(model.objects ?? null)}`,
       `arena     ${mb(num('X-Arena-Bytes'))} of ${mb(num('X-Arena-Budget-Bytes'))} MB`,
-      `frame     ${frameMs === null ? '–' : frameMs.toFixed(1)} ms (${still ? 'still' : 'moving'})`,
-      `rate      ${fps === null ? '–' : fps.toFixed(1)} fps`,
+      `quality   ${parts.join(' · ')}`,
+      `rate      ${rate}`,
     ].join('\n');
+  }
+
+  // ---- the selection's box ----
+
+  // Draws the selected object's bounds as a box over the displayed frame, projected with the
+  // camera that frame was rendered with (so that box and image agree while a newer frame is on its
+  // way). Edges are clipped where they pass behind the eye.
+  function drawOverlay() {
+    const dpr = window.devicePixelRatio || 1;
+    const cssW = overlay.clientWidth, cssH = overlay.clientHeight;
+    if (overlay.width !== Math.round(cssW * dpr) || overlay.height !== Math.round(cssH * dpr)) {
+      overlay.width = Math.round(cssW * dpr);
+      overlay.height = Math.round(cssH * dpr);
+    }
+    const g = overlay.getContext('2d');
+    g.setTransform(1, 0, 0, 1, 0, 0);
+    g.clearRect(0, 0, overlay.width, overlay.height);
+    if (!selected || !selected.bounds || !shown) return;
+    g.scale(dpr, dpr);
+    const aspect = shown.w / shown.h;
+    const { min, max } = selected.bounds;
+    const corner = (i) => [i & 1 ? max[0] : min[0], i & 2 ? max[1] : min[1], i & 4 ? max[2] : min[2]];
+    const near = 0.05;  // metres: the renderer's near plane
+    const edges = [];
+    for (let i = 0; i < 8; ++i)
+      for (const bit of [1, 2, 4]) if (!(i & bit)) edges.push([corner(i), corner(i | bit)]);
+    g.lineWidth = 2;
+    g.strokeStyle = '#ffcc33';
+    g.shadowColor = 'rgba(0, 0, 0, 0.8)';
+    g.shadowBlur = 3;
+    g.beginPath();
+    let top = null;  // the highest point drawn, for the label
+    for (let [a, b] of edges) {
+      let pa = project(shown.camera, aspect, a), pb = project(shown.camera, aspect, b);
+      if (pa.depth < near && pb.depth < near) continue;
+      if (pa.depth < near || pb.depth < near) {  // cut the edge where it crosses the near plane
+        const t = (near - pa.depth) / (pb.depth - pa.depth);
+        const cut = project(shown.camera, aspect, add(a, scale(sub(b, a), t)));
+        if (pa.depth < near) pa = cut; else pb = cut;
+      }
+      g.moveTo(pa.x * cssW, pa.y * cssH);
+      g.lineTo(pb.x * cssW, pb.y * cssH);
+      for (const p of [pa, pb]) if (!top || p.y < top.y) top = p;
+    }
+    g.stroke();
+    if (top) {
+      g.shadowBlur = 4;
+      g.font = 'bold 13px system-ui, sans-serif';
+      g.fillStyle = '#ffcc33';
+      g.textAlign = 'center';
+      g.fillText(selected.name || selected.id || '', clamp(top.x * cssW, 60, cssW - 60), clamp(top.y * cssH - 8, 16, cssH - 4));
+    }
+  }
+
+  function select(object) {
+    selected = object && object.bounds ? object : null;
+    hooks.selected = selected;
+    drawOverlay();
   }
 
   // ---- picking ----
@@ -328,16 +569,64 @@
       if (seq !== pickSeq) return;
       hooks.lastPick = body.object ?? null;
       showPick(hooks.lastPick);
+      select(hooks.lastPick);
     } catch (e) {
       if (seq === pickSeq) showError(`pick: ${e.message}`);
     }
   }
 
-  // The side panel: name, class, id and attributes of an object, or "nothing here". Text only
-  // (textContent): names and attributes come from the model and are never HTML.
+  // Finds an object by what the user typed: a tag or name (as given, then with the leading '/'
+  // that plant names carry, so "P-101A" finds "/P-101A") or an id, through /api/objects/. A found
+  // object is shown as a pick is, selected, and flown to (its bounds filling FIT_FILL of the frame).
+  async function search(text) {
+    const query = text.trim();
+    if (!query || !model) return;
+    const seq = ++pickSeq;
+    const names = [query];
+    if (!query.startsWith('/') && !/^[0-9]+$/.test(query)) names.push(`/${query}`);
+    let firstError = null;
+    try {
+      for (const name of names) {
+        // Each segment escaped, the '/' between them kept: a server that does not decode the path
+        // still sees the name as stored.
+        const path = name.split('/').map(encodeURIComponent).join('/');
+        const response = await fetch(`api/objects/${path}`, { cache: 'no-store' });
+        if (seq !== pickSeq) return;
+        if (response.ok) {
+          const object = await response.json();
+          if (seq !== pickSeq) return;
+          showError('');
+          hooks.lastPick = object;
+          showPick(object);
+          select(object);
+          if (object.bounds) {
+            const { w, h } = frameSize();
+            flyTo(fitCamera(object.bounds, camera, w / h));
+          } else {
+            showError(`find: ${object.name || object.id} has no geometry to fly to`);
+          }
+          return;
+        }
+        firstError ??= await errorText(response);
+        if (response.status !== 404 && response.status !== 400) break;
+      }
+      if (seq === pickSeq) showError(`find '${query}': ${firstError}`);
+    } catch (e) {
+      if (seq === pickSeq) showError(`find: ${e.message}`);
+    }
+  }
+
+  // The side panel: name, class, id and attributes of an object, "nothing here" (null), or the
+  // hint the page starts with (undefined). Text only (textContent): names and attributes come
+  // from the model and are never HTML.
+  const hint = pickPanel.firstElementChild;
   function showPick(object) {
     const el = (tag, text) => { const e = document.createElement(tag); if (text !== undefined) e.textContent = text; return e; };
     pickPanel.replaceChildren();
+    if (object === undefined) {
+      pickPanel.append(hint);
+      return;
+    }
     if (!object) {
       const p = el('p', 'nothing here');
       p.className = 'hint';
@@ -375,7 +664,9 @@
       const size = Math.max(1, length(sub(max, min)));
       c = { eye: add(centre, scale([-0.6, -0.6, 0.5], size)), target: centre, up: Z_UP, fov: 45 };
     }
-    camera = { eye: [...c.eye], target: [...c.target], up: [...c.up], fov: c.fov };
+    home = { eye: [...c.eye], target: [...c.target], up: [...c.up], fov: c.fov };
+    hooks.home = home;
+    camera = home;
     hooks.camera = camera;
     pump();  // at rest: the first frame is a still
   }

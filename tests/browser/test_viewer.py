@@ -3,8 +3,10 @@
 
 Starts the server on a store, drives headless Chromium through chromedriver (the W3C WebDriver
 protocol, JSON over HTTP, spoken here with urllib: no Selenium, standard library only), and checks
-that the page shows a frame, orbits on a drag and shows the picked object's attributes on a click.
-Leaves a screenshot of the page.
+that the page shows a frame, orbits on a drag, shows the picked object's attributes on a click,
+finds an object by the tag typed into its search field (the attributes panel shows it, its box is
+drawn over the frame, and the camera flies to frame it), says which quality the frame has, and
+flies back to the model's camera on Home. Leaves a screenshot of the page with the found object.
 
     tests/browser/test_viewer.py --plantview build/service/plantview [--store DIR]
                                  [--screenshot build/browser/viewer.png] [--port 0]
@@ -35,7 +37,9 @@ SERVER_START_S = 30      # until GET /api/model answers
 FIRST_FRAME_S = 60       # frames are rendered on a CPU here: one can take a second or two
 FRAME_S = 60             # for any later frame (or the still after a move)
 PICK_S = 30              # one /api/pick answer
-ELEMENT_KEY = "element-6066-11e4-a52e-4a4fb26b4d8e"  # W3C WebDriver's element reference key
+SEARCH_S = 30            # a search's /api/objects answer and the fly-to (0.8 s) after it
+ENTER_KEY = "\ue007"     # WebDriver's Enter
+ELEMENT_KEY = "element-6066-11e4-a52e-4f735466cecf"  # W3C WebDriver's element reference key
 
 
 class Failure(Exception):
@@ -151,6 +155,18 @@ class WebDriver:
             "actions": steps}]})
         self.command("DELETE", "/actions")
 
+    def element(self, css):
+        """The element reference of the first element matching a CSS selector."""
+        value = self.command("POST", "/element", {"using": "css selector", "value": css})
+        return value[ELEMENT_KEY]
+
+    def type_into(self, css, text):
+        """Focuses the element and types text into it, key by key (as a user does)."""
+        self.command("POST", f"/element/{self.element(css)}/value", {"text": text})
+
+    def click(self, css):
+        self.command("POST", f"/element/{self.element(css)}/click", {})
+
     def screenshot(self, path):
         png = base64.b64decode(self.command("GET", "/screenshot"))
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
@@ -167,10 +183,27 @@ PAGE_STATE_JS = """
 const p = window.plantview, f = document.getElementById('frame');
 if (!p || !f) return null;
 const r = f.getBoundingClientRect();
-return {camera: p.camera, framesShown: p.framesShown, still: p.still, lastPick: p.lastPick,
+return {camera: p.camera, home: p.home, framesShown: p.framesShown, still: p.still,
+        lastPick: p.lastPick, selected: p.selected, flying: p.flying, quality: p.quality,
         natural: [f.naturalWidth, f.naturalHeight], rect: [r.left, r.top, r.width, r.height],
         stats: document.getElementById('stats').innerText,
         pick: document.getElementById('pick').innerText};
+"""
+
+# How many pixels of the selection overlay are drawn (alpha > 0), and how many of them lie in the
+# middle third of the canvas in each direction.
+OVERLAY_PIXELS_JS = """
+const c = document.getElementById('overlay');
+if (!c || c.width === 0 || c.height === 0) return [0, 0];
+const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+let all = 0, middle = 0;
+for (let y = 0; y < c.height; ++y)
+  for (let x = 0; x < c.width; ++x)
+    if (d[4 * (y * c.width + x) + 3] > 0) {
+      ++all;
+      if (3 * x >= c.width && 3 * x < 2 * c.width && 3 * y >= c.height && 3 * y < 2 * c.height) ++middle;
+    }
+return [all, middle];
 """
 
 
@@ -184,8 +217,9 @@ def camera_query(camera, w, h):
 def find_object(server, state):
     """Asks /api/pick over a grid of the page's image (nearest the centre first) for an object.
 
-    Returns (css_x, css_y, object). Positions are whole CSS pixels, mapped to image pixels the way
-    the page maps a click, so that clicking there picks with the same pixel."""
+    Returns (css_x, css_y, object), an object with a name and bounds (not a merged pipeline run,
+    which answers with its pipeline's id alone). Positions are whole CSS pixels, mapped to image
+    pixels the way the page maps a click, so that clicking there picks with the same pixel."""
     w, h = state["natural"]
     left, top, width, height = state["rect"]
     columns, rows = 9, 7
@@ -200,9 +234,76 @@ def find_object(server, state):
         status, reply = http_json(url, timeout=PICK_S)
         if status != 200 or not isinstance(reply, dict) or "object" not in reply:
             raise Failure(f"GET /api/pick answered {status}: {reply}")
-        if reply["object"]:
+        if reply["object"] and reply["object"].get("name") and reply["object"].get("bounds"):
             return css_x, css_y, reply["object"]
-    raise Failure(f"/api/pick found no object at any of {len(points)} grid positions")
+    raise Failure(f"/api/pick found no named object at any of {len(points)} grid positions")
+
+
+def search_name(server, obj):
+    """What a user would type to find obj: its tag, the name without the leading '/' that plant
+    names carry (the page adds it), when the server finds objects by tag (an unknown tag is a 404
+    there). A server that finds objects by id only (an unknown tag is a 400) gets the id, and the
+    test says so."""
+    status, reply = http_json(f"{server}/api/objects/NO-SUCH-TAG-0000", timeout=PICK_S)
+    if status == 404:
+        return obj["name"].lstrip("/"), True
+    if status == 400:
+        print(f"NOTE: this server finds objects by id only ({reply}); searching by id", flush=True)
+        return obj["id"], False
+    raise Failure(f"GET /api/objects/NO-SUCH-TAG-0000 answered {status}: {reply}")
+
+
+def search_for(driver, server, state, wait_state, obj):
+    """Types the tag (or id) of obj into the search field; checks that the page shows obj's
+    attributes, draws its box and flies the camera to frame it, and says which quality it shows."""
+    bounds = obj.get("bounds")
+    if not bounds:
+        raise Failure(f"object {obj.get('id')} has no bounds to fly to: {obj}")
+    text, by_tag = search_name(server, obj)
+    # Clear the selection (Esc) so that the search, not the earlier click, must select it.
+    driver.command("POST", "/actions", {"actions": [{"type": "key", "id": "keyboard", "actions": [
+        {"type": "keyDown", "value": "\ue00c"}, {"type": "keyUp", "value": "\ue00c"}]}]})
+    before = wait_state("the selection to clear", PICK_S, lambda s: s["selected"] is None)
+
+    # Typed key by key: letters of the tag (W, A, S, D, Q, E...) must not walk the camera.
+    driver.type_into("#search-text", text)
+    typed = state()
+    if typed["camera"] != before["camera"]:
+        raise Failure(f"typing {text!r} into the search field moved the camera")
+    driver.type_into("#search-text", ENTER_KEY)
+    found = wait_state(f"the search for {text!r} to fly to it and show its still", SEARCH_S + FRAME_S,
+                       lambda s: s["lastPick"] is not None and s["lastPick"].get("id") == obj["id"]
+                       and not s["flying"] and s["still"] and s["framesShown"] > before["framesShown"])
+    if obj["name"] not in found["pick"]:
+        raise Failure(f"the attributes panel does not show {obj['name']!r}: {found['pick']!r}")
+    if not found["selected"] or found["selected"].get("id") != obj["id"]:
+        raise Failure(f"the search did not select {obj['id']}: {found['selected']}")
+
+    # The camera looks at the object's centre from outside its bounds, closer than before.
+    centre = [(lo + hi) / 2 for lo, hi in zip(bounds["min"], bounds["max"])]
+    cam = found["camera"]
+    if max(abs(a - b) for a, b in zip(cam["target"], centre)) > 1e-6:
+        raise Failure(f"the camera looks at {cam['target']}, not the object's centre {centre}")
+    if all(lo <= e <= hi for e, lo, hi in zip(cam["eye"], bounds["min"], bounds["max"])):
+        raise Failure(f"the eye {cam['eye']} lies inside the object's bounds {bounds}")
+    distance = lambda c: sum((a - b) ** 2 for a, b in zip(c["eye"], c["target"])) ** 0.5
+    if distance(cam) >= distance(before["camera"]):
+        raise Failure(f"the camera did not come closer: {distance(before['camera']):.1f} m from its "
+                      f"target before, {distance(cam):.1f} m after")
+
+    # The box is drawn, around the middle of the frame (the object is in the middle).
+    drawn, middle = driver.js(OVERLAY_PIXELS_JS)
+    if drawn == 0 or middle == 0:
+        raise Failure(f"the object's box is not drawn around the middle of the frame "
+                      f"({drawn} overlay pixels, {middle} in the middle third)")
+
+    # The readout says which quality the still has.
+    quality = found["quality"] or {}
+    if quality.get("mode") != "still" or "quality   still" not in found["stats"]:
+        raise Failure(f"the readout does not say the frame is a still: {quality}, {found['stats']!r}")
+    print(f"search {text!r} ({'tag' if by_tag else 'id'}): picked {obj['id']}, camera "
+          f"{distance(before['camera']):.1f} m -> {distance(cam):.1f} m from its target, box of "
+          f"{drawn} px; readout: {found['stats'].splitlines()[-2].strip()!r}", flush=True)
 
 
 def run(args, tmp):
@@ -311,9 +412,19 @@ def run(args, tmp):
         if picked["camera"] != rest["camera"]:
             raise Failure("the click moved the camera")
 
-        # 6. The screenshot.
+        # 6. Search: type a tag, see the object picked, boxed and flown to.
+        search_for(driver, server, state, wait_state, obj)
         driver.screenshot(args.screenshot)
         print(f"screenshot: {os.path.abspath(args.screenshot)}", flush=True)
+
+        # 7. Home flies back to the model's camera, exactly.
+        before_home = state()
+        driver.click("#home")
+        home = wait_state("the home view's still", FRAME_S + SEARCH_S,
+                          lambda s: not s["flying"] and s["still"] and s["framesShown"] > before_home["framesShown"])
+        if home["camera"] != home["home"]:
+            raise Failure(f"Home ended at {home['camera']}, not the home camera {home['home']}")
+        print("home: back at the model's camera", flush=True)
     except Failure:
         if driver and driver.session:
             try:  # what the page looked like, for the failure report
