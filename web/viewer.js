@@ -20,8 +20,9 @@
 //   selected,     the object whose box is drawn over the frame (bounds required), or null
 //   flying,       true while the camera flies to an object or home
 //   still,        true while the displayed frame is the full-quality still of the current camera
-//   quality,      what the displayed frame was rendered with: {mode, degraded, pixelError,
-//                 renderSize, requestedSize, queue, renderMs, roundTripMs}, or null before one
+//   quality,      what the displayed frame was rendered with: {mode, reported, degraded,
+//                 pixelError, askedPx, renderSize, requestedSize, queue, renderMs, roundTripMs},
+//                 or null before the first frame
 // }
 'use strict';
 
@@ -427,6 +428,7 @@
       reported: headers.has('X-Plantview-Mode'),  // false: an older server, the rest is inferred
       degraded: degraded === null ? [] : degraded.split(',').map((d) => d.trim()).filter((d) => d && d !== 'none'),
       pixelError: num('X-Plantview-Pixel-Error') ?? request.px,
+      askedPx: request.px,
       renderSize: size ? [Number(size[1]), Number(size[2])] : [frame.naturalWidth, frame.naturalHeight],
       requestedSize: [request.w, request.h],
       queue: num('X-Plantview-Queue'),
@@ -452,16 +454,19 @@
     const scaled = rw > 0 && (rw !== qw || rh !== qh);
     const busy = q.queue !== null && q.queue > 0 ? `server busy: ${q.queue} waiting` : null;
 
-    // quality: mode, then what was given up and why, or that nothing was.
+    // quality: the mode, then what was given up (the reason is on the rate line), or that nothing was.
     const parts = [q.mode];
+    const pxText = `px ${q.pixelError}`, sizeText = scaled ? `${rw}x${rh} scaled to ${qw}x${qh}` : `${qw}x${qh}`;
     if (q.degraded.length > 0) {
-      const what = q.degraded.map((d) => (d === 'pixel-error' ? 'coarser' : d === 'resolution' ? 'smaller' : d)).join(', ');
-      parts.push(`degraded (${what})${busy ? `: ${busy}` : ''}`);
-    } else if (q.mode === 'still') {
-      parts.push('full quality');
+      const given = q.degraded.map((d) => (d === 'pixel-error' ? `${pxText} instead of ${q.askedPx}`
+                                           : d === 'resolution' ? sizeText : d));
+      parts.push(`degraded: ${given.join(', ')}`);
+      if (!q.degraded.includes('pixel-error')) parts.push(pxText);
+      if (!q.degraded.includes('resolution')) parts.push(sizeText);
+    } else {
+      if (q.mode === 'still') parts.push('full quality');
+      parts.push(pxText, sizeText);
     }
-    parts.push(`px ${q.pixelError}`);
-    parts.push(scaled ? `${rw}x${rh} scaled to ${qw}x${qh}` : `${qw}x${qh}`);
     if (!q.reported) parts.push('(as asked; the server reports no quality)');
 
     // rate: at rest there is no rate to speak of, only how long the still took; while moving, the
