@@ -601,6 +601,7 @@
           const object = await response.json();
           if (seq !== pickSeq) return;
           showError('');
+          searchText.blur();  // keys walk again
           hooks.lastPick = object;
           showPick(object);
           select(object);
