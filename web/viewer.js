@@ -609,7 +609,7 @@
             const { w, h } = frameSize();
             flyTo(fitCamera(object.bounds, camera, w / h));
           } else {
-            showError(`find: ${object.name || object.id} has no geometry to fly to`);
+            showError(`find: ${object.name || object.id} has no geometry of its own to fly to`);
           }
           return;
         }

@@ -27,6 +27,7 @@ import sys
 import tempfile
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -240,17 +241,24 @@ def find_object(server, state):
 
 
 def search_name(server, obj):
-    """What a user would type to find obj: its tag, the name without the leading '/' that plant
-    names carry (the page adds it), when the server finds objects by tag (an unknown tag is a 404
-    there). A server that finds objects by id only (an unknown tag is a 400) gets the id, and the
-    test says so."""
+    """What a user would type to find obj, and whether it is a tag: where the server finds objects
+    by tag (an unknown tag is a 404 there), the first of obj's Tag attribute, its name without the
+    leading '/' that plant names carry, and its name, that the server finds as obj. A server that
+    finds objects by id only (an unknown tag is a 400) gets the id, and the test says so."""
     status, reply = http_json(f"{server}/api/objects/NO-SUCH-TAG-0000", timeout=PICK_S)
-    if status == 404:
-        return obj["name"].lstrip("/"), True
     if status == 400:
         print(f"NOTE: this server finds objects by id only ({reply}); searching by id", flush=True)
         return obj["id"], False
-    raise Failure(f"GET /api/objects/NO-SUCH-TAG-0000 answered {status}: {reply}")
+    if status != 404:
+        raise Failure(f"GET /api/objects/NO-SUCH-TAG-0000 answered {status}: {reply}")
+    tags = [a["value"] for a in obj.get("attributes", []) if a.get("key") == "Tag"]
+    candidates = tags + [obj["name"].lstrip("/"), obj["name"]]
+    for text in candidates:
+        path = "/".join(urllib.parse.quote(part, safe="") for part in text.split("/"))
+        status, found = http_json(f"{server}/api/objects/{path}", timeout=PICK_S)
+        if status == 200 and isinstance(found, dict) and found.get("id") == obj["id"]:
+            return text, True
+    raise Failure(f"the server finds objects by tag, but object {obj['id']} by none of {candidates}")
 
 
 def search_for(driver, server, state, wait_state, obj):
