@@ -59,9 +59,9 @@
   const clientId = Array.from(crypto.getRandomValues(new Uint32Array(4)), (n) => n.toString(16).padStart(8, '0')).join('');
 
   let model = null;           // GET /api/model
-  let camera = null;          // the current camera; replaced only by setCamera()
+  let camera = null;          // the current camera; replaced only by placeCamera()
   let home = null;            // the model's camera: where the page starts and Home returns
-  let shown = null;           // what the displayed frame was rendered with: {params, camera, w, h, still}
+  let shown = null;           // the displayed frame's request: {params, camera, w, h, still, px, startMs}
   let shownUrl = null;        // object URL of the displayed frame (revoked when replaced)
   let inFlight = false;       // at most one frame request is outstanding
   let lastChangeMs = -Infinity;  // performance.now() of the last camera or size change
