@@ -21,7 +21,8 @@
 //   flying,       true while the camera flies to an object or home
 //   still,        true while the displayed frame is the full-quality still of the current camera
 //   quality,      what the displayed frame was rendered with: {mode, reported, degraded,
-//                 pixelError, askedPx, renderSize, requestedSize, queue, renderMs, roundTripMs},
+//                 pixelError, askedPx, jpegQuality, renderSize, requestedSize, queue, renderMs,
+//                 roundTripMs},
 //                 or null before the first frame
 // }
 'use strict';
@@ -54,14 +55,24 @@
                   flying: false, still: false, quality: null };
   window.plantview = hooks;
 
-  // Identifies this page load to the server, which answers an older waiting request of the same
-  // client 409 when a newer one arrives.
-  const clientId = Array.from(crypto.getRandomValues(new Uint32Array(4)), (n) => n.toString(16).padStart(8, '0')).join('');
+  // Names this page's latest-wins slot to the server, which answers an older waiting request of
+  // the same client 409 when a newer one arrives, whichever connection the browser sends it on.
+  // The server issues the id (X-Plantview-Client on a render answer: adopted from the first); a
+  // server from before that takes any name, so the page starts with a random one of its own.
+  let clientId = Array.from(crypto.getRandomValues(new Uint32Array(4)), (n) => n.toString(16).padStart(8, '0')).join('');
+  let clientIssued = false;
+  function adoptClientId(headers) {
+    const id = headers.get('X-Plantview-Client');
+    if (id && !clientIssued) {
+      clientId = id;
+      clientIssued = true;
+    }
+  }
 
   let model = null;           // GET /api/model
   let camera = null;          // the current camera; replaced only by placeCamera()
   let home = null;            // the model's camera: where the page starts and Home returns
-  let shown = null;           // the displayed frame's request: {params, camera, w, h, still, px, startMs}
+  let shown = null;           // the displayed frame's request: {params, camera, w, h, still, px, quality, startMs}
   let shownUrl = null;        // object URL of the displayed frame (revoked when replaced)
   let inFlight = false;       // at most one frame request is outstanding
   let lastChangeMs = -Infinity;  // performance.now() of the last camera or size change
@@ -352,14 +363,15 @@
     const q = still ? STILL : MOVING;
     inFlight = true;
     const url = `api/frame?${params}&format=jpeg&quality=${q.quality}&lod=screen-space&px=${q.px}` +
-                `${sendMode ? `&mode=${still ? 'still' : 'interactive'}` : ''}&client=${clientId}`;
-    const request = { params, camera, w, h, still, px: q.px, startMs: nowMs };
+                `${sendMode ? `&mode=${still ? 'still' : 'interactive'}` : ''}&client=${encodeURIComponent(clientId)}`;
+    const request = { params, camera, w, h, still, px: q.px, quality: q.quality, startMs: nowMs };
     fetchFrame(url, request).finally(() => { inFlight = false; pump(); });
   }
 
   async function fetchFrame(url, request) {
     try {
       const response = await fetch(url, { cache: 'no-store' });
+      adoptClientId(response.headers);
       if (response.status === 409) return;  // superseded by a newer request of ours: ignore
       if (response.status === 503) {
         const seconds = parseFloat(response.headers.get('Retry-After'));
@@ -429,6 +441,7 @@
       degraded: degraded === null ? [] : degraded.split(',').map((d) => d.trim()).filter((d) => d && d !== 'none'),
       pixelError: num('X-Plantview-Pixel-Error') ?? request.px,
       askedPx: request.px,
+      jpegQuality: num('X-Plantview-Jpeg-Quality') ?? request.quality,
       renderSize: size ? [Number(size[1]), Number(size[2])] : [frame.naturalWidth, frame.naturalHeight],
       requestedSize: [request.w, request.h],
       queue: num('X-Plantview-Queue'),
@@ -457,15 +470,17 @@
     // quality: the mode, then what was given up (the reason is on the rate line), or that nothing was.
     const parts = [q.mode];
     const pxText = `px ${q.pixelError}`, sizeText = scaled ? `${rw}x${rh} scaled to ${qw}x${qh}` : `${qw}x${qh}`;
+    const jpegText = `JPEG ${q.jpegQuality}`;
     if (q.degraded.length > 0) {
       const given = q.degraded.map((d) => (d === 'pixel-error' ? `${pxText} instead of ${q.askedPx}`
                                            : d === 'resolution' ? sizeText : d));
       parts.push(`degraded: ${given.join(', ')}`);
       if (!q.degraded.includes('pixel-error')) parts.push(pxText);
       if (!q.degraded.includes('resolution')) parts.push(sizeText);
+      parts.push(jpegText);
     } else {
       if (q.mode === 'still') parts.push('full quality');
-      parts.push(pxText, sizeText);
+      parts.push(pxText, sizeText, jpegText);
     }
     if (!q.reported) parts.push('(as asked; the server reports no quality)');
 
@@ -565,7 +580,9 @@
     const y = clamp(Math.floor((clientY - rect.top) * shown.h / rect.height), 0, shown.h - 1);
     const seq = ++pickSeq;
     try {
-      const response = await fetch(`api/pick?${shown.params}&x=${x}&y=${y}`, { cache: 'no-store' });
+      const response = await fetch(`api/pick?${shown.params}&x=${x}&y=${y}&client=${encodeURIComponent(clientId)}`,
+                                   { cache: 'no-store' });
+      adoptClientId(response.headers);
       if (!response.ok) {
         if (seq === pickSeq) showError(`pick: ${await errorText(response)}`);
         return;
