@@ -16,6 +16,8 @@
 //   camera,       the current camera {eye, target, up, fov} (replaced, never mutated, on a change)
 //   home,         the home camera (the model's), which Home flies back to
 //   framesShown,  frames displayed since the page loaded
+//   framesByMode, of those, how many in each mode: {interactive, still} (as the server reports it,
+//                 else as asked)
 //   lastPick,     the object of the last pick or search ({id, name, class, attributes, bounds}) or null
 //   selected,     the object whose box is drawn over the frame (bounds required), or null
 //   flying,       true while the camera flies to an object or home
@@ -51,8 +53,8 @@
   const searchText = document.getElementById('search-text');
   const homeButton = document.getElementById('home');
 
-  const hooks = { camera: null, home: null, framesShown: 0, lastPick: null, selected: null,
-                  flying: false, still: false, quality: null };
+  const hooks = { camera: null, home: null, framesShown: 0, framesByMode: { interactive: 0, still: 0 },
+                  lastPick: null, selected: null, flying: false, still: false, quality: null };
   window.plantview = hooks;
 
   // Names this page's latest-wins slot to the server, which answers an older waiting request of
@@ -408,6 +410,7 @@
       const { w, h } = frameSize();
       hooks.still = request.still && request.params === cameraParams(camera, w, h);
       hooks.quality = qualityOf(response.headers, request, performance.now() - request.startMs);
+      hooks.framesByMode[hooks.quality.mode] = (hooks.framesByMode[hooks.quality.mode] ?? 0) + 1;
       showStats(response.headers, hooks.quality);
       drawOverlay();
       showError('');

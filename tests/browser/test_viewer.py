@@ -184,7 +184,8 @@ PAGE_STATE_JS = """
 const p = window.plantview, f = document.getElementById('frame');
 if (!p || !f) return null;
 const r = f.getBoundingClientRect();
-return {camera: p.camera, home: p.home, framesShown: p.framesShown, still: p.still,
+return {camera: p.camera, home: p.home, framesShown: p.framesShown, framesByMode: p.framesByMode,
+        still: p.still,
         lastPick: p.lastPick, selected: p.selected, flying: p.flying, quality: p.quality,
         natural: [f.naturalWidth, f.naturalHeight], rect: [r.left, r.top, r.width, r.height],
         stats: document.getElementById('stats').innerText,
@@ -408,6 +409,12 @@ def run(args, tmp):
 
         # 5. A click on an object shows its attributes.
         rest = wait_state("the still frame after the drag", FRAME_S, lambda s: s["still"])
+        # While the camera moved the page asked for interactive frames (one request at a time, so
+        # the first after the drag began is shown), then for one still once it rested.
+        modes_before, modes_after = before["framesByMode"], rest["framesByMode"]
+        if modes_after["interactive"] <= modes_before["interactive"] or modes_after["still"] <= modes_before["still"]:
+            raise Failure(f"frames by mode before the drag {modes_before}, after it came to rest {modes_after}: "
+                          "expected interactive frames while it moved and a still at rest")
         css_x, css_y, obj = find_object(server, rest)
         print(f"object {obj.get('id')} {obj.get('name')!r} at ({css_x}, {css_y})", flush=True)
         driver.pointer([move(css_x, css_y), {"type": "pointerDown", "button": 0},
