@@ -259,6 +259,18 @@ def project(camera, aspect, point):
     return (0.5 + 0.5 * dot(v, right) / (half_height * aspect), 0.5 - 0.5 * dot(v, up) / half_height, depth)
 
 
+def server_reports_quality(server):
+    """Whether the server's frames say what quality they have (X-Plantview-Mode): a small still
+    asked for with mode=still (a server from before that refuses the parameter: 400)."""
+    try:
+        with urllib.request.urlopen(f"{server}/api/frame?w=64&h=36&mode=still", timeout=FRAME_S) as response:
+            return response.headers.get("X-Plantview-Mode") == "still"
+    except urllib.error.HTTPError as e:
+        if e.code == 400:
+            return False
+        raise Failure(f"GET /api/frame?w=64&h=36&mode=still answered {e.code}: {e.read()[:200]!r}")
+
+
 def search_name(server, obj):
     """What a user would type to find obj, and whether it is a tag: where the server finds objects
     by tag (an unknown tag is a 404 there), the first of obj's Tag attribute, its name without the
@@ -328,10 +340,12 @@ def search_for(driver, server, state, wait_state, obj):
         raise Failure(f"the object's box is not drawn around the middle of the frame "
                       f"({drawn} overlay pixels, {middle} in the middle third)")
 
-    # The readout says which quality the still has.
+    # The readout says which quality the still has: as the server reports it, where it does.
     quality = found["quality"] or {}
     if quality.get("mode") != "still" or "quality   still" not in found["stats"]:
         raise Failure(f"the readout does not say the frame is a still: {quality}, {found['stats']!r}")
+    if server_reports_quality(server) and (not quality.get("reported") or "reports no quality" in found["stats"]):
+        raise Failure(f"the server sends X-Plantview-Mode, but the readout did not read it: {quality}")
     print(f"search {text!r} ({'tag' if by_tag else 'id'}): picked {obj['id']}, camera "
           f"{distance(before['camera']):.1f} m -> {distance(cam):.1f} m from its target, box of "
           f"{drawn} px; readout: {found['stats'].splitlines()[-2].strip()!r}", flush=True)
