@@ -3,10 +3,11 @@
 
 Starts the server on a store, drives headless Chromium through chromedriver (the W3C WebDriver
 protocol, JSON over HTTP, spoken here with urllib: no Selenium, standard library only), and checks
-that the page shows a frame, orbits on a drag, shows the picked object's attributes on a click,
-finds an object by the tag typed into its search field (the attributes panel shows it, its box is
-drawn over the frame, and the camera flies to frame it), says which quality the frame has, and
-flies back to the model's camera on Home. Leaves a screenshot of the page with the found object.
+that the page shows a frame, orbits on a drag (with interactive frames, then a still at rest),
+shows the picked object's attributes on a click, finds an object by the tag typed into its search
+field (the attributes panel shows it, its box is drawn over the frame, and the camera flies to
+frame it), says which quality the frame has (as the server reports it, where it does), and flies
+back to the model's camera on Home. Leaves a screenshot of the page with the found object.
 
     tests/browser/test_viewer.py --plantview build/service/plantview [--store DIR]
                                  [--screenshot build/browser/viewer.png] [--port 0]
