@@ -3,20 +3,37 @@
 # under var/ (once), renders one review image of it, and serves it on http://127.0.0.1:8080/
 # for a browser until Ctrl-C.
 # Idempotent: re-running rebuilds only what changed and reuses the store.
+# The first run compiles the whole program (minutes): on a terminal the build shows its progress
+# ([done/total] steps); in a pipe it is quiet, and its log (build-release/build.log) is printed
+# when it fails.
 # Environment: PLANTVIEW_LISTEN (default 127.0.0.1:8080); PLANTVIEW_DEMO_NO_SERVE=1 stops after
 # the review image (for scripted runs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 scripts/deps.sh
+jobs=$(nproc 2>/dev/null || echo 2)
+echo "demo: building plantview (Release, $jobs jobs) in build-release/; the first build compiles" \
+  "everything and takes minutes" >&2
+SECONDS=0
 cmake -S . -B build-release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPLANTVIEW_BUILD_TESTS=OFF \
   -DPLANTVIEW_BUILD_BENCH=OFF >/dev/null
-cmake --build build-release -j "$(nproc 2>/dev/null || echo 2)" --target plantview >/dev/null
+if [ -t 1 ]; then
+  cmake --build build-release -j "$jobs" --target plantview  # ninja: one status line, [done/total]
+else
+  cmake --build build-release -j "$jobs" --target plantview >build-release/build.log 2>&1 || {
+    tail -n 40 build-release/build.log >&2
+    echo "demo: the build failed; its log: build-release/build.log" >&2
+    exit 1
+  }
+fi
 plantview=./build-release/service/plantview
+echo "demo: $plantview is built (${SECONDS} s)" >&2
 $plantview --version
 
 mkdir -p var
 if ! $plantview info --store var/preset-c >/dev/null 2>&1; then
+  echo "demo: generating the preset c plant into var/preset-c (once)" >&2
   rm -rf var/preset-c
   $plantview gen --preset c --store var/preset-c
 fi
