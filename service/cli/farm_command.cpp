@@ -174,7 +174,7 @@ Action add_farm_command(CLI::App& app) {
     ++i;
   }
   for (const char* name : {"--force", "--no-centrelines", "--no-hlod", "--no-subpixel-culling"})
-    a->render_flags.push_back(submit->add_flag(name, "Passed on to render"));
+    a->render_flags.push_back(submit->add_flag(name)->description("Passed on to render"));
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);
