@@ -297,27 +297,20 @@ std::vector<std::string> caption_lines(const ReviewView& view) {
   return lines;
 }
 
-// The options one view renders with: its subject highlighted, the rest ghosted.
-// MERGE(look): `options.highlight_ids = view.subject;` once look's RenderOptions::highlight_ids
-// (interfaces.md) is in this branch; until then the subject is not singled out.
+// The options one view renders with: its subject highlighted, the rest ghosted (an overview's
+// empty subject highlights nothing).
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
   RenderOptions options = base;
-  (void)view;
+  options.highlight_ids = view.subject;
   return options;
 }
 
 // Draws the view's caption strip (title, then caption_lines) into the image.
-// MERGE(look): `return add_caption(image, view.title, caption_lines(view), error);` once look's
-// add_caption (image.h, interfaces.md) is in this branch; until then images have no caption.
 bool add_review_caption(Image& image, const ReviewView& view, std::string& error) {
-  (void)image;
-  (void)error;
-  (void)caption_lines(view);
-  return true;
+  return add_caption(image, view.title, caption_lines(view), error);
 }
 
 // What, besides the view and the store's content, an image depends on (the settings hash).
-// MERGE(look): add look's RenderOptions fields (antialias, ground, ambient_occlusion).
 std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
   const nlohmann::json settings = {
       {"program", PLANTVIEW_VERSION},
@@ -330,7 +323,12 @@ std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
       {"centrelines", plan.options.centrelines},
       {"hlod", plan.options.hlod},
       {"subpixel_culling", plan.options.subpixel_culling},
-      {"samples", plan.options.samples}};
+      {"samples", plan.options.samples},
+      {"antialias", plan.options.antialias},
+      {"antialias_method", std::string(antialias_method_name(plan.options.antialias_method))},
+      {"ground", plan.options.ground},
+      {"ambient_occlusion", plan.options.ambient_occlusion},
+      {"caption", true}};
   return settings.dump();
 }
 
