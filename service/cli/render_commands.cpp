@@ -9,11 +9,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <sstream>
-
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <sstream>
 
 #include "cli/commands.h"
 #include "cli/farm/job_inputs.h"
@@ -186,7 +185,7 @@ bool check_image_destination(const std::string& out, std::string& error) {
   return farm::prepare_output_dir(parent, error);
 }
 
-// Encodes `image` and writes it atomically (farm/output_dir.h); adds the time to stats.ms.encode.
+// Encodes `image` and writes it atomically (farm/output_dir.h); stats.ms.encode gets the time.
 bool write_image_file(const fs::path& path, const Image& image, ImageFormat format, int quality,
                       FrameStats& stats, std::string& error) {
   const auto t_encode = std::chrono::steady_clock::now();
