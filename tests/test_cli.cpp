@@ -240,4 +240,52 @@ TEST_F(Cli, AGenKilledPartWayLeavesTheStoreAsItWas) {
   EXPECT_EQ(info(store), before);
 }
 
+// Usage errors of render and path exit 2 with a message naming what is wrong, before the store
+// is opened (the store here does not exist: a usage error must be found first).
+TEST_F(Cli, RenderAndPathUsageErrorsExitTwoNamingTheOption) {
+  const std::string store = (dir_ / "no-store").string();
+  const fs::path file = dir_ / "a-file";
+  std::ofstream(file) << "x";
+  const fs::path camera_path = dir_ / "path.json";
+  std::ofstream(camera_path) << R"([{"eye": [1, 2, 3], "target": [0, 0, 0]}])";
+  struct Case {
+    std::string args, message;
+  };
+  const Case cases[] = {
+      {"render --store " + store + " --size 100 --out x.png", "--size"},
+      {"render --store " + store + " --out x.gif", "x.gif"},
+      {"render --store " + store + " --camera eye=1,2,3 --out x.png", "--camera"},
+      {"render --store " + store + " --format gif --path " + camera_path.string() + " --out d", "--format"},
+      {"render --store " + store + " --shard 4/4 --path " + camera_path.string() + " --out d", "--shard"},
+      {"render --store " + store + " --lod-policy fast --out x.png", "--lod-policy"},
+      {"render --store " + store + " --path " + camera_path.string() + " --camera eye=1,2,3,target=0,0,0 --out d",
+       "one of --camera, --path"},
+      {"render --store " + store + " --path " + camera_path.string() + " --out " + (dir_ / "walk.png").string(),
+       "walk.png names an image file"},
+      {"render --store " + store + " --path " + camera_path.string() + " --out " + file.string(), "is a file"},
+      {"path --store " + store + " --kind spiral --out p.json", "spiral"},
+      {"path --store " + store + " --frames 0 --out p.json", "--frames"},
+  };
+  for (const Case& c : cases) {
+    const Outcome r = run(c.args);
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "walk.png")) << "no directory named like an image";
+}
+
+// An image into a directory that does not exist fails before anything is rendered.
+TEST_F(Cli, RenderIntoAMissingDirectoryFailsBeforeRendering) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  Outcome r = run("render --store " + store.string() + " --out " + (dir_ / "missing" / "y.png").string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("missing"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("rendering on"), std::string::npos) << "no GPU context was made: " << r.err;
+  r = run("path --store " + store.string() + " --frames 3 --out " + (dir_ / "missing" / "p.json").string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+}
+
 }  // namespace

@@ -174,6 +174,83 @@ TEST(RenderImage, ComparisonReportsIdenticalAndDifferentImages) {
   EXPECT_NE(error.find("sizes differ"), std::string::npos);
 }
 
+TEST(RenderImage, ACaptionDrawsTextInAStripAlongTheBottomAndKeepsTheSize) {
+  Image image;
+  image.width = 320;
+  image.height = 180;
+  image.rgba.assign(size_t(320) * 180 * 4, 0);
+  for (size_t i = 3; i < image.rgba.size(); i += 4) image.rgba[i] = 255;  // opaque black
+  image.object_ids.assign(size_t(320) * 180, 7);
+  const Image before = image;
+  std::string error;
+  ASSERT_TRUE(add_caption(image, "Pump P-101A", {"Tag P-101A", "Type PUMP"}, error)) << error;
+  EXPECT_EQ(image.width, 320u);
+  EXPECT_EQ(image.height, 180u);
+  ASSERT_EQ(image.rgba.size(), before.rgba.size());
+  EXPECT_EQ(image.object_ids, before.object_ids);
+  // The top half is untouched; the strip below is light, with dark glyph pixels on it, in the
+  // rows of each of the three lines of text.
+  const auto pixel = [&](uint32_t x, uint32_t y) { return &image.rgba[(size_t(y) * 320 + x) * 4]; };
+  for (uint32_t y = 0; y < 90; ++y)
+    for (uint32_t x = 0; x < 320; ++x) ASSERT_EQ(pixel(x, y)[0], 0) << x << "," << y;
+  std::vector<uint32_t> dark_per_row(180, 0), light_per_row(180, 0);
+  for (uint32_t y = 90; y < 180; ++y)
+    for (uint32_t x = 0; x < 320; ++x) {
+      const uint8_t v = pixel(x, y)[1];
+      dark_per_row[y] += v < 80;
+      light_per_row[y] += v > 200;
+    }
+  EXPECT_GT(light_per_row[179], 300u);  // the strip reaches the bottom row
+  // Rows with ink, grouped into runs: one run per line of text.
+  int runs = 0;
+  bool in_run = false;
+  for (uint32_t y = 90; y < 180; ++y) {
+    const bool ink = dark_per_row[y] > 0 && light_per_row[y] > 100;
+    if (ink && !in_run) ++runs;
+    in_run = ink;
+  }
+  EXPECT_GE(runs, 3);  // (a descender's thin tail may make a run of its own)
+  // Fewer lines, a lower strip: its top is the first row that changed.
+  Image title_only = before;
+  ASSERT_TRUE(add_caption(title_only, "Pump P-101A", {}, error)) << error;
+  const auto first_changed = [&](const Image& im) {
+    for (uint32_t y = 0; y < 180; ++y)
+      if (!std::equal(im.rgba.begin() + y * 320 * 4, im.rgba.begin() + (y + 1) * 320 * 4,
+                      before.rgba.begin() + y * 320 * 4))
+        return y;
+    return 180u;
+  };
+  EXPECT_LT(first_changed(image), first_changed(title_only));
+  EXPECT_LT(first_changed(title_only), 180u);
+  if (runs < 3) {
+    const fs::path out = fs::temp_directory_path() / "plantview-caption-actual.png";
+    write_image(out.string(), image, 90, error);
+    ADD_FAILURE() << "see " << out;
+  }
+  uint32_t ink_total = 0;
+  for (uint32_t y = 90; y < 180; ++y) ink_total += dark_per_row[y];
+  EXPECT_GT(ink_total, 200u);  // glyphs, not a rule or two
+}
+
+TEST(RenderImage, ACaptionTooLongForTheWidthIsCutAndExtraLinesAreLeftOut) {
+  Image image;
+  image.width = 120;
+  image.height = 60;
+  image.rgba.assign(size_t(120) * 60 * 4, 255);
+  std::string error;
+  const std::vector<std::string> many(40, "Description: a very long line of text that cannot fit");
+  ASSERT_TRUE(add_caption(image, "A title much longer than one hundred and twenty pixels", many, error))
+      << error;
+  // At most half the image is strip: the top rows stay white.
+  for (size_t i = 0; i < size_t(120) * 29 * 4; ++i) ASSERT_EQ(image.rgba[i], 255) << i;
+  Image tiny;
+  tiny.width = 8;
+  tiny.height = 8;
+  tiny.rgba.assign(8 * 8 * 4, 255);
+  EXPECT_FALSE(add_caption(tiny, "T", {}, error));
+  EXPECT_NE(error.find("too small"), std::string::npos) << error;
+}
+
 // Every image call with PLANTVIEW_IMAGE_MODULE pointing at nothing; prints each error on
 // stderr. 0 when each call failed and wrote nothing.
 int image_calls_without_the_module(const fs::path& png) {

@@ -1,5 +1,7 @@
 // Cameras: the --camera text form, the default view, camera-path JSON and path generation.
 #include <algorithm>
+#include <array>
+#include <cassert>
 #include <charconv>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -145,6 +147,99 @@ Camera default_camera(const DAabb& bounds, double aspect) {
   c.eye_m = centre + direction * distance;
   c.target_m = centre;
   c.up = {0, 0, 1};
+  return c;
+}
+
+namespace {
+
+// The camera's frame for a view along `forward` (unit): right and up as glm::lookAt makes them
+// from the world up +z (+y when the view is vertical), so fitted projections match the renderer's.
+struct ViewBasis {
+  glm::dvec3 forward, right, up, world_up;
+};
+
+ViewBasis view_basis(const glm::dvec3& forward) {
+  ViewBasis b;
+  b.forward = forward;
+  b.world_up = glm::dvec3(0, 0, 1);
+  if (glm::length(glm::cross(forward, b.world_up)) < 1e-6) b.world_up = glm::dvec3(0, 1, 0);
+  b.right = glm::normalize(glm::cross(forward, b.world_up));
+  b.up = glm::cross(b.right, forward);
+  return b;
+}
+
+// Where along one image axis the eye sits (its lateral coordinate `e`, eye depth fixed at
+// `eye_depth`) so that the corners' projections (a - e) / (c - eye_depth) span symmetrically
+// about the axis. The sum of the largest and smallest projection falls as e grows: bisection.
+double centre_axis(const std::array<double, 8>& lateral, const std::array<double, 8>& depth,
+                   double eye_depth) {
+  double lo = *std::min_element(lateral.begin(), lateral.end());
+  double hi = *std::max_element(lateral.begin(), lateral.end());
+  for (int iteration = 0; iteration < 100 && hi - lo > 1e-12 * std::max(1.0, std::abs(hi)); ++iteration) {
+    const double e = 0.5 * (lo + hi);
+    double most = -INFINITY, least = INFINITY;
+    for (size_t i = 0; i < 8; ++i) {
+      const double t = (lateral[i] - e) / (depth[i] - eye_depth);
+      most = std::max(most, t);
+      least = std::min(least, t);
+    }
+    (most + least > 0 ? lo : hi) = e;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+Camera fit_camera(const DAabb& bounds, const glm::dvec3& direction, double aspect, double fov_deg,
+                  double fill) {
+  assert(!bounds.empty() && glm::length(direction) > 0 && std::isfinite(glm::length(direction)));
+  assert(aspect > 0 && fov_deg > 0 && fov_deg < 179 && fill > 0 && fill <= 1);
+  const ViewBasis basis = view_basis(glm::normalize(direction));
+  // The corners in the camera's axes: x right, y up, z depth along the view.
+  std::array<double, 8> x{}, y{}, z{};
+  for (int corner = 0; corner < 8; ++corner) {
+    const glm::dvec3 p(corner & 1 ? bounds.max.x : bounds.min.x, corner & 2 ? bounds.max.y : bounds.min.y,
+                       corner & 4 ? bounds.max.z : bounds.min.z);
+    x[corner] = glm::dot(p, basis.right);
+    y[corner] = glm::dot(p, basis.up);
+    z[corner] = glm::dot(p, basis.forward);
+  }
+  // A frustum narrowed to `fill` of the frame; the eye (ex, ey, ez) that puts the corners
+  // exactly between its left and right planes is ex = (P + Q) / 2, ez = (Q - P) / (2 t) with
+  // P = max(x - t z), Q = min(x + t z); the same for y. The axis with the smaller ez (farther
+  // back) binds; the other is centred at that depth.
+  const double tan_y = fill * std::tan(glm::radians(fov_deg) / 2.0);
+  const double tan_x = tan_y * aspect;
+  const auto tight = [&](const std::array<double, 8>& lateral, double t, double& centre) {
+    double p = -INFINITY, q = INFINITY;
+    for (size_t i = 0; i < 8; ++i) {
+      p = std::max(p, lateral[i] - t * z[i]);
+      q = std::min(q, lateral[i] + t * z[i]);
+    }
+    centre = 0.5 * (p + q);
+    return (q - p) / (2.0 * t);
+  };
+  double ex = 0, ey = 0;  // set by tight()
+  const double ez_x = tight(x, tan_x, ex);
+  const double ez_y = tight(y, tan_y, ey);
+  double ez = std::min(ez_x, ez_y);
+  // A box of no extent across the view (a point, a flat plate seen edge-on) still gets an eye
+  // in front of it, past the near plane.
+  const double nearest = *std::min_element(z.begin(), z.end());
+  const double size_m = glm::length(bounds.max - bounds.min);
+  ez = std::min(ez, nearest - std::max(0.1, 1e-3 * size_m));
+  // The binding axis is centred already (the corners touch both narrowed planes); the other,
+  // and both when the near-plane rule moved the eye back, are centred at the final depth.
+  if (ez < ez_x) ex = centre_axis(x, z, ez);
+  if (ez < ez_y) ey = centre_axis(y, z, ez);
+
+  Camera c;
+  c.fov_deg = fov_deg;
+  c.up = basis.world_up;
+  c.eye_m = ex * basis.right + ey * basis.up + ez * basis.forward;
+  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
+  const double target_depth = std::max(glm::dot(centre, basis.forward) - ez, 1.0);
+  c.target_m = c.eye_m + target_depth * basis.forward;
   return c;
 }
 

@@ -14,6 +14,20 @@
 
 #include "frame_plan.h"
 
+namespace plantview {
+
+std::string_view antialias_method_name(AntialiasMethod method) {
+  switch (method) {
+    case AntialiasMethod::automatic: return "automatic";
+    case AntialiasMethod::multisampling: return "multisampling";
+    case AntialiasMethod::supersampling: return "supersampling";
+    case AntialiasMethod::edge_filter: return "edge-filter";
+  }
+  return "?";
+}
+
+}  // namespace plantview
+
 namespace plantview::detail {
 
 static_assert(std::is_same_v<GlName, GLuint>);

@@ -24,7 +24,7 @@ namespace {
 // --- the module ---------------------------------------------------------------------------------
 
 struct LoadedModule {
-  const PlantviewImageApiV1* api = nullptr;  // null: not loaded, `error` says why
+  const PlantviewImageApiV2* api = nullptr;  // null: not loaded, `error` says why
   std::string error;
 };
 
@@ -59,18 +59,18 @@ LoadedModule load_module_from_paths() {
     if (void* handle = dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL); !handle) {
       const char* e = dlerror();
       why = without_path(e ? e : "cannot be loaded", path);
-    } else if (auto entry = reinterpret_cast<PlantviewImageApiV1Entry>(
+    } else if (auto entry = reinterpret_cast<PlantviewImageApiV2Entry>(
                    dlsym(handle, PLANTVIEW_IMAGE_API_SYMBOL));
                !entry) {
       why = "no symbol " PLANTVIEW_IMAGE_API_SYMBOL " (not a plantview image module)";
       dlclose(handle);
-    } else if (const PlantviewImageApiV1* api = entry();
+    } else if (const PlantviewImageApiV2* api = entry();
                !api || api->version != PLANTVIEW_IMAGE_API_VERSION ||
-               api->struct_size != sizeof(PlantviewImageApiV1)) {
+               api->struct_size != sizeof(PlantviewImageApiV2)) {
       why = "interface version " + std::to_string(api ? api->version : 0) + ", size " +
             std::to_string(api ? api->struct_size : 0) + "; this program needs version " +
             std::to_string(PLANTVIEW_IMAGE_API_VERSION) + ", size " +
-            std::to_string(sizeof(PlantviewImageApiV1)) + " (a module from another build?)";
+            std::to_string(sizeof(PlantviewImageApiV2)) + " (a module from another build?)";
       dlclose(handle);
     } else {
       return {api, {}};
@@ -111,7 +111,7 @@ class ImageModule {
   }
 
   // The module's functions, or null with `error` set when it cannot be loaded.
-  const PlantviewImageApiV1* api(std::string& error) {
+  const PlantviewImageApiV2* api(std::string& error) {
     std::unique_lock lock(mutex_);
     if (state_ == State::idle) {
       state_ = State::loading;
@@ -212,7 +212,7 @@ bool encode_image(const Image& image, ImageFormat format, int jpeg_quality,
                   std::vector<uint8_t>& out, std::string& error) {
   out.clear();
   if (!check_image(image, error) || !check_quality(format, jpeg_quality, error)) return false;
-  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  const PlantviewImageApiV2* api = ImageModule::instance().api(error);
   if (!api) return false;
   ErrorText why;
   if (!api->encode(image.rgba.data(), image.width, image.height, module_format(format),
@@ -232,7 +232,7 @@ bool write_image(const std::string& path, const Image& image, int jpeg_quality,
     return false;
   }
   if (!check_image(image, error) || !check_quality(format, jpeg_quality, error)) return false;
-  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  const PlantviewImageApiV2* api = ImageModule::instance().api(error);
   if (!api) return false;
   ErrorText why;
   if (!api->write(path.c_str(), image.rgba.data(), image.width, image.height,
@@ -244,7 +244,7 @@ bool write_image(const std::string& path, const Image& image, int jpeg_quality,
 }
 
 bool read_image(const std::string& path, Image& out, std::string& error) {
-  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  const PlantviewImageApiV2* api = ImageModule::instance().api(error);
   if (!api) return false;
   Image image;
   ErrorText why;
@@ -264,7 +264,7 @@ bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::s
             " and " + std::to_string(b.width) + "x" + std::to_string(b.height) + ")";
     return false;
   }
-  const PlantviewImageApiV1* api = ImageModule::instance().api(error);
+  const PlantviewImageApiV2* api = ImageModule::instance().api(error);
   if (!api) return false;
   // A pixel "differs" when any channel is more than one 8-bit step apart.
   const double step = 1.5 / 255.0;
@@ -298,6 +298,24 @@ bool write_difference_image(const Image& a, const Image& b, const std::string& p
     diff.rgba[i] = (i % 4 == 3) ? 255 : uint8_t(std::min(255, d * 8));
   }
   return write_image(path, diff, 90, error);
+}
+
+bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
+                 std::string& error) {
+  if (!check_image(image, error)) return false;
+  const PlantviewImageApiV2* api = ImageModule::instance().api(error);
+  if (!api) return false;
+  const std::string title_text(title);
+  std::vector<const char*> line_texts;
+  line_texts.reserve(lines.size());
+  for (const std::string& line : lines) line_texts.push_back(line.c_str());
+  ErrorText why;
+  if (!api->caption(image.rgba.data(), image.width, image.height, title_text.c_str(),
+                    line_texts.data(), line_texts.size(), why.text, sizeof why.text)) {
+    error = why.text;
+    return false;
+  }
+  return true;
 }
 
 }  // namespace plantview

@@ -7,7 +7,7 @@
 // that touch images pay it, and preload_image_io() (render.h) moves it off the critical path.
 //
 // Rules of the interface:
-//   - The module exports one symbol, plantview_image_api_v1, returning a pointer to a static
+//   - The module exports one symbol, plantview_image_api_v2, returning a pointer to a static
 //     table valid for the life of the process (the module is never unloaded). A change to any
 //     signature or meaning below is a new version: a new struct and a new symbol name.
 //   - Only C types cross: pointers, sizes, numbers. No C++ exception leaves the module.
@@ -28,8 +28,8 @@
 extern "C" {
 #endif
 
-#define PLANTVIEW_IMAGE_API_VERSION 1u
-#define PLANTVIEW_IMAGE_API_SYMBOL "plantview_image_api_v1"
+#define PLANTVIEW_IMAGE_API_VERSION 2u  /* 2: caption */
+#define PLANTVIEW_IMAGE_API_SYMBOL "plantview_image_api_v2"
 
 enum PlantviewImageFormat { PLANTVIEW_IMAGE_PNG = 0, PLANTVIEW_IMAGE_JPEG = 1 };
 
@@ -42,9 +42,9 @@ struct PlantviewImageDifference {
   uint64_t failing_pixels;   // pixels with any channel differing by more than `threshold`
 };
 
-struct PlantviewImageApiV1 {
+struct PlantviewImageApiV2 {
   uint32_t version;      // PLANTVIEW_IMAGE_API_VERSION
-  uint32_t struct_size;  // sizeof(struct PlantviewImageApiV1), a check on the build
+  uint32_t struct_size;  // sizeof(struct PlantviewImageApiV2), a check on the build
 
   // Encodes `rgba` as PNG or JPEG (quality 1..100; ignored for PNG) into one buffer from
   // `allocate`.
@@ -63,9 +63,14 @@ struct PlantviewImageApiV1 {
   int (*compare)(const uint8_t* a, const uint8_t* b, uint32_t width, uint32_t height,
                  double threshold, struct PlantviewImageDifference* out, char* error,
                  size_t error_size);
+  // Draws a caption strip along the bottom of `rgba` in place (image.h add_caption): `title`
+  // in DejaVu Sans Bold, then `line_count` lines (each NUL-terminated UTF-8) in DejaVu Sans,
+  // dark on a light strip. Fails when a font file cannot be found.
+  int (*caption)(uint8_t* rgba, uint32_t width, uint32_t height, const char* title,
+                 const char* const* lines, size_t line_count, char* error, size_t error_size);
 };
 
-typedef const struct PlantviewImageApiV1* (*PlantviewImageApiV1Entry)(void);
+typedef const struct PlantviewImageApiV2* (*PlantviewImageApiV2Entry)(void);
 
 #ifdef __cplusplus
 }

@@ -176,18 +176,99 @@ int compare_rgb(const uint8_t* a, const uint8_t* b, uint32_t width, uint32_t hei
   });
 }
 
-constexpr PlantviewImageApiV1 kApi = {
+// --- captions ------------------------------------------------------------------------------------
+
+constexpr const char* kFontRegular = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+constexpr const char* kFontBold = "/usr/share/fonts/truetype/dejavu/DejaVuSans-Bold.ttf";
+
+// Width in pixels of `text` set in `font` at `size_px` (0 when it cannot be measured).
+int text_width(const std::string& text, int size_px, const char* font) {
+  const OIIO::ROI r = OIIO::ImageBufAlgo::text_size(text, size_px, font);
+  return r.defined() ? r.width() : 0;
+}
+
+// `text` cut at a UTF-8 character boundary, with an ellipsis, to fit `width_px`.
+std::string fitted(std::string text, int size_px, const char* font, int width_px) {
+  if (text_width(text, size_px, font) <= width_px) return text;
+  while (!text.empty()) {
+    do text.pop_back();  // whole characters: drop continuation bytes with their lead byte
+    while (!text.empty() && (uint8_t(text.back()) & 0xC0) == 0x80);
+    if (!text.empty()) text.pop_back();
+    if (text_width(text + "\u2026", size_px, font) <= width_px) return text + "\u2026";
+  }
+  return text;
+}
+
+int caption_rgba(uint8_t* rgba, uint32_t width, uint32_t height, const char* title,
+                 const char* const* lines, size_t line_count, char* error,
+                 size_t error_size) noexcept {
+  return guarded(error, error_size, [&](std::string& message) {
+    for (const char* font : {kFontRegular, kFontBold}) {
+      if (!OIIO::Filesystem::exists(font)) {
+        message = std::string("caption: font ") + font + " not found (install fonts-dejavu-core)";
+        return false;
+      }
+    }
+    // Sizes follow the image's height: 1280x720 gets a 22 px title and 18 px lines.
+    const int title_px = std::clamp(int(height) / 32, 9, 64);
+    const int line_px = std::max(8, title_px * 4 / 5);
+    const int pad_px = std::max(3, title_px / 2);
+    const int title_step = title_px * 5 / 4, line_step = line_px * 5 / 4;
+    // As many lines as fit in half the image, after the title.
+    const int room = int(height) / 2 - 2 * pad_px - title_step;
+    if (room < 0) {
+      message = "caption: the image (" + std::to_string(width) + "x" + std::to_string(height) +
+                ") is too small for a caption";
+      return false;
+    }
+    const size_t shown = std::min(line_count, size_t(room / line_step));
+    const int strip_px = 2 * pad_px + title_step + int(shown) * line_step;
+    const int top = int(height) - strip_px;
+
+    // A light strip over the image (the image shows faintly through it) with a dark rule on top.
+    for (int y = top; y < int(height); ++y) {
+      uint8_t* row = rgba + size_t(y) * width * 4;
+      for (uint32_t x = 0; x < width; ++x) {
+        for (int c = 0; c < 3; ++c)
+          row[x * 4 + c] = y == top ? uint8_t(90) : uint8_t((row[x * 4 + c] * 12 + 248 * 88) / 100);
+        row[x * 4 + 3] = 255;
+      }
+    }
+    OIIO::ImageSpec spec(int(width), int(height), 4, OIIO::TypeDesc::UINT8);
+    OIIO::ImageBuf buffer(spec, rgba);  // wraps the caller's pixels: drawn in place
+    const float ink[4] = {0.08f, 0.09f, 0.11f, 1.0f};
+    const int text_width_px = int(width) - 2 * pad_px;
+    const auto draw = [&](const std::string& text, int baseline, int size_px, const char* font) {
+      if (text.empty()) return true;
+      if (OIIO::ImageBufAlgo::render_text(buffer, pad_px, baseline,
+                                          fitted(text, size_px, font, text_width_px), size_px,
+                                          font, ink))
+        return true;
+      message = "caption: cannot draw text with " + std::string(font) + ": " + buffer.geterror();
+      return false;
+    };
+    int baseline = top + pad_px + title_px;
+    if (!draw(title ? title : "", baseline, title_px, kFontBold)) return false;
+    baseline += title_step - title_px + line_px;
+    for (size_t i = 0; i < shown; ++i, baseline += line_step)
+      if (!draw(lines[i] ? lines[i] : "", baseline, line_px, kFontRegular)) return false;
+    return true;
+  });
+}
+
+constexpr PlantviewImageApiV2 kApi = {
     .version = PLANTVIEW_IMAGE_API_VERSION,
-    .struct_size = sizeof(PlantviewImageApiV1),
+    .struct_size = sizeof(PlantviewImageApiV2),
     .encode = encode_to_memory,
     .write = write_file,
     .read = read_file,
     .compare = compare_rgb,
+    .caption = caption_rgba,
 };
 
 }  // namespace
 
-extern "C" __attribute__((visibility("default"))) const PlantviewImageApiV1*
-plantview_image_api_v1(void) {
+extern "C" __attribute__((visibility("default"))) const PlantviewImageApiV2*
+plantview_image_api_v2(void) {
   return &kApi;
 }

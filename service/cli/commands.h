@@ -35,6 +35,9 @@ Action add_render_commands(CLI::App& app);
 // `plantview compare A B`: how far apart two images are.
 Action add_compare_command(CLI::App& app);
 
+// `plantview farm submit` and `farm status`: views files rendered by a scheduler (Slurm).
+Action add_farm_command(CLI::App& app);
+
 // `plantview serve`: the HTTP service (plantview/server.h).
 Action add_serve_command(CLI::App& app);
 

@@ -2,15 +2,22 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "cli/commands.h"
+#include "cli/farm/job_inputs.h"
+#include "cli/farm/manifest.h"
+#include "cli/farm/output_dir.h"
 #include "cli/progress.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
@@ -18,6 +25,8 @@
 namespace plantview::cli {
 
 namespace {
+
+namespace fs = std::filesystem;
 
 bool parse_size(const std::string& text, uint32_t& w, uint32_t& h, std::string& error) {
   const size_t x = text.find('x');
@@ -93,104 +102,178 @@ int fail(const std::string& message) {
   return 1;
 }
 
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
 struct RenderArgs {
-  std::string store, camera, path, out, size = "1280x720", lod_policy = "screen-space",
-                                        shard = "0/1", format = "png";
+  std::string store, camera, path, views, out, size = "1280x720", lod_policy = "screen-space",
+                                               shard = "0/1", format = "png";
   double pixel_error = 1.0;
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
   uint32_t samples = 0;
-  bool no_centrelines = false, no_hlod = false, no_subpixel = false;
+  bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
 };
 
-int run_render(const RenderArgs& a) {
-  const auto t_start = std::chrono::steady_clock::now();
-  std::string error;
+// What the command line asks for, typed and checked. Every usage error is found while making it,
+// before any file is read or written.
+struct RenderPlan {
+  enum class Mode { single, path, views } mode = Mode::single;
   uint32_t width = 0, height = 0, shard_index = 0, shard_count = 1;
   RenderOptions options;
-  if (!parse_size(a.size, width, height, error) || !parse_shard(a.shard, shard_index, shard_count, error))
-    return fail(error);
-  if (!parse_lod_policy(a.lod_policy, options.lod_policy))
-    return fail("--lod-policy: '" + a.lod_policy + "' is not one of screen-space, distance, none");
-  options.pixel_error = a.pixel_error;
-  options.vertex_budget_bytes = a.vertex_budget_mb << 20;
-  options.centrelines = !a.no_centrelines;
-  options.hlod = !a.no_hlod;
-  options.subpixel_culling = !a.no_subpixel;
-  options.samples = a.samples;
-  if (!a.camera.empty() && !a.path.empty()) return fail("give --camera or --path, not both");
-
-  std::vector<Camera> cameras;
-  if (!a.path.empty()) {
-    std::string json;
-    if (!read_text(a.path, json, error) || !parse_camera_path(json, cameras, error))
-      return fail(a.path + ": " + error);
-  } else if (!a.camera.empty()) {
-    Camera c;
-    if (!parse_camera(a.camera, c, error)) return fail("--camera: " + error);
-    cameras.push_back(c);
-  }
   ImageFormat format = ImageFormat::png;
-  const bool many = !a.path.empty();
-  if (many) {
-    if (!image_format_from_name(a.format, format)) return fail("--format: png or jpeg");
-    std::error_code ec;
-    std::filesystem::create_directories(a.out, ec);
-    if (ec) return fail("cannot create " + a.out + ": " + ec.message());
-  } else if (!image_format_from_name(a.out, format)) {
-    return fail("--out: " + a.out + ": use a .png, .jpg or .jpeg name (or --path with a directory)");
-  }
+  std::optional<Camera> camera;  // single: the camera given, else the plant's default
+};
 
-  auto store = Store::open(a.store, Store::Mode::read_only, error);
-  if (!store) return fail(error);
-  auto context = GpuContext::create(a.device, error);
-  if (!context) return fail(error);
+// 0, or the exit status of the usage error it printed.
+int plan_render(const RenderArgs& a, RenderPlan& plan) {
+  std::string error;
+  if (!parse_size(a.size, plan.width, plan.height, error) ||
+      !parse_shard(a.shard, plan.shard_index, plan.shard_count, error))
+    return usage_error(error);
+  if (!parse_lod_policy(a.lod_policy, plan.options.lod_policy))
+    return usage_error("--lod-policy: '" + a.lod_policy + "' is not one of screen-space, distance, none");
+  if (a.quality < 1 || a.quality > 100)
+    return usage_error("--quality: " + std::to_string(a.quality) + " is outside 1..100");
+  plan.options.pixel_error = a.pixel_error;
+  plan.options.vertex_budget_bytes = a.vertex_budget_mb << 20;
+  plan.options.centrelines = !a.no_centrelines;
+  plan.options.hlod = !a.no_hlod;
+  plan.options.subpixel_culling = !a.no_subpixel;
+  plan.options.samples = a.samples;
+  if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
+    return usage_error("give one of --camera, --path and --views");
+  if (!a.camera.empty()) {
+    Camera camera;
+    if (!parse_camera(a.camera, camera, error)) return usage_error("--camera: " + error);
+    plan.camera = camera;
+  }
+  plan.mode = !a.path.empty()    ? RenderPlan::Mode::path
+              : !a.views.empty() ? RenderPlan::Mode::views
+                                 : RenderPlan::Mode::single;
+  if (plan.mode == RenderPlan::Mode::single) {
+    if (!image_format_from_name(a.out, plan.format))
+      return usage_error("--out: " + a.out +
+                         ": use a .png, .jpg or .jpeg name (or a directory with --path or --views)");
+    return 0;
+  }
+  // Many images: --out is a directory, never an image file's name.
+  const char* with = plan.mode == RenderPlan::Mode::path ? "--path" : "--views";
+  if (!image_format_from_name(a.format, plan.format))
+    return usage_error("--format: '" + a.format + "' is not png or jpeg");
+  ImageFormat named;
+  const std::string extension = fs::path(a.out).extension().string();
+  if (!extension.empty() && image_format_from_name(extension, named))
+    return usage_error("--out: " + a.out + " names an image file; with " + std::string(with) +
+                       " give the directory the images go into");
+  std::error_code ec;
+  if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec))
+    return usage_error("--out: " + a.out + " is a file; with " + std::string(with) +
+                       " give the directory the images go into");
+  return 0;
+}
+
+// The directory a single image goes into must exist and take files, checked before rendering.
+bool check_image_destination(const std::string& out, std::string& error) {
+  const fs::path parent = fs::path(out).parent_path().empty() ? fs::path(".") : fs::path(out).parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(parent, ec)) {
+    error = "--out: the directory " + parent.string() + " (of " + out + ") does not exist";
+    return false;
+  }
+  return farm::prepare_output_dir(parent, error);
+}
+
+// Encodes `image` and writes it atomically (farm/output_dir.h); stats.ms.encode gets the time.
+bool write_image_file(const fs::path& path, const Image& image, ImageFormat format, int quality,
+                      FrameStats& stats, std::string& error) {
+  const auto t_encode = std::chrono::steady_clock::now();
+  std::vector<uint8_t> bytes;
+  if (!encode_image(image, format, quality, bytes, error)) return false;
+  if (!farm::write_file_atomically(
+          path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), error))
+    return false;
+  stats.ms.encode = ms_since(t_encode);
+  return true;
+}
+
+// The GPU context, the image module and a renderer of `store`, in the order they must come.
+struct RenderSession {
+  std::unique_ptr<GpuContext> context;
+  std::unique_ptr<Renderer> renderer;
+};
+bool start_rendering(int device, const Store& store, const RenderOptions& options,
+                     RenderSession& session, std::string& error) {
+  session.context = GpuContext::create(device, error);
+  if (!session.context) return false;
   // Images are needed from here on. Not before the context: EGL loads its drivers (libLLVM for
   // llvmpipe) under the dynamic loader's lock, which loading the module holds throughout. So
   // does libepoxy at the first call of each GL function: those calls wait for the load too.
   preload_image_io();
-  std::cerr << "plantview: rendering on " << context->description() << "\n";
-  auto renderer = Renderer::create(*store, options, error);
-  if (!renderer) return fail(error);
-  if (cameras.empty()) cameras.push_back(default_camera(renderer->model_bounds(), double(width) / height));
+  std::cerr << "plantview: rendering on " << session.context->description() << "\n";
+  session.renderer = Renderer::create(store, options, error);
+  return session.renderer != nullptr;
+}
+
+void report_first_image(std::chrono::steady_clock::time_point t_start) {
+  const double since_process = seconds_since_process_start();
+  if (since_process >= 0) {
+    std::cerr << "plantview: first image written " << since_process << " s after start\n";
+  } else {
+    std::cerr << "plantview: first image written " << ms_since(t_start) / 1000.0
+              << " s after the command started (no process start time in /proc)\n";
+  }
+}
+
+// `render` with --camera (or none) or --path: one image, or a directory of numbered images.
+int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
+  const auto t_start = std::chrono::steady_clock::now();
+  std::string error;
+  const bool many = plan.mode == RenderPlan::Mode::path;
+  std::vector<Camera> cameras;
+  if (many) {
+    std::string json;
+    if (!read_text(a.path, json, error) || !parse_camera_path(json, cameras, error))
+      return fail(a.path + ": " + error);
+  } else if (plan.camera) {
+    cameras.push_back(*plan.camera);
+  }
+  if (!(many ? farm::prepare_output_dir(a.out, error) : check_image_destination(a.out, error)))
+    return fail(error);
+
+  auto store = Store::open(a.store, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  RenderSession session;
+  if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
+  if (cameras.empty())
+    cameras.push_back(default_camera(session.renderer->model_bounds(), double(plan.width) / plan.height));
 
   std::ofstream stats_file;
   if (many) {
-    stats_file.open(std::filesystem::path(a.out) / "stats.jsonl");
-    if (!stats_file) return fail("cannot write " + (std::filesystem::path(a.out) / "stats.jsonl").string());
+    stats_file.open(fs::path(a.out) / "stats.jsonl");
+    if (!stats_file) return fail("cannot write " + (fs::path(a.out) / "stats.jsonl").string());
   }
   Progress progress("render");
   Image image;
   FrameStats stats;
   size_t done = 0, total = 0;
-  for (size_t i = shard_index; i < cameras.size(); i += shard_count) ++total;
-  for (size_t i = shard_index; i < cameras.size(); i += shard_count) {
-    if (!renderer->render(cameras[i], width, height, false, image, stats, error))
+  for (size_t i = plan.shard_index; i < cameras.size(); i += plan.shard_count) ++total;
+  for (size_t i = plan.shard_index; i < cameras.size(); i += plan.shard_count) {
+    if (!session.renderer->render(cameras[i], plan.width, plan.height, false, image, stats, error))
       return fail("view " + std::to_string(i) + ": " + error);
-    const auto t_encode = std::chrono::steady_clock::now();
     std::string file = a.out;
     if (many) {
       char name[64];
-      std::snprintf(name, sizeof name, "%06zu.%s", i, format == ImageFormat::png ? "png" : "jpg");
-      file = (std::filesystem::path(a.out) / name).string();
+      std::snprintf(name, sizeof name, "%06zu.%s", i, plan.format == ImageFormat::png ? "png" : "jpg");
+      file = (fs::path(a.out) / name).string();
     }
-    if (!write_image(file, image, a.quality, error)) return fail(error);
-    stats.ms.encode = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_encode).count();
+    if (!write_image_file(file, image, plan.format, a.quality, stats, error)) return fail(error);
     std::string line = stats.to_json();
     line.insert(1, "\"view\":" + std::to_string(i) + ",\"file\":\"" + file + "\",");
     if (many) stats_file << line << "\n";
     else std::cout << line << "\n";
-    if (done == 0 && !many) {
-      const double since_process = seconds_since_process_start();
-      if (since_process >= 0) {
-        std::cerr << "plantview: first image written " << since_process << " s after start\n";
-      } else {
-        const double since_command =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-        std::cerr << "plantview: first image written " << since_command
-                  << " s after the command started (no process start time in /proc)\n";
-      }
-    }
+    if (done == 0 && !many) report_first_image(t_start);
     ++done;
     progress.update(double(done) / double(total), std::to_string(done) + "/" + std::to_string(total));
   }
@@ -198,20 +281,193 @@ int run_render(const RenderArgs& a) {
   return 0;
 }
 
+// ---------------------------------------------------------------------------------------------
+// render --views: the farm's shard (farm/scheduler.h states the contract).
+
+// The caption lines of a view: each attribute as "Key value" ("Tag P-101A", "Type PUMP").
+std::vector<std::string> caption_lines(const ReviewView& view) {
+  std::vector<std::string> lines;
+  for (const auto& [key, value] : view.attributes) {
+    if (value.empty()) continue;
+    std::string label = key;
+    if (!label.empty()) label[0] = char(std::toupper(static_cast<unsigned char>(label[0])));
+    lines.push_back(label + " " + value);
+  }
+  return lines;
+}
+
+// The options one view renders with: its subject highlighted, the rest ghosted (an overview's
+// empty subject highlights nothing).
+RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
+  RenderOptions options = base;
+  options.highlight_ids = view.subject;
+  return options;
+}
+
+// Draws the view's caption strip (title, then caption_lines) into the image.
+bool add_review_caption(Image& image, const ReviewView& view, std::string& error) {
+  return add_caption(image, view.title, caption_lines(view), error);
+}
+
+// What, besides the view and the store's content, an image depends on (the settings hash).
+std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
+  const nlohmann::json settings = {
+      {"program", PLANTVIEW_VERSION},
+      {"size", std::to_string(plan.width) + "x" + std::to_string(plan.height)},
+      {"format", plan.format == ImageFormat::png ? "png" : "jpeg"},
+      {"quality", plan.format == ImageFormat::jpeg ? a.quality : 0},
+      {"lod_policy", std::string(lod_policy_name(plan.options.lod_policy))},
+      {"pixel_error", plan.options.pixel_error},
+      {"vertex_budget_bytes", plan.options.vertex_budget_bytes},
+      {"centrelines", plan.options.centrelines},
+      {"hlod", plan.options.hlod},
+      {"subpixel_culling", plan.options.subpixel_culling},
+      {"samples", plan.options.samples},
+      {"antialias", plan.options.antialias},
+      {"antialias_method", std::string(antialias_method_name(plan.options.antialias_method))},
+      {"ground", plan.options.ground},
+      {"ambient_occlusion", plan.options.ambient_occlusion},
+      {"caption", true}};
+  return settings.dump();
+}
+
+nlohmann::json vec3_json(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
+
+nlohmann::json view_record(const ReviewView& view, const std::string& file, const std::string& hash,
+                           const RenderPlan& plan) {
+  return {{"name", view.name},
+          {"title", view.title},
+          {"kind", view.kind},
+          {"file", file},
+          {"camera",
+           {{"eye", vec3_json(view.camera.eye_m)},
+            {"target", vec3_json(view.camera.target_m)},
+            {"up", vec3_json(view.camera.up)},
+            {"fov_deg", view.camera.fov_deg}}},
+          {"aspect", view.aspect},
+          {"subject", view.subject},
+          {"settings_hash", hash},
+          {"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)}};
+}
+
+int render_views(const RenderArgs& a, const RenderPlan& plan) {
+  std::string error, text;
+  const fs::path out = a.out;
+  std::vector<ReviewView> views;
+  // Everything that can be refused is checked before the first image.
+  if (!farm::read_views_file(a.views, views, text, error)) return fail(error);
+  if (!farm::prepare_output_dir(out, error)) return fail(error);
+  const auto t_open = std::chrono::steady_clock::now();
+  auto store = Store::open(a.store, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  auto read = store->read(error);
+  if (!read) return fail(error);
+  const double store_open_ms = ms_since(t_open);
+  if (!farm::check_subjects(views, *read, error)) return fail(a.views + ": " + error);
+  std::error_code ec;
+  if (!fs::equivalent(a.views, out / farm::kViewsCopyName, ec) &&
+      !farm::write_file_atomically(out / farm::kViewsCopyName, text, error))
+    return fail(error);
+
+  // Which of this shard's views are done already with the same settings.
+  std::map<std::string, nlohmann::json> previous;
+  if (!farm::read_newest_records(out, previous, error)) return fail(error);
+  const std::string identity = farm::store_identity(*read) + "\n" + render_settings_text(a, plan) + "\n";
+  read.reset();
+  const char* extension = plan.format == ImageFormat::png ? ".png" : ".jpg";
+  std::vector<nlohmann::json> records;
+  std::vector<size_t> to_render;
+  std::vector<std::string> hashes(views.size());
+  for (size_t i = plan.shard_index; i < views.size(); i += plan.shard_count) {
+    hashes[i] = farm::hash_hex(identity + review_views_json({views[i]}, views[i].kind));
+    const auto found = previous.find(views[i].name);
+    if (!a.force && found != previous.end() && found->second.value("status", "") == "done" &&
+        found->second.value("settings_hash", "") == hashes[i] &&
+        fs::is_regular_file(out / found->second.value("file", ""), ec)) {
+      records.push_back(found->second);  // kept in this shard's part when it is written again
+    } else {
+      to_render.push_back(i);
+    }
+  }
+  const size_t skipped = records.size();
+
+  size_t failed = 0;
+  if (!to_render.empty()) {
+    const auto t_context = std::chrono::steady_clock::now();
+    RenderSession session;
+    if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
+    const double context_ms = ms_since(t_context);
+    Progress progress("render");
+    Image image;
+    for (size_t n = 0; n < to_render.size(); ++n) {
+      const ReviewView& view = views[to_render[n]];
+      const auto t_view = std::chrono::steady_clock::now();
+      const std::string file = view.name + extension;
+      nlohmann::json record = view_record(view, file, hashes[to_render[n]], plan);
+      FrameStats stats;
+      session.renderer->set_options(review_render_options(plan.options, view));
+      bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
+      const auto t_caption = std::chrono::steady_clock::now();
+      ok = ok && add_review_caption(image, view, error);
+      const double caption_ms = ms_since(t_caption);
+      ok = ok && write_image_file(out / file, image, plan.format, a.quality, stats, error);
+      record["status"] = ok ? "done" : "failed";
+      if (!ok) {
+        record["error"] = error;
+        std::cerr << "plantview: view '" << view.name << "': " << error << "\n";
+        ++failed;
+      }
+      record["stats"] = nlohmann::json::parse(stats.to_json());
+      record["ms"] = {{"store_open", store_open_ms},  {"context", context_ms},
+                      {"first_in_process", n == 0}, {"frame", stats.ms.total},
+                      {"caption", caption_ms},       {"encode", stats.ms.encode},
+                      {"total", ms_since(t_view)}};
+      record["finished_unix_ms"] = farm::unix_ms_now();
+      records.push_back(std::move(record));
+      // The part lists every view this shard finished, so a killed task loses only the view
+      // it was rendering.
+      if (!farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, error))
+        return fail(error);
+      progress.update(double(n + 1) / double(to_render.size()),
+                      std::to_string(n + 1) + "/" + std::to_string(to_render.size()) + " " + view.name);
+    }
+    progress.finish();
+  } else if (!farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, error)) {
+    return fail(error);
+  }
+  farm::FarmSummary summary;
+  if (!farm::merge_manifests(out, summary, error)) return fail(error);
+  std::cout << nlohmann::json{{"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)},
+                              {"views", to_render.size() + skipped},
+                              {"rendered", to_render.size() - failed},
+                              {"skipped", skipped},
+                              {"failed", failed},
+                              {"job", farm::summary_json(summary)}}
+                   .dump()
+            << "\n";
+  return failed == 0 ? 0 : 1;
+}
+
+int run_render(const RenderArgs& a) {
+  RenderPlan plan;
+  if (const int status = plan_render(a, plan); status != 0) return status;
+  return plan.mode == RenderPlan::Mode::views ? render_views(a, plan) : render_cameras(a, plan);
+}
+
 int run_path(const std::string& store_dir, const std::string& kind_name, int frames,
              const std::string& out) {
   std::string error;
   PathKind kind;
-  if (!parse_path_kind(kind_name, kind)) return fail("--kind: walkthrough or orbit");
-  if (frames < 1 || frames > 1000000) return fail("--frames: 1..1000000");
+  if (!parse_path_kind(kind_name, kind))
+    return usage_error("--kind: '" + kind_name + "' is not walkthrough or orbit");
+  if (frames < 1 || frames > 1000000)
+    return usage_error("--frames: " + std::to_string(frames) + " is outside 1..1000000");
+  if (!check_image_destination(out, error)) return fail(error);
   auto store = Store::open(store_dir, Store::Mode::read_only, error);
   if (!store) return fail(error);
   std::vector<Camera> cameras;
   if (!make_camera_path(kind, frames, *store, cameras, error)) return fail(error);
-  std::ofstream file(out);
-  if (!file) return fail("cannot write " + out);
-  file << camera_path_json(cameras);
-  if (!file.flush()) return fail("writing " + out + " failed");
+  if (!farm::write_file_atomically(out, camera_path_json(cameras), error)) return fail(error);
   return 0;
 }
 
@@ -224,13 +480,21 @@ Action add_render_commands(CLI::App& app) {
   render->add_option("--camera", args->camera,
                      "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG] (default: the whole plant)");
   render->add_option("--path", args->path, "Camera path JSON (from `plantview path`)");
-  render->add_option("--out", args->out, "Image file (.png/.jpg), or a directory with --path")->required();
+  render->add_option("--views", args->views,
+                     "Views file (from `plantview views`): named review images, a manifest and a "
+                     "contact sheet into the --out directory");
+  render->add_option("--out", args->out, "Image file (.png/.jpg), or a directory with --path or --views")
+      ->required();
   render->add_option("--size", args->size, "Image size WxH")->capture_default_str();
   render->add_option("--lod-policy", args->lod_policy, "screen-space, distance or none")->capture_default_str();
   render->add_option("--pixel-error", args->pixel_error, "Allowed screen-space error (pixels)")->capture_default_str();
   render->add_option("--vertex-budget", args->vertex_budget_mb, "GPU vertex arena (MB)")->capture_default_str();
-  render->add_option("--shard", args->shard, "Render views I, I+N, I+2N... of a path")->capture_default_str();
-  render->add_option("--format", args->format, "Image format with --path: png or jpeg")->capture_default_str();
+  render->add_option("--shard", args->shard, "Render views I, I+N, I+2N... of a path or views file")
+      ->capture_default_str();
+  render->add_option("--format", args->format, "Image format with --path or --views: png or jpeg")
+      ->capture_default_str();
+  render->add_flag("--force", args->force,
+                   "With --views: render every view again, also those done with the same settings");
   render->add_option("--quality", args->quality, "JPEG quality 1..100")->capture_default_str();
   render->add_option("--device", args->device, "EGL device index (default: the first GPU, else software)");
   render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");

@@ -7,8 +7,10 @@
 // 'fov' needs 1 number", "camera path: camera 3: 'eye' is missing").
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -42,6 +44,17 @@ std::string format_camera(const Camera& camera);  // the form parse_camera reads
 // (width / height). Empty bounds give the default Camera.
 Camera default_camera(const DAabb& bounds, double aspect);
 
+// Fits a camera looking along `direction` (from eye towards target) so that `subject_bounds`
+// projected fills `fill` (0..1) of the frame's width or height, whichever is tighter.
+// The fit is exact for the box's 8 corners projected through the camera's perspective (not a
+// bounding sphere): on the binding axis the corners span `fill` of the frame, on the other at
+// most that, and the projected box is centred on both axes. `aspect` is width / height,
+// `fov_deg` the vertical field of view; up is +z (+y when `direction` is vertical). The target
+// is the point on the view axis at the depth of the box's centre. Preconditions (asserted):
+// non-empty bounds, a non-zero finite direction, aspect > 0, fov_deg in (0, 179), fill in (0, 1].
+Camera fit_camera(const DAabb& subject_bounds, const glm::dvec3& direction, double aspect,
+                  double fov_deg, double fill);
+
 // A camera path: what `plantview path` writes and `render --path` reads. JSON: a list of
 // {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov": deg} ("up" and "fov" optional).
 // The parser rejects an empty list and names the first bad camera by its index.
@@ -60,5 +73,38 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& pla
 // read once). False with a message if the store cannot be read or holds no geometry.
 bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
                       std::string& error);
+
+// A review view: a named, fitted camera on one subject of the plant (an equipment item, a
+// pipeline, an area, or the whole plant), what `plantview views` writes and `render --views`
+// reads. `name` is unique in its file and safe as a file name ([A-Za-z0-9._-], not starting with
+// '.'); `kind` is overview|equipment|pipeline|area; `aspect` is the width / height the camera was
+// fitted for; `subject` lists the subject's store object ids (empty for an overview: the whole
+// plant, nothing highlighted); `attributes` are the caption lines, in order (tag, type, ...).
+struct ReviewView {
+  std::string name, title, kind;
+  Camera camera;
+  double aspect = 16.0 / 9.0;
+  std::vector<uint64_t> subject;
+  std::vector<std::pair<std::string, std::string>> attributes;
+};
+
+// The views file. JSON:
+//   {"version": 1, "per": "equipment",
+//    "views": [{"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
+//               "camera": {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov_deg": 50},
+//               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...}}]}
+// `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order;
+// the parser reads that order back. The parser rejects: text that is not JSON, a version other
+// than 1, an unknown `per` or `kind`, a missing or mistyped field, an unknown key (a misspelt
+// field is an error, not a default), an unsafe or repeated name, a camera validate_camera
+// rejects, an aspect that is not a positive number, and an empty list. The error names the
+// view by index and name and the field: "views file: view 3 ('P-101A'): 'camera.eye' must be a
+// list of 3 numbers". On failure `out` is unchanged.
+std::string review_views_json(const std::vector<ReviewView>& views, std::string_view per);
+bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error);
+// True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area.
+bool is_review_kind(std::string_view kind);
+// True if `name` is safe as a file name: 1..200 of [A-Za-z0-9._-], not starting with '.'.
+bool is_safe_view_name(std::string_view name);
 
 }  // namespace plantview

@@ -1,6 +1,6 @@
-// plantview/image.h: rendered images, image files, encoding and comparison.
+// plantview/image.h: rendered images, image files, encoding, comparison and captions.
 //
-// Image files, encoding and comparison go through OpenImageIO in a loadable module
+// Image files, encoding, comparison and captions go through OpenImageIO in a loadable module
 // (plantview_image_oiio), loaded once per process by the first call below that needs it, or
 // earlier by preload_image_io(). Looked for at $PLANTVIEW_IMAGE_MODULE when that is set (and
 // only there), else beside the running executable, else where the build wrote it. When it
@@ -60,5 +60,15 @@ bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::s
 // `path` (its format from the extension).
 bool write_difference_image(const Image& a, const Image& b, const std::string& path,
                             std::string& error);
+
+// Draws a caption strip along the bottom of `image` (inside it; the size is unchanged): the
+// title in bold on the first line, then each of `lines` (e.g. "Tag P-101A", "Type PUMP"),
+// with DejaVu Sans through OpenImageIO (the image module), dark text on a light strip. The text
+// is UTF-8; a line too long for the width is cut with an ellipsis; lines that do not fit in
+// half the image's height are left out. The object ids, if any, are left as they are. False
+// with a message if the font cannot be found (fonts-dejavu-core:
+// /usr/share/fonts/truetype/dejavu), the module cannot be loaded or the image is malformed.
+bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
+                 std::string& error);
 
 }  // namespace plantview

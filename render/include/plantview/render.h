@@ -55,6 +55,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "plantview/camera.h"
 #include "plantview/image.h"
@@ -77,17 +78,40 @@ enum class LodPolicy {
 std::string_view lod_policy_name(LodPolicy policy);
 bool parse_lod_policy(std::string_view name, LodPolicy& policy);
 
+// Antialiasing of stills (RenderOptions::antialias). Costs of the whole frame (draw + read back)
+// over an aliased one, measured on llvmpipe (2 cores, shared) with preset c at 1280x720; the
+// frame's other stages (cull, choose, stream) do not change.
+enum class AntialiasMethod {
+  automatic,      // multisampling on a GPU, supersampling on a software renderer
+  multisampling,  // `samples` per pixel (GL multisampling)
+  supersampling,  // drawn at 2x2 the size and averaged down: every fragment four times
+  edge_filter,    // FXAA-like post-process filter: one full-screen pass, blurs along edges only
+};
+std::string_view antialias_method_name(AntialiasMethod method);
+
 struct RenderOptions {
   LodPolicy lod_policy = LodPolicy::screen_space;
   double pixel_error = 1.0;                        // screen_space: allowed error in pixels
   uint64_t vertex_budget_bytes = 512ull << 20;     // the GPU vertex arena's fixed size
   bool centrelines = true;                         // thin pipes as lines (screen_space, distance)
   bool hlod = true;                                // merge straight pipeline runs when allowed
-  uint32_t samples = 0;                            // multisampling per pixel (1: off); 0: auto,
-                                                   // 4 on a GPU, 1 on a software renderer (where
-                                                   // 4 samples triple the draw time)
   bool subpixel_culling = true;                    // screen_space: leave out objects under the
                                                    // pixel error on screen
+
+  // How the image looks. Stills (every command, the service's still frames) keep the defaults;
+  // interactive frames set antialias = false.
+  bool antialias = true;          // smooth edges, by antialias_method (costs measured on
+                                  // llvmpipe, preset c at 1280x720: see AntialiasMethod)
+  AntialiasMethod antialias_method = AntialiasMethod::automatic;
+  uint32_t samples = 0;           // multisampling: samples per pixel (0: 4); at most what GL allows
+  bool ground = true;             // ground cue: a grid at the plant's lowest level (model bounds
+                                  // min z), fading with distance; drawn only where nothing else is
+  bool ambient_occlusion = true;  // screen-space ambient occlusion from the depth buffer: creases
+                                  // and dense piping darken, the ground darkens under the plant
+  // Non-empty: these objects (store ids) in their colours and the rest ghosted (desaturated,
+  // lighter, id 0 in the id buffer); whatever lies between the eye and them is drawn
+  // see-through, so a subject deep in a rack is still seen.
+  std::vector<uint64_t> highlight_ids;
 };
 
 struct FrameStats {

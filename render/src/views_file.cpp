@@ -1,0 +1,195 @@
+// The views file: what `plantview views` writes and `render --views` reads (see camera.h).
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+
+#include "plantview/camera.h"
+
+namespace plantview {
+
+namespace {
+
+using Json = nlohmann::ordered_json;  // keeps the views' and attributes' order as written
+
+constexpr int kViewsFileVersion = 1;
+constexpr size_t kMaxViewNameChars = 200;
+
+Json vec3(const glm::dvec3& v) { return Json::array({v.x, v.y, v.z}); }
+
+// Reads one view; `where` names it in errors ("views file: view 3 ('P-101A')").
+bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::string& error) {
+  const auto fail = [&](const std::string& what) {
+    error = where + ": " + what;
+    return false;
+  };
+  for (const auto& [key, value] : item.items()) {
+    (void)value;
+    if (key != "name" && key != "title" && key != "kind" && key != "camera" && key != "aspect" &&
+        key != "subject" && key != "attributes")
+      return fail("unknown key '" + key +
+                  "' (name, title, kind, camera, aspect, subject, attributes)");
+  }
+  const auto text = [&](const char* key, std::string& out) {
+    if (!item.contains(key)) return fail(std::string("'") + key + "' is missing");
+    if (!item[key].is_string()) return fail(std::string("'") + key + "' must be a string");
+    out = item[key].get<std::string>();
+    return true;
+  };
+  if (!text("name", v.name) || !text("title", v.title) || !text("kind", v.kind)) return false;
+  if (!is_safe_view_name(v.name))
+    return fail("'name' must be 1 to 200 of A-Z a-z 0-9 . _ - and not start with '.'");
+  if (!is_review_kind(v.kind))
+    return fail("'kind' is '" + v.kind + "' (overview, equipment, pipeline, area)");
+
+  if (!item.contains("camera")) return fail("'camera' is missing");
+  const Json& cam = item["camera"];
+  if (!cam.is_object()) return fail("'camera' must be an object");
+  for (const auto& [key, value] : cam.items()) {
+    (void)value;
+    if (key != "eye" && key != "target" && key != "up" && key != "fov_deg")
+      return fail("unknown key 'camera." + key + "' (eye, target, up, fov_deg)");
+  }
+  const auto point = [&](const char* key, glm::dvec3& out, bool required) {
+    if (!cam.contains(key)) return required ? fail(std::string("'camera.") + key + "' is missing") : true;
+    const Json& a = cam[key];
+    if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() ||
+        !a[2].is_number())
+      return fail(std::string("'camera.") + key + "' must be a list of 3 numbers");
+    out = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+    return true;
+  };
+  if (!point("eye", v.camera.eye_m, true) || !point("target", v.camera.target_m, true) ||
+      !point("up", v.camera.up, false))
+    return false;
+  if (cam.contains("fov_deg")) {
+    if (!cam["fov_deg"].is_number()) return fail("'camera.fov_deg' must be a number");
+    v.camera.fov_deg = cam["fov_deg"].get<double>();
+  }
+  std::string why;
+  if (!validate_camera(v.camera, why)) return fail(why);
+
+  if (!item.contains("aspect")) return fail("'aspect' is missing");
+  if (!item["aspect"].is_number() || !(item["aspect"].get<double>() > 0.0) ||
+      !std::isfinite(item["aspect"].get<double>()))
+    return fail("'aspect' must be a positive number (width / height)");
+  v.aspect = item["aspect"].get<double>();
+
+  if (!item.contains("subject")) return fail("'subject' is missing");
+  const Json& subject = item["subject"];
+  if (!subject.is_array()) return fail("'subject' must be a list of object ids");
+  v.subject.reserve(subject.size());
+  for (size_t i = 0; i < subject.size(); ++i) {
+    if (!subject[i].is_number_unsigned())
+      return fail("'subject[" + std::to_string(i) + "]' must be an object id (an integer >= 0)");
+    v.subject.push_back(subject[i].get<uint64_t>());
+  }
+
+  if (item.contains("attributes")) {
+    const Json& attributes = item["attributes"];
+    if (!attributes.is_object()) return fail("'attributes' must be an object of strings");
+    for (const auto& [key, value] : attributes.items()) {
+      if (!value.is_string()) return fail("'attributes." + key + "' must be a string");
+      v.attributes.emplace_back(key, value.get<std::string>());
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool is_review_kind(std::string_view kind) {
+  return kind == "overview" || kind == "equipment" || kind == "pipeline" || kind == "area";
+}
+
+bool is_safe_view_name(std::string_view name) {
+  if (name.empty() || name.size() > kMaxViewNameChars || name.front() == '.') return false;
+  for (const char c : name) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                    c == '.' || c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+std::string review_views_json(const std::vector<ReviewView>& views, std::string_view per) {
+  Json list = Json::array();
+  for (const ReviewView& v : views) {
+    Json attributes = Json::object();
+    for (const auto& [key, value] : v.attributes) attributes[key] = value;
+    list.push_back(Json{{"name", v.name},
+                        {"title", v.title},
+                        {"kind", v.kind},
+                        {"camera", Json{{"eye", vec3(v.camera.eye_m)},
+                                        {"target", vec3(v.camera.target_m)},
+                                        {"up", vec3(v.camera.up)},
+                                        {"fov_deg", v.camera.fov_deg}}},
+                        {"aspect", v.aspect},
+                        {"subject", v.subject},
+                        {"attributes", attributes}});
+  }
+  const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
+  return file.dump(1) + "\n";
+}
+
+bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error) {
+  const Json file = Json::parse(json, nullptr, false);
+  if (file.is_discarded()) {
+    error = "views file: not valid JSON";
+    return false;
+  }
+  if (!file.is_object()) {
+    error = "views file: not a JSON object";
+    return false;
+  }
+  for (const auto& [key, value] : file.items()) {
+    (void)value;
+    if (key != "version" && key != "per" && key != "views") {
+      error = "views file: unknown key '" + key + "' (version, per, views)";
+      return false;
+    }
+  }
+  if (!file.contains("version") || !file["version"].is_number_integer() ||
+      file["version"].get<int64_t>() != kViewsFileVersion) {
+    error = "views file: 'version' must be " + std::to_string(kViewsFileVersion);
+    return false;
+  }
+  if (!file.contains("per") || !file["per"].is_string() ||
+      !is_review_kind(file["per"].get<std::string>())) {
+    error = "views file: 'per' must be one of overview, equipment, pipeline, area";
+    return false;
+  }
+  if (!file.contains("views") || !file["views"].is_array()) {
+    error = "views file: 'views' must be a list of views";
+    return false;
+  }
+  const Json& list = file["views"];
+  if (list.empty()) {
+    error = "views file: the list of views is empty";
+    return false;
+  }
+  std::vector<ReviewView> views;
+  views.reserve(list.size());
+  std::set<std::string, std::less<>> names;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const Json& item = list[i];
+    std::string where = "views file: view " + std::to_string(i);
+    if (!item.is_object()) {
+      error = where + " is not an object";
+      return false;
+    }
+    if (item.contains("name") && item["name"].is_string())
+      where += " ('" + item["name"].get<std::string>() + "')";
+    ReviewView v;
+    if (!parse_view(item, where, v, error)) return false;
+    if (!names.insert(v.name).second) {
+      error = where + ": the name is used by an earlier view";
+      return false;
+    }
+    views.push_back(std::move(v));
+  }
+  out = std::move(views);
+  return true;
+}
+
+}  // namespace plantview

@@ -1,0 +1,29 @@
+// What a farm job reads before it renders anything, checked up front: the views file, that every
+// subject of it is an object of the store, and the store's identity for the settings hash.
+// Errors: false with a message naming the file, the view and the id.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "plantview/camera.h"
+
+namespace plantview {
+class ReadView;
+}
+
+namespace plantview::cli::farm {
+
+// Reads and parses a views file (camera.h: parse_review_views); `text` gets its bytes.
+bool read_views_file(const std::string& path, std::vector<ReviewView>& views, std::string& text,
+                     std::string& error);
+
+// False naming up to five subject ids that are not objects of the store ("view 'P-101A': id 77").
+bool check_subjects(const std::vector<ReviewView>& views, const ReadView& read, std::string& error);
+
+// The store's content as far as images go, as 16 hex digits: a hash of its statistics (objects,
+// primitives and triangles by kind and by class, bounds), which change with every import that
+// changes geometry. (An import that only recolours objects keeps it: use --force then.)
+std::string store_identity(const ReadView& read);
+
+}  // namespace plantview::cli::farm

@@ -1,0 +1,196 @@
+// `plantview farm submit` and `farm status`: a views file rendered as N shards by a scheduler
+// (Slurm job array, or local processes), and the account of what is done. The shard contract
+// and the files in the output directory are stated in farm/scheduler.h and farm/manifest.h.
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "cli/farm/job_inputs.h"
+#include "cli/farm/manifest.h"
+#include "cli/farm/output_dir.h"
+#include "cli/farm/scheduler.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+
+namespace plantview::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+int fail(const std::string& message) {
+  std::cerr << "plantview: " << message << "\n";
+  return 1;
+}
+
+struct SubmitArgs {
+  std::string scheduler = "slurm", views, store, out, partition, time_limit;
+  uint32_t tasks = 1, cpus_per_task = 1;
+  bool dry_run = false;
+  std::vector<std::pair<CLI::Option*, std::string>> render_values;  // given only
+  std::vector<CLI::Option*> render_flags;
+  std::vector<std::string> render_storage = std::vector<std::string>(16);
+};
+
+// The render options given to `farm submit`, as the shards' command line passes them on.
+std::vector<std::string> passed_render_args(const SubmitArgs& a) {
+  std::vector<std::string> args;
+  for (const auto& [option, value] : a.render_values)
+    if (option->count() > 0) args.insert(args.end(), {option->get_name(), value});
+  for (CLI::Option* flag : a.render_flags)
+    if (flag->count() > 0) args.push_back(flag->get_name());
+  return args;
+}
+
+int run_submit(const SubmitArgs& a) {
+  std::string error, text;
+  farm::FarmJob job;
+  job.tasks = a.tasks;
+  job.cpus_per_task = a.cpus_per_task;
+  job.partition = a.partition;
+  job.time_limit = a.time_limit;
+  job.render_args = passed_render_args(a);
+  std::error_code ec;
+  job.program = fs::read_symlink("/proc/self/exe", ec).string();
+  if (ec) return fail("cannot find this program's path (/proc/self/exe): " + ec.message());
+  job.store = fs::absolute(a.store);
+  job.out = fs::absolute(a.out);
+
+  // Everything that can be refused is checked here, before a task starts.
+  std::vector<ReviewView> views;
+  if (!farm::read_views_file(a.views, views, text, error)) return fail(error);
+  if (a.tasks > views.size())
+    return usage_error("--tasks: " + std::to_string(a.tasks) + " shards for " +
+                       std::to_string(views.size()) + " views would leave shards without work");
+  {
+    auto store = Store::open(job.store.string(), Store::Mode::read_only, error);
+    if (!store) return fail(error);
+    auto read = store->read(error);
+    if (!read || !farm::check_subjects(views, *read, error)) return fail(a.views + ": " + error);
+  }
+  if (a.dry_run) {
+    if (a.scheduler == "slurm") {
+      std::cout << farm::sbatch_script(job);
+    } else {
+      for (uint32_t i = 0; i < job.tasks; ++i) {
+        for (const std::string& word : farm::shard_command(job, std::to_string(i) + "/" + std::to_string(job.tasks)))
+          std::cout << word << " ";
+        std::cout << "\n";
+      }
+    }
+    return 0;
+  }
+  if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
+    return fail(error);
+  if (!fs::equivalent(a.views, job.out / farm::kViewsCopyName, ec) &&
+      !farm::write_file_atomically(job.out / farm::kViewsCopyName, text, error))
+    return fail(error);
+
+  if (a.scheduler == "slurm") {
+    const fs::path script = job.out / "farm.sbatch";
+    if (!farm::write_file_atomically(script, farm::sbatch_script(job), error)) return fail(error);
+    ::chmod(script.c_str(), 0755);
+    std::string job_id;
+    if (!farm::submit_to_slurm(script, job_id, error)) return fail(error);
+    std::cerr << "plantview: submitted job " << job_id << " (" << job.tasks << " tasks, "
+              << views.size() << " views; script " << script.string()
+              << "); `plantview farm status " << job.out.string() << "` tells how far it got\n";
+    std::cout << job_id << "\n";
+    return 0;
+  }
+  const bool shards_ok = farm::run_local_shards(job, error);
+  const std::string shard_error = error;
+  farm::FarmSummary summary;
+  if (!farm::merge_manifests(job.out, summary, error)) return fail(error);
+  std::cout << farm::summary_json(summary).dump() << "\n";
+  if (!shards_ok) return fail(shard_error);
+  return 0;
+}
+
+int run_status(const std::string& dir, bool json) {
+  std::string error;
+  std::error_code ec;
+  if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec))
+    return fail(dir + ": not a farm output directory (no " + farm::kViewsCopyName + ")");
+  farm::FarmSummary summary;
+  if (!farm::merge_manifests(dir, summary, error)) return fail(error);
+  if (json) {
+    std::cout << farm::summary_json(summary).dump() << "\n";
+    return 0;
+  }
+  std::cout << summary.views << " views: " << summary.done.size() << " done, " << summary.failed.size()
+            << " failed, " << summary.missing.size() << " missing\n";
+  const auto list = [](const char* label, const std::vector<std::string>& names) {
+    if (names.empty()) return;
+    std::cout << label << ":";
+    for (const std::string& name : names) std::cout << " " << name;
+    std::cout << "\n";
+  };
+  list("failed", summary.failed);
+  list("missing", summary.missing);
+  return 0;
+}
+
+}  // namespace
+
+Action add_farm_command(CLI::App& app) {
+  auto* farm = app.add_subcommand("farm", "Render a views file on a scheduler (Slurm or local shards)");
+  farm->require_subcommand(1);
+
+  auto a = std::make_shared<SubmitArgs>();
+  auto* submit = farm->add_subcommand(
+      "submit", "Render a views file as N shards: a Slurm job array, or N local processes");
+  submit->add_option("--scheduler", a->scheduler, "slurm or local")
+      ->check(CLI::IsMember({"slurm", "local"}))
+      ->capture_default_str();
+  submit->add_option("--views", a->views, "Views file (from `plantview views`)")->required();
+  submit->add_option("--store", a->store, "Store directory (every task opens it read-only)")->required();
+  submit->add_option("--out", a->out, "Output directory (shared by every task)")->required();
+  submit->add_option("--tasks", a->tasks, "Shards, one task each")->required()->check(CLI::Range(1u, 10000u));
+  submit->add_option("--partition", a->partition, "Slurm partition (default: the cluster's)");
+  submit->add_option("--time", a->time_limit, "Slurm time limit per task, e.g. 30:00");
+  submit->add_option("--cpus-per-task", a->cpus_per_task, "Slurm CPUs per task (software renderer threads)")
+      ->check(CLI::Range(1u, 1024u))
+      ->capture_default_str();
+  submit->add_flag("--dry-run", a->dry_run, "Print the sbatch script (or the local command lines); submit nothing");
+  // Render options, passed on to every shard as given (see `plantview render --help`).
+  const std::pair<const char*, const char*> values[] = {
+      {"--size", "Image size WxH"},
+      {"--format", "png or jpeg"},
+      {"--quality", "JPEG quality 1..100"},
+      {"--lod-policy", "screen-space, distance or none"},
+      {"--pixel-error", "Allowed screen-space error (pixels)"},
+      {"--vertex-budget", "GPU vertex arena (MB)"},
+      {"--samples", "Multisampling per pixel"},
+      {"--device", "EGL device index"}};
+  size_t i = 0;
+  for (const auto& [name, help] : values) {
+    CLI::Option* option = submit->add_option(name, a->render_storage[i], help);
+    a->render_values.emplace_back(option, std::string());
+    ++i;
+  }
+  for (const char* name : {"--force", "--no-centrelines", "--no-hlod", "--no-subpixel-culling"})
+    a->render_flags.push_back(submit->add_flag(name)->description("Passed on to render"));
+
+  auto status_dir = std::make_shared<std::string>();
+  auto status_json = std::make_shared<bool>(false);
+  auto* status = farm->add_subcommand(
+      "status", "Done, failed and missing views of an output directory; merges the shards' manifests");
+  status->add_option("DIR", *status_dir, "Output directory of a farm job")->required();
+  status->add_flag("--json", *status_json, "One JSON object on stdout");
+
+  return [=]() -> int {
+    if (submit->parsed()) {
+      for (size_t k = 0; k < a->render_values.size(); ++k) a->render_values[k].second = a->render_storage[k];
+      return run_submit(*a);
+    }
+    if (status->parsed()) return run_status(*status_dir, *status_json);
+    return -1;
+  };
+}
+
+}  // namespace plantview::cli

@@ -1,0 +1,466 @@
+// The render farm end to end: `render --views` (named images, manifest, contact sheet,
+// resumable), `farm submit` to local shards and to a real single-node Slurm cluster started
+// here (munge, slurmctld, slurmd on loopback, configured in a temporary directory), and what bad
+// input does. Runs the built plantview binary.
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "support/temp_dir.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using plantview::test::TempDir;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kSize = "320x180";  // small: the test is about the farm, not the pixels
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Runs a shell command line; stdout and stderr captured through files in `scratch`.
+Outcome run_shell(const std::string& command, const fs::path& scratch) {
+  const fs::path out = scratch / "stdout", err = scratch / "stderr";
+  const int raw = std::system((command + " >" + out.string() + " 2>" + err.string()).c_str());
+  Outcome r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+Outcome plantview(const std::string& args, const fs::path& scratch) {
+  return run_shell(std::string(PLANTVIEW_BIN) + " " + args, scratch);
+}
+
+// Image files of a directory by name -> bytes.
+std::map<std::string, std::string> images_in(const fs::path& dir) {
+  std::map<std::string, std::string> images;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().extension() == ".png" || e.path().extension() == ".jpg")
+      images[e.path().filename().string()] = slurp(e.path());
+  return images;
+}
+
+// name -> finished_unix_ms of every record in DIR/manifest.json that is done.
+std::map<std::string, int64_t> done_times(const fs::path& dir) {
+  std::map<std::string, int64_t> times;
+  const json manifest = json::parse(slurp(dir / "manifest.json"), nullptr, false);
+  for (const json& v : manifest.value("views", json::array()))
+    if (v.value("status", "") == "done") times[v["name"]] = v["finished_unix_ms"].get<int64_t>();
+  return times;
+}
+
+// A store of preset a and a views file of 24 of its equipment items (ids, names and origins
+// read back from the store through `export --xml`), each seen from above one corner.
+class Farm : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    plant_ = new TempDir;
+    fs::create_directories(plant_->path());
+    store_ = plant_->path() / "store";
+    views_ = plant_->path() / "views.json";
+    const Outcome gen = plantview("gen --preset a --seed 2 --store " + store_.string(), plant_->path());
+    ASSERT_EQ(gen.status, 0) << gen.err;
+    const fs::path xml = plant_->path() / "plant.xml";
+    const Outcome exported = plantview("export --store " + store_.string() + " --xml " + xml.string(), plant_->path());
+    ASSERT_EQ(exported.status, 0) << exported.err;
+    const std::string text = slurp(xml);
+    const std::regex equipment(
+        R"re(<object id="([0-9a-f]+)" name="/([A-Za-z0-9._-]+)" class="equipment"[^>]*origin_m="([-0-9.e]+) ([-0-9.e]+) ([-0-9.e]+)")re");
+    json views = json::array();
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), equipment);
+         it != std::sregex_iterator() && views.size() < 24; ++it) {
+      const auto& m = *it;
+      const double x = std::stod(m[3]), y = std::stod(m[4]), z = std::stod(m[5]) + 2;
+      views.push_back({{"name", m[2]},
+                       {"title", "Equipment " + m[2].str()},
+                       {"kind", "equipment"},
+                       {"camera",
+                        {{"eye", {x + 12, y - 12, z + 9}}, {"target", {x, y, z}}, {"up", {0, 0, 1}}, {"fov_deg", 50}}},
+                       {"aspect", 16.0 / 9.0},
+                       {"subject", {std::stoull(m[1].str(), nullptr, 16)}},
+                       {"attributes", {{"tag", m[2]}, {"type", "equipment"}}}});
+      names_.push_back(m[2]);
+    }
+    ASSERT_EQ(views.size(), 24u);
+    std::ofstream(views_) << json{{"version", 1}, {"per", "equipment"}, {"views", views}}.dump(1);
+  }
+  static void TearDownTestSuite() {
+    delete plant_;
+    plant_ = nullptr;
+  }
+  Outcome run(const std::string& args) { return plantview(args, scratch_.path()); }
+  void SetUp() override { fs::create_directories(scratch_.path()); }
+
+  // `render --views` of the whole file into `out`, in one process.
+  void render_single(const fs::path& out, const std::string& extra = "") {
+    const Outcome r = run("render --store " + store_.string() + " --views " + views_.string() + " --out " +
+                          out.string() + " --size " + kSize + " " + extra);
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+
+  static inline TempDir* plant_ = nullptr;
+  static inline fs::path store_, views_;
+  static inline std::vector<std::string> names_;
+  TempDir scratch_;
+};
+
+TEST_F(Farm, RenderViewsWritesNamedImagesManifestStatsAndContactSheet) {
+  const fs::path out = scratch_.path() / "out";
+  render_single(out);
+  const auto images = images_in(out);
+  ASSERT_EQ(images.size(), 24u);
+  for (const std::string& name : names_) EXPECT_TRUE(images.count(name + ".png")) << name;
+  const json manifest = json::parse(slurp(out / "manifest.json"));
+  EXPECT_EQ(manifest["summary"]["done"], 24);
+  EXPECT_EQ(manifest["summary"]["complete"], true);
+  ASSERT_EQ(manifest["views"].size(), 24u);
+  for (size_t i = 0; i < 24; ++i) {
+    const json& v = manifest["views"][i];
+    EXPECT_EQ(v["name"], names_[i]) << "in the views file's order";
+    EXPECT_EQ(v["status"], "done");
+    EXPECT_EQ(v["file"], names_[i] + ".png");
+    EXPECT_EQ(v["settings_hash"].get<std::string>().size(), 16u);
+    EXPECT_EQ(v["subject"].size(), 1u);
+    EXPECT_EQ(v["camera"]["eye"].size(), 3u);
+    EXPECT_GT(v["stats"]["objects_visible"].get<int>(), 0) << names_[i];
+    EXPECT_GT(v["ms"]["total"].get<double>(), 0);
+  }
+  std::ifstream stats(out / "stats.jsonl");
+  int lines = 0;
+  for (std::string line; std::getline(stats, line); ++lines)
+    EXPECT_TRUE(json::parse(line, nullptr, false).contains("triangles")) << line;
+  EXPECT_EQ(lines, 24);
+  const std::string sheet = slurp(out / "index.html");
+  for (const std::string& name : names_) {
+    EXPECT_NE(sheet.find("data-name=\"" + name + "\""), std::string::npos) << name;
+    EXPECT_NE(sheet.find("src=\"" + name + ".png\""), std::string::npos) << name;
+  }
+  EXPECT_NE(sheet.find("id=\"filter\""), std::string::npos);
+  for (const auto& e : fs::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().rfind(".tmp-", 0), std::string::npos) << "no temporary left";
+}
+
+TEST_F(Farm, ARenderAgainSkipsWhatIsDoneAndForceRendersAgain) {
+  const fs::path out = scratch_.path() / "out";
+  render_single(out, "--shard 0/4");
+  const auto before = done_times(out);
+  ASSERT_EQ(before.size(), 6u);
+  Outcome again = run("render --store " + store_.string() + " --views " + views_.string() + " --out " +
+                      out.string() + " --size " + kSize + " --shard 0/4");
+  ASSERT_EQ(again.status, 0) << again.err;
+  json summary = json::parse(again.out);
+  EXPECT_EQ(summary["rendered"], 0);
+  EXPECT_EQ(summary["skipped"], 6);
+  EXPECT_EQ(done_times(out), before);
+  // Other settings are another image: nothing is skipped.
+  again = run("render --store " + store_.string() + " --views " + views_.string() + " --out " + out.string() +
+              " --size 160x90 --shard 0/6");
+  ASSERT_EQ(again.status, 0) << again.err;
+  EXPECT_EQ(json::parse(again.out)["rendered"], 4);
+  // --force renders again what is done with the same settings.
+  again = run("render --store " + store_.string() + " --views " + views_.string() + " --out " + out.string() +
+              " --size 160x90 --shard 0/6 --force");
+  ASSERT_EQ(again.status, 0) << again.err;
+  summary = json::parse(again.out);
+  EXPECT_EQ(summary["rendered"], 4);
+  EXPECT_EQ(summary["skipped"], 0);
+}
+
+TEST_F(Farm, LocalShardsWriteTheSameBytesAsOneProcess) {
+  const fs::path single = scratch_.path() / "single", sharded = scratch_.path() / "sharded";
+  render_single(single);
+  const Outcome r = run("farm submit --scheduler local --tasks 3 --views " + views_.string() + " --store " +
+                        store_.string() + " --out " + sharded.string() + " --size " + kSize);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["done"], 24);
+  EXPECT_EQ(images_in(sharded), images_in(single));
+  for (int i = 0; i < 3; ++i)
+    EXPECT_TRUE(fs::exists(sharded / ("manifest." + std::to_string(i) + "-of-3.json")));
+  const Outcome status = run("farm status --json " + sharded.string());
+  ASSERT_EQ(status.status, 0) << status.err;
+  EXPECT_EQ(json::parse(status.out)["complete"], true);
+}
+
+TEST_F(Farm, BadInputIsRefusedBeforeAnyImage) {
+  const fs::path out = scratch_.path() / "out";
+  // A subject id that is not in the store.
+  json views = json::parse(slurp(views_));
+  views["views"][5]["subject"].push_back(123456789);
+  const fs::path bad_views = scratch_.path() / "bad_views.json";
+  std::ofstream(bad_views) << views.dump();
+  Outcome r = run("render --store " + store_.string() + " --views " + bad_views.string() + " --out " + out.string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("id 123456789"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(names_[5]), std::string::npos) << r.err;
+  EXPECT_TRUE(!fs::exists(out) || images_in(out).empty());
+  r = run("farm submit --scheduler local --tasks 2 --views " + bad_views.string() + " --store " +
+          store_.string() + " --out " + out.string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("id 123456789"), std::string::npos) << r.err;
+  EXPECT_TRUE(!fs::exists(out) || images_in(out).empty());
+  // A store that does not open.
+  r = run("render --store " + (scratch_.path() / "nowhere").string() + " --views " + views_.string() +
+          " --out " + out.string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("nowhere"), std::string::npos) << r.err;
+  // An output directory that cannot be made (its parent is a file).
+  const fs::path file = scratch_.path() / "a-file";
+  std::ofstream(file) << "x";
+  r = run("render --store " + store_.string() + " --views " + views_.string() + " --out " +
+          (file / "out").string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("a-file"), std::string::npos) << r.err;
+  // A views file that is not one.
+  r = run("render --store " + store_.string() + " --views " + file.string() + " --out " + out.string());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("a-file"), std::string::npos) << r.err;
+  // A scheduler that refuses the job: its message, exit status 1.
+  const fs::path sbatch = scratch_.path() / "sbatch";
+  std::ofstream(sbatch) << "#!/bin/sh\necho 'sbatch: error: Batch job submission failed: Invalid account' >&2\nexit 1\n";
+  fs::permissions(sbatch, fs::perms::owner_all);
+  r = run_shell("PLANTVIEW_SBATCH=" + sbatch.string() + " " + PLANTVIEW_BIN +
+                    " farm submit --tasks 4 --views " + views_.string() + " --store " + store_.string() +
+                    " --out " + out.string(),
+                scratch_.path());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("Invalid account"), std::string::npos) << r.err;
+  EXPECT_TRUE(images_in(out).empty());
+  // Usage errors exit 2.
+  EXPECT_EQ(run("farm submit --scheduler pbs --tasks 2 --views " + views_.string() + " --store " +
+                store_.string() + " --out " + out.string()).status, 2);
+  EXPECT_EQ(run("farm submit --tasks 0 --views " + views_.string() + " --store " + store_.string() +
+                " --out " + out.string()).status, 2);
+  EXPECT_EQ(run("render --store " + store_.string() + " --views " + views_.string() + " --out " +
+                (scratch_.path() / "x.png").string()).status, 2);
+}
+
+TEST_F(Farm, DryRunPrintsAnArrayScriptWithOneShardPerTask) {
+  const Outcome r = run("farm submit --dry-run --tasks 4 --partition debug --time 10:00 --views " +
+                        views_.string() + " --store " + store_.string() + " --out " +
+                        (scratch_.path() / "out").string() + " --size 640x360 --format jpeg");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("#SBATCH --array=0-3\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("#SBATCH --partition=debug\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("#SBATCH --time=10:00\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"${SLURM_ARRAY_TASK_ID}/4\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("'--size' '640x360'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("'--format' 'jpeg'"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(scratch_.path() / "out")) << "a dry run writes nothing";
+}
+
+// ---------------------------------------------------------------------------------------------
+// A single-node Slurm cluster in a temporary directory, run as root: munged, slurmctld and
+// slurmd on free loopback ports; stopped by process id.
+class SlurmCluster {
+ public:
+  // Empty when running, else why it could not start (the test skips with it).
+  std::string start(const fs::path& dir) {
+    if (::geteuid() != 0) return "not root: slurmctld and slurmd run as root here";
+    for (const char* tool : {"munged", "slurmctld", "slurmd", "sbatch", "squeue", "scancel", "sinfo"})
+      if (std::system(("command -v " + std::string(tool) + " >/dev/null 2>&1").c_str()) != 0)
+        return std::string(tool) + " is not installed (Debian: slurm-wlm, munge)";
+    dir_ = dir;
+    fs::create_directories(dir / "munge");
+    fs::permissions(dir / "munge", fs::perms::owner_all);
+    fs::create_directories(dir / "state");
+    fs::create_directories(dir / "spool");
+    {
+      std::ofstream key(dir / "munge" / "munge.key", std::ios::binary);
+      std::random_device random;
+      for (int i = 0; i < 1024; ++i) key.put(char(random() & 0xff));
+    }
+    fs::permissions(dir / "munge" / "munge.key", fs::perms::owner_read | fs::perms::owner_write);
+    const std::string m = (dir / "munge").string();
+    spawn({"munged", "-F", "-f", "-S", m + "/munge.sock", "--key-file=" + m + "/munge.key",
+           "--log-file=" + m + "/munged.log", "--pid-file=" + m + "/munged.pid",
+           "--seed-file=" + m + "/munged.seed"},
+          dir / "munged.out");
+    for (int i = 0; i < 100 && !fs::exists(dir / "munge" / "munge.sock"); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!fs::exists(dir / "munge" / "munge.sock")) return "munged did not start: " + slurp(dir / "munged.out");
+
+    const std::string d = dir.string();
+    std::ofstream(dir / "slurm.conf")
+        << "ClusterName=plantviewtest\nSlurmctldHost=localhost\n"
+        << "SlurmctldPort=" << free_port() << "\nSlurmdPort=" << free_port() << "\n"
+        << "SlurmUser=root\nSlurmdUser=root\nAuthType=auth/munge\nCredType=cred/munge\n"
+        << "AuthInfo=socket=" << m << "/munge.sock\n"
+        << "ProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\n"
+        << "SelectType=select/cons_tres\nSelectTypeParameters=CR_CPU\n"
+        << "JobAcctGatherType=jobacct_gather/none\nAccountingStorageType=accounting_storage/none\n"
+        << "MpiDefault=none\nReturnToService=2\nSchedulerType=sched/backfill\n"
+        << "StateSaveLocation=" << d << "/state\nSlurmdSpoolDir=" << d << "/spool\n"
+        << "SlurmctldPidFile=" << d << "/slurmctld.pid\nSlurmdPidFile=" << d << "/slurmd.pid\n"
+        << "SlurmctldLogFile=" << d << "/slurmctld.log\nSlurmdLogFile=" << d << "/slurmd.log\n"
+        << "NodeName=localhost NodeAddr=127.0.0.1 CPUs=2 State=UNKNOWN\n"
+        << "PartitionName=debug Nodes=localhost Default=YES MaxTime=INFINITE State=UP\n";
+    ::setenv("SLURM_CONF", (dir / "slurm.conf").c_str(), 1);
+    spawn({"slurmctld", "-D", "-i", "-f", d + "/slurm.conf"}, dir / "slurmctld.out");
+    spawn({"slurmd", "-D", "-N", "localhost", "-f", d + "/slurm.conf"}, dir / "slurmd.out");
+    const auto deadline = Clock::now() + std::chrono::seconds(30);
+    while (Clock::now() < deadline) {
+      const Outcome r = run_shell("sinfo -h -o %t", dir);
+      if (r.status == 0 && r.out.rfind("idle", 0) == 0) return "";
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+    return "the node did not become idle in 30 s: " + slurp(dir / "slurmctld.log").substr(0, 2000) +
+           slurp(dir / "slurmd.log").substr(0, 2000);
+  }
+
+  // Stops the daemons (slurmd, slurmctld, munged: the reverse of their start).
+  void stop() {
+    for (auto it = pids_.rbegin(); it != pids_.rend(); ++it) {
+      ::kill(*it, SIGTERM);
+      int status = 0;
+      const auto deadline = Clock::now() + std::chrono::seconds(10);
+      while (::waitpid(*it, &status, WNOHANG) == 0) {
+        if (Clock::now() > deadline) {
+          ::kill(*it, SIGKILL);
+          ::waitpid(*it, &status, 0);
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    }
+    pids_.clear();
+    ::unsetenv("SLURM_CONF");
+  }
+  ~SlurmCluster() { stop(); }
+
+  // Waits until job `id` has left the queue (finished, failed or cancelled).
+  bool wait_for_job(const std::string& id, std::chrono::seconds limit) {
+    const auto deadline = Clock::now() + limit;
+    while (Clock::now() < deadline) {
+      const Outcome r = run_shell("squeue -h -j " + id, dir_);
+      if (r.status == 0 && r.out.empty()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+    return false;
+  }
+
+ private:
+  static int free_port() {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+    socklen_t length = sizeof addr;
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &length);
+    ::close(fd);
+    return ntohs(addr.sin_port);
+  }
+  void spawn(const std::vector<std::string>& argv, const fs::path& log) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+      std::vector<char*> args;
+      for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+      args.push_back(nullptr);
+      ::execvp(args[0], args.data());
+      ::_exit(127);
+    }
+    if (pid > 0) pids_.push_back(pid);
+  }
+  std::vector<pid_t> pids_;
+  fs::path dir_;
+};
+
+TEST_F(Farm, SlurmArrayRendersTheSameImagesResumesAndCompletesACancelledTask) {
+  TempDir cluster_dir;
+  SlurmCluster cluster;
+  if (const std::string why = cluster.start(cluster_dir.path()); !why.empty()) GTEST_SKIP() << why;
+
+  // 24 views as a 4-task array; the same bytes as one process.
+  const fs::path out = scratch_.path() / "slurm", single = scratch_.path() / "single";
+  const std::string submit = "farm submit --scheduler slurm --tasks 4 --views " + views_.string() +
+                             " --store " + store_.string() + " --out ";
+  Outcome r = run(submit + out.string() + " --size " + kSize);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string job = r.out.substr(0, r.out.find('\n'));
+  ASSERT_FALSE(job.empty());
+  render_single(single);
+  ASSERT_TRUE(cluster.wait_for_job(job, std::chrono::seconds(90))) << "job " << job << " still queued";
+  r = run("farm status --json " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["done"], 24) << r.out << slurp(out / "logs" / ("slurm-" + job + "_0.log"));
+  EXPECT_EQ(images_in(out), images_in(single));
+  const json manifest = json::parse(slurp(out / "manifest.json"));
+  EXPECT_EQ(manifest["summary"]["complete"], true);
+  std::set<std::string> shards;
+  for (const json& v : manifest["views"]) shards.insert(v["shard"].get<std::string>());
+  EXPECT_EQ(shards, (std::set<std::string>{"0/4", "1/4", "2/4", "3/4"}));
+
+  // Submitted again: every task finds its views done and renders nothing.
+  const auto times = done_times(out);
+  r = run(submit + out.string() + " --size " + kSize);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string again = r.out.substr(0, r.out.find('\n'));
+  ASSERT_TRUE(cluster.wait_for_job(again, std::chrono::seconds(60)));
+  EXPECT_EQ(done_times(out), times);
+  for (int task = 0; task < 4; ++task) {
+    const std::string log = slurp(out / "logs" / ("slurm-" + again + "_" + std::to_string(task) + ".log"));
+    EXPECT_NE(log.find("\"rendered\":0"), std::string::npos) << log;
+  }
+
+  // One task cancelled after its first view: submitting again completes exactly what is missing.
+  const fs::path cut = scratch_.path() / "cancelled";
+  r = run(submit + cut.string() + " --size 640x360");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string cancelled = r.out.substr(0, r.out.find('\n'));
+  const fs::path part = cut / "manifest.0-of-4.json";
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  while (Clock::now() < deadline && !fs::exists(part))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(run_shell("scancel " + cancelled + "_0", scratch_.path()).status, 0);
+  ASSERT_TRUE(cluster.wait_for_job(cancelled, std::chrono::seconds(90)));
+  r = run("farm status --json " + cut.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json after_cancel = json::parse(r.out);
+  EXPECT_GE(after_cancel["missing"].get<int>(), 1) << "task 0 was cancelled after its first view";
+  EXPECT_LT(after_cancel["missing"].get<int>(), 6) << "it finished a view before";
+  const auto kept = done_times(cut);
+  r = run(submit + cut.string() + " --size 640x360");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string completion = r.out.substr(0, r.out.find('\n'));
+  ASSERT_TRUE(cluster.wait_for_job(completion, std::chrono::seconds(90)));
+  r = run("farm status --json " + cut.string());
+  EXPECT_EQ(json::parse(r.out)["complete"], true) << r.out;
+  const auto completed = done_times(cut);
+  EXPECT_EQ(completed.size(), 24u);
+  for (const auto& [name, time] : kept) EXPECT_EQ(completed.at(name), time) << name << " rendered twice";
+}
+
+}  // namespace
