@@ -41,7 +41,7 @@ namespace {
 constexpr uint64_t kInitialArenaVertices = 1u << 16;  // the GPU buffers grow from here
 constexpr GLfloat kBackground[4] = {0.80f, 0.84f, 0.88f, 1.0f};
 constexpr float kSeeThroughAlpha = 0.22f;  // occluders of a highlighted subject
-constexpr double kOcclusionRadiusM = 0.8;  // ambient occlusion's reach
+constexpr double kOcclusionRadiusM = 0.6;  // ambient occlusion's reach
 
 GLuint compile(GLenum type, std::initializer_list<const char*> sources, std::string& error) {
   const GLuint shader = glCreateShader(type);
@@ -117,8 +117,8 @@ uint32_t ghost(uint32_t rgba) {
   const float r = float(rgba & 0xff), g = float((rgba >> 8) & 0xff), b = float((rgba >> 16) & 0xff);
   const float luma = 0.299f * r + 0.587f * g + 0.114f * b;
   const auto channel = [&](float c) {
-    const float grey = luma + 0.25f * (c - luma);
-    return uint32_t(std::lround(grey + 0.55f * (255.0f - grey)));
+    const float grey = luma + 0.2f * (c - luma);
+    return uint32_t(std::lround(grey + 0.6f * (255.0f - grey)));
   };
   return channel(r) | channel(g) << 8 | channel(b) << 16 | (rgba & 0xff000000u);
 }

@@ -203,8 +203,8 @@ void main() {
 )";
 
 // The ground: a plane at the plant's lowest level, a light floor with a grid of u_grid_m
-// squares and heavier lines every ten, fading out away from the plant and where the grid gets
-// denser than a few pixels. Where it shows, its depth is written (so that ambient occlusion
+// squares and heavier lines every ten, fading out from 5 m + 1.2 to 20 m + 3 plant radii from
+// the plant's centre, and where the grid gets denser than a few pixels. Where it shows, its depth is written (so that ambient occlusion
 // darkens it under the plant).
 inline constexpr const char* kGroundFragment = R"(#version 450 core
 layout(location = 0) out vec4 o_colour;
@@ -227,7 +227,7 @@ void main() {
   if (ray.z >= -1e-6) discard;
   vec3 p = ray * (u_ground_z / ray.z);
   float from_plant = length(p.xy - u_centre);
-  float alpha = 1.0 - smoothstep(1.1 * u_radius_m, 3.0 * u_radius_m, from_plant);
+  float alpha = 1.0 - smoothstep(1.2 * u_radius_m + 5.0, 3.0 * u_radius_m + 20.0, from_plant);
   if (alpha < 0.02) discard;
   vec2 g = (p.xy + u_grid_phase) / u_grid_m;
   float minor = grid_lines(g), major = grid_lines(g * 0.1);
@@ -266,9 +266,9 @@ vec4 position_at(ivec2 q) {
 }
 
 // Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
-// nearer neighbours (no smearing across silhouettes), 16 samples on a golden-angle spiral (the
-// same for every pixel: smooth, where a per-pixel turn would speckle without a blur pass), each
-// counting how far it rises above the surface's tangent plane.
+// nearer neighbours (no smearing across silhouettes), 12 samples on a golden-angle spiral of at
+// most 20 output pixels (the same for every pixel: smooth, where a per-pixel turn would speckle
+// without a blur pass), each counting how far it rises above the surface's tangent plane.
 float occlusion(ivec2 q) {
   vec4 c = position_at(q);
   if (c.w == 0.0) return 1.0;
@@ -283,8 +283,8 @@ float occlusion(ivec2 q) {
   if (dot(n, p) > 0.0) n = -n;
   float radius_px = u_radius_m * u_focal_px / -p.z;
   if (radius_px < 1.5) return 1.0;
-  radius_px = min(radius_px, 48.0 * float(u_scale));
-  const int kSamples = 16;
+  radius_px = min(radius_px, 20.0 * float(u_scale));  // longer reaches streak behind edges
+  const int kSamples = 12;
   float r2 = u_radius_m * u_radius_m, sum = 0.0;
   for (int i = 0; i < kSamples; ++i) {
     float a = (float(i) + 0.5) / float(kSamples);
@@ -337,7 +337,7 @@ void main() {
     c = texelFetch(u_colour, q, 0).rgb;
   if (u_occlusion) {
     float a = occlusion(q + ivec2(u_scale - 1));
-    c *= mix(1.0, a, 0.75);
+    c *= mix(1.0, a, 0.7);
   }
   o_colour = vec4(c, 1.0);
   o_pick = texelFetch(u_pick, q + ivec2(u_scale - 1), 0).r;
