@@ -138,8 +138,11 @@ Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
 }
 
 GlBackend::~GlBackend() {
-  for (const GLuint program : {surface_program_, centreline_program_, ground_program_, finish_program_})
+  for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
+                               occlusion_program_, finish_program_})
     if (program) glDeleteProgram(program);
+  if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
+  if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
   GLuint buffers[] = {arena_, arena_objects_, index_buffer_, table_buffer_, proxy_buffer_, cube_indices_};
   glDeleteBuffers(6, buffers);
   GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
@@ -182,6 +185,9 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
     ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
                                       {GL_FRAGMENT_SHADER, {kGroundFragment}}}, error);
   if (ground_program_)
+    occlusion_program_ = link("ambient occlusion", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+                                                    {GL_FRAGMENT_SHADER, {kOcclusionFragment}}}, error);
+  if (occlusion_program_)
     finish_program_ = link("finishing", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
                                          {GL_FRAGMENT_SHADER, {kFinishFragment}}}, error);
   if (!finish_program_) return false;
@@ -339,14 +345,15 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
 
 // Automatic: multisampling on a GPU (cheap there); supersampling on a software renderer, where
 // it costs (fragments x 4) less than multisampling does on llvmpipe and smooths thin pipes too
-// (measured: render.h).
+// (measured: render.h); `samples` given, multisampling with that many.
 GlBackend::Plan GlBackend::plan_for(const Look& look) const {
   Plan plan;
   plan.occlusion = look.ambient_occlusion;
   if (!look.antialias) return plan;
   AntialiasMethod method = look.method;
-  if (method == AntialiasMethod::automatic)
-    method = software_ ? AntialiasMethod::supersampling : AntialiasMethod::multisampling;
+  if (method == AntialiasMethod::automatic)  // (samples given: that multisampling, 1 none)
+    method = software_ && look.samples == 0 ? AntialiasMethod::supersampling
+                                            : AntialiasMethod::multisampling;
   switch (method) {
     case AntialiasMethod::multisampling: {
       GLint max_samples = 1, max_integer_samples = 1;
@@ -585,34 +592,57 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
   final_ = source;
   if (!plan.finish()) return;
 
+  glDisable(GL_DEPTH_TEST);
+  glDisablei(GL_BLEND, 0);
+  glBindVertexArray(empty_vao_);
+  glBindTextureUnit(1, source->depth ? source->depth : scene_.depth);
+  glBindSampler(1, nearest_sampler_);
+  if (plan.occlusion) {
+    if (occlusion_width_ != output_.width || occlusion_height_ != output_.height) {
+      if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
+      if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
+      glCreateTextures(GL_TEXTURE_2D, 1, &occlusion_texture_);
+      glTextureStorage2D(occlusion_texture_, 1, GL_R8, GLsizei(output_.width), GLsizei(output_.height));
+      glCreateFramebuffers(1, &occlusion_framebuffer_);
+      glNamedFramebufferTexture(occlusion_framebuffer_, GL_COLOR_ATTACHMENT0, occlusion_texture_, 0);
+      occlusion_width_ = output_.width;
+      occlusion_height_ = output_.height;
+    }
+    const GLuint o = occlusion_program_;
+    glProgramUniform1i(o, at(o, "u_depth"), 1);
+    glProgramUniform1i(o, at(o, "u_scale"), GLint(plan.scale));
+    glProgramUniform1f(o, at(o, "u_near"), float(kNearPlaneM));
+    glProgramUniform2f(o, at(o, "u_ndc_to_view"), view.aspect / view.focal, 1.0f / view.focal);
+    glProgramUniform1f(o, at(o, "u_focal_px"), float(view.focal_px * plan.scale));
+    glProgramUniform1f(o, at(o, "u_radius_m"), float(kOcclusionRadiusM));
+    glBindFramebuffer(GL_FRAMEBUFFER, occlusion_framebuffer_);
+    glViewport(0, 0, GLsizei(output_.width), GLsizei(output_.height));
+    glUseProgram(o);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
   const GLuint p = finish_program_;
   glProgramUniform1i(p, at(p, "u_colour"), 0);
   glProgramUniform1i(p, at(p, "u_depth"), 1);
   glProgramUniform1i(p, at(p, "u_pick"), 2);
+  glProgramUniform1i(p, at(p, "u_occlusion"), 3);
   glProgramUniform1i(p, at(p, "u_scale"), GLint(plan.scale));
   glProgramUniform1i(p, at(p, "u_edge_filter"), plan.edge_filter);
-  glProgramUniform1i(p, at(p, "u_occlusion"), plan.occlusion);
-  glProgramUniform1f(p, at(p, "u_near"), float(kNearPlaneM));
-  glProgramUniform2f(p, at(p, "u_ndc_to_view"), view.aspect / view.focal, 1.0f / view.focal);
-  glProgramUniform1f(p, at(p, "u_focal_px"), float(view.focal_px * plan.scale));
-  glProgramUniform1f(p, at(p, "u_radius_m"), float(kOcclusionRadiusM));
+  glProgramUniform1i(p, at(p, "u_occlusion_on"), plan.occlusion);
+  glBindTextureUnit(3, plan.occlusion ? occlusion_texture_ : 0);
+  glBindSampler(3, nearest_sampler_);
   glBindTextureUnit(0, source->colour);
   glBindSampler(0, linear_sampler_);
-  glBindTextureUnit(1, source->depth ? source->depth : scene_.depth);
-  glBindSampler(1, nearest_sampler_);
   glBindTextureUnit(2, source->pick);
   glBindSampler(2, nearest_sampler_);
   glBindFramebuffer(GL_FRAMEBUFFER, output_.framebuffer);
   const GLenum draw_buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(output_.framebuffer, 2, draw_buffers);
   glViewport(0, 0, GLsizei(output_.width), GLsizei(output_.height));
-  glDisable(GL_DEPTH_TEST);
-  glDisablei(GL_BLEND, 0);
   glUseProgram(p);
-  glBindVertexArray(empty_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   glBindVertexArray(0);
-  for (GLuint unit = 0; unit < 3; ++unit) {
+  for (GLuint unit = 0; unit < 4; ++unit) {
     glBindTextureUnit(unit, 0);
     glBindSampler(unit, 0);
   }

@@ -147,7 +147,8 @@ class GlBackend {
 
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
-  GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0, finish_program_ = 0;
+  GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
+         occlusion_program_ = 0, finish_program_ = 0;
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
@@ -155,6 +156,9 @@ class GlBackend {
   // Drawing goes to scene_ (scale x the output's size, multisampled or not); multisampled, it
   // is resolved into resolved_; finished, into output_; read back from the last of these used.
   Target scene_, resolved_, output_;
+  // Ambient occlusion per output pixel (R8), before the finishing pass blurs it.
+  GlName occlusion_framebuffer_ = 0, occlusion_texture_ = 0;
+  uint32_t occlusion_width_ = 0, occlusion_height_ = 0;
   const Target* final_ = nullptr;
   size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch

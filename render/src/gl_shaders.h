@@ -7,8 +7,10 @@
 //     by a pixel), its coverage the diameter when that is under a pixel, and lit like the pipe's
 //     side that faces the eye; a centreline vertex's normal word holds the diameter (float bits);
 //   - ground: a full-screen triangle that intersects each pixel's ray with the ground plane;
+//   - occlusion: a full-screen triangle computing ambient occlusion per output pixel;
 //   - finish: a full-screen triangle from the drawn frame to the output image: supersampled
-//     frames averaged down, the edge filter, ambient occlusion, the object ids copied.
+//     frames averaged down, the edge filter, the ambient occlusion blurred and applied, the
+//     object ids copied.
 //
 // Frames: positions are relative to the eye in model axes ("camera-relative": z up), so plants
 //   kilometres from the origin keep float precision. Depth is reversed and infinite:
@@ -239,20 +241,20 @@ void main() {
 }
 )";
 
-// From the drawn frame (u_scale x the output's size) to the output image.
-inline constexpr const char* kFinishFragment = R"(#version 450 core
-layout(location = 0) out vec4 o_colour;
-layout(location = 1) out uint o_pick;
-uniform sampler2D u_colour;  // linear filtering
+// Ambient occlusion of each output pixel into a one-channel texture (the finishing pass blurs
+// it). Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
+// nearer neighbours (no smearing across silhouettes), 12 samples on a golden-angle spiral of at
+// most 20 output pixels, turned by one of 16 angles in a 4x4 pixel pattern (the blur over
+// 4x4 pixels then sees 192 directions), each counting how far it rises above the surface's
+// tangent plane.
+inline constexpr const char* kOcclusionFragment = R"(#version 450 core
+layout(location = 0) out vec4 o_occlusion;
 uniform sampler2D u_depth;
-uniform usampler2D u_pick;
 uniform int u_scale;         // 1, or 2 when supersampled
-uniform bool u_edge_filter;
-uniform bool u_occlusion;
 uniform float u_near;        // metres
 uniform vec2 u_ndc_to_view;  // view-space x, y per NDC unit at 1 m: (aspect / focal, 1 / focal)
 uniform float u_focal_px;    // framebuffer pixels a metre spans at 1 m
-uniform float u_radius_m;    // ambient occlusion's reach
+uniform float u_radius_m;    // the reach
 ivec2 frame_size;
 
 // View-space position of a framebuffer pixel (z < 0 ahead); w = 0 where nothing was drawn.
@@ -265,11 +267,7 @@ vec4 position_at(ivec2 q) {
   return vec4(ndc * u_ndc_to_view * z, -z, 1.0);
 }
 
-// Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
-// nearer neighbours (no smearing across silhouettes), 12 samples on a golden-angle spiral of at
-// most 20 output pixels (the same for every pixel: smooth, where a per-pixel turn would speckle
-// without a blur pass), each counting how far it rises above the surface's tangent plane.
-float occlusion(ivec2 q) {
+float occlusion(ivec2 q, ivec2 out_px) {
   vec4 c = position_at(q);
   if (c.w == 0.0) return 1.0;
   vec3 p = c.xyz;
@@ -285,10 +283,12 @@ float occlusion(ivec2 q) {
   if (radius_px < 1.5) return 1.0;
   radius_px = min(radius_px, 20.0 * float(u_scale));  // longer reaches streak behind edges
   const int kSamples = 12;
+  int cell = (out_px.x & 3) + 4 * (out_px.y & 3);
+  float turn = float((cell * 5) & 15) * (6.2831853 / 16.0);
   float r2 = u_radius_m * u_radius_m, sum = 0.0;
   for (int i = 0; i < kSamples; ++i) {
     float a = (float(i) + 0.5) / float(kSamples);
-    float angle = float(i) * 2.3999632;  // the golden angle: even coverage, no per-pixel noise
+    float angle = float(i) * 2.3999632 + turn;  // the golden angle
     vec2 offset = vec2(cos(angle), sin(angle)) * (a * radius_px);
     vec4 s = position_at(q + ivec2(round(offset)));
     if (s.w == 0.0) continue;
@@ -297,9 +297,28 @@ float occlusion(ivec2 q) {
     float f = max(r2 - vv, 0.0);
     sum += f * f * f * max((vn - 0.02 * u_radius_m) / (vv + 0.01 * r2), 0.0);
   }
-  float a = 1.0 - sum * (5.0 / (r2 * r2 * r2)) / float(kSamples);
-  return clamp(a, 0.0, 1.0);
+  return clamp(1.0 - sum * (5.0 / (r2 * r2 * r2)) / float(kSamples), 0.0, 1.0);
 }
+
+void main() {
+  frame_size = textureSize(u_depth, 0);
+  ivec2 out_px = ivec2(gl_FragCoord.xy);
+  o_occlusion = vec4(occlusion(out_px * u_scale + ivec2(u_scale - 1), out_px));
+}
+)";
+
+// From the drawn frame (u_scale x the output's size) to the output image.
+inline constexpr const char* kFinishFragment = R"(#version 450 core
+layout(location = 0) out vec4 o_colour;
+layout(location = 1) out uint o_pick;
+uniform sampler2D u_colour;     // linear filtering
+uniform sampler2D u_depth;
+uniform usampler2D u_pick;
+uniform sampler2D u_occlusion;  // per output pixel
+uniform int u_scale;            // 1, or 2 when supersampled
+uniform bool u_edge_filter;
+uniform bool u_occlusion_on;
+ivec2 frame_size;
 
 // FXAA-like edge filter (after Lottes' FXAA 3.11 console version): blends along the edge
 // direction found from the luma of the four diagonal neighbours.
@@ -335,9 +354,22 @@ void main() {
     c = edge_filtered(q);
   else
     c = texelFetch(u_colour, q, 0).rgb;
-  if (u_occlusion) {
-    float a = occlusion(q + ivec2(u_scale - 1));
-    c *= mix(1.0, a, 0.7);
+  if (u_occlusion_on) {
+    // The occlusion of the 4x4 pixels around, those at about this depth (within 5%): the
+    // 4x4 pattern of turns averages out, edges stay sharp.
+    ivec2 out_size = textureSize(u_occlusion, 0);
+    float depth = texelFetch(u_depth, q + ivec2(u_scale - 1), 0).r;
+    float sum = 0.0, weight = 0.0;
+    for (int y = -2; y < 2; ++y)
+      for (int x = -2; x < 2; ++x) {
+        ivec2 o = clamp(out_px + ivec2(x, y), ivec2(0), out_size - 1);
+        float d = texelFetch(u_depth, o * u_scale + ivec2(u_scale - 1), 0).r;
+        float w = abs(d - depth) <= 0.05 * depth ? 1.0 : 0.0;
+        sum += w * texelFetch(u_occlusion, o, 0).r;
+        weight += w;
+      }
+    float a = weight > 0.0 ? sum / weight : 1.0;
+    c *= mix(1.0, a, 0.6);
   }
   o_colour = vec4(c, 1.0);
   o_pick = texelFetch(u_pick, q + ivec2(u_scale - 1), 0).r;
