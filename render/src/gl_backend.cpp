@@ -598,25 +598,27 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
   glBindTextureUnit(1, source->depth ? source->depth : scene_.depth);
   glBindSampler(1, nearest_sampler_);
   if (plan.occlusion) {
-    if (occlusion_width_ != output_.width || occlusion_height_ != output_.height) {
+    const uint32_t ao_width = (output_.width + 1) / 2, ao_height = (output_.height + 1) / 2;
+    if (occlusion_width_ != ao_width || occlusion_height_ != ao_height) {
       if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
       if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
       glCreateTextures(GL_TEXTURE_2D, 1, &occlusion_texture_);
-      glTextureStorage2D(occlusion_texture_, 1, GL_R8, GLsizei(output_.width), GLsizei(output_.height));
+      glTextureStorage2D(occlusion_texture_, 1, GL_RG32F, GLsizei(ao_width), GLsizei(ao_height));
       glCreateFramebuffers(1, &occlusion_framebuffer_);
       glNamedFramebufferTexture(occlusion_framebuffer_, GL_COLOR_ATTACHMENT0, occlusion_texture_, 0);
-      occlusion_width_ = output_.width;
-      occlusion_height_ = output_.height;
+      occlusion_width_ = ao_width;
+      occlusion_height_ = ao_height;
     }
     const GLuint o = occlusion_program_;
     glProgramUniform1i(o, at(o, "u_depth"), 1);
     glProgramUniform1i(o, at(o, "u_scale"), GLint(plan.scale));
+    glProgramUniform1i(o, at(o, "u_step"), GLint(2 * plan.scale));
     glProgramUniform1f(o, at(o, "u_near"), float(kNearPlaneM));
     glProgramUniform2f(o, at(o, "u_ndc_to_view"), view.aspect / view.focal, 1.0f / view.focal);
     glProgramUniform1f(o, at(o, "u_focal_px"), float(view.focal_px * plan.scale));
     glProgramUniform1f(o, at(o, "u_radius_m"), float(kOcclusionRadiusM));
     glBindFramebuffer(GL_FRAMEBUFFER, occlusion_framebuffer_);
-    glViewport(0, 0, GLsizei(output_.width), GLsizei(output_.height));
+    glViewport(0, 0, GLsizei(ao_width), GLsizei(ao_height));
     glUseProgram(o);
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }

@@ -156,7 +156,8 @@ class GlBackend {
   // Drawing goes to scene_ (scale x the output's size, multisampled or not); multisampled, it
   // is resolved into resolved_; finished, into output_; read back from the last of these used.
   Target scene_, resolved_, output_;
-  // Ambient occlusion per output pixel (R8), before the finishing pass blurs it.
+  // Ambient occlusion and depth per 2x2 output pixels (RG32F), before the finishing pass
+  // blurs it.
   GlName occlusion_framebuffer_ = 0, occlusion_texture_ = 0;
   uint32_t occlusion_width_ = 0, occlusion_height_ = 0;
   const Target* final_ = nullptr;

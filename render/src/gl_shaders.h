@@ -241,16 +241,18 @@ void main() {
 }
 )";
 
-// Ambient occlusion of each output pixel into a one-channel texture (the finishing pass blurs
-// it). Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
+// Ambient occlusion, and its depth, at half the output's resolution (occlusion varies slowly;
+// a quarter of the pixels costs a quarter) into a two-channel texture (the finishing pass
+// blurs it and brings it up to size). Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
 // nearer neighbours (no smearing across silhouettes), 12 samples on a golden-angle spiral of at
-// most 20 output pixels, turned by one of 16 angles in a 4x4 pixel pattern (the blur over
+// most 20 output pixels, turned by one of 16 angles in a 4x4 pattern (the blur over
 // 4x4 pixels then sees 192 directions), each counting how far it rises above the surface's
 // tangent plane.
 inline constexpr const char* kOcclusionFragment = R"(#version 450 core
 layout(location = 0) out vec4 o_occlusion;
 uniform sampler2D u_depth;
 uniform int u_scale;         // 1, or 2 when supersampled
+uniform int u_step;          // framebuffer pixels per occlusion pixel: 2 x u_scale
 uniform float u_near;        // metres
 uniform vec2 u_ndc_to_view;  // view-space x, y per NDC unit at 1 m: (aspect / focal, 1 / focal)
 uniform float u_focal_px;    // framebuffer pixels a metre spans at 1 m
@@ -282,6 +284,7 @@ float occlusion(ivec2 q, ivec2 out_px) {
   float radius_px = u_radius_m * u_focal_px / -p.z;
   if (radius_px < 1.5) return 1.0;
   radius_px = min(radius_px, 20.0 * float(u_scale));  // longer reaches streak behind edges
+  radius_px = max(radius_px, float(u_step));
   const int kSamples = 12;
   int cell = (out_px.x & 3) + 4 * (out_px.y & 3);
   float turn = float((cell * 5) & 15) * (6.2831853 / 16.0);
@@ -302,8 +305,10 @@ float occlusion(ivec2 q, ivec2 out_px) {
 
 void main() {
   frame_size = textureSize(u_depth, 0);
-  ivec2 out_px = ivec2(gl_FragCoord.xy);
-  o_occlusion = vec4(occlusion(out_px * u_scale + ivec2(u_scale - 1), out_px));
+  ivec2 ao_px = ivec2(gl_FragCoord.xy);
+  ivec2 q = ao_px * u_step + ivec2(u_step / 2);
+  // With the depth beside it, for the blur's weights (one fetch a tap there).
+  o_occlusion = vec4(occlusion(q, ao_px), texelFetch(u_depth, q, 0).r, 0.0, 0.0);
 }
 )";
 
@@ -314,7 +319,7 @@ layout(location = 1) out uint o_pick;
 uniform sampler2D u_colour;     // linear filtering
 uniform sampler2D u_depth;
 uniform usampler2D u_pick;
-uniform sampler2D u_occlusion;  // per output pixel
+uniform sampler2D u_occlusion;  // per 2x2 output pixels: occlusion, depth
 uniform int u_scale;            // 1, or 2 when supersampled
 uniform bool u_edge_filter;
 uniform bool u_occlusion_on;
@@ -355,17 +360,17 @@ void main() {
   else
     c = texelFetch(u_colour, q, 0).rgb;
   if (u_occlusion_on) {
-    // The occlusion of the 4x4 pixels around, those at about this depth (within 5%): the
-    // 4x4 pattern of turns averages out, edges stay sharp.
-    ivec2 out_size = textureSize(u_occlusion, 0);
+    // The occlusion of the 4x4 occlusion pixels around, those at about this pixel's depth
+    // (within 5%): the 4x4 pattern of turns averages out, edges stay sharp.
+    ivec2 ao_size = textureSize(u_occlusion, 0);
+    ivec2 ao_px = (out_px + 1) / 2;  // the 4x4 around the output pixel: -2..+1 about this
     float depth = texelFetch(u_depth, q + ivec2(u_scale - 1), 0).r;
     float sum = 0.0, weight = 0.0;
     for (int y = -2; y < 2; ++y)
       for (int x = -2; x < 2; ++x) {
-        ivec2 o = clamp(out_px + ivec2(x, y), ivec2(0), out_size - 1);
-        float d = texelFetch(u_depth, o * u_scale + ivec2(u_scale - 1), 0).r;
-        float w = abs(d - depth) <= 0.05 * depth ? 1.0 : 0.0;
-        sum += w * texelFetch(u_occlusion, o, 0).r;
+        vec2 t = texelFetch(u_occlusion, clamp(ao_px + ivec2(x, y), ivec2(0), ao_size - 1), 0).rg;
+        float w = abs(t.g - depth) <= 0.05 * depth ? 1.0 : 0.0;
+        sum += w * t.r;
         weight += w;
       }
     float a = weight > 0.0 ? sum / weight : 1.0;
