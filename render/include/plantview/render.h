@@ -87,18 +87,19 @@ std::string_view lod_policy_name(LodPolicy policy);
 bool parse_lod_policy(std::string_view name, LodPolicy& policy);
 
 // Antialiasing of stills (RenderOptions::antialias). What each costs, as the frame time of a
-// warm view (arena filled) over an aliased one's, measured by bench/bench_stills on llvmpipe
-// (2 cores shared with other work: +-15%) with preset c at 1280x720, the default and an
-// interior view; a cold still (a `render` run) pays streaming too, so there the share is less:
-//   multisampling x4   1.9 x    every sample shaded where edges are; llvmpipe rasterises
-//                              each sample, and resolving costs a blit
-//   supersampling 2x2  1.5 x    4 x the fragments; vertices and binning (most of a plant's
-//                              frame on llvmpipe) are paid once; thin pipes and far
-//                              edges smooth too
-//   edge filter        1.3 x    one full-screen pass; smooths high-contrast edges only, not
-//                              sub-pixel detail
-// and ambient occlusion 1.6 x, the ground 1.1 x; a still with every default 1.8 x.
-// On a GPU multisampling x4 is nearly free.
+// warm view (arena filled) over an aliased one's with no ground and no occlusion, measured by
+// bench/bench_stills on llvmpipe (2 cores shared with other work: +-20%) with preset c at
+// 1280x720, the default and an interior view (0.93 s aliased):
+//   multisampling x4   2.3 x   llvmpipe shades and stores every sample, and resolves by a blit
+//   multisampling x2   2.5 x   (no cheaper than x4 there)
+//   supersampling 2x2  1.5 x   4 x the fragments, but vertices and binning (most of a plant's
+//                              frame on llvmpipe) are paid once; thin pipes and far edges smooth
+//   edge filter        1.05 x  one full-screen pass; smooths high-contrast edges only, not
+//                              sub-pixel detail (thin triangles stay broken)
+// and ambient occlusion 1.2 x, the ground under 1.05 x; a still with every default 1.7 x, with a
+// highlight 2.6 x (the model is drawn three times). A cold still (a `render` run, which also
+// streams the model and compiles the shaders) took 1.7 x the aliased renderer's before these
+// (3.8 s against 2.2 s, medians of 3). On a GPU multisampling x4 costs little.
 enum class AntialiasMethod {
   automatic,      // multisampling on a GPU, supersampling on a software renderer; with
                   // `samples` given, multisampling with that many (1: none)
