@@ -393,6 +393,195 @@ TEST(RenderLod, PipesUnderAPixelAreDrawnAsTheirCentreline) {
   EXPECT_EQ(ids_in(far.image), std::set<uint64_t>{pipe.id});  // still drawn, as a line
 }
 
+// A thin far pipe's centreline covers what its diameter covers: half the diameter on screen,
+// half the darkening across it (a 1-pixel line would darken alike at both distances), in the
+// pipe's colour.
+TEST(RenderLook, ACentrelineCoversItsProjectedDiameter) {
+  TempDir dir;
+  Object pipe = make_object("P", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.05f, 4.0f});
+  pipe.centreline = {{{0, 0, -2}, {0, 0, 2}, 0.1f}};
+  auto store = make_store(dir, {pipe});
+  RenderOptions options = small();
+  options.ground = false;
+  options.ambient_occlusion = false;
+  for (const bool antialias : {false, true}) {
+    options.antialias = antialias;
+    auto r = make_renderer(*store, options);
+    // Darkening across the rows through the middle of the pipe, summed, per row (in units of
+    // the background-to-pipe difference of the red-blue balance, which only the pipe moves).
+    const auto coverage = [&](double distance_m) {
+      Frame f = render(*r, look({0, -distance_m, 0}, {0, 0, 0}));
+      EXPECT_EQ(f.stats.centreline_pipes, 1u) << distance_m;
+      double sum = 0;
+      for (uint32_t y = 55; y < 65; ++y)  // (the pipe spans rows 54-66 at 40 m)
+        for (uint32_t x = 0; x < 160; ++x) {
+          const uint8_t* p = &f.image.rgba[(size_t(y) * 160 + x) * 4];
+          sum += std::max(0.0, double(p[0]) - double(p[2]) - (204.0 - 224.0));
+        }
+      return sum / 10;
+    };
+    // 128.7 px a metre at 1 m (160x120, 50 degrees): 0.64 px at 20 m, 0.32 px at 40 m.
+    const double near = coverage(20), far = coverage(40);
+    EXPECT_GT(near, 0.0);
+    EXPECT_NEAR(near / far, 2.0, 0.5) << "antialias " << antialias << ": " << near << " " << far;
+  }
+}
+
+// --- the look of stills -------------------------------------------------------------------------
+
+// A red box and a blue sphere against the sky, drawn aliased and antialiased.
+struct EdgeScene {
+  TempDir dir;
+  Object box = make_object("box", ObjectClass::equipment, {-1.2, 10, 0}, Box{1.6f, 1.6f, 1.6f},
+                           {220, 40, 30, 255});
+  Object ball = make_object("ball", ObjectClass::equipment, {1.3, 10, 0.3}, Sphere{0.9f},
+                            {40, 60, 220, 255});
+  std::unique_ptr<Store> store = make_store(dir, {box, ball});
+};
+
+RenderOptions plain_look(bool antialias, AntialiasMethod method = AntialiasMethod::automatic) {
+  RenderOptions o = small(LodPolicy::none);
+  o.antialias = antialias;
+  o.antialias_method = method;
+  o.ground = false;
+  o.ambient_occlusion = false;
+  return o;
+}
+
+// Antialiasing puts intermediate values on edges, and changes nothing away from them: pixels
+// more than two pixels from any change of object in the aliased frame's id buffer stay within
+// a few levels. Every method.
+TEST(RenderLook, AntialiasingChangesOnlyEdgePixelsToIntermediateValues) {
+  EdgeScene scene;
+  const uint32_t w = 200, h = 100;
+  auto aliased_renderer = make_renderer(*scene.store, plain_look(false));
+  const Camera camera = look({0, 0, 0.5}, {0, 10, 0});
+  Frame aliased = render(*aliased_renderer, camera, w, h);
+  const auto id = [&](int x, int y) {
+    return aliased.image.object_ids[size_t(std::clamp(y, 0, int(h) - 1)) * w + size_t(std::clamp(x, 0, int(w) - 1))];
+  };
+  const auto near_edge = [&](int x, int y) {
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx)
+        if (id(x + dx, y + dy) != id(x, y)) return true;
+    return false;
+  };
+  // Pixels whose red lies strictly between the sky's and the box's, on the box's outline.
+  const auto blended_on_box_edge = [&](const Image& image) {
+    int n = 0;
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) {
+        if (!near_edge(int(x), int(y))) continue;
+        const uint8_t* p = &image.rgba[(size_t(y) * w + x) * 4];
+        const uint8_t* a = &aliased.image.rgba[(size_t(y) * w + x) * 4];
+        n += p[0] != a[0] && p[2] > 70 && p[2] < 215;  // between the box's blue and the sky's
+      }
+    return n;
+  };
+  for (const AntialiasMethod method : {AntialiasMethod::supersampling,
+                                       AntialiasMethod::multisampling,
+                                       AntialiasMethod::edge_filter}) {
+    auto r = make_renderer(*scene.store, plain_look(true, method));
+    Frame smooth = render(*r, camera, w, h);
+    int far_from_edges = 0, changed = 0;
+    for (uint32_t y = 0; y < h; ++y)
+      for (uint32_t x = 0; x < w; ++x) {
+        if (near_edge(int(x), int(y))) continue;
+        ++far_from_edges;
+        for (int c = 0; c < 3; ++c) {
+          const size_t i = (size_t(y) * w + x) * 4 + size_t(c);
+          if (std::abs(int(smooth.image.rgba[i]) - int(aliased.image.rgba[i])) > 4) {
+            ++changed;
+            break;
+          }
+        }
+      }
+    const std::string name(antialias_method_name(method));
+    EXPECT_GT(far_from_edges, int(w * h / 2)) << name;
+    EXPECT_EQ(changed, 0) << name;
+    EXPECT_GT(blended_on_box_edge(smooth.image), 40) << name;
+    EXPECT_EQ(ids_in(smooth.image), ids_in(aliased.image)) << name;
+  }
+}
+
+// The ground lies at the model's lowest level: seen from above, the rays that meet that plane
+// near the plant show it (no object id), those that rise above the horizon show the sky; from
+// below it, or without it, there is none.
+TEST(RenderLook, TheGroundIsDrawnBelowThePlantAndNotAboveTheHorizon) {
+  TempDir dir;
+  const auto tank = make_object("tank", ObjectClass::equipment, {0, 0, 3}, Cylinder{2.0f, 6.0f});
+  auto store = make_store(dir, {tank});  // its bounds reach down to z = 0
+  RenderOptions options = small();
+  options.ambient_occlusion = false;
+  auto r = make_renderer(*store, options);
+  const uint32_t w = 160, h = 120;
+  // Level with the tank's middle, looking along y: the horizon is the middle row.
+  Frame f = render(*r, look({0, -20, 3}, {0, 0, 3}), w, h);
+  const auto rgb = [&](const Frame& frame, uint32_t x, uint32_t y) {
+    const uint8_t* p = &frame.image.rgba[(size_t(y) * w + x) * 4];
+    return std::array<int, 3>{p[0], p[1], p[2]};
+  };
+  const std::array<int, 3> sky = {204, 214, 224};
+  const auto is_sky = [&](const Frame& frame, uint32_t x, uint32_t y) {
+    const auto p = rgb(frame, x, y);
+    return std::abs(p[0] - sky[0]) <= 1 && std::abs(p[1] - sky[1]) <= 1 && std::abs(p[2] - sky[2]) <= 1;
+  };
+  // Bottom corners: rays 45 degrees down-ish meet z = 0 some 3-10 m ahead, beside the tank.
+  for (const uint32_t x : {2u, w - 3}) {
+    EXPECT_FALSE(is_sky(f, x, h - 3)) << x;
+    EXPECT_EQ(f.image.object_ids[size_t(h - 3) * w + x], 0u);
+    EXPECT_TRUE(is_sky(f, x, 3)) << x;  // above the horizon
+  }
+  EXPECT_EQ(ids_in(f.image), std::set<uint64_t>{tank.id});
+  // Without the ground, or from below it: sky.
+  options.ground = false;
+  r->set_options(options);
+  Frame bare = render(*r, look({0, -20, 3}, {0, 0, 3}), w, h);
+  EXPECT_TRUE(is_sky(bare, 2, h - 3));
+  options.ground = true;
+  r->set_options(options);
+  Frame below = render(*r, look({0, -20, -3}, {0, 0, 3}), w, h);
+  EXPECT_TRUE(is_sky(below, 2, h - 3));
+  EXPECT_TRUE(is_sky(below, 2, 3));
+}
+
+// A highlight: the id buffer holds the subject's id and 0 only; the subject shows through the
+// object in front of it; the others are ghosted (lighter, greyer than drawn plainly).
+TEST(RenderLook, AHighlightShowsOnlyTheSubjectsIdsAndSeesThroughWhatHidesIt) {
+  TempDir dir;
+  const auto pump = make_object("pump", ObjectClass::equipment, {0, 10, 0}, Box{1, 1, 1}, {230, 40, 30, 255});
+  const auto wall = make_object("wall", ObjectClass::structure, {0, 6, 0}, Box{3, 0.2f, 3}, {60, 160, 60, 255});
+  const auto aside = make_object("aside", ObjectClass::equipment, {3.5, 10, 0}, Box{1, 1, 1}, {40, 60, 220, 255});
+  auto store = make_store(dir, {pump, wall, aside});
+  RenderOptions options = small();
+  auto r = make_renderer(*store, options);
+  const uint32_t w = 200, h = 100;
+  const Camera camera = look({0, 0, 0}, {0, 10, 0});
+  Frame plain = render(*r, camera, w, h);
+  const size_t centre = size_t(h / 2) * w + w / 2;
+  EXPECT_EQ(plain.image.object_ids[centre], wall.id);  // the wall hides the pump
+  EXPECT_EQ(ids_in(plain.image), (std::set<uint64_t>{wall.id, aside.id}));
+  options.highlight_ids = {pump.id};
+  r->set_options(options);
+  Frame lit = render(*r, camera, w, h);
+  EXPECT_EQ(ids_in(lit.image), std::set<uint64_t>{pump.id});
+  EXPECT_EQ(lit.image.object_ids[centre], pump.id);
+  // Seen through the wall: the pump's red dominates the centre.
+  const uint8_t* c = &lit.image.rgba[centre * 4];
+  EXPECT_GT(int(c[0]), int(c[1]) + 60) << int(c[0]) << " " << int(c[1]) << " " << int(c[2]);
+  // The box aside: its blue, ghosted, is lighter and less saturated.
+  const uint32_t aside_x = w / 2 + uint32_t(std::lround(3.5 / (10 * std::tan(25 * M_PI / 180)) * (h / 2)));
+  const uint8_t* a0 = &plain.image.rgba[(size_t(h / 2) * w + aside_x) * 4];
+  const uint8_t* a1 = &lit.image.rgba[(size_t(h / 2) * w + aside_x) * 4];
+  const auto spread = [](const uint8_t* p) { return std::max({p[0], p[1], p[2]}) - std::min({p[0], p[1], p[2]}); };
+  EXPECT_GT(int(a1[0]) + a1[1] + a1[2], int(a0[0]) + a0[1] + a0[2]);
+  EXPECT_LT(spread(a1), spread(a0));
+  // An unknown id highlights nothing: no ids at all.
+  options.highlight_ids = {12345};
+  r->set_options(options);
+  EXPECT_TRUE(ids_in(render(*r, camera, w, h).image).empty());
+}
+
 // --- pipeline HLOD -----------------------------------------------------------------------------
 
 // A pipeline along x: pipe, flange, pipe (one straight run), a tee, then one more pipe.

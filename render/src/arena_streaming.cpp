@@ -3,6 +3,7 @@
 #include "arena_streaming.h"
 
 #include <algorithm>
+#include <bit>
 
 #include "decoded_objects.h"
 #include "frame_plan.h"
@@ -124,8 +125,10 @@ bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, Decoded
                    std::span<PackedVertex>(vertices_.data() + part.first_vertex, part.plan->vertex_count));
   }
   for (size_t s = 0; s < k.centreline.size(); ++s) {
-    vertices_[k.centreline_first + 2 * s] = {k.centreline[s].start_m, 0u};
-    vertices_[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, 0u};
+    // A centreline's normal word is its diameter (gl_backend.h).
+    const uint32_t diameter = std::bit_cast<uint32_t>(k.centreline[s].diameter_m);
+    vertices_[k.centreline_first + 2 * s] = {k.centreline[s].start_m, diameter};
+    vertices_[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, diameter};
   }
   const std::vector<PackedVertex>* upload = &vertices_;
   k.resident_centreline_first = k.centreline_first;

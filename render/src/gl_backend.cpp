@@ -5,6 +5,7 @@
 #include <epoxy/gl.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <initializer_list>
 #include <type_traits>
@@ -13,6 +14,8 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "frame_plan.h"
+#include "gl_shaders.h"
+#include "lod.h"
 
 namespace plantview {
 
@@ -35,62 +38,14 @@ static_assert(std::is_same_v<GlName, GLuint>);
 namespace {
 
 constexpr uint64_t kInitialArenaVertices = 1u << 16;  // the GPU buffers grow from here
+constexpr GLfloat kBackground[4] = {0.80f, 0.84f, 0.88f, 1.0f};
+constexpr float kSeeThroughAlpha = 0.22f;  // occluders of a highlighted subject
+constexpr double kOcclusionRadiusM = 0.6;  // ambient occlusion's reach
 
-const char* kVertexShader = R"(#version 450 core
-layout(location = 0) in vec3 a_position;
-layout(location = 1) in vec4 a_normal;
-layout(location = 2) in uint a_object;
-layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
-uniform mat4 u_view_projection;
-// Per-object values are flat, and the view direction is rebuilt per fragment from its window
-// position: fewer interpolated values make each triangle cheaper to set up and to bin.
-out vec3 v_normal;
-flat out vec4 v_colour;
-flat out uint v_pick;
-void main() {
-  vec4 a = objects[2u * a_object];
-  vec4 b = objects[2u * a_object + 1u];
-  vec3 p = a_position * b.xyz + a.xyz;
-  v_normal = a_normal.xyz;
-  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
-  v_pick = floatBitsToUint(b.w);
-  gl_Position = u_view_projection * vec4(p, 1.0);
-}
-)";
-
-const char* kFragmentShader = R"(#version 450 core
-in vec3 v_normal;
-flat in vec4 v_colour;
-flat in uint v_pick;
-layout(location = 0) out vec4 o_colour;
-layout(location = 1) out uint o_pick;
-uniform vec3 u_sun;  // unit, towards the light, in the camera-relative frame
-// The ray through a window position: u_ray * vec3(position * u_window_scale - 1, -1), in the
-// camera-relative frame (not normalised).
-uniform mat3 u_ray;
-uniform vec2 u_window_scale;
-void main() {
-  vec3 base = v_colour.rgb;
-  float n_length = length(v_normal);
-  vec3 lit;
-  if (n_length < 0.5) {
-    lit = base * 0.8;  // lines have no normal
-  } else {
-    vec3 n = v_normal / n_length;
-    vec3 to_eye = -normalize(u_ray * vec3(gl_FragCoord.xy * u_window_scale - 1.0, -1.0));
-    if (dot(n, to_eye) < 0.0) n = -n;  // two-sided: open meshes and facet groups
-    float head = max(dot(n, to_eye), 0.0);
-    float sun = max(dot(n, u_sun), 0.0);
-    lit = base * (0.22 + 0.48 * head + 0.38 * sun);
-  }
-  o_colour = vec4(min(lit, vec3(1.0)), v_colour.a);
-  o_pick = v_pick;
-}
-)";
-
-GLuint compile(GLenum type, const char* source, std::string& error) {
+GLuint compile(GLenum type, std::initializer_list<const char*> sources, std::string& error) {
   const GLuint shader = glCreateShader(type);
-  glShaderSource(shader, 1, &source, nullptr);
+  std::vector<const char*> texts(sources);
+  glShaderSource(shader, GLsizei(texts.size()), texts.data(), nullptr);
   glCompileShader(shader);
   GLint ok = 0;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -103,6 +58,42 @@ GLuint compile(GLenum type, const char* source, std::string& error) {
   }
   return shader;
 }
+
+// Links shaders of (type, sources) into a program; 0 with the log in `error`.
+GLuint link(const char* name, std::initializer_list<std::pair<GLenum, std::initializer_list<const char*>>> stages,
+            std::string& error) {
+  std::vector<GLuint> shaders;
+  bool ok = true;
+  for (const auto& [type, sources] : stages) {
+    const GLuint shader = compile(type, sources, error);
+    if (!shader) {
+      ok = false;
+      break;
+    }
+    shaders.push_back(shader);
+  }
+  GLuint program = 0;
+  if (ok) {
+    program = glCreateProgram();
+    for (const GLuint shader : shaders) glAttachShader(program, shader);
+    glLinkProgram(program);
+    GLint linked = 0;
+    glGetProgramiv(program, GL_LINK_STATUS, &linked);
+    if (!linked) {
+      char log[2048] = {};
+      glGetProgramInfoLog(program, sizeof log, nullptr, log);
+      error = std::string("renderer: the ") + name + " shaders do not link: " + log;
+      glDeleteProgram(program);
+      program = 0;
+    }
+  } else {
+    error = std::string("renderer: ") + name + ": " + error.substr(std::string("renderer: ").size());
+  }
+  for (const GLuint shader : shaders) glDeleteShader(shader);
+  return program;
+}
+
+GLint at(GLuint program, const char* name) { return glGetUniformLocation(program, name); }
 
 // Fills a stream buffer from `parts`, one after the other, growing it by half again when it is
 // too small. No invalidation: the buffer is idle (the last frame was read back), and new storage
@@ -120,15 +111,46 @@ void upload_stream(GLuint buffer, size_t& capacity, size_t bytes,
   }
 }
 
+// A ghosted colour: most of its saturation gone, lifted towards white.
+uint32_t ghost(uint32_t rgba) {
+  const float r = float(rgba & 0xff), g = float((rgba >> 8) & 0xff), b = float((rgba >> 16) & 0xff);
+  const float luma = 0.299f * r + 0.587f * g + 0.114f * b;
+  const auto channel = [&](float c) {
+    const float grey = luma + 0.2f * (c - luma);
+    return uint32_t(std::lround(grey + 0.6f * (255.0f - grey)));
+  };
+  return channel(r) | channel(g) << 8 | channel(b) << 16 | (rgba & 0xff000000u);
+}
+
 }  // namespace
 
+Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
+  Look look;
+  look.antialias = options.antialias;
+  look.method = options.antialias_method;
+  look.samples = options.samples;
+  look.ground = options.ground;
+  look.ambient_occlusion = options.ambient_occlusion;
+  look.highlight_ids = options.highlight_ids;
+  look.model_bounds = model_bounds;
+  return look;
+}
+
 GlBackend::~GlBackend() {
-  if (program_) glDeleteProgram(program_);
+  for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
+                               occlusion_program_, finish_program_})
+    if (program) glDeleteProgram(program);
+  if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
+  if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
   GLuint buffers[] = {arena_, arena_objects_, index_buffer_, table_buffer_, proxy_buffer_, cube_indices_};
   glDeleteBuffers(6, buffers);
-  GLuint vaos[] = {vao_, proxy_vao_};
-  glDeleteVertexArrays(2, vaos);
-  release_framebuffer();
+  GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
+  glDeleteVertexArrays(3, vaos);
+  GLuint samplers[] = {linear_sampler_, nearest_sampler_};
+  glDeleteSamplers(2, samplers);
+  release_target(scene_);
+  release_target(resolved_);
+  release_target(output_);
 }
 
 bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
@@ -142,31 +164,32 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
             std::to_string(epoxy_gl_version() / 10) + "." + std::to_string(epoxy_gl_version() % 10);
     return false;
   }
-  const GLuint vs = compile(GL_VERTEX_SHADER, kVertexShader, error);
-  if (!vs) return false;
-  const GLuint fs = compile(GL_FRAGMENT_SHADER, kFragmentShader, error);
-  if (!fs) {
-    glDeleteShader(vs);
-    return false;
-  }
-  program_ = glCreateProgram();
-  glAttachShader(program_, vs);
-  glAttachShader(program_, fs);
-  glLinkProgram(program_);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint ok = 0;
-  glGetProgramiv(program_, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetProgramInfoLog(program_, sizeof log, nullptr, log);
-    error = std::string("renderer: shaders do not link: ") + log;
-    return false;
-  }
-  u_view_projection_ = glGetUniformLocation(program_, "u_view_projection");
-  u_sun_ = glGetUniformLocation(program_, "u_sun");
-  u_ray_ = glGetUniformLocation(program_, "u_ray");
-  u_window_scale_ = glGetUniformLocation(program_, "u_window_scale");
+  const auto* renderer_name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  const std::string name = renderer_name ? renderer_name : "";
+  software_ = name.find("llvmpipe") != std::string::npos ||
+              name.find("softpipe") != std::string::npos ||
+              name.find("SwiftShader") != std::string::npos;
+
+  using namespace shaders;
+  constexpr const char* kVersion = "#version 450 core\n";
+  surface_program_ = link("surface", {{GL_VERTEX_SHADER, {kSurfaceVertex}},
+                                      {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
+                                      {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
+  if (surface_program_)
+    centreline_program_ = link("centreline", {{GL_VERTEX_SHADER, {kCentrelineVertex}},
+                                              {GL_GEOMETRY_SHADER, {kCentrelineGeometry}},
+                                              {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
+                                              {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
+  if (centreline_program_)
+    ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+                                      {GL_FRAGMENT_SHADER, {kGroundFragment}}}, error);
+  if (ground_program_)
+    occlusion_program_ = link("ambient occlusion", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+                                                    {GL_FRAGMENT_SHADER, {kOcclusionFragment}}}, error);
+  if (occlusion_program_)
+    finish_program_ = link("finishing", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+                                         {GL_FRAGMENT_SHADER, {kFinishFragment}}}, error);
+  if (!finish_program_) return false;
 
   glCreateBuffers(1, &index_buffer_);
   glCreateBuffers(1, &table_buffer_);
@@ -179,7 +202,8 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
 
   // Both vertex arrays read position and normal from the arena (binding 0) and the object-table
   // index from binding 1: per vertex for objects (the arena's second buffer), per instance for
-  // proxies (the cube's vertices are shared).
+  // proxies (the cube's vertices are shared). Attribute 3 is the normal word as an integer: a
+  // centreline's diameter.
   const auto make_vertex_array = [](GLuint& array) {
     glCreateVertexArrays(1, &array);
     glEnableVertexArrayAttrib(array, 0);
@@ -191,6 +215,9 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
     glEnableVertexArrayAttrib(array, 2);
     glVertexArrayAttribIFormat(array, 2, 1, GL_UNSIGNED_INT, 0);
     glVertexArrayAttribBinding(array, 2, 1);
+    glEnableVertexArrayAttrib(array, 3);
+    glVertexArrayAttribIFormat(array, 3, 1, GL_UNSIGNED_INT, 12);
+    glVertexArrayAttribBinding(array, 3, 0);
   };
   make_vertex_array(vao_);
   glVertexArrayElementBuffer(vao_, index_buffer_);
@@ -198,6 +225,17 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
   glVertexArrayBindingDivisor(proxy_vao_, 1, 1);
   glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
   glVertexArrayElementBuffer(proxy_vao_, cube_indices_);
+  glCreateVertexArrays(1, &empty_vao_);
+
+  glCreateSamplers(1, &linear_sampler_);
+  glCreateSamplers(1, &nearest_sampler_);
+  for (const GLuint sampler : {linear_sampler_, nearest_sampler_}) {
+    const GLint filter = sampler == linear_sampler_ ? GL_LINEAR : GL_NEAREST;
+    glSamplerParameteri(sampler, GL_TEXTURE_MIN_FILTER, filter);
+    glSamplerParameteri(sampler, GL_TEXTURE_MAG_FILTER, filter);
+    glSamplerParameteri(sampler, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glSamplerParameteri(sampler, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  }
   return grow_arena(std::min<uint64_t>(kInitialArenaVertices, budget_vertices_), error);
 }
 
@@ -259,112 +297,199 @@ uint32_t* GlBackend::map_indices(size_t count, std::string& error) {
 
 void GlBackend::unmap_indices() { glUnmapNamedBuffer(index_buffer_); }
 
-void GlBackend::release_framebuffer() {
-  GLuint fbs[] = {framebuffer_, resolved_};
-  glDeleteFramebuffers(2, fbs);
-  GLuint rbs[] = {colour_rb_, pick_rb_, depth_rb_, resolved_colour_, resolved_pick_};
-  glDeleteRenderbuffers(5, rbs);
-  framebuffer_ = colour_rb_ = pick_rb_ = depth_rb_ = resolved_ = resolved_colour_ = resolved_pick_ = 0;
-  fb_width_ = fb_height_ = fb_samples_ = 0;
+// --- framebuffers -------------------------------------------------------------------------------
+
+void GlBackend::release_target(Target& t) {
+  if (t.framebuffer) glDeleteFramebuffers(1, &t.framebuffer);
+  GLuint names[] = {t.colour, t.pick, t.depth};
+  if (t.samples > 1) glDeleteRenderbuffers(3, names);
+  else glDeleteTextures(3, names);
+  t = Target{};
 }
 
-bool GlBackend::ensure_framebuffer(uint32_t w, uint32_t h, uint32_t wanted, std::string& error) {
-  GLint max_samples = 1;
-  glGetIntegerv(GL_MAX_INTEGER_SAMPLES, &max_samples);
-  GLint max_colour_samples = 1;
-  glGetIntegerv(GL_MAX_SAMPLES, &max_colour_samples);
-  if (wanted == 0) {
-    const auto* renderer_name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-    const std::string name = renderer_name ? renderer_name : "";
-    const bool software = name.find("llvmpipe") != std::string::npos ||
-                          name.find("softpipe") != std::string::npos ||
-                          name.find("SwiftShader") != std::string::npos;
-    wanted = software ? 1 : 4;
-  }
-  const uint32_t samples = std::clamp<uint32_t>(wanted, 1, uint32_t(std::min(max_samples, max_colour_samples)));
-  if (framebuffer_ && fb_width_ == w && fb_height_ == h && fb_samples_ == samples) return true;
-  release_framebuffer();
-  const auto make = [&](GLuint& fb, GLuint& colour, GLuint& pick, GLuint* depth, uint32_t n) {
-    glCreateFramebuffers(1, &fb);
-    glCreateRenderbuffers(1, &colour);
-    glCreateRenderbuffers(1, &pick);
-    glNamedRenderbufferStorageMultisample(colour, GLsizei(n > 1 ? n : 0), GL_RGBA8, GLsizei(w), GLsizei(h));
-    glNamedRenderbufferStorageMultisample(pick, GLsizei(n > 1 ? n : 0), GL_R32UI, GLsizei(w), GLsizei(h));
-    glNamedFramebufferRenderbuffer(fb, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour);
-    glNamedFramebufferRenderbuffer(fb, GL_COLOR_ATTACHMENT1, GL_RENDERBUFFER, pick);
-    if (depth) {
-      glCreateRenderbuffers(1, depth);
-      glNamedRenderbufferStorageMultisample(*depth, GLsizei(n > 1 ? n : 0), GL_DEPTH_COMPONENT32F, GLsizei(w), GLsizei(h));
-      glNamedFramebufferRenderbuffer(fb, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, *depth);
+bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth,
+                              std::string& error) {
+  if (t.framebuffer && t.width == w && t.height == h && t.samples == samples && t.has_depth == depth)
+    return true;
+  release_target(t);
+  glCreateFramebuffers(1, &t.framebuffer);
+  t.width = w;
+  t.height = h;
+  t.samples = samples;
+  t.has_depth = depth;
+  const auto attach = [&](GLuint& name, GLenum format, GLenum attachment) {
+    if (samples > 1) {
+      glCreateRenderbuffers(1, &name);
+      glNamedRenderbufferStorageMultisample(name, GLsizei(samples), format, GLsizei(w), GLsizei(h));
+      glNamedFramebufferRenderbuffer(t.framebuffer, attachment, GL_RENDERBUFFER, name);
+    } else {
+      glCreateTextures(GL_TEXTURE_2D, 1, &name);
+      glTextureStorage2D(name, 1, format, GLsizei(w), GLsizei(h));
+      glNamedFramebufferTexture(t.framebuffer, attachment, name, 0);
     }
-    const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-    glNamedFramebufferDrawBuffers(fb, 2, buffers);
-    return glCheckNamedFramebufferStatus(fb, GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE;
   };
-  bool ok = make(framebuffer_, colour_rb_, pick_rb_, &depth_rb_, samples);
-  if (ok && samples > 1) ok = make(resolved_, resolved_colour_, resolved_pick_, nullptr, 1);
-  if (!ok) {
+  attach(t.colour, GL_RGBA8, GL_COLOR_ATTACHMENT0);
+  attach(t.pick, GL_R32UI, GL_COLOR_ATTACHMENT1);
+  if (depth) attach(t.depth, GL_DEPTH32F_STENCIL8, GL_DEPTH_STENCIL_ATTACHMENT);
+  const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  glNamedFramebufferDrawBuffers(t.framebuffer, 2, buffers);
+  if (glCheckNamedFramebufferStatus(t.framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
     error = "renderer: cannot make a " + std::to_string(w) + "x" + std::to_string(h) +
             " framebuffer with " + std::to_string(samples) + " samples";
-    release_framebuffer();
+    release_target(t);
     return false;
   }
-  fb_width_ = w;
-  fb_height_ = h;
-  fb_samples_ = samples;
   return true;
+}
+
+// Automatic: multisampling on a GPU (cheap there); supersampling on a software renderer, where
+// it costs (fragments x 4) less than multisampling does on llvmpipe and smooths thin pipes too
+// (measured: render.h); `samples` given, multisampling with that many.
+GlBackend::Plan GlBackend::plan_for(const Look& look) const {
+  Plan plan;
+  plan.occlusion = look.ambient_occlusion;
+  if (!look.antialias) return plan;
+  AntialiasMethod method = look.method;
+  if (method == AntialiasMethod::automatic)  // (samples given: that multisampling, 1 none)
+    method = software_ && look.samples == 0 ? AntialiasMethod::supersampling
+                                            : AntialiasMethod::multisampling;
+  switch (method) {
+    case AntialiasMethod::multisampling: {
+      GLint max_samples = 1, max_integer_samples = 1;
+      glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
+      glGetIntegerv(GL_MAX_INTEGER_SAMPLES, &max_integer_samples);
+      plan.samples = std::clamp<uint32_t>(look.samples ? look.samples : 4, 1,
+                                          uint32_t(std::min(max_samples, max_integer_samples)));
+      break;
+    }
+    case AntialiasMethod::supersampling: plan.scale = 2; break;
+    case AntialiasMethod::edge_filter: plan.edge_filter = true; break;
+    case AntialiasMethod::automatic: break;
+  }
+  return plan;
+}
+
+// --- drawing ------------------------------------------------------------------------------------
+
+std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> table,
+                                                   std::span<const uint64_t> pick_ids,
+                                                   std::span<const uint64_t> highlight_ids) {
+  highlight_sorted_.assign(highlight_ids.begin(), highlight_ids.end());
+  std::sort(highlight_sorted_.begin(), highlight_sorted_.end());
+  highlight_table_.assign(table.begin(), table.end());
+  for (TableEntry& e : highlight_table_) {
+    const uint64_t id = e.pick && e.pick <= pick_ids.size() ? pick_ids[e.pick - 1] : 0;
+    if (id && std::binary_search(highlight_sorted_.begin(), highlight_sorted_.end(), id)) continue;
+    e.pick = 0;
+    e.colour = ghost(e.colour);
+  }
+  return highlight_table_;
 }
 
 bool GlBackend::draw(const FrameView& view, const IndexCounts& counts,
                      std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
-                     uint32_t samples, bool with_ids, std::string& error) {
-  if (!ensure_framebuffer(view.width, view.height, samples, error)) return false;
+                     std::span<const uint64_t> pick_ids, const Look& look, bool with_ids,
+                     std::string& error) {
+  const Plan plan = plan_for(look);
+  const uint32_t w = view.width, h = view.height;
+  if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, error)) return false;
+  if (plan.samples > 1 &&
+      !ensure_target(resolved_, w, h, 1, plan.occlusion, error))
+    return false;
+  if (plan.finish() && !ensure_target(output_, w, h, 1, false, error)) return false;
+  const bool highlight = !look.highlight_ids.empty();
+  if (highlight) table = highlighted(table, pick_ids, look.highlight_ids);
   upload_stream(table_buffer_, table_capacity_, table.size_bytes(), {{table.data(), table.size_bytes()}});
   upload_stream(proxy_buffer_, proxy_capacity_, proxy_tables.size_bytes(),
                 {{proxy_tables.data(), proxy_tables.size_bytes()}});
   glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
-  begin_pass(view, with_ids);
-  draw_lists(counts, proxy_tables.size());
+  begin_pass(view, plan, with_ids);
+  if (!highlight) {
+    draw_lists(counts, proxy_tables.size(), 0, 1.0f, with_ids);
+  } else {
+    // The subject, marking its pixels; the context where it is not; the context in front of
+    // it, see-through (gl_backend.h).
+    glEnable(GL_STENCIL_TEST);
+    glStencilFunc(GL_ALWAYS, 1, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+    draw_lists(counts, proxy_tables.size(), 1, 1.0f, with_ids);
+    glStencilFunc(GL_EQUAL, 0, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    draw_lists(counts, proxy_tables.size(), 2, 1.0f, with_ids);
+    glStencilFunc(GL_EQUAL, 1, 0xff);
+    draw_lists(counts, proxy_tables.size(), 2, kSeeThroughAlpha, with_ids);
+    glDisable(GL_STENCIL_TEST);
+  }
+  if (look.ground) draw_ground(view, look.model_bounds, with_ids);
+  finish(view, plan, with_ids);
   glFinish();
   return true;
 }
 
-void GlBackend::begin_pass(const FrameView& view, bool with_ids) {
-  const uint32_t w = view.width, h = view.height;
-  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer_);
+void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_ids) {
+  const uint32_t w = scene_.width, h = scene_.height;
+  glBindFramebuffer(GL_FRAMEBUFFER, scene_.framebuffer);
   // The object ids are written only when they are read back.
   const GLenum draw_buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
-  glNamedFramebufferDrawBuffers(framebuffer_, 2, draw_buffers);
+  glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, draw_buffers);
   glViewport(0, 0, GLsizei(w), GLsizei(h));
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_GREATER);
   glDepthMask(GL_TRUE);
   glDisable(GL_CULL_FACE);  // two-sided: facet groups and open meshes are seen from both sides
-  const GLfloat background[4] = {0.80f, 0.84f, 0.88f, 1.0f};
   const GLuint no_pick[4] = {0, 0, 0, 0};
-  const GLfloat far_depth = 0.0f;
-  glClearNamedFramebufferfv(framebuffer_, GL_COLOR, 0, background);
-  glClearNamedFramebufferuiv(framebuffer_, GL_COLOR, 1, no_pick);
-  glClearNamedFramebufferfv(framebuffer_, GL_DEPTH, 0, &far_depth);
-  glUseProgram(program_);
-  glUniformMatrix4fv(u_view_projection_, 1, GL_FALSE, glm::value_ptr(view.view_projection));
-  const glm::vec3 sun = glm::normalize(glm::mat3(view.rotation) * glm::vec3(0.3f, 0.5f, 0.8f));
-  glUniform3fv(u_sun_, 1, glm::value_ptr(sun));
+  glClearNamedFramebufferfv(scene_.framebuffer, GL_COLOR, 0, kBackground);
+  glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
+  glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
+
+  // The key light: 50 degrees up, from behind the eye's left shoulder (turned with the view
+  // about the vertical, so every view is lit alike).
+  const glm::vec3 forward = glm::vec3(glm::transpose(view.rotation) * glm::vec4(0, 0, -1, 0));
+  const glm::vec3 right = glm::vec3(glm::transpose(view.rotation) * glm::vec4(1, 0, 0, 0));
+  glm::vec2 back(-forward.x, -forward.y), left(-right.x, -right.y);
+  glm::vec2 horizontal = back + 0.8f * left;
+  if (glm::length(horizontal) < 1e-3f) horizontal = glm::vec2(-0.6f, -0.8f);
+  horizontal = glm::normalize(horizontal) * std::cos(glm::radians(50.0f));
+  const glm::vec3 key = glm::normalize(glm::vec3(horizontal, std::sin(glm::radians(50.0f))));
   // View space to the camera-relative frame, with the half-angle tangents of the view.
   const glm::mat3 ray = glm::transpose(glm::mat3(view.rotation)) *
                         glm::mat3(glm::vec3(view.aspect / view.focal, 0, 0),
                                   glm::vec3(0, 1.0f / view.focal, 0), glm::vec3(0, 0, 1));
-  glUniformMatrix3fv(u_ray_, 1, GL_FALSE, glm::value_ptr(ray));
-  glUniform2f(u_window_scale_, 2.0f / float(w), 2.0f / float(h));
+  const float focal_px = float(view.focal_px * plan.scale);
+  for (const GLuint program : {surface_program_, centreline_program_, ground_program_}) {
+    glProgramUniformMatrix4fv(program, at(program, "u_view_projection"), 1, GL_FALSE,
+                              glm::value_ptr(view.view_projection));
+    glProgramUniform3fv(program, at(program, "u_key"), 1, glm::value_ptr(key));
+    glProgramUniformMatrix3fv(program, at(program, "u_ray"), 1, GL_FALSE, glm::value_ptr(ray));
+    glProgramUniform2f(program, at(program, "u_window_scale"), 2.0f / float(w), 2.0f / float(h));
+  }
+  glProgramUniform2f(centreline_program_, at(centreline_program_, "u_viewport"), float(w), float(h));
+  glProgramUniform1f(centreline_program_, at(centreline_program_, "u_focal_px"), focal_px);
+  glProgramUniform1f(centreline_program_, at(centreline_program_, "u_near"), float(kNearPlaneM));
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer_);
 }
 
-void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies) {
+void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
+                           bool with_ids) {
   const size_t n_closed = counts[kClosed], n_open = counts[kOpen];
   const size_t n_opaque = n_closed + n_open, n_transparent = counts[kTransparent],
                n_lines = counts[kLines];
-  glDisablei(GL_BLEND, 0);
+  const bool see_through = alpha < 1.0f;
+  for (const GLuint program : {surface_program_, centreline_program_}) {
+    glProgramUniform1i(program, at(program, "u_mode"), mode);
+    glProgramUniform1f(program, at(program, "u_alpha"), alpha);
+  }
+  if (see_through) {
+    glEnablei(GL_BLEND, 0);
+    glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glDepthMask(GL_FALSE);
+    const GLenum colour_only[] = {GL_COLOR_ATTACHMENT0, GL_NONE};
+    glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, colour_only);
+  } else {
+    glDisablei(GL_BLEND, 0);
+  }
+  glUseProgram(surface_program_);
   glBindVertexArray(vao_);
   if (n_closed) {
     // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
@@ -377,13 +502,20 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies) {
   if (n_open)
     glDrawElements(GL_TRIANGLES, GLsizei(n_open), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(n_closed * sizeof(uint32_t)));
-  if (n_lines)
-    glDrawElements(GL_LINES, GLsizei(n_lines), GL_UNSIGNED_INT,
-                   reinterpret_cast<const void*>((n_opaque + n_transparent) * sizeof(uint32_t)));
   if (proxies) {
     glBindVertexArray(proxy_vao_);
     glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLsizei(proxies));
     glBindVertexArray(vao_);
+  }
+  if (n_lines) {
+    // Centrelines blend their coverage; they write depth like the pipes they stand for.
+    glEnablei(GL_BLEND, 0);
+    glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glUseProgram(centreline_program_);
+    glDrawElements(GL_LINES, GLsizei(n_lines), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>((n_opaque + n_transparent) * sizeof(uint32_t)));
+    glUseProgram(surface_program_);
+    if (!see_through) glDisablei(GL_BLEND, 0);
   }
   if (n_transparent) {
     // See-through objects after the rest, blended, not hiding what lies behind them.
@@ -392,26 +524,140 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies) {
     glDepthMask(GL_FALSE);
     glDrawElements(GL_TRIANGLES, GLsizei(n_transparent), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(n_opaque * sizeof(uint32_t)));
-    glDepthMask(GL_TRUE);
-    glDisablei(GL_BLEND, 0);
+  }
+  glDepthMask(GL_TRUE);
+  glDisablei(GL_BLEND, 0);
+  if (see_through) {
+    const GLenum draw_buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
+    glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, draw_buffers);
   }
   glBindVertexArray(0);
 }
 
-bool GlBackend::read_back(uint32_t w, uint32_t h, bool with_ids,
-                          std::span<const uint64_t> pick_ids, Image& out, std::string& error) {
-  GLuint source = framebuffer_;
-  if (fb_samples_ > 1) {
-    // Colour averages its samples; ids take one sample (integers do not average).
+// The ground: where nothing else was drawn (it lies below the whole model, so an eye above it
+// sees it only there), and only from above.
+void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool with_ids) {
+  if (bounds.empty()) return;
+  const double ground_z = bounds.min.z - view.eye_m.z;
+  if (ground_z >= 0) return;
+  const glm::dvec2 size(bounds.max.x - bounds.min.x, bounds.max.y - bounds.min.y);
+  const double radius = std::max(0.5 * glm::length(size), 1.0);
+  // Squares of 1, 10 or 100 m..., about a hundredth of the plant, heavier lines every ten.
+  const double grid = std::pow(10.0, std::floor(std::log10(std::max(radius / 25.0, 0.1))));
+  const glm::dvec2 centre = 0.5 * glm::dvec2(bounds.min.x + bounds.max.x, bounds.min.y + bounds.max.y) -
+                            glm::dvec2(view.eye_m);
+  const glm::dvec2 phase(std::fmod(view.eye_m.x, 10 * grid), std::fmod(view.eye_m.y, 10 * grid));
+  const GLuint p = ground_program_;
+  glProgramUniform1f(p, at(p, "u_ground_z"), float(ground_z));
+  glProgramUniform2f(p, at(p, "u_grid_phase"), float(phase.x), float(phase.y));
+  glProgramUniform1f(p, at(p, "u_grid_m"), float(grid));
+  glProgramUniform2f(p, at(p, "u_centre"), float(centre.x), float(centre.y));
+  glProgramUniform1f(p, at(p, "u_radius_m"), float(radius));
+  const GLenum colour_only[] = {GL_COLOR_ATTACHMENT0, GL_NONE};
+  glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, colour_only);
+  glEnablei(GL_BLEND, 0);
+  glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  glUseProgram(p);
+  glBindVertexArray(empty_vao_);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glDisablei(GL_BLEND, 0);
+  const GLenum restored[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
+  glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, restored);
+  glBindVertexArray(0);
+}
+
+void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
+  const Target* source = &scene_;
+  if (plan.samples > 1) {
+    // Colour averages its samples; ids and depth take one (they do not average).
     for (const GLenum attachment : {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1}) {
       if (attachment == GL_COLOR_ATTACHMENT1 && !with_ids) break;
-      glNamedFramebufferReadBuffer(framebuffer_, attachment);
-      glNamedFramebufferDrawBuffer(resolved_, attachment);
-      glBlitNamedFramebuffer(framebuffer_, resolved_, 0, 0, GLint(w), GLint(h), 0, 0, GLint(w), GLint(h),
+      glNamedFramebufferReadBuffer(scene_.framebuffer, attachment);
+      const GLenum draw_buffers[] = {attachment == GL_COLOR_ATTACHMENT0 ? attachment : GL_NONE,
+                                     attachment == GL_COLOR_ATTACHMENT1 ? attachment : GL_NONE};
+      glNamedFramebufferDrawBuffers(resolved_.framebuffer, 2, draw_buffers);
+      glBlitNamedFramebuffer(scene_.framebuffer, resolved_.framebuffer, 0, 0, GLint(scene_.width),
+                             GLint(scene_.height), 0, 0, GLint(scene_.width), GLint(scene_.height),
                              GL_COLOR_BUFFER_BIT, GL_NEAREST);
     }
-    source = resolved_;
+    if (plan.occlusion)
+      glBlitNamedFramebuffer(scene_.framebuffer, resolved_.framebuffer, 0, 0, GLint(scene_.width),
+                             GLint(scene_.height), 0, 0, GLint(scene_.width), GLint(scene_.height),
+                             GL_DEPTH_BUFFER_BIT, GL_NEAREST);
+    const GLenum both[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glNamedFramebufferDrawBuffers(resolved_.framebuffer, 2, both);
+    source = &resolved_;
   }
+  final_ = source;
+  if (!plan.finish()) return;
+
+  glDisable(GL_DEPTH_TEST);
+  glDisablei(GL_BLEND, 0);
+  glBindVertexArray(empty_vao_);
+  glBindTextureUnit(1, source->depth ? source->depth : scene_.depth);
+  glBindSampler(1, nearest_sampler_);
+  if (plan.occlusion) {
+    const uint32_t ao_width = (output_.width + 1) / 2, ao_height = (output_.height + 1) / 2;
+    if (occlusion_width_ != ao_width || occlusion_height_ != ao_height) {
+      if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
+      if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
+      glCreateTextures(GL_TEXTURE_2D, 1, &occlusion_texture_);
+      glTextureStorage2D(occlusion_texture_, 1, GL_RG32F, GLsizei(ao_width), GLsizei(ao_height));
+      glCreateFramebuffers(1, &occlusion_framebuffer_);
+      glNamedFramebufferTexture(occlusion_framebuffer_, GL_COLOR_ATTACHMENT0, occlusion_texture_, 0);
+      occlusion_width_ = ao_width;
+      occlusion_height_ = ao_height;
+    }
+    const GLuint o = occlusion_program_;
+    glProgramUniform1i(o, at(o, "u_depth"), 1);
+    glProgramUniform1i(o, at(o, "u_scale"), GLint(plan.scale));
+    glProgramUniform1i(o, at(o, "u_step"), GLint(2 * plan.scale));
+    glProgramUniform1f(o, at(o, "u_near"), float(kNearPlaneM));
+    glProgramUniform2f(o, at(o, "u_ndc_to_view"), view.aspect / view.focal, 1.0f / view.focal);
+    glProgramUniform1f(o, at(o, "u_focal_px"), float(view.focal_px * plan.scale));
+    glProgramUniform1f(o, at(o, "u_radius_m"), float(kOcclusionRadiusM));
+    glBindFramebuffer(GL_FRAMEBUFFER, occlusion_framebuffer_);
+    glViewport(0, 0, GLsizei(ao_width), GLsizei(ao_height));
+    glUseProgram(o);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+
+  const GLuint p = finish_program_;
+  glProgramUniform1i(p, at(p, "u_colour"), 0);
+  glProgramUniform1i(p, at(p, "u_depth"), 1);
+  glProgramUniform1i(p, at(p, "u_pick"), 2);
+  glProgramUniform1i(p, at(p, "u_occlusion"), 3);
+  glProgramUniform1i(p, at(p, "u_scale"), GLint(plan.scale));
+  glProgramUniform1i(p, at(p, "u_edge_filter"), plan.edge_filter);
+  glProgramUniform1i(p, at(p, "u_occlusion_on"), plan.occlusion);
+  glBindTextureUnit(3, plan.occlusion ? occlusion_texture_ : 0);
+  glBindSampler(3, nearest_sampler_);
+  glBindTextureUnit(0, source->colour);
+  glBindSampler(0, linear_sampler_);
+  glBindTextureUnit(2, source->pick);
+  glBindSampler(2, nearest_sampler_);
+  glBindFramebuffer(GL_FRAMEBUFFER, output_.framebuffer);
+  const GLenum draw_buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
+  glNamedFramebufferDrawBuffers(output_.framebuffer, 2, draw_buffers);
+  glViewport(0, 0, GLsizei(output_.width), GLsizei(output_.height));
+  glUseProgram(p);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
+  for (GLuint unit = 0; unit < 4; ++unit) {
+    glBindTextureUnit(unit, 0);
+    glBindSampler(unit, 0);
+  }
+  glEnable(GL_DEPTH_TEST);
+  final_ = &output_;
+}
+
+bool GlBackend::read_back(uint32_t w, uint32_t h, bool with_ids,
+                          std::span<const uint64_t> pick_ids, Image& out, std::string& error) {
+  if (!final_ || final_->width != w || final_->height != h) {
+    error = "renderer: nothing drawn at " + std::to_string(w) + "x" + std::to_string(h) + " to read back";
+    return false;
+  }
+  const GLuint source = final_->framebuffer;
   out.width = w;
   out.height = h;
   out.rgba.resize(size_t(w) * h * 4);

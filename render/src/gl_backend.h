@@ -1,20 +1,31 @@
-// GL backend: every OpenGL call of the renderer. Shaders, the vertex arena's GPU buffers (grown
-// on demand up to the budget), the index, object-table and proxy buffers, the framebuffer,
-// drawing the frame's index lists and reading the image back.
+// GL backend: every OpenGL call of the renderer. Shaders (gl_shaders.h), the vertex arena's GPU
+// buffers (grown on demand up to the budget), the index, object-table and proxy buffers, the
+// framebuffers, drawing the frame's index lists, the ground, finishing the image (antialiasing,
+// ambient occlusion) and reading it back.
 //
 // Rules
 //   - The arena is two GPU buffers indexed alike: vertices (PackedVertex) and the object-table
 //     index of each vertex (uint32). They hold at least what streaming asks for and never more
 //     than the budget; growing at least doubles them (each growth allocates new buffers, which
-//     the driver zeroes, and copies the old: about 1 ms a MB on llvmpipe).
+//     the driver zeroes, and copies the old: about 1 ms a MB on llvmpipe). A centreline vertex's
+//     normal word holds the pipe's diameter in metres (float bits), not a normal.
 //   - The index buffer holds the frame's lists one after the other in IndexList order; it is
 //     written through an unsynchronised mapping, which is safe because every frame is finished
 //     (read back) before the next begins.
-//   - Draw order: closed opaque solids (back faces culled), open opaque meshes, lines, proxy
-//     boxes (instanced unit cubes at arena offset 0, one object-table entry each), then the
-//     see-through triangles blended without writing depth. Depth is reversed (greater wins).
+//   - Draw order: closed opaque solids (back faces culled), open opaque meshes, centrelines
+//     (quads as wide as the pipe, blended), proxy boxes (instanced unit cubes at arena offset 0,
+//     one object-table entry each), the ground (where nothing else is), then the see-through
+//     triangles blended without writing depth. Depth is reversed (greater wins).
+//   - Highlight (Look::highlight_ids non-empty): the subject is drawn first, marking its pixels
+//     in the stencil; the context (every other object, ghosted: lighter, desaturated, pick 0)
+//     then where the subject is not, and once more, blended faintly and without depth, where it
+//     lies in front of the subject: occluders are see-through.
+//   - Framebuffers: the frame is drawn at `scale` x the output's size (2 when supersampled) with
+//     `samples` per pixel (multisampled: resolved into textures by a blit), then finished into
+//     the output size by one full-screen pass when anything needs it (supersampling, the edge
+//     filter, ambient occlusion); object ids follow one sample per output pixel.
 //   - Object ids are written only when read back (with_ids).
-// Units: arena offsets and sizes in vertices; buffer capacities in bytes; pixels.
+// Units: arena offsets and sizes in vertices; buffer capacities in bytes; pixels; metres.
 // Threads: the thread whose GL context was current at init(), which must stay current for
 //   every call and for the destructor.
 // Errors: false with "renderer: ..." naming what failed (shader log, sizes, the GL error code).
@@ -28,6 +39,7 @@
 
 #include "plantview/image.h"
 #include "plantview/primitives.h"
+#include "plantview/render.h"
 
 namespace plantview::detail {
 
@@ -50,6 +62,18 @@ using GlName = uint32_t;  // a GLuint: the name of a GL object (0: none)
 // The frame's index lists, in this order in the index buffer.
 enum IndexList : uint8_t { kClosed, kOpen, kTransparent, kLines, kIndexListCount };
 using IndexCounts = std::array<size_t, kIndexListCount>;
+
+// How a frame looks: RenderOptions' look, and the model's bounds for the ground.
+struct Look {
+  bool antialias = true;
+  AntialiasMethod method = AntialiasMethod::automatic;
+  uint32_t samples = 0;  // multisampling (0: 4)
+  bool ground = true;
+  bool ambient_occlusion = true;
+  std::span<const uint64_t> highlight_ids;  // any order; valid for the draw call
+  DAabb model_bounds;                       // world metres (the ground lies at min.z)
+};
+Look look_of(const RenderOptions& options, const DAabb& model_bounds);
 
 class GlBackend {
  public:
@@ -76,38 +100,71 @@ class GlBackend {
   void unmap_indices();
 
   // Draws the lists (counts per list, as written) and the proxy boxes, one per entry of
-  // `proxy_tables`, with the object table `table`, into a framebuffer of the view's size with
-  // `samples` per pixel (0: 4 on a GPU, 1 on a software renderer; at most what GL allows);
-  // waits for the GPU to finish.
+  // `proxy_tables`, with the object table `table` (its pick values index `pick_ids`), as `look`
+  // says, into the output image's framebuffer of the view's size; waits for the GPU to finish.
   bool draw(const FrameView& view, const IndexCounts& counts, std::span<const TableEntry> table,
-            std::span<const uint32_t> proxy_tables, uint32_t samples, bool with_ids,
-            std::string& error);
+            std::span<const uint32_t> proxy_tables, std::span<const uint64_t> pick_ids,
+            const Look& look, bool with_ids, std::string& error);
   // Reads the frame drawn back into `out` (top row first). with_ids: also the object ids, each
   // pixel's pick value p mapped to pick_ids[p - 1] (0 where nothing was drawn).
   bool read_back(uint32_t width, uint32_t height, bool with_ids,
                  std::span<const uint64_t> pick_ids, Image& out, std::string& error);
 
  private:
-  bool ensure_framebuffer(uint32_t width, uint32_t height, uint32_t samples, std::string& error);
-  void release_framebuffer();
+  // A framebuffer with colour (RGBA8), pick (R32UI) and, optionally, depth-stencil
+  // (DEPTH32F_STENCIL8) attachments: textures when single-sampled, else renderbuffers.
+  struct Target {
+    GlName framebuffer = 0, colour = 0, pick = 0, depth = 0;
+    uint32_t width = 0, height = 0, samples = 0;
+    bool has_depth = false;
+  };
+  // What a frame is drawn with, from the look and the device.
+  struct Plan {
+    uint32_t scale = 1, samples = 1;
+    bool edge_filter = false, occlusion = false;
+    bool finish() const { return scale > 1 || edge_filter || occlusion; }
+  };
+  Plan plan_for(const Look& look) const;
+  bool ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth,
+                     std::string& error);
+  static void release_target(Target& t);
   void bind_arena();
-  // Binds and clears the framebuffer and sets the program's uniforms for the view.
-  void begin_pass(const FrameView& view, bool with_ids);
-  // One draw call per non-empty list, and the proxy boxes (instanced), in the order of the rules.
-  void draw_lists(const IndexCounts& counts, size_t proxies);
+  // Binds and clears the drawing framebuffer and sets the programs' uniforms for the view.
+  void begin_pass(const FrameView& view, const Plan& plan, bool with_ids);
+  // One draw call per non-empty list, and the proxy boxes (instanced), in the order of the
+  // rules, in highlight mode `mode` (gl_shaders.h). see_through: every list blended at
+  // `alpha`, depth not written, ids not written.
+  void draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
+                  bool with_ids);
+  void draw_ground(const FrameView& view, const DAabb& bounds, bool with_ids);
+  // Resolves multisampling and runs the finishing pass into output_.
+  void finish(const FrameView& view, const Plan& plan, bool with_ids);
+  // The table with the context ghosted for a highlight: colours lightened and desaturated,
+  // picks 0.
+  std::span<const TableEntry> highlighted(std::span<const TableEntry> table,
+                                          std::span<const uint64_t> pick_ids,
+                                          std::span<const uint64_t> highlight_ids);
 
   uint64_t budget_vertices_ = 0;
-  GlName program_ = 0, vao_ = 0, proxy_vao_ = 0, arena_ = 0, arena_objects_ = 0,
-           index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
+  bool software_ = false;  // llvmpipe and the like: fragments are the cost
+  GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
+         occlusion_program_ = 0, finish_program_ = 0;
+  GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
+         index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
+  GlName linear_sampler_ = 0, nearest_sampler_ = 0;
   uint64_t arena_vertices_ = 0;  // size of the GPU buffers, in vertices (<= the budget)
-  int32_t u_view_projection_ = -1, u_sun_ = -1, u_ray_ = -1, u_window_scale_ = -1;
-  // Drawing goes to `framebuffer_` (multisampled when samples > 1), then is resolved into
-  // `resolved_` (single-sampled) for reading back.
-  GlName framebuffer_ = 0, colour_rb_ = 0, pick_rb_ = 0, depth_rb_ = 0;
-  GlName resolved_ = 0, resolved_colour_ = 0, resolved_pick_ = 0;
-  uint32_t fb_width_ = 0, fb_height_ = 0, fb_samples_ = 0;
+  // Drawing goes to scene_ (scale x the output's size, multisampled or not); multisampled, it
+  // is resolved into resolved_; finished, into output_; read back from the last of these used.
+  Target scene_, resolved_, output_;
+  // Ambient occlusion and depth per 2x2 output pixels (RG32F), before the finishing pass
+  // blurs it.
+  GlName occlusion_framebuffer_ = 0, occlusion_texture_ = 0;
+  uint32_t occlusion_width_ = 0, occlusion_height_ = 0;
+  const Target* final_ = nullptr;
   size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch
+  std::vector<TableEntry> highlight_table_;
+  std::vector<uint64_t> highlight_sorted_;
 };
 
 }  // namespace plantview::detail

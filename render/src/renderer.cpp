@@ -90,7 +90,8 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   // Backend: draw and read back (render() only).
   if (draw) {
     if (!backend.draw(frame_view, streaming.index_counts(), streaming.table().entries(),
-                      streaming.proxy_tables(), options.samples, with_ids, error))
+                      streaming.proxy_tables(), streaming.table().pick_ids(),
+                      look_of(options, bounds), with_ids, error))
       return false;
     times.draw = clock.lap();
     if (!backend.read_back(w, h, with_ids, streaming.table().pick_ids(), *out, error)) return false;

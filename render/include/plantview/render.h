@@ -34,8 +34,16 @@
 //               kilometres from the origin do not jitter, and the draw-call count does not grow
 //               with the object count;
 //               Nearest objects are drawn first, so that hidden fragments fail the depth test
-//               before they are shaded; object ids are drawn only when asked for;
-//   5. read back colour (RGBA8, sRGB values) and object ids (after resolving multisampling).
+//               before they are shaded; object ids are drawn only when asked for.
+//               Surfaces are lit by a hemisphere light (sky above, ground below), a key light
+//               from above behind the eye's left shoulder and a fill from the eye. Centrelines
+//               are quads as wide as the pipe's projected diameter (at least a pixel, its
+//               coverage the diameter below one), in the pipe's colour, lit like its side.
+//               Then the ground (RenderOptions::ground) where nothing else is; with a highlight,
+//               the subject first, then the ghosted rest, see-through where it hides the subject;
+//   5. finish   antialiasing (supersampled frames averaged down, multisampling resolved, or the
+//               edge filter) and ambient occlusion, in one full-screen pass;
+//   6. read back colour (RGBA8, sRGB values) and object ids (one sample per pixel).
 //
 // Inside, the renderer is a frontend and a backend (as Filament separates them): the frame plan
 // (camera -> view, cull, choose; no GL), the decoded objects, arena streaming and the GL backend
@@ -78,14 +86,26 @@ enum class LodPolicy {
 std::string_view lod_policy_name(LodPolicy policy);
 bool parse_lod_policy(std::string_view name, LodPolicy& policy);
 
-// Antialiasing of stills (RenderOptions::antialias). Costs of the whole frame (draw + read back)
-// over an aliased one, measured on llvmpipe (2 cores, shared) with preset c at 1280x720; the
-// frame's other stages (cull, choose, stream) do not change.
+// Antialiasing of stills (RenderOptions::antialias). What each costs, as the frame time of a
+// warm view (arena filled) over an aliased one's with no ground and no occlusion, measured by
+// bench/bench_stills on llvmpipe (2 cores shared with other work: +-20%) with preset c at
+// 1280x720, the default and an interior view (0.93 s aliased):
+//   multisampling x4   2.3 x   llvmpipe shades and stores every sample, and resolves by a blit
+//   multisampling x2   2.5 x   (no cheaper than x4 there)
+//   supersampling 2x2  1.5 x   4 x the fragments, but vertices and binning (most of a plant's
+//                              frame on llvmpipe) are paid once; thin pipes and far edges smooth
+//   edge filter        1.05 x  one full-screen pass; smooths high-contrast edges only, not
+//                              sub-pixel detail (thin triangles stay broken)
+// and ambient occlusion 1.2 x, the ground under 1.05 x; a still with every default 1.7 x, with a
+// highlight 2.6 x (the model is drawn three times). A cold still (a `render` run, which also
+// streams the model and compiles the shaders) took 1.7 x the aliased renderer's before these
+// (3.8 s against 2.2 s, medians of 3). On a GPU multisampling x4 costs little.
 enum class AntialiasMethod {
-  automatic,      // multisampling on a GPU, supersampling on a software renderer
-  multisampling,  // `samples` per pixel (GL multisampling)
-  supersampling,  // drawn at 2x2 the size and averaged down: every fragment four times
-  edge_filter,    // FXAA-like post-process filter: one full-screen pass, blurs along edges only
+  automatic,      // multisampling on a GPU, supersampling on a software renderer; with
+                  // `samples` given, multisampling with that many (1: none)
+  multisampling,  // `samples` per pixel (0: 4) by GL multisampling
+  supersampling,  // drawn at 2x2 the size and averaged down
+  edge_filter,    // an FXAA-like post-process filter along edges
 };
 std::string_view antialias_method_name(AntialiasMethod method);
 
@@ -103,7 +123,8 @@ struct RenderOptions {
   bool antialias = true;          // smooth edges, by antialias_method (costs measured on
                                   // llvmpipe, preset c at 1280x720: see AntialiasMethod)
   AntialiasMethod antialias_method = AntialiasMethod::automatic;
-  uint32_t samples = 0;           // multisampling: samples per pixel (0: 4); at most what GL allows
+  uint32_t samples = 0;           // multisampling: samples per pixel (0: 4, or automatic's
+                                  // choice); at most what GL allows
   bool ground = true;             // ground cue: a grid at the plant's lowest level (model bounds
                                   // min z), fading with distance; drawn only where nothing else is
   bool ambient_occlusion = true;  // screen-space ambient occlusion from the depth buffer: creases

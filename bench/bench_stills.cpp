@@ -1,0 +1,215 @@
+// Stills: what each part of the look costs. One renderer renders the same views with each
+// setting, round robin (the first round warms the arena and is not counted): aliased with the
+// extras off (an interactive frame), antialiasing by each method, ambient occlusion, the
+// ground, everything together (the still's defaults), and a highlight.
+//
+// Usage: bench_stills [--quick] [--store DIR] [--preset P] [--size WxH] [--repeats N]
+//                     [--out DIR]
+//   default   preset c (generated into a temporary directory unless --store names a store),
+//             1280x720, the default camera and an interior view, 3 repeats each.
+//   --quick   preset a, 320x180, 1 repeat (the CTest smoke run).
+//   --out     also writes each setting's image of each view there (view<N>-<setting>.png).
+// Per setting: each view's fastest draw (draw + read back, ms) and frame (ms) over the repeats,
+// averaged over the views, and the ratio of the frame time to the aliased one. Prints a table, then one "json: " line.
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "plantview/ingest.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace plantview;
+
+struct Setting {
+  const char* name;
+  RenderOptions options;
+};
+
+std::vector<Setting> settings(const std::vector<uint64_t>& subject) {
+  RenderOptions plain;
+  plain.antialias = false;
+  plain.ground = false;
+  plain.ambient_occlusion = false;
+  std::vector<Setting> out;
+  out.push_back({"aliased, no ground, no AO", plain});
+  for (const auto& [name, method, samples] :
+       {std::tuple{"multisampling x2", AntialiasMethod::multisampling, 2u},
+        std::tuple{"multisampling x4", AntialiasMethod::multisampling, 4u},
+        std::tuple{"supersampling 2x2", AntialiasMethod::supersampling, 0u},
+        std::tuple{"edge filter", AntialiasMethod::edge_filter, 0u}}) {
+    RenderOptions o = plain;
+    o.antialias = true;
+    o.antialias_method = method;
+    o.samples = samples;
+    out.push_back({name, o});
+  }
+  RenderOptions ao = plain;
+  ao.ambient_occlusion = true;
+  out.push_back({"ambient occlusion", ao});
+  RenderOptions ground = plain;
+  ground.ground = true;
+  out.push_back({"ground", ground});
+  out.push_back({"still (defaults)", RenderOptions{}});
+  RenderOptions highlight;
+  highlight.highlight_ids = subject;
+  out.push_back({"still + highlight", highlight});
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string store_dir, out_dir;
+  char preset = 'c';
+  uint32_t width = 1280, height = 720;
+  int repeats = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "bench_stills: %s needs a value\n", arg.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (arg == "--quick") {
+      preset = 'a';
+      width = 320;
+      height = 180;
+      repeats = 1;
+    } else if (arg == "--store") {
+      store_dir = value();
+    } else if (arg == "--preset") {
+      preset = value()[0];
+    } else if (arg == "--size") {
+      if (std::sscanf(value().c_str(), "%ux%u", &width, &height) != 2) {
+        std::fprintf(stderr, "bench_stills: --size wants WxH\n");
+        return 2;
+      }
+    } else if (arg == "--repeats") {
+      repeats = std::max(1, std::atoi(value().c_str()));
+    } else if (arg == "--out") {
+      out_dir = value();
+    } else {
+      std::fprintf(stderr, "bench_stills: unknown argument %s\n", arg.c_str());
+      return 2;
+    }
+  }
+
+  std::string error;
+  fs::path temp;
+  if (store_dir.empty()) {
+    temp = fs::temp_directory_path() / ("plantview-bench-stills-" + std::to_string(::getpid()));
+    store_dir = temp.string();
+  }
+  auto store = Store::open(store_dir, Store::Mode::read_write, error);
+  if (!store) {
+    std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+    return 1;
+  }
+  if (!temp.empty()) {
+    GenerateOptions generate;
+    generate.preset = preset;
+    const IngestResult result = ingest_generated(*store, generate);
+    if (!result) {
+      std::fprintf(stderr, "bench_stills: %s\n", result.error().message.c_str());
+      return 1;
+    }
+  }
+  auto context = GpuContext::create(-1, error);
+  if (!context) {
+    std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+    return 1;
+  }
+  std::printf("device: %s\n", context->description().c_str());
+  auto renderer = Renderer::create(*store, RenderOptions{}, error);
+  if (!renderer) {
+    std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+    return 1;
+  }
+  const DAabb bounds = renderer->model_bounds();
+  const double aspect = double(width) / height;
+  std::vector<Camera> views = {default_camera(bounds, aspect)};
+  // An interior view: from inside the plant's first fifth, at a third of its height, looking
+  // along it and down.
+  const glm::dvec3 size = bounds.max - bounds.min;
+  Camera inside;
+  inside.eye_m = bounds.min + glm::dvec3(0.17, 0.1, 0.3) * size;
+  inside.target_m = bounds.min + glm::dvec3(0.27, 0.5, 0.07) * size;
+  views.push_back(inside);
+
+  // The subject of the highlight: the object under the centre of the interior view.
+  std::vector<uint64_t> subject;
+  {
+    Image image;
+    FrameStats stats;
+    if (!renderer->render(inside, width, height, true, image, stats, error)) {
+      std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+      return 1;
+    }
+    const uint64_t id = image.object_ids[size_t(height / 2) * width + width / 2];
+    if (id) subject.push_back(id);
+  }
+
+  // Round robin (each repeat renders every setting once), keeping each view's fastest frame:
+  // the machine's other load then weighs on every setting alike.
+  const std::vector<Setting> all = settings(subject);
+  std::vector<std::vector<double>> best_draw(all.size(), std::vector<double>(views.size(), 1e300));
+  std::vector<std::vector<double>> best_frame = best_draw;
+  for (int r = 0; r <= repeats; ++r) {
+    for (size_t s = 0; s < all.size(); ++s) {
+      renderer->set_options(all[s].options);
+      for (size_t v = 0; v < views.size(); ++v) {
+        Image image;
+        FrameStats stats;
+        if (!renderer->render(views[v], width, height, false, image, stats, error)) {
+          std::fprintf(stderr, "bench_stills: %s: %s\n", all[s].name, error.c_str());
+          return 1;
+        }
+        if (r == 0) {  // warm-up; its image is the one written
+          if (!out_dir.empty()) {
+            std::string file = all[s].name;
+            for (char& c : file)
+              if (!std::isalnum(static_cast<unsigned char>(c))) c = '-';
+            const std::string path = out_dir + "/view" + std::to_string(v) + "-" + file + ".png";
+            if (!write_image(path, image, 90, error)) std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+          }
+          continue;
+        }
+        best_draw[s][v] = std::min(best_draw[s][v], stats.ms.draw + stats.ms.read_back);
+        best_frame[s][v] = std::min(best_frame[s][v], stats.ms.total);
+      }
+    }
+  }
+  nlohmann::json json = nlohmann::json::array();
+  double aliased_ms = 0;
+  std::printf("%-28s %12s %12s %8s   (fastest of %d, mean over %zu views)\n", "setting",
+              "draw ms", "frame ms", "x frame", repeats, views.size());
+  for (size_t s = 0; s < all.size(); ++s) {
+    double draw_ms = 0, frame_ms = 0;
+    for (size_t v = 0; v < views.size(); ++v) {
+      draw_ms += best_draw[s][v] / double(views.size());
+      frame_ms += best_frame[s][v] / double(views.size());
+    }
+    if (aliased_ms == 0) aliased_ms = frame_ms;
+    std::printf("%-28s %12.1f %12.1f %8.2f\n", all[s].name, draw_ms, frame_ms, frame_ms / aliased_ms);
+    json.push_back({{"setting", all[s].name}, {"draw_ms", draw_ms}, {"frame_ms", frame_ms},
+                    {"frame_ratio", frame_ms / aliased_ms}});
+  }
+  std::printf("json: %s\n", nlohmann::json{{"width", width}, {"height", height},
+                                           {"views", views.size()}, {"repeats", repeats},
+                                           {"settings", json}}.dump().c_str());
+  renderer.reset();
+  store.reset();
+  if (!temp.empty()) fs::remove_all(temp);
+  return 0;
+}

@@ -1,0 +1,384 @@
+// GLSL sources of the GL backend (gl_backend.cpp compiles and links them).
+//
+// Programs
+//   - surfaces: every triangle (objects, proxy boxes), lit per fragment;
+//   - centrelines: pipes drawn as their centreline, expanded by a geometry shader into a
+//     screen-aligned quad as wide as the pipe's projected diameter (at least a pixel, feathered
+//     by a pixel), its coverage the diameter when that is under a pixel, and lit like the pipe's
+//     side that faces the eye; a centreline vertex's normal word holds the diameter (float bits);
+//   - ground: a full-screen triangle that intersects each pixel's ray with the ground plane;
+//   - occlusion: a full-screen triangle computing ambient occlusion per output pixel;
+//   - finish: a full-screen triangle from the drawn frame to the output image: supersampled
+//     frames averaged down, the edge filter, the ambient occlusion blurred and applied, the
+//     object ids copied.
+//
+// Frames: positions are relative to the eye in model axes ("camera-relative": z up), so plants
+//   kilometres from the origin keep float precision. Depth is reversed and infinite:
+//   depth = near / distance along the view axis (0 at infinity).
+// Highlight modes (u_mode): 0 draws every object, 1 only the subject (objects with a pick
+//   value), 2 only the context (pick 0); the rejected ones are moved outside the clip volume by
+//   the vertex shader.
+#pragma once
+
+namespace plantview::detail::shaders {
+
+// Lighting shared by surfaces and centrelines: a hemisphere light (sky above, warm ground
+// below), a key light from above behind the eye's left shoulder, a fill from the eye and a
+// little specular on the key, so that the faces of a box and the sides of a pipe differ.
+inline constexpr const char* kLighting = R"(
+uniform vec3 u_key;  // unit, towards the key light, camera-relative
+vec3 lit_colour(vec3 base, vec3 n, vec3 to_eye) {
+  if (dot(n, to_eye) < 0.0) n = -n;  // two-sided: open meshes and facet groups
+  float hemisphere = 0.5 + 0.5 * n.z;
+  vec3 ambient = mix(vec3(0.42, 0.40, 0.38), vec3(0.78, 0.82, 0.90), hemisphere);
+  float key = max(dot(n, u_key), 0.0);
+  float fill = max(dot(n, to_eye), 0.0);
+  vec3 h = normalize(u_key + to_eye);
+  float specular = key > 0.0 ? pow(max(dot(n, h), 0.0), 32.0) : 0.0;
+  vec3 c = base * (0.42 * ambient + 0.55 * key + 0.22 * fill) + vec3(0.12 * specular);
+  return min(c, vec3(1.0));
+}
+)";
+
+inline constexpr const char* kSurfaceVertex = R"(#version 450 core
+layout(location = 0) in vec3 a_position;
+layout(location = 1) in vec4 a_normal;
+layout(location = 2) in uint a_object;
+layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+uniform mat4 u_view_projection;
+uniform int u_mode;
+// Per-object values are flat, and the view direction is rebuilt per fragment from its window
+// position: fewer interpolated values make each triangle cheaper to set up and to bin.
+out vec3 v_normal;
+flat out vec4 v_colour;
+flat out uint v_pick;
+void main() {
+  vec4 a = objects[2u * a_object];
+  vec4 b = objects[2u * a_object + 1u];
+  v_pick = floatBitsToUint(b.w);
+  if ((u_mode == 1 && v_pick == 0u) || (u_mode == 2 && v_pick != 0u)) {
+    gl_Position = vec4(0.0, 0.0, -1.0, 1.0);  // outside: clipped
+    return;
+  }
+  vec3 p = a_position * b.xyz + a.xyz;
+  v_normal = a_normal.xyz;
+  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  gl_Position = u_view_projection * vec4(p, 1.0);
+}
+)";
+
+inline constexpr const char* kSurfaceFragment = R"(#version 450 core
+in vec3 v_normal;
+flat in vec4 v_colour;
+flat in uint v_pick;
+layout(location = 0) out vec4 o_colour;
+layout(location = 1) out uint o_pick;
+// The ray through a window position: u_ray * vec3(position * u_window_scale - 1, -1), in the
+// camera-relative frame (not normalised).
+uniform mat3 u_ray;
+uniform vec2 u_window_scale;
+uniform float u_alpha;  // multiplies the object's alpha (see-through passes)
+vec3 lit_colour(vec3 base, vec3 n, vec3 to_eye);
+void main() {
+  vec3 to_eye = -normalize(u_ray * vec3(gl_FragCoord.xy * u_window_scale - 1.0, -1.0));
+  float n_length = length(v_normal);
+  vec3 n = n_length > 0.5 ? v_normal / n_length : to_eye;
+  o_colour = vec4(lit_colour(v_colour.rgb, n, to_eye), v_colour.a * u_alpha);
+  o_pick = v_pick;
+}
+)";
+
+inline constexpr const char* kCentrelineVertex = R"(#version 450 core
+layout(location = 0) in vec3 a_position;
+layout(location = 2) in uint a_object;
+layout(location = 3) in uint a_diameter;  // float bits: the pipe's outside diameter, metres
+layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+uniform int u_mode;
+out vec3 g_position;  // camera-relative
+flat out vec4 g_colour;
+flat out uint g_pick;
+flat out float g_diameter;
+flat out int g_drawn;
+void main() {
+  vec4 a = objects[2u * a_object];
+  vec4 b = objects[2u * a_object + 1u];
+  g_pick = floatBitsToUint(b.w);
+  g_drawn = (u_mode == 1 && g_pick == 0u) || (u_mode == 2 && g_pick != 0u) ? 0 : 1;
+  g_position = a_position * b.xyz + a.xyz;
+  g_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  g_diameter = uintBitsToFloat(a_diameter);
+}
+)";
+
+inline constexpr const char* kCentrelineGeometry = R"(#version 450 core
+layout(lines) in;
+layout(triangle_strip, max_vertices = 4) out;
+in vec3 g_position[];
+flat in vec4 g_colour[];
+flat in uint g_pick[];
+flat in float g_diameter[];
+flat in int g_drawn[];
+uniform mat4 u_view_projection;
+uniform vec2 u_viewport;   // pixels of the framebuffer
+uniform float u_focal_px;  // pixels a metre spans at 1 m, in framebuffer pixels
+uniform float u_near;      // metres
+out vec3 v_position;
+noperspective out float v_across;  // pixels from the centreline
+flat out float v_half_px;          // half the drawn core width, pixels
+flat out float v_coverage;         // the pipe's share of a pixel when thinner than one
+flat out vec4 v_colour;
+flat out uint v_pick;
+flat out vec3 v_axis;
+void main() {
+  if (g_drawn[0] == 0) return;
+  vec3 p0 = g_position[0], p1 = g_position[1];
+  vec4 c0 = u_view_projection * vec4(p0, 1.0), c1 = u_view_projection * vec4(p1, 1.0);
+  // Clip to the near plane (w is the distance along the view axis).
+  if (c0.w < u_near && c1.w < u_near) return;
+  if (c0.w < u_near || c1.w < u_near) {
+    float t = (u_near - c0.w) / (c1.w - c0.w);
+    vec3 p = mix(p0, p1, t);
+    vec4 c = u_view_projection * vec4(p, 1.0);
+    if (c0.w < u_near) { p0 = p; c0 = c; } else { p1 = p; c1 = c; }
+  }
+  vec2 s0 = c0.xy / c0.w * 0.5 * u_viewport, s1 = c1.xy / c1.w * 0.5 * u_viewport;
+  vec2 along = s1 - s0;
+  vec2 dir = length(along) > 1e-4 ? normalize(along) : vec2(1.0, 0.0);
+  vec2 across = vec2(-dir.y, dir.x);
+  vec3 axis = p1 - p0;
+  v_axis = length(axis) > 0.0 ? normalize(axis) : vec3(0.0, 0.0, 1.0);
+  v_colour = g_colour[0];
+  v_pick = g_pick[0];
+  float width0 = g_diameter[0] * u_focal_px / c0.w, width1 = g_diameter[0] * u_focal_px / c1.w;
+  for (int i = 0; i < 2; ++i) {
+    vec4 c = i == 0 ? c0 : c1;
+    float width = i == 0 ? width0 : width1;
+    v_coverage = clamp(width, 0.05, 1.0);
+    v_half_px = 0.5 * max(width, 1.0);
+    float reach = v_half_px + 1.0;  // a pixel of feather on each side
+    for (int side = -1; side <= 1; side += 2) {
+      vec2 offset = across * (float(side) * reach) / (0.5 * u_viewport);
+      gl_Position = vec4(c.xy + offset * c.w, c.z, c.w);
+      v_across = float(side) * reach;
+      v_position = i == 0 ? p0 : p1;
+      EmitVertex();
+    }
+  }
+  EndPrimitive();
+}
+)";
+
+inline constexpr const char* kCentrelineFragment = R"(#version 450 core
+in vec3 v_position;
+noperspective in float v_across;
+flat in float v_half_px;
+flat in float v_coverage;
+flat in vec4 v_colour;
+flat in uint v_pick;
+flat in vec3 v_axis;
+layout(location = 0) out vec4 o_colour;
+layout(location = 1) out uint o_pick;
+uniform float u_alpha;
+vec3 lit_colour(vec3 base, vec3 n, vec3 to_eye);
+void main() {
+  float inside = clamp(v_half_px + 0.5 - abs(v_across), 0.0, 1.0);
+  float alpha = inside * v_coverage * v_colour.a * u_alpha;
+  if (alpha < 0.02) discard;
+  vec3 to_eye = -normalize(v_position);
+  // The pipe's side facing the eye, turned across it as the fragment lies off the centreline.
+  vec3 facing = to_eye - dot(to_eye, v_axis) * v_axis;
+  vec3 n = length(facing) > 1e-5 ? normalize(facing) : to_eye;
+  vec3 side = cross(v_axis, n);
+  float s = clamp(v_across / max(v_half_px, 1.0), -1.0, 1.0) * 0.8;
+  n = normalize(n * sqrt(1.0 - s * s) + side * s);
+  o_colour = vec4(lit_colour(v_colour.rgb, n, to_eye), alpha);
+  o_pick = v_pick;
+}
+)";
+
+// A full-screen triangle from gl_VertexID (no vertex data).
+inline constexpr const char* kFullScreenVertex = R"(#version 450 core
+void main() {
+  vec2 p = vec2(float((gl_VertexID & 1) << 2) - 1.0, float((gl_VertexID & 2) << 1) - 1.0);
+  gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+// The ground: a plane at the plant's lowest level, a light floor with a grid of u_grid_m
+// squares and heavier lines every ten, fading out from 5 m + 1.2 to 20 m + 3 plant radii from
+// the plant's centre, and where the grid gets denser than a few pixels. Where it shows, its depth is written (so that ambient occlusion
+// darkens it under the plant).
+inline constexpr const char* kGroundFragment = R"(#version 450 core
+layout(location = 0) out vec4 o_colour;
+uniform mat3 u_ray;
+uniform vec2 u_window_scale;
+uniform mat4 u_view_projection;
+uniform float u_ground_z;     // the plane's height relative to the eye (negative: eye above)
+uniform vec2 u_grid_phase;    // the eye's x, y modulo ten grid squares
+uniform float u_grid_m;
+uniform vec2 u_centre;        // the plant's centre (x, y) relative to the eye
+uniform float u_radius_m;     // the plant's horizontal half-diagonal
+float grid_lines(vec2 g) {
+  vec2 w = fwidth(g);
+  vec2 d = abs(fract(g - 0.5) - 0.5) / max(w, vec2(1e-6));
+  float line = 1.0 - min(min(d.x, d.y), 1.0);
+  return line * (1.0 - smoothstep(0.12, 0.35, max(w.x, w.y)));  // dense: fade out
+}
+void main() {
+  vec3 ray = u_ray * vec3(gl_FragCoord.xy * u_window_scale - 1.0, -1.0);
+  if (ray.z >= -1e-6) discard;
+  vec3 p = ray * (u_ground_z / ray.z);
+  float from_plant = length(p.xy - u_centre);
+  float alpha = 1.0 - smoothstep(1.2 * u_radius_m + 5.0, 3.0 * u_radius_m + 20.0, from_plant);
+  if (alpha < 0.02) discard;
+  vec2 g = (p.xy + u_grid_phase) / u_grid_m;
+  float minor = grid_lines(g), major = grid_lines(g * 0.1);
+  vec3 floor_colour = vec3(0.70, 0.71, 0.69);
+  vec3 c = mix(floor_colour, vec3(0.50, 0.52, 0.52), max(0.5 * minor, major));
+  o_colour = vec4(c, alpha);
+  vec4 clip = u_view_projection * vec4(p, 1.0);
+  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
+}
+)";
+
+// Ambient occlusion, and its depth, at half the output's resolution (occlusion varies slowly;
+// a quarter of the pixels costs a quarter) into a two-channel texture (the finishing pass
+// blurs it and brings it up to size). Scalable ambient obscurance (McGuire et al. 2012) from depth alone: the normal from the
+// nearer neighbours (no smearing across silhouettes), 12 samples on a golden-angle spiral of at
+// most 20 output pixels, turned by one of 16 angles in a 4x4 pattern (the blur over
+// 4x4 pixels then sees 192 directions), each counting how far it rises above the surface's
+// tangent plane.
+inline constexpr const char* kOcclusionFragment = R"(#version 450 core
+layout(location = 0) out vec4 o_occlusion;
+uniform sampler2D u_depth;
+uniform int u_scale;         // 1, or 2 when supersampled
+uniform int u_step;          // framebuffer pixels per occlusion pixel: 2 x u_scale
+uniform float u_near;        // metres
+uniform vec2 u_ndc_to_view;  // view-space x, y per NDC unit at 1 m: (aspect / focal, 1 / focal)
+uniform float u_focal_px;    // framebuffer pixels a metre spans at 1 m
+uniform float u_radius_m;    // the reach
+ivec2 frame_size;
+
+// View-space position of a framebuffer pixel (z < 0 ahead); w = 0 where nothing was drawn.
+vec4 position_at(ivec2 q) {
+  q = clamp(q, ivec2(0), frame_size - 1);
+  float d = texelFetch(u_depth, q, 0).r;
+  if (d <= 0.0) return vec4(0.0);
+  float z = u_near / d;
+  vec2 ndc = (vec2(q) + 0.5) / vec2(frame_size) * 2.0 - 1.0;
+  return vec4(ndc * u_ndc_to_view * z, -z, 1.0);
+}
+
+float occlusion(ivec2 q, ivec2 out_px) {
+  vec4 c = position_at(q);
+  if (c.w == 0.0) return 1.0;
+  vec3 p = c.xyz;
+  vec4 l = position_at(q - ivec2(1, 0)), r = position_at(q + ivec2(1, 0));
+  vec4 d = position_at(q - ivec2(0, 1)), u = position_at(q + ivec2(0, 1));
+  vec3 dx = (r.w > 0.0 && (l.w == 0.0 || abs(r.z - p.z) < abs(p.z - l.z))) ? r.xyz - p : p - l.xyz;
+  vec3 dy = (u.w > 0.0 && (d.w == 0.0 || abs(u.z - p.z) < abs(p.z - d.z))) ? u.xyz - p : p - d.xyz;
+  vec3 n = cross(dx, dy);
+  if (dot(n, n) < 1e-20) return 1.0;
+  n = normalize(n);
+  if (dot(n, p) > 0.0) n = -n;
+  float radius_px = u_radius_m * u_focal_px / -p.z;
+  if (radius_px < 1.5) return 1.0;
+  radius_px = min(radius_px, 20.0 * float(u_scale));  // longer reaches streak behind edges
+  radius_px = max(radius_px, float(u_step));
+  const int kSamples = 12;
+  int cell = (out_px.x & 3) + 4 * (out_px.y & 3);
+  float turn = float((cell * 5) & 15) * (6.2831853 / 16.0);
+  float r2 = u_radius_m * u_radius_m, sum = 0.0;
+  for (int i = 0; i < kSamples; ++i) {
+    float a = (float(i) + 0.5) / float(kSamples);
+    float angle = float(i) * 2.3999632 + turn;  // the golden angle
+    vec2 offset = vec2(cos(angle), sin(angle)) * (a * radius_px);
+    vec4 s = position_at(q + ivec2(round(offset)));
+    if (s.w == 0.0) continue;
+    vec3 v = s.xyz - p;
+    float vv = dot(v, v), vn = dot(v, n);
+    float f = max(r2 - vv, 0.0);
+    sum += f * f * f * max((vn - 0.02 * u_radius_m) / (vv + 0.01 * r2), 0.0);
+  }
+  return clamp(1.0 - sum * (5.0 / (r2 * r2 * r2)) / float(kSamples), 0.0, 1.0);
+}
+
+void main() {
+  frame_size = textureSize(u_depth, 0);
+  ivec2 ao_px = ivec2(gl_FragCoord.xy);
+  ivec2 q = ao_px * u_step + ivec2(u_step / 2);
+  // With the depth beside it, for the blur's weights (one fetch a tap there).
+  o_occlusion = vec4(occlusion(q, ao_px), texelFetch(u_depth, q, 0).r, 0.0, 0.0);
+}
+)";
+
+// From the drawn frame (u_scale x the output's size) to the output image.
+inline constexpr const char* kFinishFragment = R"(#version 450 core
+layout(location = 0) out vec4 o_colour;
+layout(location = 1) out uint o_pick;
+uniform sampler2D u_colour;     // linear filtering
+uniform sampler2D u_depth;
+uniform usampler2D u_pick;
+uniform sampler2D u_occlusion;  // per 2x2 output pixels: occlusion, depth
+uniform int u_scale;            // 1, or 2 when supersampled
+uniform bool u_edge_filter;
+uniform bool u_occlusion_on;
+ivec2 frame_size;
+
+// FXAA-like edge filter (after Lottes' FXAA 3.11 console version): blends along the edge
+// direction found from the luma of the four diagonal neighbours.
+vec3 edge_filtered(ivec2 q) {
+  vec2 texel = 1.0 / vec2(frame_size);
+  vec2 uv = (vec2(q) + 0.5) * texel;
+  const vec3 kLuma = vec3(0.299, 0.587, 0.114);
+  vec3 m = texelFetch(u_colour, q, 0).rgb;
+  float lm = dot(m, kLuma);
+  float nw = dot(texture(u_colour, uv + vec2(-0.5, 0.5) * texel).rgb, kLuma);
+  float ne = dot(texture(u_colour, uv + vec2(0.5, 0.5) * texel).rgb, kLuma);
+  float sw = dot(texture(u_colour, uv + vec2(-0.5, -0.5) * texel).rgb, kLuma);
+  float se = dot(texture(u_colour, uv + vec2(0.5, -0.5) * texel).rgb, kLuma);
+  float lo = min(lm, min(min(nw, ne), min(sw, se))), hi = max(lm, max(max(nw, ne), max(sw, se)));
+  if (hi - lo < max(0.04, hi * 0.125)) return m;
+  vec2 dir = vec2(-((nw + ne) - (sw + se)), (ne + se) - (nw + sw));  // y up
+  float reduce = max((nw + ne + sw + se) * 0.03125, 1.0 / 128.0);
+  dir = clamp(dir / (min(abs(dir.x), abs(dir.y)) + reduce), -8.0, 8.0) * texel;
+  vec3 a = 0.5 * (texture(u_colour, uv - dir / 6.0).rgb + texture(u_colour, uv + dir / 6.0).rgb);
+  vec3 b = 0.5 * a + 0.25 * (texture(u_colour, uv - dir * 0.5).rgb + texture(u_colour, uv + dir * 0.5).rgb);
+  float lb = dot(b, kLuma);
+  return (lb < lo || lb > hi) ? a : b;
+}
+
+void main() {
+  frame_size = textureSize(u_depth, 0);
+  ivec2 out_px = ivec2(gl_FragCoord.xy);
+  ivec2 q = out_px * u_scale;  // the framebuffer pixel at the output pixel's first corner
+  vec3 c;
+  if (u_scale == 2)  // the four samples' mean, one bilinear fetch at their common corner
+    c = texture(u_colour, vec2(q + 1) / vec2(frame_size)).rgb;
+  else if (u_edge_filter)
+    c = edge_filtered(q);
+  else
+    c = texelFetch(u_colour, q, 0).rgb;
+  if (u_occlusion_on) {
+    // The occlusion of the 4x4 occlusion pixels around, those at about this pixel's depth
+    // (within 5%): the 4x4 pattern of turns averages out, edges stay sharp.
+    ivec2 ao_size = textureSize(u_occlusion, 0);
+    ivec2 ao_px = (out_px + 1) / 2;  // the 4x4 around the output pixel: -2..+1 about this
+    float depth = texelFetch(u_depth, q + ivec2(u_scale - 1), 0).r;
+    float sum = 0.0, weight = 0.0;
+    for (int y = -2; y < 2; ++y)
+      for (int x = -2; x < 2; ++x) {
+        vec2 t = texelFetch(u_occlusion, clamp(ao_px + ivec2(x, y), ivec2(0), ao_size - 1), 0).rg;
+        float w = abs(t.g - depth) <= 0.05 * depth ? 1.0 : 0.0;
+        sum += w * t.r;
+        weight += w;
+      }
+    float a = weight > 0.0 ? sum / weight : 1.0;
+    c *= mix(1.0, a, 0.6);
+  }
+  o_colour = vec4(c, 1.0);
+  o_pick = texelFetch(u_pick, q + ivec2(u_scale - 1), 0).r;
+}
+)";
+
+}  // namespace plantview::detail::shaders
