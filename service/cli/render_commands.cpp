@@ -2,6 +2,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <chrono>
@@ -113,8 +114,44 @@ struct RenderArgs {
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
   uint32_t samples = 0;
+  std::string antialias = "automatic", highlight;
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
+  bool no_ground = false, no_ambient_occlusion = false;
 };
+
+// "off" or an AntialiasMethod's name.
+bool parse_antialias(const std::string& name, RenderOptions& options) {
+  if (name == "off") {
+    options.antialias = false;
+    return true;
+  }
+  for (AntialiasMethod m : {AntialiasMethod::automatic, AntialiasMethod::multisampling,
+                            AntialiasMethod::supersampling, AntialiasMethod::edge_filter}) {
+    if (name == antialias_method_name(m)) {
+      options.antialias = true;
+      options.antialias_method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+// "ID,ID,...": decimal store ids.
+bool parse_ids(const std::string& text, std::vector<uint64_t>& ids, std::string& error) {
+  size_t begin = 0;
+  while (begin <= text.size()) {
+    const size_t end = std::min(text.find(',', begin), text.size());
+    uint64_t id = 0;
+    const auto [last, ec] = std::from_chars(text.data() + begin, text.data() + end, id);
+    if (ec != std::errc() || last != text.data() + end || end == begin) {
+      error = "--highlight: expected decimal object ids separated by commas, got '" + text + "'";
+      return false;
+    }
+    ids.push_back(id);
+    begin = end + 1;
+  }
+  return true;
+}
 
 // What the command line asks for, typed and checked. Every usage error is found while making it,
 // before any file is read or written.
@@ -142,6 +179,13 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   plan.options.hlod = !a.no_hlod;
   plan.options.subpixel_culling = !a.no_subpixel;
   plan.options.samples = a.samples;
+  if (!parse_antialias(a.antialias, plan.options))
+    return usage_error("--antialias: '" + a.antialias +
+                       "' is not one of automatic, multisampling, supersampling, edge-filter, off");
+  plan.options.ground = !a.no_ground;
+  plan.options.ambient_occlusion = !a.no_ambient_occlusion;
+  if (!a.highlight.empty() && !parse_ids(a.highlight, plan.options.highlight_ids, error))
+    return usage_error(error);
   if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
     return usage_error("give one of --camera, --path and --views");
   if (!a.camera.empty()) {
@@ -500,9 +544,18 @@ Action add_render_commands(CLI::App& app) {
   render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");
   render->add_flag("--no-hlod", args->no_hlod, "Never merge pipeline runs");
   render->add_flag("--no-subpixel-culling", args->no_subpixel, "Draw objects under the pixel error too");
+  render->add_option("--antialias", args->antialias,
+                     "automatic (multisampling on a GPU, 2x2 supersampling on a software renderer), "
+                     "multisampling, supersampling, edge-filter or off")
+      ->capture_default_str();
   render->add_option("--samples", args->samples,
-                     "Multisampling per pixel (1: off; default: 4 on a GPU, 1 on a software renderer)")
+                     "Multisampling samples per pixel (1: none; default 4 where multisampling is used)")
       ->check(CLI::Range(1u, 16u));
+  render->add_flag("--no-ground", args->no_ground, "No ground grid under the plant");
+  render->add_flag("--no-ambient-occlusion", args->no_ambient_occlusion, "No screen-space ambient occlusion");
+  render->add_option("--highlight", args->highlight,
+                     "ID,...: draw these objects in their colours and the rest ghosted, see-through "
+                     "where it hides them (with --views: each view's subject)");
 
   auto path_store = std::make_shared<std::string>(), path_kind = std::make_shared<std::string>("walkthrough"),
        path_out = std::make_shared<std::string>();
