@@ -102,6 +102,7 @@ struct GltfExportOptions {
   uint32_t width = 1920, height = 1080;  // with camera: the image the levels are chosen for
   double pixel_error = 1.0;           // with camera
   bool hlod = true;                   // with camera: merged pipeline runs as the renderer has them
+  bool share_meshes = true;           // false: a mesh per object (for comparison: what sharing saves)
   bool gpu_instancing = false;        // EXT_mesh_gpu_instancing for meshes repeated often
   GltfSplit split = GltfSplit::none;
   // Called with the fraction done (0..1) and what is being done; may be empty.

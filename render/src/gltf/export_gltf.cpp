@@ -91,10 +91,12 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
   MeshBuilder builder;
   MeshData data;
   PrimitiveLevels levels;
+  uint64_t unshared = 0;
   auto place = [&](const CanonicalObject& c, uint8_t level, Colour colour) {
     if (level == kLevelByTolerance) levels_for_tolerance(c, options.tolerance_m, levels);
     else levels_for_object(c, level, levels);
-    const MeshKey key = mesh_key(c, levels, colour);
+    MeshKey key = mesh_key(c, levels, colour);
+    if (!options.share_meshes) key.b ^= ++unshared;  // every object a mesh of its own
     int mesh = file.find_mesh(key);
     if (mesh == GltfFile::kUnknownMesh) {
       builder.build(c, levels, data);

@@ -18,6 +18,8 @@ namespace plantview::detail::gltf {
 namespace {
 
 constexpr int kVertexView = 0, kIndexView = 1, kInstanceView = 2;
+constexpr int kTriangles = 4, kLines = 1;                           // glTF primitive modes
+constexpr int kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125;  // component types
 
 double srgb_to_linear(uint8_t v) {
   const double c = v / 255.0;
@@ -26,11 +28,12 @@ double srgb_to_linear(uint8_t v) {
 
 std::string system_reason() { return std::strerror(errno); }
 
-// Appends `size` bytes to `file`; false on a write error.
 bool put(std::FILE* file, const void* data, size_t size) {
   return size == 0 || std::fwrite(data, 1, size, file) == size;
 }
+bool put(std::FILE* file, const std::string& text) { return put(file, text.data(), text.size()); }
 
+// Appends the file at `from` to `out`; false on an error (`error` set when reading failed).
 bool copy_file_into(std::FILE* out, const std::string& from, std::string& error) {
   std::FILE* in = std::fopen(from.c_str(), "rb");
   if (!in) {
@@ -40,44 +43,70 @@ bool copy_file_into(std::FILE* out, const std::string& from, std::string& error)
   std::vector<char> block(1 << 20);
   size_t n;
   bool ok = true;
-  while ((n = std::fread(block.data(), 1, block.size(), in)) > 0) {
-    if (!put(out, block.data(), n)) {
-      ok = false;
-      break;
-    }
-  }
+  while (ok && (n = std::fread(block.data(), 1, block.size(), in)) > 0) ok = put(out, block.data(), n);
   ok = ok && !std::ferror(in);
   std::fclose(in);
   return ok;
 }
 
+// A temporary file written in order, its size kept.
+struct Part {
+  std::string path;
+  std::FILE* file = nullptr;
+  uint64_t bytes = 0;
+  bool open(const std::string& p) {
+    path = p;
+    file = std::fopen(p.c_str(), "w+b");
+    return file != nullptr;
+  }
+  bool append(const void* data, size_t size) {
+    bytes += size;
+    return put(file, data, size);
+  }
+  bool append(const std::string& text) { return append(text.data(), text.size()); }
+  void close() {
+    if (file) std::fclose(file);
+    file = nullptr;
+  }
+  void remove() {
+    close();
+    std::error_code ignored;
+    if (!path.empty()) std::filesystem::remove(path, ignored);
+  }
+};
+
+std::string vec3_json(const float v[3]) {
+  return "[" + json_number(v[0]) + "," + json_number(v[1]) + "," + json_number(v[2]) + "]";
+}
+
 }  // namespace
 
 struct GltfFile::State {
-  // A node to be: an object, a merged run, or a group (site, zone, pipeline placeholder).
+  // A node to be: an object, a merged run, or a group (site, zone, pipeline placeholder). Its
+  // name and extras are JSON text in `text` at [text_offset, + text_bytes).
   struct Record {
-    std::string name;
-    tinygltf::Value extras;
-    int parent = -1;
-    int mesh = kNoMesh;
+    int32_t parent = -1;
+    int32_t mesh = kNoMesh;
+    uint64_t text_offset = 0;
+    uint32_t text_bytes = 0;
     bool placed = false;      // has a transform (objects and runs)
-    bool is_object = false;   // an object of the store (counted, may be instanced)
+    bool is_object = false;   // an object of the store (may be instanced)
     bool has_children = false;
     glm::dvec3 position_m{0.0};
-    glm::dquat rotation{1, 0, 0, 0};
+    glm::quat rotation{1, 0, 0, 0};
   };
   struct MeshInfo {
     float min[3], max[3];
-    uint64_t triangles = 0, lines = 0;
+    uint32_t triangles = 0, lines = 0;
     bool has_box = false;
   };
 
-  std::string path, temp_out, temp_vertices, temp_indices, bin_name, temp_bin;
-  bool binary = true, finished = false;
-  std::FILE* vertices = nullptr;
-  std::FILE* indices = nullptr;
-  uint64_t vertex_bytes = 0, index_bytes = 0;
-  tinygltf::Model model;
+  std::string path, temp_out, bin_name, temp_bin;
+  bool binary = true, finished = false, failed = false;
+  Part vertices, indices, accessors, meshes_text, text, nodes;
+  uint64_t accessor_count = 0;
+  std::string write_error;  // the first write error, reported by the next fallible call
+  tinygltf::Model model;    // the document's small parts
   std::unordered_map<MeshKey, int, MeshKeyHash> meshes;
   std::vector<MeshInfo> mesh_info;
   std::map<uint32_t, int> materials;
@@ -88,16 +117,19 @@ struct GltfFile::State {
   std::vector<uint64_t> pipeline_ids_unnamed;
 
   ~State() { close_parts(); }
+  Part* parts[6] = {&vertices, &indices, &accessors, &meshes_text, &text, &nodes};
   void close_parts() {
-    if (vertices) std::fclose(vertices);
-    if (indices) std::fclose(indices);
-    vertices = indices = nullptr;
+    for (Part* p : parts) p->close();
   }
   void remove_all() {
-    close_parts();
+    for (Part* p : parts) p->remove();
     std::error_code ignored;
-    for (const std::string& p : {temp_out, temp_vertices, temp_indices, temp_bin})
+    for (const std::string& p : {temp_out, temp_bin})
       if (!p.empty()) std::filesystem::remove(p, ignored);
+  }
+  void note_failure(const Part& part) {
+    if (!failed) write_error = "cannot write " + part.path + ": " + system_reason();
+    failed = true;
   }
 
   int material(Colour colour) {
@@ -118,100 +150,93 @@ struct GltfFile::State {
     return materials[key] = int(model.materials.size() - 1);
   }
 
-  // Writes vertices and indices; adds the accessors; returns the primitive.
-  bool primitive(const std::vector<GltfVertex>& vs, const std::vector<uint32_t>& is, int mode,
-                 int material_index, MeshInfo& info, tinygltf::Primitive& out, std::string& error) {
-    tinygltf::Accessor position;
-    position.bufferView = kVertexView;
-    position.byteOffset = size_t(vertex_bytes);
-    position.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    position.type = TINYGLTF_TYPE_VEC3;
-    position.count = vs.size();
-    glm::vec3 mn(INFINITY), mx(-INFINITY);
+  uint64_t accessor(const std::string& json) {
+    if (!accessors.append(accessor_count ? "," + json : json)) note_failure(accessors);
+    return accessor_count++;
+  }
+
+  // Writes vertices and indices, their accessors; returns the primitive's JSON.
+  std::string primitive(const std::vector<GltfVertex>& vs, const std::vector<uint32_t>& is, int mode,
+                        int material_index, MeshInfo& info) {
+    float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (const GltfVertex& v : vs) {
-      mn = glm::min(mn, glm::vec3(v.position[0], v.position[1], v.position[2]));
-      mx = glm::max(mx, glm::vec3(v.position[0], v.position[1], v.position[2]));
+      for (int a = 0; a < 3; ++a) {
+        mn[a] = std::min(mn[a], v.position[a]);
+        mx[a] = std::max(mx[a], v.position[a]);
+      }
     }
-    position.minValues = {mn.x, mn.y, mn.z};
-    position.maxValues = {mx.x, mx.y, mx.z};
     for (int a = 0; a < 3; ++a) {
       info.min[a] = info.has_box ? std::min(info.min[a], mn[a]) : mn[a];
       info.max[a] = info.has_box ? std::max(info.max[a], mx[a]) : mx[a];
     }
     info.has_box = true;
-    tinygltf::Accessor normal = position;
-    normal.byteOffset += 12;
-    normal.minValues.clear();
-    normal.maxValues.clear();
-    if (!put(vertices, vs.data(), vs.size() * sizeof(GltfVertex))) {
-      error = "cannot write " + temp_vertices + ": " + system_reason();
-      return false;
+    const std::string count = std::to_string(vs.size());
+    const uint64_t position = accessor("{\"bufferView\":" + std::to_string(kVertexView) + ",\"byteOffset\":" +
+                                       std::to_string(vertices.bytes) + ",\"componentType\":" + std::to_string(kFloat) +
+                                       ",\"count\":" + count + ",\"type\":\"VEC3\",\"min\":" + vec3_json(mn) +
+                                       ",\"max\":" + vec3_json(mx) + "}");
+    std::string attributes = "{\"POSITION\":" + std::to_string(position);
+    if (mode == kTriangles) {
+      const uint64_t normal = accessor("{\"bufferView\":" + std::to_string(kVertexView) + ",\"byteOffset\":" +
+                                       std::to_string(vertices.bytes + 12) + ",\"componentType\":" +
+                                       std::to_string(kFloat) + ",\"count\":" + count + ",\"type\":\"VEC3\"}");
+      attributes += ",\"NORMAL\":" + std::to_string(normal);
     }
-    vertex_bytes += vs.size() * sizeof(GltfVertex);
+    attributes += "}";
+    if (!vertices.append(vs.data(), vs.size() * sizeof(GltfVertex))) note_failure(vertices);
 
-    tinygltf::Accessor index;
-    index.bufferView = kIndexView;
-    index.byteOffset = size_t(index_bytes);
-    index.type = TINYGLTF_TYPE_SCALAR;
-    index.count = is.size();
-    size_t bytes;
-    bool ok;
     // 16 bits while no index reaches 65535 (the primitive-restart value readers reject).
+    const uint64_t index_offset = indices.bytes;
+    int component;
+    bool ok;
     if (vs.size() < 65535) {
-      index.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+      component = kUnsignedShort;
       std::vector<uint16_t> narrow(is.begin(), is.end());
-      if (narrow.size() % 2) narrow.push_back(0);  // pad to 4 bytes
-      bytes = narrow.size() * 2;
-      ok = put(indices, narrow.data(), bytes);
+      if (narrow.size() % 2) narrow.push_back(0);  // each mesh's indices padded to 4 bytes
+      ok = indices.append(narrow.data(), narrow.size() * 2);
     } else {
-      index.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-      bytes = is.size() * 4;
-      ok = put(indices, is.data(), bytes);
+      component = kUnsignedInt;
+      ok = indices.append(is.data(), is.size() * 4);
     }
-    if (!ok) {
-      error = "cannot write " + temp_indices + ": " + system_reason();
-      return false;
-    }
-    index_bytes += bytes;
+    if (!ok) note_failure(indices);
+    const uint64_t index = accessor("{\"bufferView\":" + std::to_string(kIndexView) + ",\"byteOffset\":" +
+                                    std::to_string(index_offset) + ",\"componentType\":" + std::to_string(component) +
+                                    ",\"count\":" + std::to_string(is.size()) + ",\"type\":\"SCALAR\"}");
+    return "{\"attributes\":" + attributes + ",\"indices\":" + std::to_string(index) +
+           ",\"material\":" + std::to_string(material_index) + ",\"mode\":" + std::to_string(mode) + "}";
+  }
 
-    const int first = int(model.accessors.size());
-    model.accessors.push_back(std::move(position));
-    model.accessors.push_back(std::move(index));
-    out.attributes["POSITION"] = first;
-    if (mode == TINYGLTF_MODE_TRIANGLES) {
-      model.accessors.push_back(std::move(normal));
-      out.attributes["NORMAL"] = first + 2;
-    }
-    out.indices = first + 1;
-    out.mode = mode;
-    out.material = material_index;
-    return true;
+  int add_record(int parent, const std::string& name_and_extras) {
+    Record& r = records.emplace_back();
+    r.parent = parent;
+    if (parent >= 0) records[size_t(parent)].has_children = true;
+    set_text(r, name_and_extras);
+    return int(records.size() - 1);
+  }
+  void set_text(Record& r, const std::string& name_and_extras) {
+    r.text_offset = text.bytes;
+    r.text_bytes = uint32_t(name_and_extras.size());
+    if (!text.append(name_and_extras)) note_failure(text);
   }
 
   int group(std::string_view source, std::string_view zone) {
     auto site = sites.find(source);
     if (site == sites.end()) {
-      Record& r = records.emplace_back();
-      r.name = std::string(source);
-      site = sites.emplace(std::string(source), int(records.size() - 1)).first;
+      const int r = add_record(-1, "\"name\":" + json_string(utf8_text(source)));
+      site = sites.emplace(std::string(source), r).first;
     }
     if (zone.empty()) return site->second;
     const auto key = std::make_pair(site->second, std::string(zone));
     if (const auto it = zones.find(key); it != zones.end()) return it->second;
-    Record& r = records.emplace_back();
-    r.name = std::string(zone);
-    r.parent = site->second;
-    records[size_t(site->second)].has_children = true;
-    return zones[key] = int(records.size() - 1);
+    return zones[key] = add_record(site->second, "\"name\":" + json_string(utf8_text(zone)));
   }
 
   int pipeline(uint64_t id, int parent) {
     if (const auto it = pipelines.find(id); it != pipelines.end()) return it->second;
-    Record& r = records.emplace_back();
-    r.parent = parent;
-    records[size_t(parent)].has_children = true;
     pipeline_ids_unnamed.push_back(id);
-    return pipelines[id] = int(records.size() - 1);
+    char name[40];
+    std::snprintf(name, sizeof name, "\"name\":\"pipeline %016llx\"", static_cast<unsigned long long>(id));
+    return pipelines[id] = add_record(parent, name);
   }
 };
 
@@ -228,18 +253,17 @@ bool GltfFile::open(const std::string& path, std::string& error) {
   const std::string stem = (p.parent_path() / ("." + p.filename().string())).string() + ".tmp-" +
                            std::to_string(::getpid());
   s.temp_out = stem;
-  s.temp_vertices = stem + ".vertices";
-  s.temp_indices = stem + ".indices";
   if (!s.binary) {
     s.bin_name = p.stem().string() + ".bin";
     s.temp_bin = stem + ".bin";
   }
-  s.vertices = std::fopen(s.temp_vertices.c_str(), "wb");
-  if (s.vertices) s.indices = std::fopen(s.temp_indices.c_str(), "wb");
-  if (!s.vertices || !s.indices) {
-    error = "cannot write " + path + ": " + system_reason();
-    s.remove_all();
-    return false;
+  const char* suffixes[6] = {".vertices", ".indices", ".accessors", ".meshes", ".text", ".nodes"};
+  for (int i = 0; i < 6; ++i) {
+    if (!s.parts[i]->open(stem + suffixes[i])) {
+      error = "cannot write " + path + ": " + system_reason();
+      s.remove_all();
+      return false;
+    }
   }
   return true;
 }
@@ -253,25 +277,25 @@ int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, 
   State& s = *state_;
   if (data.empty()) return s.meshes[key] = kNoMesh;
   const int material = s.material(colour);
-  tinygltf::Mesh mesh;
   State::MeshInfo info;
+  std::string mesh = "{\"primitives\":[";
   if (!data.triangles.empty()) {
-    tinygltf::Primitive p;
-    if (!s.primitive(data.triangle_vertices, data.triangles, TINYGLTF_MODE_TRIANGLES, material, info, p, error))
-      return kUnknownMesh;
-    mesh.primitives.push_back(std::move(p));
-    info.triangles = data.triangles.size() / 3;
+    mesh += s.primitive(data.triangle_vertices, data.triangles, kTriangles, material, info);
+    info.triangles = uint32_t(data.triangles.size() / 3);
   }
   if (!data.lines.empty()) {
-    tinygltf::Primitive p;
-    if (!s.primitive(data.line_vertices, data.lines, TINYGLTF_MODE_LINE, material, info, p, error))
-      return kUnknownMesh;
-    mesh.primitives.push_back(std::move(p));
-    info.lines = data.lines.size() / 2;
+    if (!data.triangles.empty()) mesh += ",";
+    mesh += s.primitive(data.line_vertices, data.lines, kLines, material, info);
+    info.lines = uint32_t(data.lines.size() / 2);
   }
-  s.model.meshes.push_back(std::move(mesh));
+  mesh += "]}";
+  if (!s.meshes_text.append(s.mesh_info.empty() ? mesh : "," + mesh)) s.note_failure(s.meshes_text);
+  if (s.failed) {
+    error = s.write_error;
+    return kUnknownMesh;
+  }
   s.mesh_info.push_back(info);
-  return s.meshes[key] = int(s.model.meshes.size() - 1);
+  return s.meshes[key] = int(s.mesh_info.size() - 1);
 }
 
 void GltfFile::add_object(const Object& object, std::string_view zone, const glm::dvec3& position_m,
@@ -281,44 +305,34 @@ void GltfFile::add_object(const Object& object, std::string_view zone, const glm
   if (object.pipeline_id != 0 &&
       (object.object_class == ObjectClass::pipe || object.object_class == ObjectClass::component))
     parent = s.pipeline(object.pipeline_id, parent);
+  const std::string text = "\"name\":" + json_string(utf8_text(object.name)) + ",\"extras\":" + object_extras(object);
   int index;
-  if (object.object_class == ObjectClass::pipeline) {
-    // A placeholder made for an earlier member becomes this pipeline's node.
-    if (const auto it = s.pipelines.find(object.id); it != s.pipelines.end()) {
-      index = it->second;
-      std::erase(s.pipeline_ids_unnamed, object.id);
-    } else {
-      s.records.emplace_back().parent = parent;
-      s.records[size_t(parent)].has_children = true;
-      index = s.pipelines[object.id] = int(s.records.size() - 1);
-    }
+  if (object.object_class == ObjectClass::pipeline && s.pipelines.count(object.id)) {
+    // The placeholder made for an earlier member becomes this pipeline's node.
+    index = s.pipelines[object.id];
+    s.set_text(s.records[size_t(index)], text);
+    std::erase(s.pipeline_ids_unnamed, object.id);
   } else {
-    s.records.emplace_back().parent = parent;
-    s.records[size_t(parent)].has_children = true;
-    index = int(s.records.size() - 1);
+    index = s.add_record(parent, text);
+    if (object.object_class == ObjectClass::pipeline) s.pipelines[object.id] = index;
   }
   State::Record& r = s.records[size_t(index)];
-  r.name = utf8_text(object.name);
-  r.extras = object_extras(object);
   r.mesh = mesh;
   r.placed = true;
   r.is_object = true;
   r.position_m = position_m;
-  r.rotation = rotation;
+  r.rotation = glm::quat(rotation);
 }
 
 void GltfFile::add_run(std::string name, uint64_t pipeline_id, std::string_view source, std::string_view zone,
                        const glm::dvec3& position_m, const glm::dquat& rotation, int mesh) {
   State& s = *state_;
   const int parent = s.pipeline(pipeline_id, s.group(source, zone));
-  State::Record& r = s.records.emplace_back();
-  r.parent = parent;
-  r.name = utf8_text(name);
+  State::Record& r = s.records[size_t(s.add_record(parent, "\"name\":" + json_string(utf8_text(name))))];
   r.mesh = mesh;
   r.placed = true;
   r.position_m = position_m;
-  r.rotation = rotation;
-  s.records[size_t(parent)].has_children = true;
+  r.rotation = glm::quat(rotation);
 }
 
 std::vector<uint64_t> GltfFile::unnamed_pipelines() const { return state_->pipeline_ids_unnamed; }
@@ -327,55 +341,93 @@ void GltfFile::name_pipeline(const Object& pipeline) {
   State& s = *state_;
   const auto it = s.pipelines.find(pipeline.id);
   if (it == s.pipelines.end()) return;
-  State::Record& r = s.records[size_t(it->second)];
-  r.name = utf8_text(pipeline.name);
-  r.extras = object_extras(pipeline);
+  s.set_text(s.records[size_t(it->second)],
+             "\"name\":" + json_string(utf8_text(pipeline.name)) + ",\"extras\":" + object_extras(pipeline));
   std::erase(s.pipeline_ids_unnamed, pipeline.id);
 }
 
 bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileSummary& summary,
                       std::string& error) {
   State& s = *state_;
-  tinygltf::Model& m = s.model;
   summary.path = s.path;
-  summary.meshes = m.meshes.size();
+  summary.meshes = s.mesh_info.size();
+  if (s.failed) {
+    error = s.write_error;
+    return false;
+  }
+  if (std::fflush(s.text.file) != 0) {
+    error = "cannot write " + s.text.path + ": " + system_reason();
+    return false;
+  }
+  const size_t n = s.records.size();
 
   // 1. Which objects are drawn through EXT_mesh_gpu_instancing: per parent and mesh, when
-  //    enough of them share it (and they have no children of their own).
-  std::vector<int> instancing_group(s.records.size(), -1);
-  std::vector<std::vector<int>> groups;
+  //    enough of them share it (and they have no children of their own). The group's node
+  //    stands where its first member was.
+  std::vector<int32_t> first_of_group(n, -1);  // instanced: the record standing for the group
+  std::map<std::pair<int, int>, std::vector<uint32_t>> groups;
   if (gpu_instancing) {
-    std::map<std::pair<int, int>, std::vector<int>> by_mesh;
-    for (size_t i = 0; i < s.records.size(); ++i) {
+    for (size_t i = 0; i < n; ++i) {
       const State::Record& r = s.records[i];
-      if (r.is_object && r.mesh >= 0 && !r.has_children) by_mesh[{r.parent, r.mesh}].push_back(int(i));
+      if (r.is_object && r.mesh >= 0 && !r.has_children) groups[{r.parent, r.mesh}].push_back(uint32_t(i));
     }
-    for (auto& [key, members] : by_mesh) {
-      if (members.size() < kGpuInstancingMin) continue;
-      for (int i : members) instancing_group[size_t(i)] = int(groups.size());
-      groups.push_back(std::move(members));
+    for (auto it = groups.begin(); it != groups.end();) {
+      if (it->second.size() < kGpuInstancingMin) {
+        it = groups.erase(it);
+        continue;
+      }
+      for (uint32_t i : it->second) first_of_group[i] = int32_t(it->second.front());
+      ++it;
     }
   }
 
-  // 2. Nodes: records in order (parents come before their children), instanced ones replaced
-  //    by one node per group, placed where its group's first member was.
-  std::vector<int> node_of(s.records.size(), -1);
-  std::vector<float> instance_data;
+  // 2. Node numbers (records in order, instanced ones as their group), children lists (CSR).
+  std::vector<int32_t> node_of(n, -1);
+  int32_t nodes = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (first_of_group[i] >= 0 && first_of_group[i] != int32_t(i)) continue;
+    node_of[i] = nodes++;
+  }
+  std::vector<uint32_t> child_start(n + 1, 0), children;
   std::vector<int> roots;
-  auto attach = [&](int parent_record, int node) {
-    if (parent_record < 0) roots.push_back(node);
-    else m.nodes[size_t(node_of[size_t(parent_record)])].children.push_back(node);
+  for (size_t i = 0; i < n; ++i) {
+    if (node_of[i] < 0) continue;
+    if (s.records[i].parent < 0) roots.push_back(node_of[i]);
+    else child_start[size_t(s.records[i].parent) + 1] += 1;
+  }
+  for (size_t i = 0; i < n; ++i) child_start[i + 1] += child_start[i];
+  children.resize(child_start[n]);
+  {
+    std::vector<uint32_t> fill(child_start.begin(), child_start.end() - 1);
+    for (size_t i = 0; i < n; ++i)
+      if (node_of[i] >= 0 && s.records[i].parent >= 0) children[fill[size_t(s.records[i].parent)]++] = uint32_t(node_of[i]);
+  }
+
+  // 3. The nodes, in order, to their part; the instances' transforms to memory.
+  std::vector<float> instance_data;
+  std::string text, node;
+  auto read_text = [&](const State::Record& r) {
+    text.resize(r.text_bytes);
+    return ::pread(fileno(s.text.file), text.data(), r.text_bytes, off_t(r.text_offset)) == ssize_t(r.text_bytes);
   };
-  auto extend_bounds = [&](const State::MeshInfo& info, const glm::dvec3& position, const glm::dquat& rotation) {
+  auto transform_json = [&](const glm::dvec3& position, const glm::quat& q) {
+    const glm::dvec3 t = position - origin_m;
+    std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
+    if (q != glm::quat(1, 0, 0, 0))
+      j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
+    return j;
+  };
+  auto extend_bounds = [&](const State::MeshInfo& info, const glm::dvec3& position, const glm::quat& rotation) {
     if (!info.has_box) return;
+    const glm::dquat q(rotation);
     for (int c = 0; c < 8; ++c) {
       const glm::dvec3 corner((c & 1) ? info.max[0] : info.min[0], (c & 2) ? info.max[1] : info.min[1],
                               (c & 4) ? info.max[2] : info.min[2]);
-      summary.bounds.extend(position + rotation * corner);
+      summary.bounds.extend(position + q * corner);
     }
   };
-  for (size_t i = 0; i < s.records.size(); ++i) {
-    State::Record& r = s.records[i];
+  for (size_t i = 0; i < n; ++i) {
+    const State::Record& r = s.records[i];
     if (r.is_object) summary.objects += 1;
     if (r.mesh >= 0) {
       const State::MeshInfo& info = s.mesh_info[size_t(r.mesh)];
@@ -383,95 +435,90 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
       summary.lines += info.lines;
       extend_bounds(info, r.position_m, r.rotation);
     }
-    const int g = instancing_group[i];
-    if (g >= 0) {
-      const std::vector<int>& members = groups[size_t(g)];
-      if (members.front() != int(i)) continue;  // the group's node is made at its first member
-      tinygltf::Node node;
-      node.mesh = r.mesh;
-      node.name = r.name + " and " + std::to_string(members.size() - 1) + " more";
-      tinygltf::Value::Array objects;
-      const size_t first_float = instance_data.size();
-      for (int member : members) {
-        State::Record& mr = s.records[size_t(member)];
-        tinygltf::Value::Object o = mr.extras.IsObject() ? mr.extras.Get<tinygltf::Value::Object>()
-                                                         : tinygltf::Value::Object{};
-        o["name"] = tinygltf::Value(mr.name);
-        objects.emplace_back(std::move(o));
+    if (node_of[i] < 0) continue;  // drawn by its group's node
+    node = node_of[i] ? ",{" : "{";
+    if (first_of_group[i] >= 0) {
+      const std::vector<uint32_t>& members = groups.at({r.parent, r.mesh});
+      const size_t translations = instance_data.size();
+      std::string objects;
+      for (uint32_t m : members) {
+        const State::Record& mr = s.records[m];
+        if (!read_text(mr)) {
+          error = "cannot read back " + s.text.path + ": " + system_reason();
+          return false;
+        }
+        objects += (objects.empty() ? "{" : ",{") + text + "}";
         const glm::dvec3 t = mr.position_m - origin_m;
         instance_data.insert(instance_data.end(), {float(t.x), float(t.y), float(t.z)});
-        mr.extras = tinygltf::Value();
       }
-      const size_t rotations_float = instance_data.size();
-      for (int member : members) {
-        const glm::dquat& q = s.records[size_t(member)].rotation;
-        instance_data.insert(instance_data.end(), {float(q.x), float(q.y), float(q.z), float(q.w)});
+      const size_t rotations = instance_data.size();
+      for (uint32_t m : members) {
+        const glm::quat& q = s.records[m].rotation;
+        instance_data.insert(instance_data.end(), {q.x, q.y, q.z, q.w});
       }
-      tinygltf::Accessor translation;
-      translation.bufferView = kInstanceView;
-      translation.byteOffset = first_float * 4;
-      translation.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-      translation.type = TINYGLTF_TYPE_VEC3;
-      translation.count = members.size();
-      tinygltf::Accessor rotation = translation;
-      rotation.byteOffset = rotations_float * 4;
-      rotation.type = TINYGLTF_TYPE_VEC4;
-      m.accessors.push_back(std::move(translation));
-      m.accessors.push_back(std::move(rotation));
-      tinygltf::Value::Object attributes{{"TRANSLATION", tinygltf::Value(int(m.accessors.size() - 2))},
-                                         {"ROTATION", tinygltf::Value(int(m.accessors.size() - 1))}};
-      node.extensions["EXT_mesh_gpu_instancing"] =
-          tinygltf::Value(tinygltf::Value::Object{{"attributes", tinygltf::Value(attributes)}});
-      node.extras = tinygltf::Value(tinygltf::Value::Object{{"objects", tinygltf::Value(objects)}});
+      const uint64_t t = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+                                    std::to_string(translations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
+                                    ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC3\"}");
+      const uint64_t q = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+                                    std::to_string(rotations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
+                                    ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC4\"}");
+      node += "\"name\":\"" + std::to_string(members.size()) + " instances\",\"mesh\":" + std::to_string(r.mesh) +
+              ",\"extensions\":{\"EXT_mesh_gpu_instancing\":{\"attributes\":{\"TRANSLATION\":" + std::to_string(t) +
+              ",\"ROTATION\":" + std::to_string(q) + "}}},\"extras\":{\"objects\":[" + objects + "]}";
       summary.instanced_objects += members.size();
-      m.nodes.push_back(std::move(node));
-      node_of[i] = int(m.nodes.size() - 1);
-      attach(r.parent, node_of[i]);
-      continue;
+    } else {
+      if (!read_text(r)) {
+        error = "cannot read back " + s.text.path + ": " + system_reason();
+        return false;
+      }
+      node += text;
+      if (r.mesh >= 0) node += ",\"mesh\":" + std::to_string(r.mesh);
+      if (r.placed) node += transform_json(r.position_m, r.rotation);
     }
-    tinygltf::Node node;
-    node.name = r.name.empty() ? "(unnamed)" : r.name;
-    node.extras = std::move(r.extras);
-    if (r.mesh >= 0) node.mesh = r.mesh;
-    if (r.placed) {
-      const glm::dvec3 t = r.position_m - origin_m;
-      node.translation = {t.x, t.y, t.z};
-      if (r.rotation != glm::dquat(1, 0, 0, 0)) node.rotation = {r.rotation.x, r.rotation.y, r.rotation.z, r.rotation.w};
+    if (child_start[i + 1] > child_start[i]) {
+      node += ",\"children\":[";
+      for (uint32_t c = child_start[i]; c < child_start[i + 1]; ++c)
+        node += (c > child_start[i] ? "," : "") + std::to_string(children[c]);
+      node += "]";
     }
-    m.nodes.push_back(std::move(node));
-    node_of[i] = int(m.nodes.size() - 1);
-    attach(r.parent, node_of[i]);
+    node += "}";
+    if (!s.nodes.append(node)) s.note_failure(s.nodes);
   }
   s.records.clear();
   s.records.shrink_to_fit();
+  if (s.failed) {
+    error = s.write_error;
+    return false;
+  }
 
-  // 3. The document: buffer views over [vertices][indices][instances], the scene, the asset.
-  if (s.vertex_bytes > 0) {
+  // 4. The document's small parts by tinygltf: buffer views over [vertices][indices][instances],
+  //    materials, the scene, the asset; the arrays spliced in after them.
+  tinygltf::Model& m = s.model;
+  const uint64_t bin_bytes = s.vertices.bytes + s.indices.bytes + instance_data.size() * 4;
+  if (s.vertices.bytes > 0) {
     tinygltf::BufferView v;
     v.buffer = 0;
-    v.byteOffset = 0;
-    v.byteLength = size_t(s.vertex_bytes);
+    v.byteLength = size_t(s.vertices.bytes);
     v.byteStride = sizeof(GltfVertex);
     v.target = TINYGLTF_TARGET_ARRAY_BUFFER;
     m.bufferViews.push_back(v);
     tinygltf::BufferView i;
     i.buffer = 0;
-    i.byteOffset = size_t(s.vertex_bytes);
-    i.byteLength = size_t(s.index_bytes);
+    i.byteOffset = size_t(s.vertices.bytes);
+    i.byteLength = size_t(s.indices.bytes);
     i.target = TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER;
     m.bufferViews.push_back(i);
     if (!instance_data.empty()) {
-      tinygltf::BufferView n;
-      n.buffer = 0;
-      n.byteOffset = size_t(s.vertex_bytes + s.index_bytes);
-      n.byteLength = instance_data.size() * 4;
-      m.bufferViews.push_back(n);
+      tinygltf::BufferView t;
+      t.buffer = 0;
+      t.byteOffset = size_t(s.vertices.bytes + s.indices.bytes);
+      t.byteLength = instance_data.size() * 4;
+      m.bufferViews.push_back(t);
       m.extensionsUsed.push_back("EXT_mesh_gpu_instancing");
       // The extension defines no fallback: a reader without it would draw one copy.
       m.extensionsRequired.push_back("EXT_mesh_gpu_instancing");
     }
   }
-  const uint64_t bin_bytes = s.vertex_bytes + s.index_bytes + instance_data.size() * 4;
   tinygltf::Scene scene;
   scene.nodes = std::move(roots);
   m.scenes.push_back(std::move(scene));
@@ -481,81 +528,105 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
   m.asset.extras = tinygltf::Value(tinygltf::Value::Object{
       {"origin_m", tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(origin_m.x), tinygltf::Value(origin_m.y),
                                                            tinygltf::Value(origin_m.z)})}});
-  std::string json;
+  std::string head;
   {
-    std::ostringstream text;
+    std::ostringstream out;
     tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&m, text, false, false)) {
+    if (!writer.WriteGltfSceneToStream(&m, out, false, false)) {
       error = "cannot serialise the glTF document of " + s.path;
       return false;
     }
-    json = std::move(text).str();
+    head = std::move(out).str();
   }
-  m = tinygltf::Model();
-  // tinygltf wants the buffer's bytes in memory; ours are on disk: the one buffer is added here.
-  while (!json.empty() && json.back() != '}') json.pop_back();
-  if (json.empty()) {
+  while (!head.empty() && head.back() != '}') head.pop_back();
+  if (head.size() < 2) {
     error = "cannot serialise the glTF document of " + s.path;
     return false;
   }
+  head.pop_back();  // the arrays follow
+  struct Piece {
+    std::string text;
+    const Part* part = nullptr;
+  };
+  std::vector<Piece> pieces{{head}};
+  auto array = [&](const char* name, const Part& part) {
+    if (part.bytes == 0) return;
+    pieces.push_back({",\"" + std::string(name) + "\":["});
+    pieces.push_back({"", &part});
+    pieces.push_back({"]"});
+  };
+  array("accessors", s.accessors);
+  array("meshes", s.meshes_text);
+  array("nodes", s.nodes);
+  std::string tail;
   if (bin_bytes > 0) {
-    json.pop_back();
-    json += ",\"buffers\":[{\"byteLength\":" + std::to_string(bin_bytes);
-    if (!s.binary) json += ",\"uri\":" + json_string(s.bin_name);
-    json += "}]}";
+    tail = ",\"buffers\":[{\"byteLength\":" + std::to_string(bin_bytes);
+    if (!s.binary) tail += ",\"uri\":" + json_string(utf8_text(s.bin_name));
+    tail += "}]";
   }
+  pieces.push_back({tail + "}"});
+  uint64_t json_bytes = 0;
+  for (const Piece& p : pieces) json_bytes += p.part ? p.part->bytes : p.text.size();
 
-  // 4. The file(s): the binary chunk assembled from the parts on disk.
-  s.close_parts();
+  // 5. The file(s), the binary chunk assembled from the parts on disk.
+  for (Part* p : s.parts) {
+    if (p->file && std::fflush(p->file) != 0) {
+      error = "cannot write " + p->path + ": " + system_reason();
+      return false;
+    }
+  }
   auto fail_write = [&](const std::string& what) {
-    error = "cannot write " + what + ": " + system_reason();
+    if (error.empty()) error = "cannot write " + what + ": " + system_reason();
     return false;
   };
   std::FILE* out = std::fopen(s.temp_out.c_str(), "wb");
   if (!out) return fail_write(s.path);
   std::FILE* bin = out;
   bool ok = true;
+  const uint64_t json_padded = (json_bytes + 3) & ~uint64_t(3);
+  const uint64_t bin_padded = (bin_bytes + 3) & ~uint64_t(3);
   if (s.binary) {
-    const uint32_t json_padded = uint32_t((json.size() + 3) & ~size_t(3));
-    const uint32_t bin_padded = uint32_t((bin_bytes + 3) & ~uint64_t(3));
-    const uint64_t total = 12 + 8 + uint64_t(json_padded) + (bin_bytes ? 8 + uint64_t(bin_padded) : 0);
+    const uint64_t total = 12 + 8 + json_padded + (bin_bytes ? 8 + bin_padded : 0);
     if (total > UINT32_MAX) {
       std::fclose(out);
       error = "cannot write " + s.path + ": " + std::to_string(total) +
               " bytes, more than a .glb can hold (4 GiB); select less, raise the tolerance or write .gltf";
       return false;
     }
-    const uint32_t header[5] = {0x46546C67u, 2u, uint32_t(total), json_padded, 0x4E4F534Au};
-    json.resize(json_padded, ' ');
-    ok = put(out, header, sizeof header) && put(out, json.data(), json.size());
+    const uint32_t header[5] = {0x46546C67u, 2u, uint32_t(total), uint32_t(json_padded), 0x4E4F534Au};
+    ok = put(out, header, sizeof header);
+  }
+  for (const Piece& p : pieces) {
+    if (!ok) break;
+    ok = p.part ? copy_file_into(out, p.part->path, error) : put(out, p.text);
+  }
+  if (s.binary) {
+    ok = ok && put(out, "   ", size_t(json_padded - json_bytes));  // JSON chunk padding: spaces
     if (bin_bytes) {
-      const uint32_t chunk[2] = {bin_padded, 0x004E4942u};
+      const uint32_t chunk[2] = {uint32_t(bin_padded), 0x004E4942u};
       ok = ok && put(out, chunk, sizeof chunk);
     }
   } else {
-    ok = put(out, json.data(), json.size()) && put(out, "\n", 1);
-    if (bin_bytes) {
+    ok = ok && put(out, "\n", 1);
+    if (ok && bin_bytes) {
       bin = std::fopen(s.temp_bin.c_str(), "wb");
       if (!bin) {
         std::fclose(out);
-        return fail_write(s.path.substr(0, s.path.size() - std::filesystem::path(s.path).extension().string().size()) + ".bin");
+        return fail_write((std::filesystem::path(s.path).parent_path() / s.bin_name).string());
       }
     }
   }
   if (ok && bin_bytes) {
-    ok = copy_file_into(bin, s.temp_vertices, error) && copy_file_into(bin, s.temp_indices, error) &&
+    ok = copy_file_into(bin, s.vertices.path, error) && copy_file_into(bin, s.indices.path, error) &&
          put(bin, instance_data.data(), instance_data.size() * 4);
     const char zeros[4] = {};
-    if (s.binary) ok = ok && put(bin, zeros, size_t(((bin_bytes + 3) & ~uint64_t(3)) - bin_bytes));
+    if (s.binary) ok = ok && put(bin, zeros, size_t(bin_padded - bin_bytes));
   }
-  ok = ok && std::fflush(out) == 0 && !std::ferror(out);
   if (bin != out) ok = std::fclose(bin) == 0 && ok;
   ok = std::fclose(out) == 0 && ok;
-  if (!ok) {
-    if (error.empty()) return fail_write(s.path);
-    return false;
-  }
-  // 5. Into place: the .bin before the .gltf that refers to it.
+  if (!ok) return fail_write(s.path);
+
+  // 6. Into place: the .bin before the .gltf that refers to it.
   std::error_code ec;
   const std::filesystem::path final_path(s.path);
   if (!s.binary && bin_bytes) {
@@ -570,11 +641,10 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
     error = "cannot write " + s.path + ": " + ec.message();
     return false;
   }
-  std::filesystem::remove(s.temp_vertices, ec);
-  std::filesystem::remove(s.temp_indices, ec);
+  for (Part* p : s.parts) p->remove();
   s.finished = true;
   summary.bytes = std::filesystem::file_size(final_path, ec);
-  if (!s.binary && bin_bytes) summary.bytes += bin_bytes;
+  if (!s.binary) summary.bytes += bin_bytes;
   return true;
 }
 

@@ -1,6 +1,8 @@
 // Text for glTF documents (rules in gltf_text.h).
 #include "gltf_text.h"
 
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 
 namespace plantview::detail::gltf {
@@ -65,15 +67,38 @@ std::string json_string(std::string_view utf8) {
   return out + "\"";
 }
 
-tinygltf::Value object_extras(const Object& object) {
+std::string object_extras(const Object& object) {
   char id[17];
   std::snprintf(id, sizeof id, "%016llx", static_cast<unsigned long long>(object.id));
-  tinygltf::Value::Object attributes;
-  for (const Attribute& a : object.attributes) attributes.emplace(utf8_text(a.key), tinygltf::Value(utf8_text(a.value)));
-  tinygltf::Value::Object extras{{"id", tinygltf::Value(std::string(id))},
-                                 {"class", tinygltf::Value(std::string(class_name(object.object_class)))}};
-  if (!attributes.empty()) extras.emplace("attributes", tinygltf::Value(std::move(attributes)));
-  return tinygltf::Value(std::move(extras));
+  std::string out = "{\"id\":\"" + std::string(id) + "\",\"class\":\"" +
+                    std::string(class_name(object.object_class)) + "\"";
+  if (!object.attributes.empty()) {
+    out += ",\"attributes\":{";
+    for (size_t i = 0; i < object.attributes.size(); ++i) {
+      const Attribute& a = object.attributes[i];
+      bool repeated = false;
+      for (size_t k = 0; k < i && !repeated; ++k) repeated = object.attributes[k].key == a.key;
+      if (repeated) continue;
+      if (out.back() != '{') out += ',';
+      out += json_string(utf8_text(a.key)) + ":" + json_string(utf8_text(a.value));
+    }
+    out += "}";
+  }
+  return out + "}";
+}
+
+std::string json_number(double value, int decimals) {
+  const double scale = std::pow(10.0, decimals);  // exact for the small powers used
+  const double rounded = std::round(value * scale) / scale;
+  char text[32];
+  const auto [end, ec] = std::to_chars(text, text + sizeof text, rounded == 0 ? 0.0 : rounded);
+  return ec == std::errc() ? std::string(text, end) : "0";
+}
+
+std::string json_number(float value) {
+  char text[32];
+  const auto [end, ec] = std::to_chars(text, text + sizeof text, value == 0 ? 0.0f : value);
+  return ec == std::errc() ? std::string(text, end) : "0";
 }
 
 std::string file_safe(std::string_view name) {
