@@ -109,7 +109,7 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
     canonicalise(object, canonical);
     const int mesh = place(canonical, s.level, object.colour);
     if (mesh == GltfFile::kUnknownMesh) return false;
-    file.add_object(object, zone_of(object), canonical.position_m, canonical.rotation, mesh);
+    file.add_object(object, zone_of(object), canonical.position_m, canonical.rotation, canonical.scale, mesh);
     if (options.progress && (++done & 255) == 0) options.progress(0.1 + 0.9 * double(done) / double(total), "writing");
   }
   for (const SelectedRun& run : group.runs) {
@@ -122,7 +122,7 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
     const int mesh = place(canonical, run.level, run.colour);
     if (mesh == GltfFile::kUnknownMesh) return false;
     file.add_run(object.name + " (merged run)", run.pipeline_id, object.source, zone_of(object),
-                 canonical.position_m, canonical.rotation, mesh);
+                 canonical.position_m, canonical.rotation, canonical.scale, mesh);
     ++done;
   }
   // Pipelines whose members were written but which were not selected themselves.

@@ -94,6 +94,7 @@ struct GltfFile::State {
     bool has_children = false;
     glm::dvec3 position_m{0.0};
     glm::quat rotation{1, 0, 0, 0};
+    glm::vec3 scale{1.0f};
   };
   struct MeshInfo {
     float min[3], max[3];
@@ -299,7 +300,7 @@ int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, 
 }
 
 void GltfFile::add_object(const Object& object, std::string_view zone, const glm::dvec3& position_m,
-                          const glm::dquat& rotation, int mesh) {
+                          const glm::dquat& rotation, const glm::vec3& scale, int mesh) {
   State& s = *state_;
   int parent = s.group(object.source, zone);
   if (object.pipeline_id != 0 &&
@@ -322,10 +323,12 @@ void GltfFile::add_object(const Object& object, std::string_view zone, const glm
   r.is_object = true;
   r.position_m = position_m;
   r.rotation = glm::quat(rotation);
+  r.scale = scale;
 }
 
 void GltfFile::add_run(std::string name, uint64_t pipeline_id, std::string_view source, std::string_view zone,
-                       const glm::dvec3& position_m, const glm::dquat& rotation, int mesh) {
+                       const glm::dvec3& position_m, const glm::dquat& rotation, const glm::vec3& scale,
+                       int mesh) {
   State& s = *state_;
   const int parent = s.pipeline(pipeline_id, s.group(source, zone));
   State::Record& r = s.records[size_t(s.add_record(parent, "\"name\":" + json_string(utf8_text(name))))];
@@ -333,6 +336,7 @@ void GltfFile::add_run(std::string name, uint64_t pipeline_id, std::string_view 
   r.placed = true;
   r.position_m = position_m;
   r.rotation = glm::quat(rotation);
+  r.scale = scale;
 }
 
 std::vector<uint64_t> GltfFile::unnamed_pipelines() const { return state_->pipeline_ids_unnamed; }
@@ -382,11 +386,20 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
   }
 
   // 2. Node numbers (records in order, instanced ones as their group), children lists (CSR).
+  //    A node with children carries no transform (its children's are in model space): an
+  //    object that has both children and geometry (an RVM pipeline with primitives of its own)
+  //    gets its geometry in a child node of its own, numbered right after it.
   std::vector<int32_t> node_of(n, -1);
+  std::vector<uint8_t> split_geometry(n, 0);
   int32_t nodes = 0;
   for (size_t i = 0; i < n; ++i) {
     if (first_of_group[i] >= 0 && first_of_group[i] != int32_t(i)) continue;
     node_of[i] = nodes++;
+    const State::Record& r = s.records[i];
+    if (r.has_children && r.mesh >= 0) {
+      split_geometry[i] = 1;
+      nodes++;
+    }
   }
   std::vector<uint32_t> child_start(n + 1, 0), children;
   std::vector<int> roots;
@@ -394,13 +407,16 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
     if (node_of[i] < 0) continue;
     if (s.records[i].parent < 0) roots.push_back(node_of[i]);
     else child_start[size_t(s.records[i].parent) + 1] += 1;
+    child_start[i + 1] += split_geometry[i];
   }
   for (size_t i = 0; i < n; ++i) child_start[i + 1] += child_start[i];
   children.resize(child_start[n]);
   {
     std::vector<uint32_t> fill(child_start.begin(), child_start.end() - 1);
-    for (size_t i = 0; i < n; ++i)
+    for (size_t i = 0; i < n; ++i) {
+      if (split_geometry[i]) children[fill[i]++] = uint32_t(node_of[i] + 1);
       if (node_of[i] >= 0 && s.records[i].parent >= 0) children[fill[size_t(s.records[i].parent)]++] = uint32_t(node_of[i]);
+    }
   }
 
   // 3. The nodes, in order, to their part; the instances' transforms to memory.
@@ -410,19 +426,23 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
     text.resize(r.text_bytes);
     return ::pread(fileno(s.text.file), text.data(), r.text_bytes, off_t(r.text_offset)) == ssize_t(r.text_bytes);
   };
-  auto transform_json = [&](const glm::dvec3& position, const glm::quat& q) {
+  auto transform_json = [&](const glm::dvec3& position, const glm::quat& q, const glm::vec3& scale) {
     const glm::dvec3 t = position - origin_m;
     std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
     if (q != glm::quat(1, 0, 0, 0))
       j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
+    if (scale != glm::vec3(1.0f))
+      j += ",\"scale\":[" + json_number(scale.x) + "," + json_number(scale.y) + "," + json_number(scale.z) + "]";
     return j;
   };
-  auto extend_bounds = [&](const State::MeshInfo& info, const glm::dvec3& position, const glm::quat& rotation) {
+  auto extend_bounds = [&](const State::MeshInfo& info, const State::Record& r) {
     if (!info.has_box) return;
-    const glm::dquat q(rotation);
+    const glm::dquat q(r.rotation);
     for (int c = 0; c < 8; ++c) {
-      const glm::dvec3 corner((c & 1) ? info.max[0] : info.min[0], (c & 2) ? info.max[1] : info.min[1],
-                              (c & 4) ? info.max[2] : info.min[2]);
+      const glm::dvec3 corner = glm::dvec3(r.scale) * glm::dvec3((c & 1) ? info.max[0] : info.min[0],
+                                                                 (c & 2) ? info.max[1] : info.min[1],
+                                                                 (c & 4) ? info.max[2] : info.min[2]);
+      const glm::dvec3 position = r.position_m;
       summary.bounds.extend(position + q * corner);
     }
   };
@@ -433,7 +453,7 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
       const State::MeshInfo& info = s.mesh_info[size_t(r.mesh)];
       summary.triangles += info.triangles;
       summary.lines += info.lines;
-      extend_bounds(info, r.position_m, r.rotation);
+      extend_bounds(info, r);
     }
     if (node_of[i] < 0) continue;  // drawn by its group's node
     node = node_of[i] ? ",{" : "{";
@@ -452,9 +472,18 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
         instance_data.insert(instance_data.end(), {float(t.x), float(t.y), float(t.z)});
       }
       const size_t rotations = instance_data.size();
+      bool scaled = false;
       for (uint32_t m : members) {
         const glm::quat& q = s.records[m].rotation;
         instance_data.insert(instance_data.end(), {q.x, q.y, q.z, q.w});
+        scaled = scaled || s.records[m].scale != glm::vec3(1.0f);
+      }
+      const size_t scales = instance_data.size();
+      if (scaled) {
+        for (uint32_t m : members) {
+          const glm::vec3& v = s.records[m].scale;
+          instance_data.insert(instance_data.end(), {v.x, v.y, v.z});
+        }
       }
       const uint64_t t = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
                                     std::to_string(translations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
@@ -462,9 +491,16 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
       const uint64_t q = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
                                     std::to_string(rotations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
                                     ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC4\"}");
+      std::string scale_attribute;
+      if (scaled) {
+        const uint64_t v = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+                                      std::to_string(scales * 4) + ",\"componentType\":" + std::to_string(kFloat) +
+                                      ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC3\"}");
+        scale_attribute = ",\"SCALE\":" + std::to_string(v);
+      }
       node += "\"name\":\"" + std::to_string(members.size()) + " instances\",\"mesh\":" + std::to_string(r.mesh) +
               ",\"extensions\":{\"EXT_mesh_gpu_instancing\":{\"attributes\":{\"TRANSLATION\":" + std::to_string(t) +
-              ",\"ROTATION\":" + std::to_string(q) + "}}},\"extras\":{\"objects\":[" + objects + "]}";
+              ",\"ROTATION\":" + std::to_string(q) + scale_attribute + "}}},\"extras\":{\"objects\":[" + objects + "]}";
       summary.instanced_objects += members.size();
     } else {
       if (!read_text(r)) {
@@ -472,8 +508,10 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
         return false;
       }
       node += text;
-      if (r.mesh >= 0) node += ",\"mesh\":" + std::to_string(r.mesh);
-      if (r.placed) node += transform_json(r.position_m, r.rotation);
+      if (!r.has_children) {
+        if (r.mesh >= 0) node += ",\"mesh\":" + std::to_string(r.mesh);
+        if (r.placed) node += transform_json(r.position_m, r.rotation, r.scale);
+      }
     }
     if (child_start[i + 1] > child_start[i]) {
       node += ",\"children\":[";
@@ -482,6 +520,10 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
       node += "]";
     }
     node += "}";
+    if (split_geometry[i]) {
+      node += ",{\"name\":\"geometry\",\"mesh\":" + std::to_string(r.mesh) +
+              transform_json(r.position_m, r.rotation, r.scale) + "}";
+    }
     if (!s.nodes.append(node)) s.note_failure(s.nodes);
   }
   s.records.clear();

@@ -54,13 +54,13 @@ class GltfFile {
   // kUnknownMesh with `error` set when a temporary file cannot be written.
   int add_mesh(const MeshKey& key, const MeshData& data, Colour colour, std::string& error);
 
-  // A node for `object`, placed at position_m (model space) with `rotation`, drawing `mesh`
-  // (kNoMesh: none). `zone` may be empty (no zone node).
+  // A node for `object`, placed at position_m (model space) with `rotation` and `scale`,
+  // drawing `mesh` (kNoMesh: none). `zone` may be empty (no zone node).
   void add_object(const Object& object, std::string_view zone, const glm::dvec3& position_m,
-                  const glm::dquat& rotation, int mesh);
+                  const glm::dquat& rotation, const glm::vec3& scale, int mesh);
   // A node for a merged pipeline run (no object of its own) under pipeline `pipeline_id`.
   void add_run(std::string name, uint64_t pipeline_id, std::string_view source, std::string_view zone,
-               const glm::dvec3& position_m, const glm::dquat& rotation, int mesh);
+               const glm::dvec3& position_m, const glm::dquat& rotation, const glm::vec3& scale, int mesh);
   // Pipelines that members hang under but that were not added themselves.
   std::vector<uint64_t> unnamed_pipelines() const;
   void name_pipeline(const Object& pipeline);

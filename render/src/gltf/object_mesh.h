@@ -7,6 +7,11 @@
 //     primitive's, rotation the orthonormalised (Gram-Schmidt, right-handed) columns of its
 //     linear part; scale and mirroring stay in the primitives. model = rotation * canonical +
 //     position_m. No primitive: the object's origin and no rotation.
+//   - An object of one box, or one cylinder, placed without scale (its canonical linear part
+//     the identity) is made of the unit shape (a 1 m box; a cylinder 1 m high) scaled by the
+//     node: `scale` holds the sizes (the cylinder's height), so that every pipe of a diameter
+//     shares one mesh. Under a node's scale readers transform normals by the inverse
+//     transpose, which keeps the faces' and the cylinder's normals exact.
 //   - The mesh key hashes (128 bits) what the mesh is made of: the level, the colour, each
 //     primitive's shape (facet groups: their vertices and triangulation) and canonical
 //     placement, the latter rounded to 1e-5 (linear) and 0.1 mm (translation). Objects that
@@ -33,6 +38,7 @@ namespace plantview::detail::gltf {
 struct CanonicalObject {
   glm::dvec3 position_m{0.0};   // model space
   glm::dquat rotation{1, 0, 0, 0};
+  glm::vec3 scale{1.0f};              // along the canonical axes
   std::vector<Primitive> primitives;  // placements in the canonical frame
   std::vector<MeshPlan> plans;        // plan_mesh of each
 };
