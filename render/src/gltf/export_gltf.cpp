@@ -86,6 +86,10 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
                  const std::string& path, const glm::dvec3& origin_m, GltfFile& file,
                  GltfFileSummary& summary, uint64_t& done, uint64_t total, std::string& error) {
   if (!file.open(path, error)) return false;
+  // Objects, and room for site, zone and pipeline nodes (about 4 % of a plant's objects are
+  // pipelines; their nodes are added when their members were selected without them).
+  const size_t objects = group.objects.size() + group.runs.size();
+  file.reserve(objects + objects / 16 + 64);
   Object object;
   CanonicalObject canonical;
   MeshBuilder builder;

@@ -269,6 +269,8 @@ bool GltfFile::open(const std::string& path, std::string& error) {
   return true;
 }
 
+void GltfFile::reserve(size_t nodes) { state_->records.reserve(nodes); }
+
 int GltfFile::find_mesh(const MeshKey& key) const {
   const auto it = state_->meshes.find(key);
   return it == state_->meshes.end() ? kUnknownMesh : it->second;

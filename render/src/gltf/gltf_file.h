@@ -46,6 +46,8 @@ class GltfFile {
   // Starts the file `path` (.glb: binary; otherwise text with a .bin beside it). False with the
   // path and reason when its temporary files cannot be made.
   bool open(const std::string& path, std::string& error);
+  // Room for this many nodes, so that a large file's node table is not copied as it grows.
+  void reserve(size_t nodes);
 
   // The mesh already written for `key`: its index, kNoMesh (nothing to draw) or kUnknownMesh.
   static constexpr int kNoMesh = -1, kUnknownMesh = -2;

@@ -114,7 +114,6 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
   const glm::dvec3 spatial_origin = view.spatial_origin();
   const uint64_t total = view.info().objects;
   const bool with_attributes = options.split == GltfSplit::zone;
-  std::vector<Candidate> candidates;
   std::unordered_set<uint64_t> pipelines_matching;
   std::unordered_map<uint64_t, std::string> pipeline_names;  // split by pipeline only
   std::vector<std::string> group_names;
@@ -125,12 +124,36 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
     group_names.push_back(key);
     return group_index[key] = uint32_t(group_names.size() - 1);
   };
+  // An object is decided as soon as what decides it is known: at once, unless it is a member
+  // whose name does not match and whose pipeline's has not been seen yet (RVM files list a
+  // pipeline after its members): those wait for the end of the pass.
+  const bool pipelines_listed = class_listed(sel.classes, ObjectClass::pipeline);
+  std::unordered_set<uint64_t> pipelines_seen;
+  std::vector<Candidate> waiting;
+  std::vector<int> group_slot;           // group key -> index in plan.groups
+  std::vector<uint32_t> key_of_group;    // plan.groups index -> group key
+  auto accept = [&](const Candidate& c) {
+    if (group_slot.size() <= c.group) group_slot.resize(c.group + 1, -1);
+    int& g = group_slot[c.group];
+    if (g < 0) {
+      g = int(plan.groups.size());
+      plan.groups.emplace_back();
+      key_of_group.push_back(c.group);
+    }
+    plan.groups[size_t(g)].objects.push_back({c.slot, c.level});
+    plan.objects += 1;
+    if (c.min[0] <= c.max[0]) {
+      plan.bounds.extend(spatial_origin + glm::dvec3(c.min[0], c.min[1], c.min[2]));
+      plan.bounds.extend(spatial_origin + glm::dvec3(c.max[0], c.max[1], c.max[2]));
+    }
+  };
   uint64_t done = 0;
   const bool ok = view.for_each_object(
       [&](uint32_t slot, Object&& o) {
         if (progress && (++done & 1023) == 0) progress(double(done) / double(std::max<uint64_t>(total, 1)));
         const bool name_matches = !sel.globs.empty() && glob_matches(sel.globs, o.name);
         if (o.object_class == ObjectClass::pipeline) {
+          pipelines_seen.insert(o.id);
           if (name_matches) pipelines_matching.insert(o.id);
           if (options.split == GltfSplit::pipeline) pipeline_names[o.id] = o.name;
         }
@@ -140,9 +163,13 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
           if (it == camera.levels.end()) return true;  // not drawn for that view
           level = it->second;
         }
+        const uint64_t pipeline_id = is_member(o) ? o.pipeline_id : 0;
+        if (!sel.classes.empty() && !class_listed(sel.classes, o.object_class) && !(pipeline_id != 0 && pipelines_listed))
+          return true;
+        if (!sel.globs.empty() && !name_matches && pipeline_id == 0) return true;
         const DAabb bounds = object_bounds(o);
         if (sel.box && !intersects(bounds, *sel.box)) return true;
-        Candidate c{slot, level, o.object_class, name_matches, is_member(o) ? o.pipeline_id : 0, 0, {}, {}};
+        Candidate c{slot, level, o.object_class, name_matches, pipeline_id, 0, {}, {}};
         for (int a = 0; a < 3; ++a) {
           c.min[a] = bounds.empty() ? 0.0f : float(bounds.min[a] - spatial_origin[a]);
           c.max[a] = bounds.empty() ? -1.0f : float(bounds.max[a] - spatial_origin[a]);
@@ -156,23 +183,25 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
             break;
           }
           case GltfSplit::pipeline:
-            // Resolved to the pipeline's name below; the id stands in meanwhile.
+            // Named after the pipeline below; the id stands in meanwhile.
             c.group = o.object_class == ObjectClass::pipeline ? group_of("#" + std::to_string(o.id))
-                      : is_member(o) ? group_of("#" + std::to_string(o.pipeline_id))
-                                     : group_of("other");
+                      : pipeline_id != 0                      ? group_of("#" + std::to_string(pipeline_id))
+                                                              : group_of("other");
             break;
           case GltfSplit::equipment:
             c.group = group_of(o.object_class == ObjectClass::equipment ? o.name : std::string("other"));
             break;
         }
-        candidates.push_back(c);
+        if (sel.globs.empty() || name_matches || pipelines_matching.count(pipeline_id)) accept(c);
+        else if (!pipelines_seen.count(pipeline_id)) waiting.push_back(c);
         return true;
       },
       with_attributes, error);
   if (!ok) return false;
 
-  // 2. The filters that need a pipeline's name or class, then the groups.
-  const bool pipelines_listed = class_listed(sel.classes, ObjectClass::pipeline);
+  // 2. The members that waited for their pipeline's name; the groups' names.
+  for (const Candidate& c : waiting)
+    if (pipelines_matching.count(c.pipeline_id)) accept(c);
   if (options.split == GltfSplit::pipeline) {
     for (std::string& name : group_names) {
       if (name.empty() || name[0] != '#') continue;
@@ -180,33 +209,19 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
       name = it != pipeline_names.end() ? it->second : "pipeline " + name.substr(1);
     }
   }
-  if (options.split == GltfSplit::none) group_names.assign(1, "");
-  std::vector<int> group_slot(group_names.size(), -1);
-  for (const Candidate& c : candidates) {
-    const bool pipeline_matches = c.pipeline_id != 0 && pipelines_matching.count(c.pipeline_id) > 0;
-    if (!sel.globs.empty() && !c.name_matches && !pipeline_matches) continue;
-    if (!sel.classes.empty() && !class_listed(sel.classes, c.object_class) &&
-        !(c.pipeline_id != 0 && pipelines_listed))
-      continue;
-    int& g = group_slot[c.group];
-    if (g < 0) {
-      g = int(plan.groups.size());
-      plan.groups.push_back(ExportGroup{group_names[c.group], {}, {}});
-    }
-    plan.groups[size_t(g)].objects.push_back({c.slot, c.level});
-    plan.objects += 1;
-    if (c.min[0] <= c.max[0]) {
-      plan.bounds.extend(spatial_origin + glm::dvec3(c.min[0], c.min[1], c.min[2]));
-      plan.bounds.extend(spatial_origin + glm::dvec3(c.max[0], c.max[1], c.max[2]));
-    }
-  }
+  for (size_t g = 0; g < plan.groups.size(); ++g)
+    plan.groups[g].name = options.split == GltfSplit::none ? std::string() : group_names[key_of_group[g]];
+  // Each group's objects in slot order: the writer reads them so (waiting ones came last).
+  for (ExportGroup& g : plan.groups)
+    std::sort(g.objects.begin(), g.objects.end(),
+              [](const SelectedObject& a, const SelectedObject& b) { return a.slot < b.slot; });
   // Merged runs follow the pipeline filters; they go to the group of their first member.
   for (size_t r = 0; r < camera.runs.size(); ++r) {
     SelectedRun& run = camera.runs[r];
     if (!sel.globs.empty() && !pipelines_matching.count(run.pipeline_id)) continue;
     if (!sel.classes.empty() && !pipelines_listed && !class_listed(sel.classes, ObjectClass::pipe)) continue;
     if (sel.box && !intersects(camera.run_bounds[r], *sel.box)) continue;
-    if (plan.groups.empty()) plan.groups.push_back(ExportGroup{group_names.front(), {}, {}});
+    if (plan.groups.empty()) plan.groups.push_back(ExportGroup{"", {}, {}});
     ExportGroup* group = &plan.groups.front();
     if (options.split != GltfSplit::none) {
       std::string name = "other";

@@ -5,8 +5,8 @@
 // Rules: the filters of plantview/gltf.h ("Selection"); with a camera, only what the
 // renderer's frame plan draws for that view, at its levels. Groups follow options.split: one
 // group (named "") without it.
-// Memory: about 40 bytes per object that passes the box filter while the pass runs, 5 bytes per
-//   selected object after it.
+// Memory: 8 bytes per selected object; while the pass runs, 48 more per pipe or component that
+//   waits for its pipeline's name (a --select whose pipeline comes later in the store).
 // Threads: the calling thread, which owns `view`.
 #pragma once
 
