@@ -221,13 +221,23 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
     if (!sel.globs.empty() && !pipelines_matching.count(run.pipeline_id)) continue;
     if (!sel.classes.empty() && !pipelines_listed && !class_listed(sel.classes, ObjectClass::pipe)) continue;
     if (sel.box && !intersects(camera.run_bounds[r], *sel.box)) continue;
-    if (plan.groups.empty()) plan.groups.push_back(ExportGroup{"", {}, {}});
-    ExportGroup* group = &plan.groups.front();
-    if (options.split != GltfSplit::none) {
+    ExportGroup* group = nullptr;
+    if (options.split == GltfSplit::none) {
+      if (plan.groups.empty()) plan.groups.push_back(ExportGroup{"", {}, {}});
+      group = &plan.groups.front();
+    } else {
+      // The group its first member would be in.
       std::string name = "other";
+      Object first;
+      if (!view.object(run.first_member, first, options.split == GltfSplit::zone, error)) return false;
+      if (options.split == GltfSplit::site) name = first.source;
+      if (options.split == GltfSplit::zone) {
+        const std::string zone = zone_of(first);
+        name = zone.empty() ? first.source : first.source + "/" + zone;
+      }
       if (options.split == GltfSplit::pipeline) {
         const auto it = pipeline_names.find(run.pipeline_id);
-        name = it != pipeline_names.end() ? it->second : "pipeline #" + std::to_string(run.pipeline_id);
+        name = it != pipeline_names.end() ? it->second : "pipeline " + std::to_string(run.pipeline_id);
       }
       const auto it = std::find_if(plan.groups.begin(), plan.groups.end(),
                                    [&](const ExportGroup& g) { return g.name == name; });
