@@ -85,11 +85,13 @@ std::string group_path(const std::filesystem::path& destination, const std::stri
 bool write_group(const ReadView& view, const GltfExportOptions& options, const ExportGroup& group,
                  const std::string& path, const glm::dvec3& origin_m, GltfFile& file,
                  GltfFileSummary& summary, uint64_t& done, uint64_t total, std::string& error) {
-  if (!file.open(path, error)) return false;
-  // Objects, and room for site, zone and pipeline nodes (about 4 % of a plant's objects are
-  // pipelines; their nodes are added when their members were selected without them).
-  const size_t objects = group.objects.size() + group.runs.size();
-  file.reserve(objects + objects / 16 + 64);
+  if (!file.open(path, origin_m, options.gpu_instancing, error)) return false;
+  if (options.gpu_instancing) {
+    // Objects, and room for site, zone and pipeline nodes (about 4 % of a plant's objects are
+    // pipelines).
+    const size_t objects = group.objects.size() + group.runs.size();
+    file.reserve(objects + objects / 16 + 64);
+  }
   Object object;
   CanonicalObject canonical;
   MeshBuilder builder;
@@ -136,7 +138,7 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
     if (slot && view.object(*slot, object, true, error)) file.name_pipeline(object);
     else if (slot) return false;
   }
-  if (!file.finish(origin_m, options.gpu_instancing, summary, error)) return false;
+  if (!file.finish(summary, error)) return false;
   summary.group = group.name;
   return true;
 }

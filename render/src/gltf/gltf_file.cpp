@@ -104,6 +104,13 @@ struct GltfFile::State {
 
   std::string path, temp_out, bin_name, temp_bin;
   bool binary = true, finished = false, failed = false;
+  glm::dvec3 origin_m{0.0};
+  bool gpu_instancing = false;
+  // Nodes written as they came (objects and runs, without GPU instancing): numbered from 0,
+  // listed as children of their group record; their counts and bounds.
+  uint32_t streamed = 0;
+  std::unordered_map<int, std::vector<uint32_t>> streamed_children;
+  GltfFileSummary streamed_summary;
   Part vertices, indices, accessors, meshes_text, text, nodes;
   uint64_t accessor_count = 0;
   std::string write_error;  // the first write error, reported by the next fallible call
@@ -207,6 +214,47 @@ struct GltfFile::State {
            ",\"material\":" + std::to_string(material_index) + ",\"mode\":" + std::to_string(mode) + "}";
   }
 
+  std::string transform_json(const glm::dvec3& position, const glm::quat& q, const glm::vec3& scale) const {
+    const glm::dvec3 t = position - origin_m;
+    std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
+    if (q != glm::quat(1, 0, 0, 0))
+      j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
+    if (scale != glm::vec3(1.0f))
+      j += ",\"scale\":[" + json_number(scale.x) + "," + json_number(scale.y) + "," + json_number(scale.z) + "]";
+    return j;
+  }
+  // Counts a placed mesh into `summary`: triangles, lines, and the bounds of its box.
+  void count(int mesh, const glm::dvec3& position, const glm::quat& rotation, const glm::vec3& scale,
+             GltfFileSummary& summary) const {
+    if (mesh < 0) return;
+    const MeshInfo& info = mesh_info[size_t(mesh)];
+    summary.triangles += info.triangles;
+    summary.lines += info.lines;
+    if (!info.has_box) return;
+    const glm::dquat q(rotation);
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 corner = glm::dvec3(scale) * glm::dvec3((c & 1) ? info.max[0] : info.min[0],
+                                                               (c & 2) ? info.max[1] : info.min[1],
+                                                               (c & 4) ? info.max[2] : info.min[2]);
+      summary.bounds.extend(position + q * corner);
+    }
+  }
+  void append_node(const std::string& json) {
+    if (!nodes.append(nodes.bytes ? "," + json : json)) note_failure(nodes);
+  }
+  // Writes a leaf node now (no GPU instancing): an object's or a run's.
+  void stream_node(int parent, const std::string& name_and_extras, int mesh, const glm::dvec3& position,
+                   const glm::quat& rotation, const glm::vec3& scale, bool is_object) {
+    std::string node = "{" + name_and_extras;
+    if (mesh >= 0) node += ",\"mesh\":" + std::to_string(mesh);
+    node += transform_json(position, rotation, scale) + "}";
+    append_node(node);
+    streamed_children[parent].push_back(streamed++);
+    records[size_t(parent)].has_children = true;
+    if (is_object) streamed_summary.objects += 1;
+    count(mesh, position, rotation, scale, streamed_summary);
+  }
+
   int add_record(int parent, const std::string& name_and_extras) {
     Record& r = records.emplace_back();
     r.parent = parent;
@@ -246,9 +294,12 @@ GltfFile::~GltfFile() {
   if (!state_->finished) state_->remove_all();
 }
 
-bool GltfFile::open(const std::string& path, std::string& error) {
+bool GltfFile::open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing,
+                    std::string& error) {
   State& s = *state_;
   s.path = path;
+  s.origin_m = origin_m;
+  s.gpu_instancing = gpu_instancing;
   const std::filesystem::path p(path);
   s.binary = p.extension() == ".glb" || p.extension() == ".GLB";
   const std::string stem = (p.parent_path() / ("." + p.filename().string())).string() + ".tmp-" +
@@ -309,6 +360,10 @@ void GltfFile::add_object(const Object& object, std::string_view zone, const glm
       (object.object_class == ObjectClass::pipe || object.object_class == ObjectClass::component))
     parent = s.pipeline(object.pipeline_id, parent);
   const std::string text = "\"name\":" + json_string(utf8_text(object.name)) + ",\"extras\":" + object_extras(object);
+  if (!s.gpu_instancing && object.object_class != ObjectClass::pipeline) {
+    s.stream_node(parent, text, mesh, position_m, glm::quat(rotation), scale, true);
+    return;
+  }
   int index;
   if (object.object_class == ObjectClass::pipeline && s.pipelines.count(object.id)) {
     // The placeholder made for an earlier member becomes this pipeline's node.
@@ -333,6 +388,10 @@ void GltfFile::add_run(std::string name, uint64_t pipeline_id, std::string_view 
                        int mesh) {
   State& s = *state_;
   const int parent = s.pipeline(pipeline_id, s.group(source, zone));
+  if (!s.gpu_instancing) {
+    s.stream_node(parent, "\"name\":" + json_string(utf8_text(name)), mesh, position_m, glm::quat(rotation), scale, false);
+    return;
+  }
   State::Record& r = s.records[size_t(s.add_record(parent, "\"name\":" + json_string(utf8_text(name))))];
   r.mesh = mesh;
   r.placed = true;
@@ -352,9 +411,10 @@ void GltfFile::name_pipeline(const Object& pipeline) {
   std::erase(s.pipeline_ids_unnamed, pipeline.id);
 }
 
-bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileSummary& summary,
-                      std::string& error) {
+bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
   State& s = *state_;
+  const glm::dvec3& origin_m = s.origin_m;
+  const bool gpu_instancing = s.gpu_instancing;
   summary.path = s.path;
   summary.meshes = s.mesh_info.size();
   if (s.failed) {
@@ -393,7 +453,7 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
   //    gets its geometry in a child node of its own, numbered right after it.
   std::vector<int32_t> node_of(n, -1);
   std::vector<uint8_t> split_geometry(n, 0);
-  int32_t nodes = 0;
+  int32_t nodes = int32_t(s.streamed);  // the streamed nodes come first
   for (size_t i = 0; i < n; ++i) {
     if (first_of_group[i] >= 0 && first_of_group[i] != int32_t(i)) continue;
     node_of[i] = nodes++;
@@ -428,37 +488,12 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
     text.resize(r.text_bytes);
     return ::pread(fileno(s.text.file), text.data(), r.text_bytes, off_t(r.text_offset)) == ssize_t(r.text_bytes);
   };
-  auto transform_json = [&](const glm::dvec3& position, const glm::quat& q, const glm::vec3& scale) {
-    const glm::dvec3 t = position - origin_m;
-    std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
-    if (q != glm::quat(1, 0, 0, 0))
-      j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
-    if (scale != glm::vec3(1.0f))
-      j += ",\"scale\":[" + json_number(scale.x) + "," + json_number(scale.y) + "," + json_number(scale.z) + "]";
-    return j;
-  };
-  auto extend_bounds = [&](const State::MeshInfo& info, const State::Record& r) {
-    if (!info.has_box) return;
-    const glm::dquat q(r.rotation);
-    for (int c = 0; c < 8; ++c) {
-      const glm::dvec3 corner = glm::dvec3(r.scale) * glm::dvec3((c & 1) ? info.max[0] : info.min[0],
-                                                                 (c & 2) ? info.max[1] : info.min[1],
-                                                                 (c & 4) ? info.max[2] : info.min[2]);
-      const glm::dvec3 position = r.position_m;
-      summary.bounds.extend(position + q * corner);
-    }
-  };
   for (size_t i = 0; i < n; ++i) {
     const State::Record& r = s.records[i];
     if (r.is_object) summary.objects += 1;
-    if (r.mesh >= 0) {
-      const State::MeshInfo& info = s.mesh_info[size_t(r.mesh)];
-      summary.triangles += info.triangles;
-      summary.lines += info.lines;
-      extend_bounds(info, r);
-    }
+    s.count(r.mesh, r.position_m, r.rotation, r.scale, summary);
     if (node_of[i] < 0) continue;  // drawn by its group's node
-    node = node_of[i] ? ",{" : "{";
+    node = "{";
     if (first_of_group[i] >= 0) {
       const std::vector<uint32_t>& members = groups.at({r.parent, r.mesh});
       const size_t translations = instance_data.size();
@@ -512,22 +547,28 @@ bool GltfFile::finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileS
       node += text;
       if (!r.has_children) {
         if (r.mesh >= 0) node += ",\"mesh\":" + std::to_string(r.mesh);
-        if (r.placed) node += transform_json(r.position_m, r.rotation, r.scale);
+        if (r.placed) node += s.transform_json(r.position_m, r.rotation, r.scale);
       }
     }
-    if (child_start[i + 1] > child_start[i]) {
-      node += ",\"children\":[";
-      for (uint32_t c = child_start[i]; c < child_start[i + 1]; ++c)
-        node += (c > child_start[i] ? "," : "") + std::to_string(children[c]);
-      node += "]";
+    const auto streamed = s.streamed_children.find(int(i));
+    if (child_start[i + 1] > child_start[i] || streamed != s.streamed_children.end()) {
+      std::string list;
+      for (uint32_t c = child_start[i]; c < child_start[i + 1]; ++c) list += "," + std::to_string(children[c]);
+      if (streamed != s.streamed_children.end())
+        for (uint32_t c : streamed->second) list += "," + std::to_string(c);
+      node += ",\"children\":[" + list.substr(1) + "]";
     }
     node += "}";
     if (split_geometry[i]) {
       node += ",{\"name\":\"geometry\",\"mesh\":" + std::to_string(r.mesh) +
-              transform_json(r.position_m, r.rotation, r.scale) + "}";
+              s.transform_json(r.position_m, r.rotation, r.scale) + "}";
     }
-    if (!s.nodes.append(node)) s.note_failure(s.nodes);
+    s.append_node(node);
   }
+  summary.objects += s.streamed_summary.objects;
+  summary.triangles += s.streamed_summary.triangles;
+  summary.lines += s.streamed_summary.lines;
+  summary.bounds.extend(s.streamed_summary.bounds);
   s.records.clear();
   s.records.shrink_to_fit();
   if (s.failed) {

@@ -9,8 +9,10 @@
 //     where a mesh has under 65,535 vertices, else uint32, each mesh's padded to 4 bytes) to
 //     another; finish() writes the binary chunk as [vertices][indices][instance transforms].
 //   - Document: the arrays that grow with the plant (accessors, meshes, nodes) are written as
-//     JSON text to temporary files as they come, and each node keeps about 80 bytes in memory
-//     until finish(); tinygltf writes the rest (asset, materials, buffer views, scene,
+//     JSON text to temporary files as they come. An object's node is written when it is added
+//     (4 bytes stay, its number in its parent's children); group nodes (sites, zones,
+//     pipelines, which learn their children as they come) and, with GPU instancing, every
+//     object's node (80 bytes each: instances are grouped at the end) wait for finish(); tinygltf writes the rest (asset, materials, buffer views, scene,
 //     extensions) and finish() splices the arrays in. (tinygltf's Model keeps every node and
 //     accessor as an object of its own, about 8 kB an object of a plant with its extras: 350 MB
 //     for preset c, far too much for plants a hundred times larger.)
@@ -43,9 +45,10 @@ class GltfFile {
   GltfFile(const GltfFile&) = delete;
   GltfFile& operator=(const GltfFile&) = delete;
 
-  // Starts the file `path` (.glb: binary; otherwise text with a .bin beside it). False with the
-  // path and reason when its temporary files cannot be made.
-  bool open(const std::string& path, std::string& error);
+  // Starts the file `path` (.glb: binary; otherwise text with a .bin beside it), its positions
+  // relative to origin_m (model space). False with the path and reason when its temporary files
+  // cannot be made.
+  bool open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing, std::string& error);
   // Room for this many nodes, so that a large file's node table is not copied as it grows.
   void reserve(size_t nodes);
 
@@ -67,10 +70,9 @@ class GltfFile {
   std::vector<uint64_t> unnamed_pipelines() const;
   void name_pipeline(const Object& pipeline);
 
-  // Writes the document with `origin_m` (model space) subtracted from every position, then the
-  // file, and renames it into place. Fills `summary` (path, counts, bytes, bounds).
-  bool finish(const glm::dvec3& origin_m, bool gpu_instancing, GltfFileSummary& summary,
-              std::string& error);
+  // Writes the rest of the document, then the file, and renames it into place. Fills `summary`
+  // (path, counts, bytes, bounds).
+  bool finish(GltfFileSummary& summary, std::string& error);
   // Removes every file this one made (finished or not).
   void abandon();
 
