@@ -728,6 +728,14 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
   }
   for (Part* p : s.parts) p->remove();
   s.finished = true;
+  // A split keeps its finished files (to remove them if a later one fails): only their names.
+  s.model = tinygltf::Model();
+  s.meshes = {};
+  s.mesh_info = {};
+  s.streamed_children = {};
+  s.sites = {};
+  s.zones = {};
+  s.pipelines = {};
   summary.bytes = std::filesystem::file_size(final_path, ec);
   if (!s.binary) summary.bytes += bin_bytes;
   return true;
