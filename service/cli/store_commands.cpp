@@ -2,7 +2,12 @@
 //   plantview gen --preset P [--scale K] [--seed S] (--store DIR | --xml FILE)
 //   plantview info --store DIR [--json]
 //   plantview export --store DIR --xml FILE
+//   plantview export --store DIR --gltf FILE.glb|FILE.gltf [--tolerance MM | --pixel-error PX --camera ...]
+//                    [--select GLOB]... [--class C,...] [--box X0,Y0,Z0,X1,Y1,Z1] [--no-hlod]
+//                    [--split site|zone|pipeline|equipment] [--gpu-instancing] [--size WxH]
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -11,6 +16,7 @@
 
 #include "commands.h"
 #include "plantview/generate.h"
+#include "plantview/gltf.h"
 #include "plantview/ingest.h"
 #include "plantview/store.h"
 #include "plantview/xml.h"
@@ -154,10 +160,120 @@ int run_info(const InfoOptions& o) {
 // ---- export
 
 struct ExportOptions {
-  std::string store, xml;
+  std::string store, xml, gltf;
+  // glTF only.
+  double tolerance_mm = 0, pixel_error = 0;
+  std::string camera, size = "1920x1080", classes, box, split = "none";
+  std::vector<std::string> select;
+  bool no_hlod = false, gpu_instancing = false, no_sharing = false;
 };
 
+// The glTF options checked and typed; a usage error (exit 2) otherwise.
+int gltf_options(const ExportOptions& o, GltfExportOptions& g) {
+  const std::filesystem::path path(o.gltf);
+  if (path.extension() != ".glb" && path.extension() != ".gltf")
+    return usage_error("export: --gltf needs a .glb or .gltf file name, got '" + o.gltf + "'");
+  g.path = o.gltf;
+  if (o.tolerance_mm != 0 && (!std::isfinite(o.tolerance_mm) || o.tolerance_mm <= 0))
+    return usage_error("export: --tolerance must be a positive number of millimetres");
+  if (o.tolerance_mm > 0 && (!o.camera.empty() || o.pixel_error != 0))
+    return usage_error("export: give --tolerance or --pixel-error with --camera, not both");
+  if (o.pixel_error != 0 && o.camera.empty())
+    return usage_error("export: --pixel-error needs --camera (the view the levels are chosen for)");
+  if (o.pixel_error != 0 && (!std::isfinite(o.pixel_error) || o.pixel_error <= 0))
+    return usage_error("export: --pixel-error must be a positive number of pixels");
+  g.tolerance_m = o.tolerance_mm / 1000.0;
+  std::string error;
+  if (!o.camera.empty()) {
+    Camera camera;
+    if (!parse_camera(o.camera, camera, error)) return usage_error("export: --camera: " + error);
+    g.camera = camera;
+    g.pixel_error = o.pixel_error != 0 ? o.pixel_error : 1.0;
+    const size_t x = o.size.find('x');
+    uint32_t w = 0, h = 0;
+    auto number = [](std::string_view t, uint32_t& v) {
+      const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+      return !t.empty() && ec == std::errc() && end == t.data() + t.size();
+    };
+    if (x == std::string::npos || !number(std::string_view(o.size).substr(0, x), w) ||
+        !number(std::string_view(o.size).substr(x + 1), h) || w < 1 || h < 1 || w > 16384 || h > 16384)
+      return usage_error("export: --size: expected WxH (1..16384 each), got '" + o.size + "'");
+    g.width = w;
+    g.height = h;
+  }
+  g.hlod = !o.no_hlod;
+  g.gpu_instancing = o.gpu_instancing;
+  g.share_meshes = !o.no_sharing;
+  for (const std::string& glob : o.select) {
+    if (glob.empty()) return usage_error("export: --select needs a non-empty pattern");
+    g.selection.globs.push_back(glob);
+  }
+  for (size_t at = 0; !o.classes.empty() && at <= o.classes.size();) {
+    const size_t end = std::min(o.classes.find(',', at), o.classes.size());
+    ObjectClass c;
+    if (!class_from_name(o.classes.substr(at, end - at), c))
+      return usage_error("export: --class: unknown class '" + o.classes.substr(at, end - at) +
+                         "' (equipment, pipeline, pipe, component, structure, other)");
+    g.selection.classes.push_back(c);
+    at = end + 1;
+  }
+  if (!o.box.empty()) {
+    DAabb box;
+    if (!parse_box(o.box, box, error)) return usage_error("export: --" + error);
+    g.selection.box = box;
+  }
+  if (!parse_gltf_split(o.split, g.split))
+    return usage_error("export: --split must be site, zone, pipeline or equipment, got '" + o.split + "'");
+  return 0;
+}
+
+int run_export_gltf(const ExportOptions& o) {
+  GltfExportOptions g;
+  if (const int status = gltf_options(o, g); status != 0) return status;
+  std::string error;
+  auto store = Store::open(o.store, Store::Mode::read_only, error);
+  if (!store) {
+    std::cerr << "plantview export: " << error << "\n";
+    return 1;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  Progress progress("exporting glTF");
+  g.progress = [&](double f, std::string_view stage) { progress.update(f, std::string(stage)); };
+  GltfExportSummary summary;
+  const GltfExportStatus status = export_gltf(*store, g, summary, error);
+  progress.finish();
+  if (status != GltfExportStatus::ok) {
+    std::cerr << "plantview export: " << error << " (nothing written)\n";
+    return 1;
+  }
+  // The summary as JSON on stdout (machine output); files and their bounds.
+  nlohmann::json j;
+  j["origin_m"] = {summary.origin_m.x, summary.origin_m.y, summary.origin_m.z};
+  j["objects"] = summary.objects;
+  j["triangles"] = summary.triangles;
+  j["lines"] = summary.lines;
+  j["meshes"] = summary.meshes;
+  j["bytes"] = summary.bytes;
+  j["seconds"] = seconds_since(start);
+  for (const GltfFileSummary& f : summary.files) {
+    nlohmann::json file = {{"path", f.path}, {"objects", f.objects}, {"triangles", f.triangles},
+                           {"meshes", f.meshes}, {"instanced_objects", f.instanced_objects}, {"bytes", f.bytes}};
+    if (!f.group.empty()) file["group"] = f.group;
+    if (!f.bounds.empty())
+      file["bounds_m"] = {{"min", {f.bounds.min.x, f.bounds.min.y, f.bounds.min.z}},
+                          {"max", {f.bounds.max.x, f.bounds.max.y, f.bounds.max.z}}};
+    j["files"].push_back(std::move(file));
+  }
+  std::cout << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  return 0;
+}
+
 int run_export(const ExportOptions& o) {
+  if (o.xml.empty() == o.gltf.empty()) return usage_error("export: give exactly one of --xml FILE or --gltf FILE");
+  if (!o.gltf.empty()) return run_export_gltf(o);
+  if (o.tolerance_mm != 0 || o.pixel_error != 0 || !o.camera.empty() || !o.select.empty() || !o.classes.empty() ||
+      !o.box.empty() || o.split != "none" || o.no_hlod || o.gpu_instancing || o.no_sharing)
+    return usage_error("export: --xml writes the whole model; selection and level options are for --gltf");
   std::string error;
   auto store = Store::open(o.store, Store::Mode::read_only, error);
   std::unique_ptr<ReadView> view = store ? store->read(error) : nullptr;
@@ -213,9 +329,29 @@ Action add_store_commands(CLI::App& app) {
   info_cmd->add_flag("--json", info->json, "Write JSON to stdout");
 
   auto exp = std::make_shared<ExportOptions>();
-  CLI::App* export_cmd = app.add_subcommand("export", "Write a store's whole model as plantview XML");
+  CLI::App* export_cmd = app.add_subcommand(
+      "export", "Write a store's whole model as plantview XML, or any part of it as glTF 2.0");
   export_cmd->add_option("--store", exp->store, "Store directory")->required();
-  export_cmd->add_option("--xml", exp->xml, "XML file to write")->required();
+  export_cmd->add_option("--xml", exp->xml, "XML file to write (the whole model)");
+  export_cmd->add_option("--gltf", exp->gltf, "glTF file to write: .glb (binary) or .gltf (+ .bin)");
+  export_cmd->add_option("--tolerance", exp->tolerance_mm,
+                         "glTF: each object's coarsest level whose error is at most this (millimetres); "
+                         "default full resolution");
+  export_cmd->add_option("--pixel-error", exp->pixel_error,
+                         "glTF: with --camera, the levels the renderer draws for that view (pixels, default 1)");
+  export_cmd->add_option("--camera", exp->camera, "glTF: eye=X,Y,Z,target=X,Y,Z[,up=..][,fov=DEG]");
+  export_cmd->add_option("--size", exp->size, "glTF: with --camera, the image size WxH the levels are for")
+      ->capture_default_str();
+  export_cmd->add_option("--select", exp->select,
+                         "glTF: objects whose name (or pipeline's name) matches this glob; repeatable");
+  export_cmd->add_option("--class", exp->classes, "glTF: only these classes, comma-separated");
+  export_cmd->add_option("--box", exp->box, "glTF: only objects meeting this box X0,Y0,Z0,X1,Y1,Z1 (metres)");
+  export_cmd->add_flag("--no-hlod", exp->no_hlod, "glTF: with --camera, pipeline runs unmerged");
+  export_cmd->add_option("--split", exp->split, "glTF: one file per site, zone, pipeline or equipment item");
+  export_cmd->add_flag("--gpu-instancing", exp->gpu_instancing,
+                       "glTF: EXT_mesh_gpu_instancing (then required) for meshes repeated 16 times or more");
+  export_cmd->add_flag("--no-sharing", exp->no_sharing,
+                       "glTF: a mesh per object, none shared (to measure what sharing saves)");
 
   return [=]() {
     if (gen_cmd->parsed()) return run_gen(*gen);
