@@ -152,7 +152,8 @@ int run_render(const RenderArgs& a) {
   std::cerr << "plantview: rendering on " << context->description() << "\n";
   auto renderer = Renderer::create(*store, options, error);
   if (!renderer) return fail(error);
-  if (cameras.empty()) cameras.push_back(default_camera(renderer->model_bounds(), double(width) / height));
+  if (cameras.empty())
+    cameras.push_back(default_camera(overview_boxes(renderer->read_view()), double(width) / height));
 
   std::ofstream stats_file;
   if (many) {

@@ -36,7 +36,9 @@ struct RouteConfig {
   std::string token;                        // "": no token required
   std::map<std::string, StaticFile> files;  // by path ("/", "/viewer.js", ...)
   std::string model_json;                   // the /api/model answer
-  DAabb bounds;                             // the model's, for the default view
+  DAabb bounds;                             // the model's
+  std::vector<DAabb> overview_boxes;        // what the default view is fitted to (camera.h);
+                                            // empty: the bounds
 };
 
 // A complete answer (the connection adds Content-Length, Connection and Cache-Control).
