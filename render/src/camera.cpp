@@ -322,10 +322,9 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
   const double eye_height_m = bounds.min.z + std::min(1.7, 0.5 * size.z + 0.1);
   const bool along_x = size.x >= size.y;
   std::vector<glm::dvec3> waypoints;
-  const glm::dvec3 start = along_x
-      ? glm::dvec3(bounds.min.x - 0.6 * radius, centre.y - 1.2 * radius, bounds.max.z + 0.5 * radius)
-      : glm::dvec3(centre.x - 1.2 * radius, bounds.min.y - 0.6 * radius, bounds.max.z + 0.5 * radius);
-  waypoints.push_back(start);
+  // It starts where the overview of a 16:9 image stands (the plant filling the view).
+  const Camera overview = default_camera(bounds, 16.0 / 9.0);
+  waypoints.push_back(overview.eye_m);
   const glm::dvec3 entry = along_x ? glm::dvec3(bounds.min.x - 5.0, centre.y, eye_height_m)
                                    : glm::dvec3(centre.x, bounds.min.y - 5.0, eye_height_m);
   waypoints.push_back(entry);
@@ -350,9 +349,9 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
     p.z = eye_height_m;
     if (clear(p)) waypoints.push_back(p);
   }
-  waypoints.push_back(along_x ? glm::dvec3(bounds.max.x + 5.0, centre.y, eye_height_m)
-                              : glm::dvec3(centre.x, bounds.max.y + 5.0, eye_height_m));
-  if (waypoints.size() < 3) waypoints.insert(waypoints.end() - 1, centre);
+  // The walk ends inside the plant, at its last aisle point (or its centre, at eye height): a
+  // walk out of the far side looked out of the plant at nothing.
+  if (waypoints.size() < 3) waypoints.push_back(glm::dvec3(centre.x, centre.y, eye_height_m));
 
   // Cameras evenly spaced along the polyline, each looking ahead along it.
   std::vector<double> at(waypoints.size(), 0.0);
@@ -367,12 +366,34 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
     return glm::mix(waypoints[i - 1], waypoints[i], std::clamp((s - at[i - 1]) / span, 0.0, 1.0));
   };
   const double look_ahead_m = std::max(10.0, 0.05 * total);
+  // Where the path runs out of look-ahead, the view turns to the plant's centre (horizontally,
+  // at eye height), wholly so at the last camera: the walk ends looking into the plant.
+  const glm::dvec3 end = waypoints.back();
+  glm::dvec3 final_look(centre.x - end.x, centre.y - end.y, 0.0);
+  if (glm::length(final_look) < 1.0) final_look = end - waypoints[waypoints.size() - 2];
+  final_look = glm::normalize(final_look);
+  // On the approach (start to entry) the view turns from the overview's target to the way
+  // ahead: from afar the plant fills the view rather than a corner of it.
+  const double approach_m = std::max(at[1], 1e-6);
+  const glm::dvec3 plant_middle = overview.target_m;
   for (int f = 0; f < frames; ++f) {
     const double s = frames == 1 ? 0.0 : total * f / (frames - 1);
     Camera c;
     c.eye_m = point(s);
     c.target_m = point(s + look_ahead_m);
-    if (glm::length(c.target_m - c.eye_m) < 1e-3) c.target_m = c.eye_m + (c.eye_m - point(s - look_ahead_m));
+    if (s < approach_m) {
+      const glm::dvec3 ahead = glm::normalize(c.target_m - c.eye_m);
+      const glm::dvec3 middle = glm::normalize(plant_middle - c.eye_m);
+      c.target_m = c.eye_m + look_ahead_m * glm::normalize(glm::mix(middle, ahead, s / approach_m));
+    }
+    const double past_end = (s + look_ahead_m - total) / look_ahead_m;  // > 0: near the end
+    if (past_end > 0.0) {
+      glm::dvec3 ahead = c.target_m - c.eye_m;
+      ahead = glm::length(ahead) > 1e-3 ? glm::normalize(ahead) : final_look;
+      glm::dvec3 look = glm::mix(ahead, final_look, std::min(past_end, 1.0));
+      if (glm::length(look) < 1e-3) look = final_look;
+      c.target_m = c.eye_m + look_ahead_m * glm::normalize(look);
+    }
     // Keep the view from pointing straight down or up.
     glm::dvec3 view = c.target_m - c.eye_m;
     const double horizontal = std::hypot(view.x, view.y);

@@ -90,7 +90,9 @@ bool parse_path_kind(std::string_view name, PathKind& kind);
 // A path of `frames` cameras (none for frames <= 0 or empty bounds). orbit: around the plant's
 // bounds, looking at their centre. walkthrough: starts outside the plant, approaches it and
 // walks into it at eye height along the gaps between its equipment (the objects of class
-// equipment, given by their bounds), like Zhou et al.'s Fig. 6 run.
+// equipment, given by their bounds), like Zhou et al.'s Fig. 6 run. It never leaves the plant:
+// the walk ends at its last aisle point inside, the last views turning to the plant's centre,
+// so that every view sees some of the plant.
 std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& plant_bounds,
                                      const std::vector<DAabb>& equipment_bounds);
 // The same for a store's plant: its bounds, and the bounds of its equipment (every object is
