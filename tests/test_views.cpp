@@ -1,16 +1,20 @@
-// Review views: camera fitting, the views file, subjects from a store, default cameras and
-// walkthroughs that stay in the plant.
+// Review views: camera fitting, the views file, subjects from a store, the views command,
+// default cameras and walkthroughs that stay in the plant (judged on rendered images).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <glm/gtc/matrix_transform.hpp>
 #include <map>
 #include <memory>
-#include <set>
-#include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "plantview/camera.h"
@@ -159,6 +163,15 @@ TEST(ViewsFile, WhatIsWrittenReadsBackTheSameInTheSameOrder) {
   std::string error;
   ASSERT_TRUE(parse_review_views(json, read, error)) << error;
   expect_same(sample_views(), read);
+}
+
+TEST(ViewsFile, AttributesThatAreNotUtf8AreWrittenWithReplacementCharacters) {
+  std::vector<ReviewView> views = sample_views();
+  views[0].attributes = {{"description", "Pumpe f\xfcr K\xfchlwasser"}};  // Latin-1 bytes
+  std::vector<ReviewView> read;
+  std::string error;
+  ASSERT_TRUE(parse_review_views(review_views_json(views, "equipment"), read, error)) << error;
+  EXPECT_EQ(read[0].attributes[0].second, "Pumpe f\xef\xbf\xbdr K\xef\xbf\xbdhlwasser");
 }
 
 TEST(ViewsFile, MatchesTheAgreedLayout) {
@@ -521,6 +534,81 @@ TEST(ReviewViews, AreasOfAnRvmModelAreItsZones) {
     objects += v.subject.size();
   }
   EXPECT_EQ(objects, 862u);
+}
+
+// ---- the command ----
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Outcome run_plantview(const TempDir& dir, const std::string& args) {
+  fs::create_directories(dir.path());
+  const fs::path out = dir.path() / "stdout", err = dir.path() / "stderr";
+  const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const int raw = std::system(cmd.c_str());
+  Outcome r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+TEST(ViewsCommand, WritesTheViewsFileAndSaysWhatItMade) {
+  TempDir store_dir, work;
+  auto store = make_store(store_dir, {box_object("/P-1", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2}),
+                                      box_object("/P-2", ObjectClass::equipment, {9, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  store.reset();  // the command opens it
+  const fs::path out = work.path() / "views.json";
+  const Outcome r = run_plantview(work, "views --store " + store_dir.str() + " --per equipment --sides 4 --size 800x800 --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["views"], 8);
+  EXPECT_EQ(summary["subjects"], 2);
+  std::vector<ReviewView> views;
+  std::string error;
+  ASSERT_TRUE(parse_review_views(slurp(out), views, error)) << error;
+  ASSERT_EQ(views.size(), 8u);
+  EXPECT_EQ(views[0].name, "P-1-N");
+  EXPECT_EQ(views[0].aspect, 1.0);
+  const auto file = nlohmann::json::parse(slurp(out));
+  EXPECT_EQ(file["per"], "equipment");
+  // Nothing but the file is left beside it (the temporary was renamed).
+  size_t entries = 0;
+  for (const auto& e : fs::directory_iterator(work.path())) entries += e.path().filename().string().find(".tmp") != std::string::npos;
+  EXPECT_EQ(entries, 0u);
+}
+
+TEST(ViewsCommand, UsageErrorsExitTwoAndRuntimeFailuresOne) {
+  TempDir store_dir, work;
+  auto store = make_store(store_dir, {box_object("/P-1", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  store.reset();
+  const std::string base = "views --store " + store_dir.str() + " --out " + (work.path() / "v.json").string();
+  EXPECT_EQ(run_plantview(work, base + " --per valve").status, 2);
+  EXPECT_EQ(run_plantview(work, base).status, 2);  // --per is required
+  EXPECT_EQ(run_plantview(work, base + " --per area --sides 3").status, 2);
+  Outcome r = run_plantview(work, base + " --per area --size 16:9");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--size: expected WxH"), std::string::npos) << r.err;
+  r = run_plantview(work, base + " --per equipment --select 'K-*'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.err, "plantview: --select 'K-*' matches none of the 1 equipment in " + store_dir.str() + "\n");
+  r = run_plantview(work, base + " --per pipeline");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("the store has no pipelines"), std::string::npos) << r.err;
+  r = run_plantview(work, "views --per area --store " + (work.path() / "nothing").string() + " --out x.json");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_FALSE(fs::exists(work.path() / "v.json"));
 }
 
 // ---- on rendered images ----

@@ -119,8 +119,9 @@ struct ReviewView {
 //    "views": [{"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
 //               "camera": {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov_deg": 50},
 //               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...}}]}
-// `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order;
-// the parser reads that order back. The parser rejects: text that is not JSON, a version other
+// `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
+// (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
+// bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other
 // than 1, an unknown `per` or `kind`, a missing or mistyped field, an unknown key (a misspelt
 // field is an error, not a default), an unsafe or repeated name, a camera validate_camera
 // rejects, an aspect that is not a positive number, and an empty list. The error names the
