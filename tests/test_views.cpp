@@ -393,7 +393,6 @@ TEST(ReviewViews, TheEyeStandsOutsideOtherObjectsWithAnOpenLineToTheSubject) {
   const DAabb pump_box{{-1, -0.5, 0}, {1, 0.5, 1.5}};
   const glm::dvec3 pump_centre(0, 0, 0.75);
   const Camera first = fit_camera(pump_box, isometric_direction(), 16.0 / 9.0, 50.0, kReviewFill);
-  const glm::dvec3 ray = glm::normalize(first.eye_m - pump_centre);
 
   TempDir dir;
   std::vector<Object> objects = {box_object("/P-1", ObjectClass::equipment, pump_centre, {2, 1, 1.5})};
@@ -413,7 +412,6 @@ TEST(ReviewViews, TheEyeStandsOutsideOtherObjectsWithAnOpenLineToTheSubject) {
   EXPECT_EQ(summary.obstructed, 0u);
   const Camera& c = views[0].camera;
   EXPECT_GT(glm::length(c.eye_m - first.eye_m), 1.0);  // it did move
-  (void)ray;
   for (const Object& o : objects) {
     if (o.name == "/P-1") continue;
     const DAabb b = object_bounds(o);
@@ -421,6 +419,45 @@ TEST(ReviewViews, TheEyeStandsOutsideOtherObjectsWithAnOpenLineToTheSubject) {
     EXPECT_FALSE(crosses(b, c.eye_m, pump_centre)) << o.name;
   }
   // Still framed by the rule.
+  const Projected p = project_box(pump_box, c, 16.0 / 9.0);
+  EXPECT_NEAR(std::max(p.fill_x(), p.fill_y()), kReviewFill, 0.01);
+}
+
+// In a roofed courtyard that every fitted eye stands outside of: the eye comes in front of the
+// first wall (or the roof) on its ray, the field of view widened to keep the fill.
+TEST(ReviewViews, AnEyeBehindAWallMovesInFrontOfItAndWidensTheView) {
+  const DAabb pump_box{{-1, -0.5, 0}, {1, 0.5, 1.5}};
+  const glm::dvec3 pump_centre(0, 0, 0.75);
+  const Camera first = fit_camera(pump_box, isometric_direction(), 16.0 / 9.0, 50.0, kReviewFill);
+  const double distance_m = glm::length(first.eye_m - pump_centre);
+  const double d = 0.8 * distance_m;  // the walls' inner faces, each way from the pump
+  const double roof_m = 2.5;          // below every fitted eye
+  TempDir dir;
+  std::vector<Object> objects = {box_object("/P-1", ObjectClass::equipment, pump_centre, {2, 1, 1.5})};
+  const float side = float(2 * d + 1);
+  objects.push_back(box_object("/WALL-E", ObjectClass::structure, {d + 0.2, 0, roof_m / 2}, {0.4f, side, float(roof_m)}));
+  objects.push_back(box_object("/WALL-W", ObjectClass::structure, {-d - 0.2, 0, roof_m / 2}, {0.4f, side, float(roof_m)}));
+  objects.push_back(box_object("/WALL-N", ObjectClass::structure, {0, d + 0.2, roof_m / 2}, {side, 0.4f, float(roof_m)}));
+  objects.push_back(box_object("/WALL-S", ObjectClass::structure, {0, -d - 0.2, roof_m / 2}, {side, 0.4f, float(roof_m)}));
+  objects.push_back(box_object("/ROOF", ObjectClass::structure, {0, 0, roof_m + 0.15}, {side, side, 0.3f}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  ReviewViewsSummary summary;
+  const auto views = views_of(*store, per("equipment"), &summary);
+  ASSERT_EQ(views.size(), 1u);
+  EXPECT_EQ(summary.moved, 1u);
+  EXPECT_EQ(summary.obstructed, 0u);
+  const Camera& c = views[0].camera;
+  EXPECT_GT(c.fov_deg, 50.0);
+  EXPECT_LE(c.fov_deg, 90.0);
+  EXPECT_LT(std::abs(c.eye_m.x), d);
+  EXPECT_LT(std::abs(c.eye_m.y), d);
+  EXPECT_LT(c.eye_m.z, roof_m);
+  for (const Object& o : objects) {
+    if (o.name == "/P-1") continue;
+    EXPECT_FALSE(inside(object_bounds(o), c.eye_m)) << o.name;
+    EXPECT_FALSE(crosses(object_bounds(o), c.eye_m, pump_centre)) << o.name;
+  }
   const Projected p = project_box(pump_box, c, 16.0 / 9.0);
   EXPECT_NEAR(std::max(p.fill_x(), p.fill_y()), kReviewFill, 0.01);
 }

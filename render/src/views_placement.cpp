@@ -145,19 +145,24 @@ Placement place_camera(const Occluders& occluders, const Subject& subject,
     const glm::dvec3 entry = subject_entry(far.eye_m);
     double hit_m = 0;  // from the subject outward
     if (!occluders.segment_blocked(entry, far.eye_m, min_side_m, subject.slots, hit_m)) continue;
-    // The eye's depth before the subject's centre (along the view) may be at most this.
-    const double allowed_m = glm::dot(centre - entry, view) + hit_m - kEyeMarginM;
+    // The eye's depth before the subject's centre (along the view) may be at most the
+    // obstacle's, less a margin; a ray meeting the obstacle's face at a slant needs more of it
+    // to keep kEyeMarginM away, so the margin grows until the eye is clear.
     const auto depth = [&](const Camera& c) { return glm::dot(centre - c.eye_m, view); };
-    Camera wide = fit_camera(subject.boxes, view, aspect, kMaxWidenedFovDeg, fill);
-    if (allowed_m <= 0 || depth(wide) > allowed_m) continue;
-    double lo = fov_deg, hi = kMaxWidenedFovDeg;  // depth falls as the field of view widens
-    for (int step = 0; step < 30; ++step) {
-      const double mid = 0.5 * (lo + hi);
-      const Camera c = fit_camera(subject.boxes, view, aspect, mid, fill);
-      if (depth(c) > allowed_m) lo = mid;
-      else { hi = mid; wide = c; }
+    const Camera widest = fit_camera(subject.boxes, view, aspect, kMaxWidenedFovDeg, fill);
+    for (int margins = 1; margins <= 4; ++margins) {
+      const double allowed_m = glm::dot(centre - entry, view) + hit_m - margins * kEyeMarginM;
+      if (allowed_m <= 0 || depth(widest) > allowed_m) break;
+      Camera wide = widest;
+      double lo = fov_deg, hi = kMaxWidenedFovDeg;  // depth falls as the field of view widens
+      for (int step = 0; step < 30; ++step) {
+        const double mid = 0.5 * (lo + hi);
+        const Camera c = fit_camera(subject.boxes, view, aspect, mid, fill);
+        if (depth(c) > allowed_m) lo = mid;
+        else { hi = mid; wide = c; }
+      }
+      if (clear(wide)) return {wide, true, true};
     }
-    if (clear(wide)) return {wide, true, true};
   }
   first.clear = false;
   return first;
