@@ -9,7 +9,7 @@
 //   - Every error reply is {"error": "..."} (application/json) naming what was wrong.
 //   - Camera parameters are parsed once into a Camera (eye, target and up as 3 numbers each,
 //     fov as 1, degrees) and checked with validate_camera; neither eye nor target: the default
-//     view of the model's bounds.
+//     view (camera.h: default_camera of the config's overview_boxes, else of its bounds).
 // Threads: any; route() reads its inputs and nothing else.
 #pragma once
 
