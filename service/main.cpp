@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   actions.push_back(plantview::cli::add_store_commands(app));
   actions.push_back(plantview::cli::add_import_command(app));
   actions.push_back(plantview::cli::add_render_commands(app));
+  actions.push_back(plantview::cli::add_views_command(app));
   actions.push_back(plantview::cli::add_compare_command(app));
   actions.push_back(plantview::cli::add_serve_command(app));
   actions.push_back(plantview::cli::add_farm_command(app));

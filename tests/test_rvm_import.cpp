@@ -60,11 +60,24 @@ TEST(RvmImport, HuldraObjectsAreStructureWithTheirAttributes) {
   size_t structure = 0;
   for (const Object& o : objects) {
     if (o.object_class == ObjectClass::structure) ++structure;
-    // Every object carries its group's attribute block, found by name.
+    // Every object carries its group's attribute block, found by name, then the names of its
+    // enclosing site and zone (the sample's one site holds zones only).
     const auto it = index.find(o.name);
     ASSERT_NE(it, index.end()) << o.name;
     ASSERT_FALSE(o.attributes.empty()) << o.name;
-    EXPECT_EQ(o.attributes.size(), it->second->attributes.size()) << o.name;
+    const auto& block = it->second->attributes;
+    ASSERT_EQ(o.attributes.size(), block.size() + 2) << o.name;
+    for (size_t i = 0; i < block.size(); ++i) {
+      EXPECT_EQ(o.attributes[i].key, block[i].first) << o.name;
+      EXPECT_EQ(o.attributes[i].value, block[i].second) << o.name;
+    }
+    EXPECT_EQ(o.attributes[block.size()], (Attribute{"Site", "/WD1-PSUP"})) << o.name;
+    EXPECT_EQ(o.attributes[block.size() + 1].key, "Zone") << o.name;
+    const auto zone = index.find(o.attributes[block.size() + 1].value);
+    ASSERT_NE(zone, index.end()) << o.name;
+    const std::string* zone_type = zone->second->find("Type");
+    ASSERT_TRUE(zone_type);
+    EXPECT_EQ(*zone_type, "ZONE") << o.name;
   }
   // The sample is a pipe-support model: structure throughout.
   EXPECT_EQ(structure, objects.size());

@@ -1,15 +1,29 @@
-// Review views: camera fitting, the views file, subjects from a store, default cameras and
-// walkthroughs that stay in the plant.
+// Review views: camera fitting, the views file, subjects from a store, the views command,
+// default cameras and walkthroughs that stay in the plant (judged on rendered images).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <glm/gtc/matrix_transform.hpp>
+#include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "plantview/camera.h"
+#include "plantview/generate.h"
+#include "plantview/ingest.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "support/image_fill.h"
+#include "support/temp_dir.h"
 
 namespace plantview {
 namespace {
@@ -151,6 +165,15 @@ TEST(ViewsFile, WhatIsWrittenReadsBackTheSameInTheSameOrder) {
   expect_same(sample_views(), read);
 }
 
+TEST(ViewsFile, AttributesThatAreNotUtf8AreWrittenWithReplacementCharacters) {
+  std::vector<ReviewView> views = sample_views();
+  views[0].attributes = {{"description", "Pumpe f\xfcr K\xfchlwasser"}};  // Latin-1 bytes
+  std::vector<ReviewView> read;
+  std::string error;
+  ASSERT_TRUE(parse_review_views(review_views_json(views, "equipment"), read, error)) << error;
+  EXPECT_EQ(read[0].attributes[0].second, "Pumpe f\xef\xbf\xbdr K\xef\xbf\xbdhlwasser");
+}
+
 TEST(ViewsFile, MatchesTheAgreedLayout) {
   const std::string json = R"({"version": 1, "per": "equipment", "views": [
     {"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
@@ -251,6 +274,505 @@ TEST(ViewNames, OnlyFileNameSafeNamesPass) {
     EXPECT_FALSE(is_safe_view_name(bad)) << bad;
   EXPECT_TRUE(is_safe_view_name(std::string(200, 'x')));
   EXPECT_FALSE(is_safe_view_name(std::string(201, 'x')));
+}
+
+// ---- review views of a store ----
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+Object box_object(const std::string& name, ObjectClass cls, glm::dvec3 centre, glm::vec3 size,
+                  std::vector<Attribute> attributes = {}) {
+  Object o;
+  o.name = name;
+  o.source = "test";
+  o.id = object_id(o.source, name);
+  o.object_class = cls;
+  o.origin_m = centre;
+  o.primitives.push_back(Primitive{Placement{}, Box{size.x, size.y, size.z}});
+  o.attributes = std::move(attributes);
+  return o;
+}
+
+std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>& objects) {
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+  EXPECT_TRUE(store) << error;
+  if (!store) return nullptr;
+  const IngestResult result = ingest_objects(*store, objects);
+  EXPECT_TRUE(result) << result.error().message;
+  return store;
+}
+
+std::vector<ReviewView> views_of(const Store& store, ReviewViewOptions options,
+                                 ReviewViewsSummary* summary = nullptr) {
+  std::vector<ReviewView> views;
+  ReviewViewsSummary ignored;
+  std::string error;
+  EXPECT_TRUE(make_review_views(store, options, views, summary ? *summary : ignored, error)) << error;
+  return views;
+}
+
+ReviewViewOptions per(const std::string& kind, int sides = 1) {
+  ReviewViewOptions o;
+  o.per = kind;
+  o.sides = sides;
+  return o;
+}
+
+bool inside(const DAabb& b, const glm::dvec3& p) {
+  return p.x > b.min.x && p.x < b.max.x && p.y > b.min.y && p.y < b.max.y && p.z > b.min.z &&
+         p.z < b.max.z;
+}
+
+// Whether the segment a-b passes through box `b` (dense sampling: an oracle apart from the
+// placement's slab test).
+bool crosses(const DAabb& box, const glm::dvec3& a, const glm::dvec3& b) {
+  for (int i = 0; i <= 2000; ++i)
+    if (inside(box, glm::mix(a, b, i / 2000.0))) return true;
+  return false;
+}
+
+TEST(ReviewViews, NamesAreSafeUniqueAndTheSameOnEveryRun) {
+  TempDir dir;
+  std::vector<Object> objects;
+  // Three tags that make the same safe name, one with a path in it, and one without a tag.
+  for (const char* tag : {"P 101", "P/101", "P-101", "../etc/passwd"})
+    objects.push_back(box_object(std::string("/EQ-") + tag, ObjectClass::equipment,
+                                 {10.0 * objects.size(), 0, 1}, {1, 1, 2}, {{"Tag", tag}, {"Type", "Pump"}}));
+  objects.push_back(box_object("/V-1", ObjectClass::equipment, {60, 0, 1}, {2, 2, 2}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  const auto views = views_of(*store, per("equipment"));
+  std::vector<std::string> names;
+  for (const auto& v : views) names.push_back(v.name);
+  // Sorted by tag: "../etc/passwd" < "/V-1" < "P 101" < "P-101" < "P/101".
+  EXPECT_EQ(names, (std::vector<std::string>{"etc-passwd", "V-1", "P-101", "P-101-2", "P-101-3"}));
+  EXPECT_EQ(views[2].title, "Pump P 101");
+  EXPECT_EQ(views[2].attributes[0], (std::pair<std::string, std::string>{"tag", "P 101"}));
+  EXPECT_EQ(views[1].title, "Equipment /V-1");
+  EXPECT_EQ(views_of(*store, per("equipment"))[3].camera, views[3].camera);
+
+  const auto sides = views_of(*store, per("equipment", 4));
+  ASSERT_EQ(sides.size(), 4 * views.size());
+  std::set<std::string> unique;
+  for (const auto& v : sides) {
+    EXPECT_TRUE(is_safe_view_name(v.name)) << v.name;
+    unique.insert(v.name);
+  }
+  EXPECT_EQ(unique.size(), sides.size());
+  EXPECT_EQ(sides[0].name, "etc-passwd-N");
+  EXPECT_EQ(sides[7].name, "V-1-W");
+  // What the file says reads back.
+  std::vector<ReviewView> read;
+  std::string error;
+  ASSERT_TRUE(parse_review_views(review_views_json(sides, "equipment"), read, error)) << error;
+  EXPECT_EQ(read.size(), sides.size());
+}
+
+TEST(ReviewViews, SelectMatchingNothingIsAnErrorThatSaysSo) {
+  TempDir dir;
+  auto store = make_store(dir, {box_object("/P-1", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  ReviewViewOptions options = per("equipment");
+  options.select = "K-*";
+  std::vector<ReviewView> views;
+  ReviewViewsSummary summary;
+  std::string error;
+  EXPECT_FALSE(make_review_views(*store, options, views, summary, error));
+  EXPECT_EQ(error, "--select 'K-*' matches none of the 1 equipment in " + dir.str());
+  options.select = "P-*";
+  EXPECT_TRUE(make_review_views(*store, options, views, summary, error)) << error;
+  EXPECT_EQ(views.size(), 1u);
+  EXPECT_FALSE(make_review_views(*store, per("pipeline"), views, summary, error));
+  EXPECT_EQ(error, dir.str() + ": the store has no pipelines");
+}
+
+// A pump on the ground, and walls and columns where its views would stand or look through.
+TEST(ReviewViews, TheEyeStandsOutsideOtherObjectsWithAnOpenLineToTheSubject) {
+  const DAabb pump_box{{-1, -0.5, 0}, {1, 0.5, 1.5}};
+  const glm::dvec3 pump_centre(0, 0, 0.75);
+  const Camera first = fit_camera(pump_box, isometric_direction(), 16.0 / 9.0, 50.0, kReviewFill);
+
+  TempDir dir;
+  std::vector<Object> objects = {box_object("/P-1", ObjectClass::equipment, pump_centre, {2, 1, 1.5})};
+  // A wall 0.4 m thick around the first fit's eye, and a column on the line halfway to it.
+  objects.push_back(box_object("/WALL", ObjectClass::structure, first.eye_m, {8, 0.4f, 12}));
+  const glm::dvec3 halfway = pump_centre + 0.5 * (first.eye_m - pump_centre);
+  objects.push_back(box_object("/COLUMN", ObjectClass::structure, {halfway.x, halfway.y, 4}, {1.5, 1.5, 8}));
+  // The mirror quadrant (eye at +x, -y) walled off too: the placement must look further.
+  objects.push_back(box_object("/WALL-2", ObjectClass::structure,
+                               {-first.eye_m.x, first.eye_m.y, first.eye_m.z}, {0.4f, 8, 12}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  ReviewViewsSummary summary;
+  const auto views = views_of(*store, per("equipment"), &summary);
+  ASSERT_EQ(views.size(), 1u);
+  EXPECT_EQ(summary.moved, 1u);
+  EXPECT_EQ(summary.obstructed, 0u);
+  const Camera& c = views[0].camera;
+  EXPECT_GT(glm::length(c.eye_m - first.eye_m), 1.0);  // it did move
+  for (const Object& o : objects) {
+    if (o.name == "/P-1") continue;
+    const DAabb b = object_bounds(o);
+    EXPECT_FALSE(inside(b, c.eye_m)) << o.name;
+    EXPECT_FALSE(crosses(b, c.eye_m, pump_centre)) << o.name;
+  }
+  // Still framed by the rule.
+  const Projected p = project_box(pump_box, c, 16.0 / 9.0);
+  EXPECT_NEAR(std::max(p.fill_x(), p.fill_y()), kReviewFill, 0.01);
+}
+
+// In a roofed courtyard that every fitted eye stands outside of: the eye comes in front of the
+// first wall (or the roof) on its ray, the field of view widened to keep the fill.
+TEST(ReviewViews, AnEyeBehindAWallMovesInFrontOfItAndWidensTheView) {
+  const DAabb pump_box{{-1, -0.5, 0}, {1, 0.5, 1.5}};
+  const glm::dvec3 pump_centre(0, 0, 0.75);
+  const Camera first = fit_camera(pump_box, isometric_direction(), 16.0 / 9.0, 50.0, kReviewFill);
+  const double distance_m = glm::length(first.eye_m - pump_centre);
+  const double d = 0.8 * distance_m;  // the walls' inner faces, each way from the pump
+  const double roof_m = 2.5;          // below every fitted eye
+  TempDir dir;
+  std::vector<Object> objects = {box_object("/P-1", ObjectClass::equipment, pump_centre, {2, 1, 1.5})};
+  const float side = float(2 * d + 1);
+  objects.push_back(box_object("/WALL-E", ObjectClass::structure, {d + 0.2, 0, roof_m / 2}, {0.4f, side, float(roof_m)}));
+  objects.push_back(box_object("/WALL-W", ObjectClass::structure, {-d - 0.2, 0, roof_m / 2}, {0.4f, side, float(roof_m)}));
+  objects.push_back(box_object("/WALL-N", ObjectClass::structure, {0, d + 0.2, roof_m / 2}, {side, 0.4f, float(roof_m)}));
+  objects.push_back(box_object("/WALL-S", ObjectClass::structure, {0, -d - 0.2, roof_m / 2}, {side, 0.4f, float(roof_m)}));
+  objects.push_back(box_object("/ROOF", ObjectClass::structure, {0, 0, roof_m + 0.15}, {side, side, 0.3f}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  ReviewViewsSummary summary;
+  const auto views = views_of(*store, per("equipment"), &summary);
+  ASSERT_EQ(views.size(), 1u);
+  EXPECT_EQ(summary.moved, 1u);
+  EXPECT_EQ(summary.obstructed, 0u);
+  const Camera& c = views[0].camera;
+  EXPECT_GT(c.fov_deg, 50.0);
+  EXPECT_LE(c.fov_deg, 90.0);
+  EXPECT_LT(std::abs(c.eye_m.x), d);
+  EXPECT_LT(std::abs(c.eye_m.y), d);
+  EXPECT_LT(c.eye_m.z, roof_m);
+  for (const Object& o : objects) {
+    if (o.name == "/P-1") continue;
+    EXPECT_FALSE(inside(object_bounds(o), c.eye_m)) << o.name;
+    EXPECT_FALSE(crosses(object_bounds(o), c.eye_m, pump_centre)) << o.name;
+  }
+  const Projected p = project_box(pump_box, c, 16.0 / 9.0);
+  EXPECT_NEAR(std::max(p.fill_x(), p.fill_y()), kReviewFill, 0.01);
+}
+
+// Walled in on every side and from above: nowhere is clear, so the first fit stays (the
+// renderer's highlight shows the subject through) and the summary says so.
+TEST(ReviewViews, ASubjectWithNoClearViewKeepsItsFirstFitAndIsCounted) {
+  TempDir dir;
+  std::vector<Object> objects = {box_object("/P-1", ObjectClass::equipment, {0, 0, 0.75}, {2, 1, 1.5})};
+  objects.push_back(box_object("/SHED", ObjectClass::structure, {0, 0, 0}, {300, 300, 300}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  ReviewViewsSummary summary;
+  const auto views = views_of(*store, per("equipment"), &summary);
+  ASSERT_EQ(views.size(), 1u);
+  EXPECT_EQ(summary.obstructed, 1u);
+  EXPECT_EQ(views[0].camera,
+            fit_camera(DAabb{{-1, -0.5, 0}, {1, 0.5, 1.5}}, isometric_direction(), 16.0 / 9.0, 50.0, kReviewFill));
+}
+
+// Generated plants are kept per preset and seed for the whole program (generating is most of
+// these tests' time).
+const Store& generated(char preset, uint64_t seed, uint32_t scale = 1) {
+  static std::map<std::tuple<char, uint64_t, uint32_t>, std::pair<std::unique_ptr<TempDir>, std::unique_ptr<Store>>> stores;
+  auto& entry = stores[{preset, seed, scale}];
+  if (!entry.second) {
+    entry.first = std::make_unique<TempDir>();
+    std::string error;
+    entry.second = Store::open(entry.first->str(), Store::Mode::read_write, error);
+    if (!entry.second) ADD_FAILURE() << error;
+    GenerateOptions options;
+    options.preset = preset;
+    options.seed = seed;
+    options.scale = scale;
+    const IngestResult result = ingest_generated(*entry.second, options);
+    if (!result) ADD_FAILURE() << result.error().message;
+  }
+  return *entry.second;
+}
+
+TEST(ReviewViews, AreasOfAGeneratedPlantAreItsUnitsAndPipelinesAreWholeLines) {
+  const Store& store = generated('a', 1, 2);
+  const auto areas = views_of(store, per("area"));
+  ASSERT_EQ(areas.size(), 2u);
+  EXPECT_EQ(areas[0].name, "Unit-01");
+  EXPECT_EQ(areas[1].name, "Unit-02");
+  EXPECT_EQ(areas[0].title, "Unit 01");
+
+  // Every object is in one unit, and each pipeline view holds its line's every object.
+  std::string error;
+  auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  std::map<uint64_t, std::set<uint64_t>> lines;  // pipeline id -> its objects' ids
+  uint64_t objects = 0;
+  ASSERT_TRUE(view->for_each_object(
+      [&](uint32_t, Object&& o) {
+        ++objects;
+        if (o.object_class == ObjectClass::pipeline) lines[o.id].insert(o.id);
+        else if (o.pipeline_id != 0) lines[o.pipeline_id].insert(o.id);
+        return true;
+      },
+      false, error)) << error;
+  EXPECT_EQ(areas[0].subject.size() + areas[1].subject.size(), objects);
+  const auto pipelines = views_of(store, per("pipeline"));
+  ASSERT_EQ(pipelines.size(), lines.size());
+  for (const auto& v : pipelines) {
+    const std::set<uint64_t> subject(v.subject.begin(), v.subject.end());
+    ASSERT_TRUE(lines.count(v.subject.front()) || !subject.empty());
+    bool found = false;
+    for (const auto& [line, members] : lines) {
+      if (members.count(v.subject.front()) == 0) continue;
+      EXPECT_EQ(subject, members) << v.name;
+      found = true;
+    }
+    EXPECT_TRUE(found) << v.name;
+    EXPECT_EQ(v.title, "Pipeline " + v.name);
+  }
+}
+
+const fs::path kHuldra = fs::path(PLANTVIEW_SHARED_DIR) / "data" / "huldra";
+
+// Huldra in a store of its own, for the whole program; null (after a skip message) without it.
+const Store* huldra() {
+  static std::unique_ptr<TempDir> dir;
+  static std::unique_ptr<Store> store;
+  if (!fs::exists(kHuldra)) return nullptr;
+  if (!store) {
+    dir = std::make_unique<TempDir>();
+    std::string error;
+    store = Store::open(dir->str(), Store::Mode::read_write, error);
+    if (!store) ADD_FAILURE() << error;
+    const std::vector<std::string> files = {(kHuldra / "WD1-PSUP.RVM").string()};
+    const auto plan = plan_import(files, error);
+    if (!plan) ADD_FAILURE() << error;
+    const IngestResult result = ingest_files(*store, *plan);
+    if (!result) ADD_FAILURE() << result.error().message;
+  }
+  return store.get();
+}
+
+TEST(ReviewViews, AreasOfAnRvmModelAreItsZones) {
+  const Store* store = huldra();
+  if (!store) GTEST_SKIP() << "no " << kHuldra;
+  const auto areas = views_of(*store, per("area"));
+  // The sample's 862 objects lie in 101 of its zones.
+  ASSERT_EQ(areas.size(), 101u);
+  size_t objects = 0;
+  for (const auto& v : areas) {
+    EXPECT_EQ(v.name.rfind("PS-WD1-", 0), 0u) << v.name;
+    EXPECT_EQ(v.title.rfind("Zone /PS/WD1/", 0), 0u) << v.title;
+    objects += v.subject.size();
+  }
+  EXPECT_EQ(objects, 862u);
+}
+
+// ---- the command ----
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Outcome run_plantview(const TempDir& dir, const std::string& args) {
+  fs::create_directories(dir.path());
+  const fs::path out = dir.path() / "stdout", err = dir.path() / "stderr";
+  const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
+  const int raw = std::system(cmd.c_str());
+  Outcome r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+TEST(ViewsCommand, WritesTheViewsFileAndSaysWhatItMade) {
+  TempDir store_dir, work;
+  auto store = make_store(store_dir, {box_object("/P-1", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2}),
+                                      box_object("/P-2", ObjectClass::equipment, {9, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  store.reset();  // the command opens it
+  const fs::path out = work.path() / "views.json";
+  const Outcome r = run_plantview(work, "views --store " + store_dir.str() + " --per equipment --sides 4 --size 800x800 --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["views"], 8);
+  EXPECT_EQ(summary["subjects"], 2);
+  std::vector<ReviewView> views;
+  std::string error;
+  ASSERT_TRUE(parse_review_views(slurp(out), views, error)) << error;
+  ASSERT_EQ(views.size(), 8u);
+  EXPECT_EQ(views[0].name, "P-1-N");
+  EXPECT_EQ(views[0].aspect, 1.0);
+  const auto file = nlohmann::json::parse(slurp(out));
+  EXPECT_EQ(file["per"], "equipment");
+  // Nothing but the file is left beside it (the temporary was renamed).
+  size_t entries = 0;
+  for (const auto& e : fs::directory_iterator(work.path())) entries += e.path().filename().string().find(".tmp") != std::string::npos;
+  EXPECT_EQ(entries, 0u);
+}
+
+TEST(ViewsCommand, UsageErrorsExitTwoAndRuntimeFailuresOne) {
+  TempDir store_dir, work;
+  auto store = make_store(store_dir, {box_object("/P-1", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  store.reset();
+  const std::string base = "views --store " + store_dir.str() + " --out " + (work.path() / "v.json").string();
+  EXPECT_EQ(run_plantview(work, base + " --per valve").status, 2);
+  EXPECT_EQ(run_plantview(work, base).status, 2);  // --per is required
+  EXPECT_EQ(run_plantview(work, base + " --per area --sides 3").status, 2);
+  Outcome r = run_plantview(work, base + " --per area --size 16:9");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--size: expected WxH"), std::string::npos) << r.err;
+  r = run_plantview(work, base + " --per equipment --select 'K-*'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.err, "plantview: --select 'K-*' matches none of the 1 equipment in " + store_dir.str() + "\n");
+  r = run_plantview(work, base + " --per pipeline");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("the store has no pipelines"), std::string::npos) << r.err;
+  r = run_plantview(work, "views --per area --store " + (work.path() / "nothing").string() + " --out x.json");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_FALSE(fs::exists(work.path() / "v.json"));
+}
+
+// ---- on rendered images ----
+
+GpuContext& context() {
+  static std::unique_ptr<GpuContext> ctx = [] {
+    std::string error;
+    auto c = GpuContext::create(-1, error);
+    if (!c) ADD_FAILURE() << error;
+    return c;
+  }();
+  if (!ctx) std::abort();
+  return *ctx;
+}
+
+std::unique_ptr<Renderer> make_renderer(const Store& store) {
+  context();
+  RenderOptions options;
+  options.vertex_budget_bytes = 64u << 20;
+  std::string error;
+  auto r = Renderer::create(store, options, error);
+  EXPECT_TRUE(r) << error;
+  return r;
+}
+
+Image render(Renderer& r, const Camera& camera, uint32_t w, uint32_t h, FrameStats* stats = nullptr) {
+  Image image;
+  FrameStats ignored;
+  std::string error;
+  EXPECT_TRUE(r.render(camera, w, h, true, image, stats ? *stats : ignored, error)) << error;
+  return image;
+}
+
+TEST(ReviewViewImages, EachSubjectFillsSixtyToEightyFivePercentOfItsFrame) {
+  TempDir dir;
+  // A row of equipment of different shapes among a rack, and a pipeline of two pipes.
+  std::vector<Object> objects = {
+      box_object("/P-1", ObjectClass::equipment, {0, 0, 0.5}, {1.5, 0.8f, 1}),
+      box_object("/C-1", ObjectClass::equipment, {8, 0, 12}, {2, 2, 24}),
+      box_object("/E-1", ObjectClass::equipment, {16, 0, 1}, {6, 1.2f, 1.2f}),
+      box_object("/RACK", ObjectClass::structure, {8, 8, 4}, {30, 4, 0.3f})};
+  Object line = box_object("/L-1", ObjectClass::pipeline, {0, 0, 0}, {0, 0, 0});
+  line.primitives.clear();
+  for (int i = 0; i < 2; ++i) {
+    Object pipe = box_object("/L-1/PIPE-" + std::to_string(i), ObjectClass::pipe,
+                             {4.0 + 12.0 * i, 8, 5}, {12, 0.3f, 0.3f});
+    pipe.pipeline_id = line.id;
+    objects.push_back(pipe);
+  }
+  objects.push_back(line);
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  auto renderer = make_renderer(*store);
+  ASSERT_TRUE(renderer);
+  for (const std::string kind : {"equipment", "pipeline"}) {
+    for (const int sides : {1, 4}) {
+      for (const ReviewView& v : views_of(*store, per(kind, sides))) {
+        const Image image = render(*renderer, v.camera, 320, 180);
+        const test::ContentBox box =
+            test::content_box_of(image, std::set<uint64_t>(v.subject.begin(), v.subject.end()));
+        ASSERT_FALSE(box.empty) << v.name;
+        EXPECT_GE(box.fill(), 0.60) << v.name;
+        EXPECT_LE(box.fill(), 0.85) << v.name;
+        // Centred: as much room left as right (a pixel or two of rounding).
+        EXPECT_NEAR(double(box.min_x), double(image.width - 1 - box.max_x), 0.02 * image.width + 2)
+            << v.name;
+      }
+    }
+  }
+}
+
+TEST(ReviewViewImages, TheDefaultOverviewOfPresetCFillsSeventyPercentOfItsFrame) {
+  const Store& store = generated('c', 1);
+  auto renderer = make_renderer(store);
+  ASSERT_TRUE(renderer);
+  const Camera camera = default_camera(overview_boxes(renderer->read_view()), 16.0 / 9.0);
+  const test::ContentBox box = test::content_box(render(*renderer, camera, 640, 360));
+  std::printf("preset c overview: %.1f%% of the width, %.1f%% of the height\n",
+              100 * box.width_share, 100 * box.height_share);
+  EXPECT_GE(box.fill(), 0.70);
+  EXPECT_LE(box.fill(), 0.90);
+  // The views file's overview is the same camera.
+  const auto overview = views_of(store, per("overview"));
+  ASSERT_EQ(overview.size(), 1u);
+  EXPECT_EQ(overview[0].camera, camera);
+  EXPECT_TRUE(overview[0].subject.empty());
+}
+
+TEST(ReviewViewImages, TheDefaultOverviewOfHuldraFillsSeventyPercentOfItsFrame) {
+  const Store* store = huldra();
+  if (!store) GTEST_SKIP() << "no " << kHuldra;
+  auto renderer = make_renderer(*store);
+  ASSERT_TRUE(renderer);
+  const Camera camera = default_camera(overview_boxes(renderer->read_view()), 16.0 / 9.0);
+  const test::ContentBox box = test::content_box(render(*renderer, camera, 640, 360));
+  std::printf("Huldra overview: %.1f%% of the width, %.1f%% of the height\n",
+              100 * box.width_share, 100 * box.height_share);
+  EXPECT_GE(box.fill(), 0.70);
+  EXPECT_LE(box.fill(), 0.90);
+}
+
+// The issue's case: preset c's walkthrough of 10 views once ended looking out of the plant.
+TEST(ReviewViewImages, EveryViewOfAWalkthroughSeesThePlant) {
+  for (const auto& [preset, seed] : {std::pair{'a', 1}, std::pair{'a', 2}, std::pair{'a', 3},
+                                     std::pair{'b', 1}, std::pair{'c', 1}}) {
+    const Store& store = generated(preset, uint64_t(seed));
+    auto renderer = make_renderer(store);
+    ASSERT_TRUE(renderer);
+    for (const int frames : {10, 25}) {
+      std::vector<Camera> path;
+      std::string error;
+      ASSERT_TRUE(make_camera_path(PathKind::walkthrough, frames, store, path, error)) << error;
+      ASSERT_EQ(path.size(), size_t(frames));
+      for (size_t i = 0; i < path.size(); ++i) {
+        FrameStats stats;
+        const Image image = render(*renderer, path[i], 160, 90, &stats);
+        const std::string where = std::string("preset ") + preset + " seed " + std::to_string(seed) +
+                                  " view " + std::to_string(i) + " of " + std::to_string(frames) +
+                                  " at " + format_camera(path[i]);
+        EXPECT_GT(stats.objects_visible, 0u) << where;
+        EXPECT_FALSE(test::is_one_colour(image)) << where;
+        // Objects cover a part of the frame, not a speck on the horizon (thin piping seen
+        // from afar covers a few percent; the view out of the plant covered none).
+        EXPECT_GE(double(test::content_box(image).pixels) / (160.0 * 90.0), 0.02) << where;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -122,34 +122,6 @@ std::string format_camera(const Camera& c) {
   return buf;
 }
 
-Camera default_camera(const DAabb& bounds, double aspect) {
-  Camera c;
-  if (bounds.empty()) return c;
-  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
-  const double radius = std::max(0.5 * glm::length(bounds.max - bounds.min), 1.0);
-  // From above the (-x, -y) corner, looking down at the centre; just far enough that every
-  // corner of the bounds lies inside both fields of view (with 5% to spare).
-  const double tan_y = std::tan(glm::radians(c.fov_deg) / 2.0);
-  const double tan_x = tan_y * std::max(aspect, 1e-3);
-  const glm::dvec3 direction = glm::normalize(glm::dvec3(-1.0, -1.2, 0.8));  // towards the eye
-  const glm::dvec3 right = glm::normalize(glm::cross(-direction, glm::dvec3(0, 0, 1)));
-  const glm::dvec3 up = glm::cross(right, -direction);
-  double distance = 1.0;
-  for (int corner = 0; corner < 8; ++corner) {
-    const glm::dvec3 p = glm::dvec3(corner & 1 ? bounds.max.x : bounds.min.x,
-                                    corner & 2 ? bounds.max.y : bounds.min.y,
-                                    corner & 4 ? bounds.max.z : bounds.min.z) - centre;
-    const double toward_eye = glm::dot(p, direction);
-    distance = std::max({distance, toward_eye + 1.05 * std::abs(glm::dot(p, right)) / tan_x,
-                         toward_eye + 1.05 * std::abs(glm::dot(p, up)) / tan_y});
-  }
-  distance = std::max(distance, radius * 0.1);
-  c.eye_m = centre + direction * distance;
-  c.target_m = centre;
-  c.up = {0, 0, 1};
-  return c;
-}
-
 namespace {
 
 // The camera's frame for a view along `forward` (unit): right and up as glm::lookAt makes them
@@ -171,14 +143,14 @@ ViewBasis view_basis(const glm::dvec3& forward) {
 // Where along one image axis the eye sits (its lateral coordinate `e`, eye depth fixed at
 // `eye_depth`) so that the corners' projections (a - e) / (c - eye_depth) span symmetrically
 // about the axis. The sum of the largest and smallest projection falls as e grows: bisection.
-double centre_axis(const std::array<double, 8>& lateral, const std::array<double, 8>& depth,
+double centre_axis(const std::vector<double>& lateral, const std::vector<double>& depth,
                    double eye_depth) {
   double lo = *std::min_element(lateral.begin(), lateral.end());
   double hi = *std::max_element(lateral.begin(), lateral.end());
-  for (int iteration = 0; iteration < 100 && hi - lo > 1e-12 * std::max(1.0, std::abs(hi)); ++iteration) {
+  for (int iteration = 0; iteration < 64 && hi - lo > 1e-9 * std::max(1.0, std::abs(hi)); ++iteration) {
     const double e = 0.5 * (lo + hi);
     double most = -INFINITY, least = INFINITY;
-    for (size_t i = 0; i < 8; ++i) {
+    for (size_t i = 0; i < lateral.size(); ++i) {
       const double t = (lateral[i] - e) / (depth[i] - eye_depth);
       most = std::max(most, t);
       least = std::min(least, t);
@@ -192,27 +164,38 @@ double centre_axis(const std::array<double, 8>& lateral, const std::array<double
 
 Camera fit_camera(const DAabb& bounds, const glm::dvec3& direction, double aspect, double fov_deg,
                   double fill) {
-  assert(!bounds.empty() && glm::length(direction) > 0 && std::isfinite(glm::length(direction)));
+  return fit_camera(std::span<const DAabb>(&bounds, 1), direction, aspect, fov_deg, fill);
+}
+
+Camera fit_camera(std::span<const DAabb> boxes, const glm::dvec3& direction, double aspect,
+                  double fov_deg, double fill) {
+  assert(glm::length(direction) > 0 && std::isfinite(glm::length(direction)));
   assert(aspect > 0 && fov_deg > 0 && fov_deg < 179 && fill > 0 && fill <= 1);
   const ViewBasis basis = view_basis(glm::normalize(direction));
   // The corners in the camera's axes: x right, y up, z depth along the view.
-  std::array<double, 8> x{}, y{}, z{};
-  for (int corner = 0; corner < 8; ++corner) {
-    const glm::dvec3 p(corner & 1 ? bounds.max.x : bounds.min.x, corner & 2 ? bounds.max.y : bounds.min.y,
-                       corner & 4 ? bounds.max.z : bounds.min.z);
-    x[corner] = glm::dot(p, basis.right);
-    y[corner] = glm::dot(p, basis.up);
-    z[corner] = glm::dot(p, basis.forward);
+  std::vector<double> x, y, z;
+  DAabb all;
+  for (const DAabb& b : boxes) {
+    if (b.empty()) continue;
+    all.extend(b);
+    for (int corner = 0; corner < 8; ++corner) {
+      const glm::dvec3 p(corner & 1 ? b.max.x : b.min.x, corner & 2 ? b.max.y : b.min.y,
+                         corner & 4 ? b.max.z : b.min.z);
+      x.push_back(glm::dot(p, basis.right));
+      y.push_back(glm::dot(p, basis.up));
+      z.push_back(glm::dot(p, basis.forward));
+    }
   }
+  assert(!all.empty());
   // A frustum narrowed to `fill` of the frame; the eye (ex, ey, ez) that puts the corners
   // exactly between its left and right planes is ex = (P + Q) / 2, ez = (Q - P) / (2 t) with
   // P = max(x - t z), Q = min(x + t z); the same for y. The axis with the smaller ez (farther
   // back) binds; the other is centred at that depth.
   const double tan_y = fill * std::tan(glm::radians(fov_deg) / 2.0);
   const double tan_x = tan_y * aspect;
-  const auto tight = [&](const std::array<double, 8>& lateral, double t, double& centre) {
+  const auto tight = [&](const std::vector<double>& lateral, double t, double& centre) {
     double p = -INFINITY, q = INFINITY;
-    for (size_t i = 0; i < 8; ++i) {
+    for (size_t i = 0; i < lateral.size(); ++i) {
       p = std::max(p, lateral[i] - t * z[i]);
       q = std::min(q, lateral[i] + t * z[i]);
     }
@@ -223,10 +206,10 @@ Camera fit_camera(const DAabb& bounds, const glm::dvec3& direction, double aspec
   const double ez_x = tight(x, tan_x, ex);
   const double ez_y = tight(y, tan_y, ey);
   double ez = std::min(ez_x, ez_y);
-  // A box of no extent across the view (a point, a flat plate seen edge-on) still gets an eye
-  // in front of it, past the near plane.
+  // Boxes of no extent across the view (a point, a flat plate seen edge-on) still get an eye
+  // in front of them, past the near plane.
   const double nearest = *std::min_element(z.begin(), z.end());
-  const double size_m = glm::length(bounds.max - bounds.min);
+  const double size_m = glm::length(all.max - all.min);
   ez = std::min(ez, nearest - std::max(0.1, 1e-3 * size_m));
   // The binding axis is centred already (the corners touch both narrowed planes); the other,
   // and both when the near-plane rule moved the eye back, are centred at the final depth.
@@ -237,7 +220,7 @@ Camera fit_camera(const DAabb& bounds, const glm::dvec3& direction, double aspec
   c.fov_deg = fov_deg;
   c.up = basis.world_up;
   c.eye_m = ex * basis.right + ey * basis.up + ez * basis.forward;
-  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max);
+  const glm::dvec3 centre = 0.5 * (all.min + all.max);
   const double target_depth = std::max(glm::dot(centre, basis.forward) - ez, 1.0);
   c.target_m = c.eye_m + target_depth * basis.forward;
   return c;
@@ -339,10 +322,9 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
   const double eye_height_m = bounds.min.z + std::min(1.7, 0.5 * size.z + 0.1);
   const bool along_x = size.x >= size.y;
   std::vector<glm::dvec3> waypoints;
-  const glm::dvec3 start = along_x
-      ? glm::dvec3(bounds.min.x - 0.6 * radius, centre.y - 1.2 * radius, bounds.max.z + 0.5 * radius)
-      : glm::dvec3(centre.x - 1.2 * radius, bounds.min.y - 0.6 * radius, bounds.max.z + 0.5 * radius);
-  waypoints.push_back(start);
+  // It starts where the overview of a 16:9 image stands (the plant filling the view).
+  const Camera overview = default_camera(bounds, 16.0 / 9.0);
+  waypoints.push_back(overview.eye_m);
   const glm::dvec3 entry = along_x ? glm::dvec3(bounds.min.x - 5.0, centre.y, eye_height_m)
                                    : glm::dvec3(centre.x, bounds.min.y - 5.0, eye_height_m);
   waypoints.push_back(entry);
@@ -367,9 +349,9 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
     p.z = eye_height_m;
     if (clear(p)) waypoints.push_back(p);
   }
-  waypoints.push_back(along_x ? glm::dvec3(bounds.max.x + 5.0, centre.y, eye_height_m)
-                              : glm::dvec3(centre.x, bounds.max.y + 5.0, eye_height_m));
-  if (waypoints.size() < 3) waypoints.insert(waypoints.end() - 1, centre);
+  // The walk ends inside the plant, at its last aisle point (or its centre, at eye height): a
+  // walk out of the far side looked out of the plant at nothing.
+  if (waypoints.size() < 3) waypoints.push_back(glm::dvec3(centre.x, centre.y, eye_height_m));
 
   // Cameras evenly spaced along the polyline, each looking ahead along it.
   std::vector<double> at(waypoints.size(), 0.0);
@@ -384,12 +366,34 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
     return glm::mix(waypoints[i - 1], waypoints[i], std::clamp((s - at[i - 1]) / span, 0.0, 1.0));
   };
   const double look_ahead_m = std::max(10.0, 0.05 * total);
+  // Where the path runs out of look-ahead, the view turns to the plant's centre (horizontally,
+  // at eye height), wholly so at the last camera: the walk ends looking into the plant.
+  const glm::dvec3 end = waypoints.back();
+  glm::dvec3 final_look(centre.x - end.x, centre.y - end.y, 0.0);
+  if (glm::length(final_look) < 1.0) final_look = end - waypoints[waypoints.size() - 2];
+  final_look = glm::normalize(final_look);
+  // On the approach (start to entry) the view turns from the overview's target to the way
+  // ahead: from afar the plant fills the view rather than a corner of it.
+  const double approach_m = std::max(at[1], 1e-6);
+  const glm::dvec3 plant_middle = overview.target_m;
   for (int f = 0; f < frames; ++f) {
     const double s = frames == 1 ? 0.0 : total * f / (frames - 1);
     Camera c;
     c.eye_m = point(s);
     c.target_m = point(s + look_ahead_m);
-    if (glm::length(c.target_m - c.eye_m) < 1e-3) c.target_m = c.eye_m + (c.eye_m - point(s - look_ahead_m));
+    if (s < approach_m) {
+      const glm::dvec3 ahead = glm::normalize(c.target_m - c.eye_m);
+      const glm::dvec3 middle = glm::normalize(plant_middle - c.eye_m);
+      c.target_m = c.eye_m + look_ahead_m * glm::normalize(glm::mix(middle, ahead, s / approach_m));
+    }
+    const double past_end = (s + look_ahead_m - total) / look_ahead_m;  // > 0: near the end
+    if (past_end > 0.0) {
+      glm::dvec3 ahead = c.target_m - c.eye_m;
+      ahead = glm::length(ahead) > 1e-3 ? glm::normalize(ahead) : final_look;
+      glm::dvec3 look = glm::mix(ahead, final_look, std::min(past_end, 1.0));
+      if (glm::length(look) < 1e-3) look = final_look;
+      c.target_m = c.eye_m + look_ahead_m * glm::normalize(look);
+    }
     // Keep the view from pointing straight down or up.
     glm::dvec3 view = c.target_m - c.eye_m;
     const double horizontal = std::hypot(view.x, view.y);

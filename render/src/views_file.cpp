@@ -129,7 +129,9 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
                         {"attributes", attributes}});
   }
   const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
-  return file.dump(1) + "\n";
+  // Attribute values are bytes as the model gave them, not always UTF-8: invalid sequences
+  // become U+FFFD rather than failing the file.
+  return file.dump(1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error) {

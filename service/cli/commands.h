@@ -32,6 +32,9 @@ Action add_import_command(CLI::App& app);
 // `plantview render` and `path`: review images and camera paths.
 Action add_render_commands(CLI::App& app);
 
+// `plantview views --store DIR --per KIND --out VIEWS.json`: named, fitted review views.
+Action add_views_command(CLI::App& app);
+
 // `plantview compare A B`: how far apart two images are.
 Action add_compare_command(CLI::App& app);
 

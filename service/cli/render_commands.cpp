@@ -291,7 +291,7 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
   RenderSession session;
   if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
   if (cameras.empty())
-    cameras.push_back(default_camera(session.renderer->model_bounds(), double(plan.width) / plan.height));
+    cameras.push_back(default_camera(overview_boxes(session.renderer->read_view()), double(plan.width) / plan.height));
 
   std::ofstream stats_file;
   if (many) {

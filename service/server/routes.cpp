@@ -125,7 +125,9 @@ bool parse_view(const RouteConfig& config, const Fields& query, std::initializer
     return false;
   }
   if (camera.eye.empty()) {
-    job.camera = default_camera(config.bounds, double(job.width) / job.height);
+    const double aspect = double(job.width) / job.height;
+    job.camera = config.overview_boxes.empty() ? default_camera(config.bounds, aspect)
+                                               : default_camera(config.overview_boxes, aspect);
     return true;
   }
   job.camera = Camera{};

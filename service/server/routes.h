@@ -9,7 +9,7 @@
 //   - Every error reply is {"error": "..."} (application/json) naming what was wrong.
 //   - Camera parameters are parsed once into a Camera (eye, target and up as 3 numbers each,
 //     fov as 1, degrees) and checked with validate_camera; neither eye nor target: the default
-//     view of the model's bounds.
+//     view (camera.h: default_camera of the config's overview_boxes, else of its bounds).
 // Threads: any; route() reads its inputs and nothing else.
 #pragma once
 
@@ -36,7 +36,9 @@ struct RouteConfig {
   std::string token;                        // "": no token required
   std::map<std::string, StaticFile> files;  // by path ("/", "/viewer.js", ...)
   std::string model_json;                   // the /api/model answer
-  DAabb bounds;                             // the model's, for the default view
+  DAabb bounds;                             // the model's
+  std::vector<DAabb> overview_boxes;        // what the default view is fitted to (camera.h);
+                                            // empty: the bounds
 };
 
 // A complete answer (the connection adds Content-Length, Connection and Cache-Control).

@@ -263,7 +263,8 @@ bool describe_model(const Store& store, RouteConfig& routes, std::string& error)
   if (!view) return false;
   const StoreInfo info = view->info();
   routes.bounds = info.statistics.bounds;
-  const Camera camera = default_camera(routes.bounds, 16.0 / 9.0);
+  routes.overview_boxes = overview_boxes(*view);
+  const Camera camera = default_camera(routes.overview_boxes, 16.0 / 9.0);
   nlohmann::json model = {{"objects", info.objects},
                           {"statistics", nlohmann::json::parse(statistics_json(info.statistics))},
                           {"camera",

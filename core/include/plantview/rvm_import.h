@@ -16,7 +16,10 @@
 //       Any other type, or a group without an attribute block: an object of its enclosing class
 //         (structure below a structure, otherwise other) if it holds primitives of its own.
 //   - Without an attribute file, every group holding primitives is an object of class other.
-//   - Attributes are kept with their object (the block's key/value pairs, bytes as given).
+//   - Attributes are kept with their object (the block's key/value pairs, bytes as given),
+//     followed by "Site" and "Zone": the names of the SITE and ZONE groups that enclose it (the
+//     hierarchy containers leave behind; areas of review views), where there are such groups and
+//     the block has no key of that name.
 //   - Names repeat in some files; a repeated name gets " #2", " #3"... so that ids stay unique.
 //
 // Piping derivation: a pipe's centreline is its longest cylinder's (or snout's) axis, with a

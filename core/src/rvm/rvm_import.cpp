@@ -161,9 +161,16 @@ class Converter {
     const std::string* type = block ? block->find("Type") : nullptr;
     const Role role = type ? role_of(*type) : Role::other;
     switch (role) {
-      case Role::container:
+      case Role::container: {
+        // Objects below remember their site and zone (areas of review views); the groups
+        // themselves are not objects.
+        std::string* level = *type == "SITE" ? &site_ : *type == "ZONE" ? &zone_ : nullptr;
+        const std::string outer = level ? *level : std::string();
+        if (level) *level = g.name;
         for (const RvmGroup& child : g.children) visit(child, ObjectClass::other);
+        if (level) *level = outer;
         return;
+      }
       case Role::equipment:
         emit_whole(g, ObjectClass::equipment, 0);
         return;
@@ -217,9 +224,12 @@ class Converter {
     o.id = object_id(source_, o.name);
     o.object_class = c;
     o.colour = class_colour(c, g.transparency_percent);
-    if (const AttributeBlock* b = block_of(g)) {
+    const AttributeBlock* b = block_of(g);
+    if (b) {
       for (const auto& [k, v] : b->attributes) o.attributes.push_back({k, v});
     }
+    if (!site_.empty() && !(b && b->find("Site"))) o.attributes.push_back({"Site", site_});
+    if (!zone_.empty() && !(b && b->find("Zone"))) o.attributes.push_back({"Zone", zone_});
     return o;
   }
 
@@ -365,6 +375,7 @@ class Converter {
   bool have_attributes_ = false;
   std::unordered_map<std::string, int> name_counts_;
   std::vector<Object> objects_;
+  std::string site_, zone_;  // names of the SITE and ZONE groups being visited ("": none)
 };
 
 void count(const RvmGroup& g, const AttributeIndex* index, RvmImportSummary& s) {

@@ -1,0 +1,120 @@
+// `plantview views --store DIR --per overview|equipment|pipeline|area [--select GLOB]
+// [--sides 1|4] [--size WxH] --out VIEWS.json`: named, fitted review views of a store's
+// subjects (camera.h: make_review_views), for `render --views`.
+#include <unistd.h>
+
+#include <charconv>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "cli/commands.h"
+#include "cli/progress.h"
+#include "plantview/camera.h"
+#include "plantview/store.h"
+
+namespace plantview::cli {
+
+namespace {
+
+struct ViewsArgs {
+  std::string store, per, select, size = "1280x720", out;
+  int sides = 1;
+};
+
+int fail(const std::string& message) {
+  std::cerr << "plantview: " << message << "\n";
+  return 1;
+}
+
+// "WxH" -> width / height; false for anything but two positive integers.
+bool parse_aspect(const std::string& text, double& aspect) {
+  const size_t x = text.find('x');
+  if (x == std::string::npos) return false;
+  uint32_t w = 0, h = 0;
+  const auto number = [](std::string_view s, uint32_t& v) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && end == s.data() + s.size() && v > 0;
+  };
+  if (!number(std::string_view(text).substr(0, x), w) || !number(std::string_view(text).substr(x + 1), h))
+    return false;
+  aspect = double(w) / double(h);
+  return true;
+}
+
+// Writes `text` to `path` through a temporary file beside it and a rename, so that a reader
+// never sees half a views file.
+bool write_atomically(const std::string& path, const std::string& text, std::string& error) {
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
+    if (!file) {
+      error = "cannot write " + path + " (creating " + temporary + " failed)";
+      return false;
+    }
+    file << text;
+    if (!file.flush()) {
+      error = "writing " + temporary + " failed";
+      std::filesystem::remove(temporary);
+      return false;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) {
+    error = "cannot write " + path + ": " + ec.message();
+    std::filesystem::remove(temporary, ec);
+    return false;
+  }
+  return true;
+}
+
+int run_views(const ViewsArgs& a) {
+  ReviewViewOptions options;
+  options.per = a.per;
+  options.select = a.select;
+  options.sides = a.sides;
+  if (!parse_aspect(a.size, options.aspect))
+    return usage_error("--size: expected WxH with W and H positive integers, got '" + a.size + "'");
+
+  std::string error;
+  auto store = Store::open(a.store, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  std::vector<ReviewView> views;
+  ReviewViewsSummary summary;
+  {
+    Progress progress("views");
+    if (!make_review_views(*store, options, views, summary, error,
+                           [&](double f) { progress.update(f); }))
+      return fail(error);
+  }
+  if (!write_atomically(a.out, review_views_json(views, options.per), error)) return fail(error);
+  std::cout << "{\"views\":" << views.size() << ",\"subjects\":" << summary.subjects
+            << ",\"moved\":" << summary.moved << ",\"obstructed\":" << summary.obstructed
+            << ",\"per\":\"" << options.per << "\",\"sides\":" << options.sides << "}\n";
+  return 0;
+}
+
+}  // namespace
+
+Action add_views_command(CLI::App& app) {
+  auto args = std::make_shared<ViewsArgs>();
+  auto* views = app.add_subcommand("views", "Make named, fitted review views of a store's subjects");
+  views->add_option("--store", args->store, "Store directory")->required();
+  views->add_option("--per", args->per, "overview, equipment, pipeline or area")
+      ->required()
+      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area"}));
+  views->add_option("--select", args->select,
+                    "Only subjects whose view name or tag/path matches this shell glob");
+  views->add_option("--sides", args->sides, "1: isometric; 4: from north, east, south and west")
+      ->check(CLI::IsMember({1, 4}))
+      ->capture_default_str();
+  views->add_option("--size", args->size, "The image size WxH the cameras are fitted for")
+      ->capture_default_str();
+  views->add_option("--out", args->out, "Views JSON file (for render --views)")->required();
+  return [=]() -> int { return views->parsed() ? run_views(*args) : -1; };
+}
+
+}  // namespace plantview::cli
