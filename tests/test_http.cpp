@@ -20,6 +20,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "server/metrics.h"
+#include "server/objects_json.h"
 #include "server/render_worker.h"
 #include "server/request_parser.h"
 #include "server/routes.h"
@@ -878,6 +879,60 @@ TEST(RenderWorker, OnASoftwareRendererTwoRenderersAndOnePer16CoresOnLargeMachine
   EXPECT_EQ(default_software_renderers(2), 2u);
   EXPECT_EQ(default_software_renderers(16), 2u);
   EXPECT_EQ(default_software_renderers(64), 4u);
+}
+
+// --- objects by tag or id -----------------------------------------------------------------------
+
+TEST(Objects, AnObjectIsFoundByIdByTagAsStoredOrWithoutItsLeadingSlash) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const uint64_t id = object_id("test", "/BOX-3");
+  for (const auto& [by_id, name] : std::vector<std::pair<uint64_t, std::string>>{
+           {id, std::to_string(id)}, {0, "/BOX-3"}, {0, "BOX-3"}}) {
+    const ObjectAnswer a = object_answer(*view, by_id, name);
+    EXPECT_EQ(a.status, 200) << name << ": " << a.body;
+    EXPECT_NE(a.body.find("\"id\":\"" + std::to_string(id) + "\""), std::string::npos) << a.body;
+    EXPECT_NE(a.body.find("\"name\":\"/BOX-3\""), std::string::npos) << a.body;
+  }
+  const ObjectAnswer none = object_answer(*view, 0, "BOX-9");
+  EXPECT_EQ(none.status, 404);
+  EXPECT_NE(none.body.find("no object has the tag 'BOX-9'"), std::string::npos) << none.body;
+  const ObjectAnswer digits = object_answer(*view, 12345, "12345");
+  EXPECT_EQ(digits.status, 404);
+  EXPECT_NE(digits.body.find("no object has the id or the tag '12345'"), std::string::npos) << digits.body;
+}
+
+TEST(Objects, ATagOfSeveralObjectsIsAConflictListingTheirIds) {
+  const test::TempDir dir;
+  std::string error;
+  {
+    auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+    ASSERT_TRUE(store) << error;
+    std::vector<Object> objects;
+    for (const char* source : {"a.rvm", "b.rvm"}) {
+      Object o;
+      o.name = "/TWIN";
+      o.source = source;
+      o.id = object_id(o.source, o.name);
+      o.object_class = ObjectClass::equipment;
+      o.primitives.push_back(Primitive{Placement{}, Box{1, 1, 1}});
+      objects.push_back(std::move(o));
+    }
+    const IngestResult result = ingest_objects(*store, objects);
+    ASSERT_TRUE(result) << result.error().message;
+  }
+  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const ObjectAnswer a = object_answer(*view, 0, "TWIN");
+  EXPECT_EQ(a.status, 409) << a.body;
+  EXPECT_NE(a.body.find("names 2 objects"), std::string::npos) << a.body;
+  for (const char* source : {"a.rvm", "b.rvm"})
+    EXPECT_NE(a.body.find("\"" + std::to_string(object_id(source, "/TWIN")) + "\""), std::string::npos) << a.body;
 }
 
 TEST(RenderWorker, AStoppedWorkerThatNeverStartedStopsCleanly) {
