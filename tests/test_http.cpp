@@ -773,7 +773,37 @@ TEST(Degradation, InteractiveFramesGetCheaperAsPressureGrowsStillsStatsAndPicksN
   EXPECT_FALSE(choose_degradation(still, 64, 1).any());
 }
 
-// Two clients and one renderer: what an interactive frame gave up shows in its headers, and a
+TEST(Degradation, TwoInteractiveClientsOnOneRendererTheOneTakenWhileTheOtherWaitsIsCoarser) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, one_renderer(16), results.notifier(), error)) << error;
+  results.hold(true);
+  uint64_t dropped = 0;
+  worker.submit(frame_job(1, "first"), dropped);
+  ASSERT_TRUE(results.wait_for(1));
+  for (uint64_t t : {2, 3}) {
+    RenderJob job = frame_job(t, t == 2 ? "a" : "b");
+    job.mode = FrameMode::interactive;
+    worker.submit(std::move(job), dropped);
+  }
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(3));
+  worker.stop();
+  std::map<uint64_t, RenderResult> by_ticket;
+  for (RenderResult& r : worker.take_results()) by_ticket[r.ticket] = std::move(r);
+  // a was taken while b waited: 2 requests for 1 renderer. b was taken alone.
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Degraded"), "pixel-error");
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Pixel-Error"), "4");
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Jpeg-Quality"), "60");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Degraded"), "none");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Pixel-Error"), "1");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Jpeg-Quality"), "85");
+}
+
+// Many clients and one renderer: what an interactive frame gave up shows in its headers, and a
 // still waiting with them is rendered in full.
 TEST(Degradation, UnderLoadInteractiveHeadersShowTheCoarserQualityAndAStillIsNeverDegraded) {
   std::string error;
