@@ -13,7 +13,7 @@
 //
 // Usage: bench_service [--quick] [--store DIR] [--seconds S] [--size WxH] [--clients N]
 //                      [--renderers N] [--bin PLANTVIEW] [--no-mode]
-//   --quick      preset a, 320x180, 4 clients, 2 s a run (the CTest smoke run)
+//   --quick      preset a, 320x180, 4 clients, 1 s a run (the CTest smoke run)
 //   --renderers  passed to serve (default: serve's own choice)
 //   --bin        the plantview program to serve with (e.g. an older build, for a before/after)
 //   --no-mode    never send mode= (servers from before it: every frame is what they render)
@@ -143,7 +143,7 @@ int main(int argc, char** argv) {
   if (quick) {
     preset = 'a';
     size = "320x180";
-    seconds = 2;
+    seconds = 1;
     many = 4;
   }
   uint32_t w = 0, h = 0;
