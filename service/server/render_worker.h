@@ -80,7 +80,10 @@ uint32_t default_software_renderers(uint32_t cores);
 //   <= 3: pixel error x4                                                     pixel-error
 //   <= 6: pixel error x4, half the width and height                          pixel-error,resolution
 //   >  6: pixel error x4, a quarter of the width and height                  pixel-error,resolution
-// Stills, statistics and picks: nothing, whatever the demand.
+// Stills, statistics and picks: nothing, whatever the demand. The pixel error counts pixels of
+// the image rendered, so a smaller image also draws coarser levels: on llvmpipe, where a frame
+// costs by its triangles more than by its pixels, that is most of what the smaller size saves.
+// The ladder was set by bench_service (README, "Serving under load").
 Degradation choose_degradation(const RenderJob& job, size_t demand, size_t renderers);
 
 // The JPEG quality of a degraded interactive frame at most (as the remote-rendering views of
