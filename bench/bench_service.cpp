@@ -1,10 +1,22 @@
-// The service under load: 1, 4 and 16 clients, each walking its own camera path and asking
-// for 1280x720 JPEG frames (screen-space LOD) one after another, against one `plantview serve`.
-// Per client count: frames per second served, p50 and p99 latency, the fewest frames any client
-// got (starvation), and the server's peak resident memory (VmHWM).
+// The service under load, thin clients as the viewer is one: each client walks its own stretch
+// of a walkthrough and asks for 1280x720 JPEG frames (screen-space LOD) one after another, over
+// its own connection, against one `plantview serve`. Four runs, a fresh server each:
+//   interactive x1    one client, mode=interactive: the single-client frame time
+//   interactive x16   16 clients, mode=interactive: degraded under load, never starved
+//   still x1          one client, mode=still: the single-client still time
+//   mixed x16         16 clients, each 7 interactive frames then a still (the viewer at rest),
+//                     the clients out of step (client c rests first after c frames)
+// Per run: frames/s in all and per client (min and mean), p50 and p99 latency per kind
+// (interactive, still), errors, and the server's peak resident memory (VmHWM); then the issue's
+// goals: p99 interactive at 16 clients <= 4x the single-client p50, no client below half the mean
+// rate, stills at 16 clients (p99) within 10x the single-client still p50.
 //
-// Usage: bench_service [--quick] [--store DIR] [--seconds S] [--size WxH] [--clients 1,4,16]
-//   --quick   preset a, 320x180, 1 and 4 clients for 3 s each (the CTest smoke run)
+// Usage: bench_service [--quick] [--store DIR] [--seconds S] [--size WxH] [--clients N]
+//                      [--renderers N] [--bin PLANTVIEW] [--no-mode]
+//   --quick      preset a, 320x180, 4 clients, 1 s a run (the CTest smoke run)
+//   --renderers  passed to serve (default: serve's own choice)
+//   --bin        the plantview program to serve with (e.g. an older build, for a before/after)
+//   --no-mode    never send mode= (servers from before it: every frame is what they render)
 // The store is generated into a temporary directory (preset c) unless --store names one.
 // Prints a table, then "json: " lines.
 #include <poll.h>
@@ -15,6 +27,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -37,15 +50,20 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using namespace plantview;
 
-pid_t start_server(const std::string& store, int& port) {
+pid_t start_server(const std::string& bin, const std::string& store, int renderers, int& port) {
   int out[2];
   if (pipe(out) != 0) return -1;
   const pid_t pid = fork();
   if (pid == 0) {
     dup2(out[1], 1);
     close(out[0]);
-    execl(PLANTVIEW_BIN, PLANTVIEW_BIN, "serve", "--store", store.c_str(), "--listen", "127.0.0.1:0",
-          "--max-queue", "64", static_cast<char*>(nullptr));
+    const std::string n = std::to_string(renderers);
+    if (renderers > 0)
+      execl(bin.c_str(), bin.c_str(), "serve", "--store", store.c_str(), "--listen", "127.0.0.1:0",
+            "--max-queue", "64", "--renderers", n.c_str(), static_cast<char*>(nullptr));
+    else
+      execl(bin.c_str(), bin.c_str(), "serve", "--store", store.c_str(), "--listen", "127.0.0.1:0",
+            "--max-queue", "64", static_cast<char*>(nullptr));
     _exit(127);
   }
   close(out[1]);
@@ -81,13 +99,30 @@ double percentile(std::vector<double> v, double p) {
   return v[std::min(v.size() - 1, size_t(std::ceil(p * double(v.size()))) - 1)];
 }
 
+struct Run {
+  std::string name;
+  int clients = 1;
+  int still_every = 0;  // 0: interactive only; 1: stills only; k: every k-th frame a still
+};
+
+struct Figures {
+  std::vector<double> interactive_ms, still_ms;
+  std::vector<int> frames;  // per client
+  int errors = 0;
+  double seconds = 0;
+  uint64_t peak_bytes = 0;
+  double fps() const { return double(interactive_ms.size() + still_ms.size()) / seconds; }
+  double client_fps_min() const { return *std::min_element(frames.begin(), frames.end()) / seconds; }
+  double client_fps_mean() const { return fps() / double(frames.size()); }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string store_dir, size = "1280x720";
+  bool quick = false, send_mode = true;
+  std::string store_dir, size = "1280x720", bin = PLANTVIEW_BIN;
   double seconds = 30;
-  std::vector<int> client_counts = {1, 4, 16};
+  int many = 16, renderers = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
@@ -95,11 +130,11 @@ int main(int argc, char** argv) {
     else if (a == "--store") store_dir = next();
     else if (a == "--seconds") seconds = std::stod(next());
     else if (a == "--size") size = next();
-    else if (a == "--clients") {
-      client_counts.clear();
-      std::stringstream list(next());
-      for (std::string n; std::getline(list, n, ',');) client_counts.push_back(std::stoi(n));
-    } else {
+    else if (a == "--clients") many = std::stoi(next());
+    else if (a == "--renderers") renderers = std::stoi(next());
+    else if (a == "--bin") bin = next();
+    else if (a == "--no-mode") send_mode = false;
+    else {
       std::fprintf(stderr, "bench_service: unknown argument %s\n", a.c_str());
       return 2;
     }
@@ -108,17 +143,17 @@ int main(int argc, char** argv) {
   if (quick) {
     preset = 'a';
     size = "320x180";
-    seconds = 3;
-    client_counts = {1, 4};
+    seconds = 1;
+    many = 4;
   }
   uint32_t w = 0, h = 0;
-  if (std::sscanf(size.c_str(), "%ux%u", &w, &h) != 2) return 2;
+  if (std::sscanf(size.c_str(), "%ux%u", &w, &h) != 2 || many < 1) return 2;
 
   bool remove_after = false;
   if (store_dir.empty()) {
     store_dir = (fs::temp_directory_path() / ("plantview-bench-service-" + std::to_string(::getpid()))).string();
     fs::remove_all(store_dir);
-    const std::string command = std::string(PLANTVIEW_BIN) + " gen --preset " + preset + " --store " + store_dir + " >/dev/null";
+    const std::string command = bin + " gen --preset " + preset + " --store " + store_dir + " >/dev/null";
     if (std::system(command.c_str()) != 0) return 1;
     remove_after = true;
   }
@@ -133,65 +168,105 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("%-8s %10s %10s %10s %10s %12s %14s\n", "clients", "frames/s", "p50 ms", "p99 ms",
-              "min frames", "errors", "server peak MB");
-  double single_p50 = 0;
-  for (const int clients : client_counts) {
+  const std::string m = std::to_string(many);
+  const Run runs[] = {{"interactive x1", 1, 0}, {"interactive x" + m, many, 0}, {"still x1", 1, 1},
+                      {"mixed x" + m, many, 8}};
+  std::printf("%-16s %9s %9s %9s %9s %9s %9s %9s %7s %9s\n", "run", "frames/s", "client", "client",
+              "inter.", "inter.", "still", "still", "errors", "server");
+  std::printf("%-16s %9s %9s %9s %9s %9s %9s %9s %7s %9s\n", "", "all", "min f/s", "mean f/s", "p50 ms",
+              "p99 ms", "p50 ms", "p99 ms", "", "peak MB");
+  std::vector<Figures> results;
+  for (const Run& run : runs) {
     int port = 0;
-    const pid_t server = start_server(store_dir, port);
+    const pid_t server = start_server(bin, store_dir, renderers, port);
     if (server < 0) {
       std::fprintf(stderr, "bench_service: the server did not start\n");
       return 1;
     }
     std::mutex mutex;
-    std::vector<double> latencies;
-    std::vector<int> frames(size_t(clients), 0);
-    std::atomic<int> errors{0};
-    const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
+    Figures f;
+    f.frames.assign(size_t(run.clients), 0);
+    std::atomic<int> errors{0}, warm{0};
+    // Timed once every client has had one frame (the renderers' arenas filled, as a server
+    // that has been running has them).
+    Clock::time_point deadline = Clock::time_point::max();
+    std::condition_variable all_warm;
     std::vector<std::thread> threads;
-    for (int c = 0; c < clients; ++c) {
+    for (int c = 0; c < run.clients; ++c) {
       threads.emplace_back([&, c] {
         test_support::HttpClient connection(port, 0);  // no receive timeout: frames may be slow
-        size_t step = size_t(c) * path.size() / size_t(clients);
-        std::vector<double> mine;
-        while (Clock::now() < deadline) {
-          const Camera& camera = path[step++ % path.size()];
-          const std::string target = "/api/frame?" + camera_query(camera) + "&w=" + std::to_string(w) +
-                                     "&h=" + std::to_string(h) + "&format=jpeg&quality=85&client=c" + std::to_string(c);
+        size_t step = size_t(c) * path.size() / size_t(run.clients);
+        std::vector<double> interactive, still;
+        const std::string first = "/api/frame?" + camera_query(path[step]) + "&w=" + std::to_string(w) +
+                                  "&h=" + std::to_string(h);
+        connection.request(first);
+        {
+          std::unique_lock lock(mutex);
+          if (++warm == run.clients) {
+            deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+            all_warm.notify_all();
+          }
+          all_warm.wait(lock, [&] { return warm == run.clients; });
+        }
+        for (int n = 1; Clock::now() < deadline; ++n) {
+          // Clients rest at different times (client c after c frames, then every still_every).
+          const bool is_still = run.still_every > 0 && (n + c) % run.still_every == 0;
+          const Camera& camera = path[step % path.size()];
+          if (!is_still || run.still_every == 1) ++step;  // a still: the view the walk rests at
+          std::string target = "/api/frame?" + camera_query(camera) + "&w=" + std::to_string(w) +
+                               "&h=" + std::to_string(h) + "&format=jpeg&quality=85";
+          if (send_mode) target += is_still ? "&mode=still" : "&mode=interactive";
           const auto t = Clock::now();
           const test_support::HttpResponse response = connection.request(target);
-          const int status = response.status;
-          if (status != 200 || response.body.empty()) {
+          if (response.status != 200 || response.body.empty()) {
             errors += 1;
-            if (status == 0) break;
+            if (response.status == 0) break;
             continue;
           }
-          mine.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t).count());
-          frames[size_t(c)] += 1;
+          (is_still ? still : interactive).push_back(std::chrono::duration<double, std::milli>(Clock::now() - t).count());
+          f.frames[size_t(c)] += 1;
         }
         std::lock_guard lock(mutex);
-        latencies.insert(latencies.end(), mine.begin(), mine.end());
+        f.interactive_ms.insert(f.interactive_ms.end(), interactive.begin(), interactive.end());
+        f.still_ms.insert(f.still_ms.end(), still.begin(), still.end());
       });
     }
     for (auto& t : threads) t.join();
-    const uint64_t peak = peak_rss_of(server);
+    f.seconds = seconds;
+    f.errors = errors.load();
+    f.peak_bytes = peak_rss_of(server);
     kill(server, SIGTERM);
     waitpid(server, nullptr, 0);
-    const int total = int(latencies.size());
-    const double fps = total / seconds;
-    const double p50 = percentile(latencies, 0.5), p99 = percentile(latencies, 0.99);
-    if (clients == client_counts.front()) single_p50 = p50;
-    const int fewest = *std::min_element(frames.begin(), frames.end());
-    std::printf("%-8d %10.2f %10.0f %10.0f %10d %12d %14.0f\n", clients, fps, p50, p99, fewest,
-                errors.load(), peak / 1048576.0);
-    nlohmann::json j = {{"bench", "service"}, {"clients", clients}, {"frames_per_second", fps},
-                        {"p50_ms", p50}, {"p99_ms", p99}, {"min_frames_per_client", fewest},
-                        {"errors", errors.load()}, {"server_peak_rss_bytes", peak},
-                        {"p99_over_single_p50", single_p50 > 0 ? p99 / single_p50 : 0.0},
-                        {"width", w}, {"height", h}, {"seconds", seconds}};
+    const double ip50 = percentile(f.interactive_ms, 0.5), ip99 = percentile(f.interactive_ms, 0.99);
+    const double sp50 = percentile(f.still_ms, 0.5), sp99 = percentile(f.still_ms, 0.99);
+    std::printf("%-16s %9.2f %9.2f %9.2f %9.0f %9.0f %9.0f %9.0f %7d %9.0f\n", run.name.c_str(), f.fps(),
+                f.client_fps_min(), f.client_fps_mean(), ip50, ip99, sp50, sp99, f.errors, f.peak_bytes / 1048576.0);
+    nlohmann::json j = {{"bench", "service"}, {"run", run.name}, {"clients", run.clients},
+                        {"frames_per_second", f.fps()}, {"client_fps_min", f.client_fps_min()},
+                        {"client_fps_mean", f.client_fps_mean()}, {"interactive_p50_ms", ip50},
+                        {"interactive_p99_ms", ip99}, {"still_p50_ms", sp50}, {"still_p99_ms", sp99},
+                        {"errors", f.errors}, {"server_peak_rss_bytes", f.peak_bytes},
+                        {"width", w}, {"height", h}, {"seconds", seconds}, {"renderers", renderers}};
     std::printf("json: %s\n", j.dump().c_str());
     std::fflush(stdout);
+    results.push_back(std::move(f));
   }
+  // The goals, from the runs above.
+  const double single = percentile(results[0].interactive_ms, 0.5);
+  const double loaded_p99 = percentile(results[1].interactive_ms, 0.99);
+  const double fairness = results[1].client_fps_min() / results[1].client_fps_mean();
+  const double single_still = percentile(results[2].still_ms, 0.5);
+  const double loaded_still = percentile(results[3].still_ms, 0.99);
+  std::printf("goal: interactive p99 at %d clients / single-client p50 = %.0f / %.0f = %.2f (<= 4)\n", many,
+              loaded_p99, single, single > 0 ? loaded_p99 / single : 0.0);
+  std::printf("goal: slowest client / mean frame rate at %d clients = %.2f (>= 0.5)\n", many, fairness);
+  std::printf("goal: still p99 at %d clients / single-client still p50 = %.0f / %.0f = %.2f (<= 10)\n", many,
+              loaded_still, single_still, single_still > 0 ? loaded_still / single_still : 0.0);
+  nlohmann::json goals = {{"bench", "service_goals"},
+                          {"interactive_p99_over_single", single > 0 ? loaded_p99 / single : 0.0},
+                          {"slowest_over_mean_rate", fairness},
+                          {"still_p99_over_single", single_still > 0 ? loaded_still / single_still : 0.0}};
+  std::printf("json: %s\n", goals.dump().c_str());
   if (remove_after) fs::remove_all(store_dir);
   return 0;
 }

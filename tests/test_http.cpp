@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -19,6 +20,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "server/metrics.h"
+#include "server/objects_json.h"
 #include "server/render_worker.h"
 #include "server/request_parser.h"
 #include "server/routes.h"
@@ -222,6 +224,7 @@ Request get(const std::string& target, std::string authorization = "") {
 
 RouteConfig config() {
   RouteConfig c;
+  c.client_key = {0x0123456789abcdefull, 0xfedcba9876543210ull};
   c.model_json = "{\"objects\":6}\n";
   c.bounds = {{-1, -1, -1}, {16, 1, 1}};
   c.files["/"] = {"text/html; charset=utf-8", "<html></html>"};
@@ -273,16 +276,36 @@ TEST(Routes, OnlyGetIsServed) {
   EXPECT_EQ(r.headers, (Fields{{"Allow", "GET"}}));
 }
 
-TEST(Routes, UnknownPathsAndBadObjectIdsAreRefused) {
+ObjectLookup lookup_of(const Routed& r) {
+  const ObjectLookup* lookup = std::get_if<ObjectLookup>(&r.decision);
+  EXPECT_TRUE(lookup) << (std::holds_alternative<Reply>(r.decision) ? std::get<Reply>(r.decision).body : "");
+  return lookup ? *lookup : ObjectLookup{};
+}
+
+TEST(Routes, UnknownPathsAndBadObjectPathsAreRefused) {
   EXPECT_NE(error_of(route(get("/nope"), config(), false, 1), 404).find("no such resource: /nope"), std::string::npos);
-  EXPECT_NE(error_of(route(get("/api/objects/abc"), config(), false, 1), 400).find("decimal number"), std::string::npos);
-  error_of(route(get("/api/objects/0"), config(), false, 1), 400);
-  error_of(route(get("/api/objects/99999999999999999999999"), config(), false, 1), 400);
-  error_of(route(get("/api/objects/12?x=1"), config(), false, 1), 400);
-  const Routed lookup = route(get("/api/objects/12345"), config(), false, 1);
-  ASSERT_TRUE(std::holds_alternative<ObjectLookup>(lookup.decision));
-  EXPECT_EQ(std::get<ObjectLookup>(lookup.decision).id, 12345u);
-  EXPECT_EQ(lookup.endpoint, "objects");
+  EXPECT_NE(error_of(route(get("/api/objects/"), config(), false, 1), 400).find("missing the object's tag or id"),
+            std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/objects/P%2"), config(), false, 1), 400).find("bad percent escape at byte 1"),
+            std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/objects/" + std::string(1025, 'x')), config(), false, 1), 400).find("at most 1024"),
+            std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/objects/12?x=1"), config(), false, 1), 400).find("no parameters"), std::string::npos);
+}
+
+TEST(Routes, AnObjectIsNamedByItsIdOrItsTag) {
+  const Routed by_id = route(get("/api/objects/12345"), config(), false, 1);
+  EXPECT_EQ(by_id.endpoint, "objects");
+  EXPECT_EQ(lookup_of(by_id).id, 12345u);
+  EXPECT_EQ(lookup_of(by_id).name, "12345");  // a tag of digits, if no object has that id
+  const ObjectLookup tag = lookup_of(route(get("/api/objects/F-01-004"), config(), false, 1));
+  EXPECT_EQ(tag.id, 0u);
+  EXPECT_EQ(tag.name, "F-01-004");
+  // Percent-decoded, '/' kept: what the viewer sends for "/P-101 A" and for "/AREA/P-1".
+  EXPECT_EQ(lookup_of(route(get("/api/objects/%2FP-101%20A"), config(), false, 1)).name, "/P-101 A");
+  EXPECT_EQ(lookup_of(route(get("/api/objects//AREA/P-1"), config(), false, 1)).name, "/AREA/P-1");
+  EXPECT_EQ(lookup_of(route(get("/api/objects/0"), config(), false, 1)).name, "0");
+  EXPECT_EQ(lookup_of(route(get("/api/objects/99999999999999999999999"), config(), false, 1)).id, 0u);
 }
 
 TEST(Routes, PagesModelAndMetricsTakeNoParameters) {
@@ -309,7 +332,11 @@ TEST(Routes, AFrameRequestBecomesARenderJobWithItsTypedCamera) {
   EXPECT_EQ(job.quality, 70);
   EXPECT_EQ(job.policy, LodPolicy::none);
   EXPECT_EQ(job.pixel_error, 2.5);
-  EXPECT_EQ(job.client, "connection:7/frame");
+  EXPECT_EQ(job.mode, FrameMode::still);  // unless asked: never degraded
+  EXPECT_EQ(job.client, "connection:7");
+  EXPECT_EQ(job.client_id, issue_client_id(config().client_key, 7));
+  EXPECT_EQ(job_of(route(get("/api/frame?mode=interactive"), config(), false, 7)).mode, FrameMode::interactive);
+  EXPECT_EQ(job_of(route(get("/api/frame?mode=still"), config(), false, 7)).mode, FrameMode::still);
 }
 
 TEST(Routes, DefaultsAreTheModelsViewUpZAndFifty) {
@@ -319,12 +346,72 @@ TEST(Routes, DefaultsAreTheModelsViewUpZAndFifty) {
   EXPECT_EQ(plain.format, ImageFormat::jpeg);
   EXPECT_EQ(plain.quality, 85);
   EXPECT_EQ(plain.camera, default_camera(config().bounds, 1280.0 / 720.0));
-  const RenderJob partial = job_of(route(get("/api/stats?eye=%2B1,2,3&target=4,5,6&client=me"), config(), false, 1));
+  const RenderJob partial = job_of(route(get("/api/stats?eye=%2B1,2,3&target=4,5,6"), config(), false, 1));
   EXPECT_EQ(partial.kind, RenderJob::Kind::stats);
   EXPECT_EQ(partial.camera.eye_m, glm::dvec3(1, 2, 3));
   EXPECT_EQ(partial.camera.up, glm::dvec3(0, 0, 1));
   EXPECT_EQ(partial.camera.fov_deg, 50.0);
-  EXPECT_EQ(partial.client, "me/stats");
+}
+
+TEST(Routes, UpOrFovWithoutACameraIsRefusedNotIgnored) {
+  for (const std::string q : {"fov=30", "up=0,1,0", "up=0,1,0&fov=30", "fov=30&eye=&target="}) {
+    const std::string body = error_of(route(get("/api/frame?" + q), config(), false, 1), 400);
+    EXPECT_NE(body.find("needs 'eye' and 'target'"), std::string::npos) << q << ": " << body;
+    EXPECT_NE(body.find(q[0] == 'f' ? "'fov'" : "'up'"), std::string::npos) << q << ": " << body;
+  }
+  EXPECT_NE(error_of(route(get("/api/stats?fov=30"), config(), false, 1), 400).find("'fov' needs"), std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/pick?up=0,1,0&x=1&y=1"), config(), false, 1), 400).find("'up' needs"),
+            std::string::npos);
+}
+
+// --- latest-wins slots: a client names only its own ----------------------------------------------
+
+TEST(ClientSlots, WithoutAnIdARequestUsesItsConnectionsSlotAndIsToldItsId) {
+  const RenderJob job = job_of(route(get("/api/frame"), config(), false, 5));
+  EXPECT_EQ(job.client, "connection:5");
+  EXPECT_EQ(job.client_id.size(), 32u);
+  uint64_t named = 0;
+  ASSERT_TRUE(client_slot_of(config().client_key, job.client_id, named));
+  EXPECT_EQ(named, 5u);
+}
+
+TEST(ClientSlots, AnIssuedIdNamesItsSlotFromAnyConnection) {
+  const std::string id = issue_client_id(config().client_key, 5);
+  for (const std::string path : {"/api/frame", "/api/stats", "/api/pick?x=0&y=0&"}) {
+    const std::string target = path + (path.back() == '&' ? "" : "?") + "client=" + id;
+    const RenderJob job = job_of(route(get(target), config(), false, 9));
+    EXPECT_EQ(job.client, "connection:5") << target;
+    EXPECT_EQ(job.client_id, id) << target;
+  }
+}
+
+TEST(ClientSlots, AnotherConnectionsSlotCannotBeNamed) {
+  const RouteConfig c = config();
+  const std::string id5 = issue_client_id(c.client_key, 5);
+  RouteConfig other = c;
+  other.client_key[1] ^= 1;
+  std::string forged = id5;
+  forged[31] = forged[31] == '0' ? '1' : '0';  // the right slot number, a wrong tag
+  const std::string made_up[] = {
+      "connection:5", "connection:5/frame", "5", forged, id5.substr(0, 31), id5 + "0",
+      issue_client_id(other.client_key, 5),  // another server's (or this one's before a restart)
+      std::string(16, '0') + id5.substr(16),
+  };
+  for (const std::string& value : made_up) {
+    const RenderJob job = job_of(route(get("/api/frame?client=" + value), c, false, 9));
+    EXPECT_EQ(job.client, "connection:9") << value;  // its own, not 5's
+    EXPECT_EQ(job.client_id, issue_client_id(c.client_key, 9)) << value;
+  }
+  uint64_t named = 0;
+  EXPECT_FALSE(client_slot_of(c.client_key, forged, named));
+  // Ids of different connections differ in their tags, not only in their numbers.
+  EXPECT_NE(issue_client_id(c.client_key, 5).substr(16), issue_client_id(c.client_key, 6).substr(16));
+}
+
+TEST(ClientSlots, KeysFromTheSystemDiffer) {
+  const ClientKey a = random_client_key(), b = random_client_key();
+  EXPECT_NE(a, b);
+  EXPECT_NE(issue_client_id(a, 1), issue_client_id(b, 1));
 }
 
 TEST(Routes, BadParametersAreRefusedNamingTheParameter) {
@@ -336,6 +423,8 @@ TEST(Routes, BadParametersAreRefusedNamingTheParameter) {
       {"/api/stats?format=png", "unknown parameter 'format'"},
       {"/api/pick?quality=5&x=1&y=1", "unknown parameter 'quality'"},
       {"/api/frame?format=gif", "'format' must be jpeg or png"},
+      {"/api/frame?mode=fast", "'mode' must be interactive or still"},
+      {"/api/stats?mode=still", "unknown parameter 'mode'"},
       {"/api/frame?quality=101", "'quality' must be 1..100"},
       {"/api/frame?lod=fast", "'lod'"},
       {"/api/frame?px=0", "'px'"},
@@ -378,11 +467,17 @@ TEST(Routes, APickNeedsAPixelInsideTheImage) {
   EXPECT_EQ(pick.kind, RenderJob::Kind::pick);
   EXPECT_EQ(pick.x, 99u);
   EXPECT_EQ(pick.y, 49u);
-  EXPECT_EQ(pick.client, "connection:3/pick");
-  for (const std::string q : {"w=100&h=50&x=100&y=0", "w=100&h=50&x=0&y=50", "w=100&h=50", "w=100&h=50&x=1"})
-    EXPECT_NE(error_of(route(get("/api/pick?" + q), config(), false, 1), 400).find("inside the w x h image"),
+  EXPECT_EQ(pick.client, "connection:3");
+  for (const std::string q : {"w=100&h=50&x=100&y=0", "w=100&h=50&x=0&y=50"})
+    EXPECT_NE(error_of(route(get("/api/pick?" + q), config(), false, 1), 400).find("inside the w x h image (100x50)"),
               std::string::npos)
         << q;
+  // Missing is named as missing, not as out of the image.
+  EXPECT_NE(error_of(route(get("/api/pick?w=100&h=50"), config(), false, 1), 400).find("missing 'x'"), std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/pick?w=100&h=50&y=1"), config(), false, 1), 400).find("missing 'x'"),
+            std::string::npos);
+  EXPECT_NE(error_of(route(get("/api/pick?w=100&h=50&x=1"), config(), false, 1), 400).find("missing 'y'"),
+            std::string::npos);
   EXPECT_NE(error_of(route(get("/api/pick?x=-1&y=0"), config(), false, 1), 400).find("'x' must be a pixel position"),
             std::string::npos);
 }
@@ -508,6 +603,15 @@ class Results {
   bool hold_ = false;
 };
 
+// One renderer, 16 MB, `max_queue` jobs waiting at most.
+RenderWorkerOptions one_renderer(uint32_t max_queue) { return {16 << 20, -1, 1, max_queue}; }
+
+std::string header_of(const RenderResult& r, const std::string& name) {
+  for (const auto& [key, value] : r.headers)
+    if (key == name) return value;
+  return "(no " + name + ")";
+}
+
 RenderJob frame_job(uint64_t ticket, const std::string& client, uint32_t side = 64) {
   RenderJob job;
   job.kind = RenderJob::Kind::frame;
@@ -525,7 +629,7 @@ TEST(RenderWorker, ANewerJobOfTheSameClientReplacesTheWaitingOneAndAFullQueueIsB
   ASSERT_TRUE(store) << error;
   Results results;
   RenderWorker worker;
-  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 2, results.notifier(), error)) << error;
+  ASSERT_TRUE(worker.start(*store, one_renderer(2), results.notifier(), error)) << error;
   results.hold(true);
   uint64_t dropped = 0;
   EXPECT_EQ(worker.submit(frame_job(1, "first"), dropped), RenderWorker::Submitted::queued);
@@ -559,7 +663,7 @@ TEST(RenderWorker, JobsSubmittedWhileItRendersAreAllAnsweredAndStopFinishesTheQu
   ASSERT_TRUE(store) << error;
   Results results;
   RenderWorker worker;
-  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 64, results.notifier(), error)) << error;
+  ASSERT_TRUE(worker.start(*store, one_renderer(64), results.notifier(), error)) << error;
   std::set<uint64_t> answered;
   const auto take = [&] {
     for (RenderResult& r : worker.take_results()) {
@@ -587,7 +691,7 @@ TEST(RenderWorker, APickReadsTheObjectFromTheRenderersSnapshot) {
   ASSERT_TRUE(store) << error;
   Results results;
   RenderWorker worker;
-  ASSERT_TRUE(worker.start(*store, 16 << 20, -1, 8, results.notifier(), error)) << error;
+  ASSERT_TRUE(worker.start(*store, one_renderer(8), results.notifier(), error)) << error;
   RenderJob pick;
   pick.kind = RenderJob::Kind::pick;
   pick.camera.eye_m = {6, -10, 0};
@@ -610,6 +714,255 @@ TEST(RenderWorker, APickReadsTheObjectFromTheRenderersSnapshot) {
   EXPECT_EQ(done[0].status, 200);
   EXPECT_NE(done[0].body.find("\"name\":\"/BOX-2\""), std::string::npos) << done[0].body;
   EXPECT_EQ(done[1].body, "{\"object\":null}\n");
+}
+
+TEST(RenderWorker, ClientsAreServedRoundRobinNotInArrivalOrder) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, one_renderer(16), results.notifier(), error)) << error;
+  results.hold(true);
+  uint64_t dropped = 0;
+  worker.submit(frame_job(1, "first"), dropped);
+  ASSERT_TRUE(results.wait_for(1));  // the renderer waits between jobs
+  // Client a asks for a frame, statistics and a pick before b and c ask for anything.
+  RenderJob a_stats = frame_job(3, "a"), a_pick = frame_job(4, "a");
+  a_stats.kind = RenderJob::Kind::stats;
+  a_pick.kind = RenderJob::Kind::pick;
+  for (RenderJob job : {frame_job(2, "a"), a_stats, a_pick, frame_job(5, "b"), frame_job(6, "c")})
+    ASSERT_EQ(worker.submit(std::move(job), dropped), RenderWorker::Submitted::queued);  // kinds don't replace
+  EXPECT_EQ(worker.queue_depth(), 5u);
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(6));
+  worker.stop();
+  std::vector<uint64_t> order;
+  for (const RenderResult& r : worker.take_results()) order.push_back(r.ticket);
+  // b and c wait for one job of a, not three.
+  EXPECT_EQ(order, (std::vector<uint64_t>{1, 2, 5, 6, 3, 4}));
+}
+
+TEST(Degradation, InteractiveFramesGetCheaperAsPressureGrowsStillsStatsAndPicksNever) {
+  RenderJob interactive = frame_job(1, "i");
+  interactive.mode = FrameMode::interactive;
+  const auto degraded = [&](size_t demand, size_t renderers) {
+    const Degradation d = choose_degradation(interactive, demand, renderers);
+    return std::pair<double, uint32_t>(d.pixel_error_factor, d.size_divisor);
+  };
+  using P = std::pair<double, uint32_t>;
+  EXPECT_EQ(degraded(1, 1), P(1, 1));
+  EXPECT_EQ(degraded(2, 1), P(4, 1));  // a coarser pixel error first
+  EXPECT_EQ(degraded(3, 1), P(4, 1));
+  EXPECT_EQ(degraded(4, 1), P(4, 2));  // then a lower resolution
+  EXPECT_EQ(degraded(6, 1), P(4, 2));
+  EXPECT_EQ(degraded(7, 1), P(4, 4));
+  EXPECT_EQ(degraded(64, 1), P(4, 4));
+  // Pressure is per renderer.
+  EXPECT_EQ(degraded(2, 2), P(1, 1));
+  EXPECT_EQ(degraded(3, 2), P(4, 1));
+  EXPECT_EQ(degraded(7, 2), P(4, 2));
+  EXPECT_EQ(degraded(13, 2), P(4, 4));
+  for (const auto kind : {RenderJob::Kind::stats, RenderJob::Kind::pick}) {
+    RenderJob other = interactive;
+    other.kind = kind;
+    EXPECT_FALSE(choose_degradation(other, 64, 1).any());
+  }
+  RenderJob still = interactive;
+  still.mode = FrameMode::still;
+  EXPECT_FALSE(choose_degradation(still, 64, 1).any());
+}
+
+TEST(Degradation, TwoInteractiveClientsOnOneRendererTheOneTakenWhileTheOtherWaitsIsCoarser) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, one_renderer(16), results.notifier(), error)) << error;
+  results.hold(true);
+  uint64_t dropped = 0;
+  worker.submit(frame_job(1, "first"), dropped);
+  ASSERT_TRUE(results.wait_for(1));
+  for (uint64_t t : {2, 3}) {
+    RenderJob job = frame_job(t, t == 2 ? "a" : "b");
+    job.mode = FrameMode::interactive;
+    worker.submit(std::move(job), dropped);
+  }
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(3));
+  worker.stop();
+  std::map<uint64_t, RenderResult> by_ticket;
+  for (RenderResult& r : worker.take_results()) by_ticket[r.ticket] = std::move(r);
+  // a was taken while b waited: 2 requests for 1 renderer. b was taken alone.
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Degraded"), "pixel-error");
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Pixel-Error"), "4");
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Jpeg-Quality"), "60");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Degraded"), "none");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Pixel-Error"), "1");
+  EXPECT_EQ(header_of(by_ticket[3], "X-Plantview-Jpeg-Quality"), "85");
+}
+
+// Many clients and one renderer: what an interactive frame gave up shows in its headers, and a
+// still waiting with them is rendered in full.
+TEST(Degradation, UnderLoadInteractiveHeadersShowTheCoarserQualityAndAStillIsNeverDegraded) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, one_renderer(16), results.notifier(), error)) << error;
+  results.hold(true);
+  uint64_t dropped = 0;
+  worker.submit(frame_job(1, "first"), dropped);
+  ASSERT_TRUE(results.wait_for(1));
+  // Seven viewers move, one rests: 8 requests for one renderer.
+  for (uint64_t t = 2; t <= 8; ++t) {
+    RenderJob job = frame_job(t, "moving-" + std::to_string(t), 160);
+    job.height = 96;
+    job.mode = FrameMode::interactive;
+    job.client_id = "id-" + std::to_string(t);
+    worker.submit(std::move(job), dropped);
+  }
+  RenderJob still = frame_job(9, "resting", 160);
+  still.height = 96;
+  worker.submit(std::move(still), dropped);
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(9));
+  // Then one alone: nothing waits, nothing is given up.
+  RenderJob alone = frame_job(10, "moving-2", 160);
+  alone.height = 96;
+  alone.mode = FrameMode::interactive;
+  worker.submit(std::move(alone), dropped);
+  ASSERT_TRUE(results.wait_for(10));
+  worker.stop();
+  std::map<uint64_t, RenderResult> by_ticket;
+  for (RenderResult& r : worker.take_results()) by_ticket[r.ticket] = std::move(r);
+  ASSERT_EQ(by_ticket.size(), 10u);
+  struct Expected {
+    uint64_t ticket;
+    const char *degraded, *pixel_error, *size, *queue;
+    uint32_t width;
+  };
+  // Taken in order: ticket 2 with 7 others waiting (8 for one renderer), ... ticket 8 with 1.
+  const Expected expected[] = {
+      {2, "pixel-error,resolution", "4", "40x24", "7", 40}, {3, "pixel-error,resolution", "4", "40x24", "6", 40},
+      {4, "pixel-error,resolution", "4", "80x48", "5", 80}, {5, "pixel-error,resolution", "4", "80x48", "4", 80},
+      {6, "pixel-error,resolution", "4", "80x48", "3", 80}, {7, "pixel-error", "4", "160x96", "2", 160},
+      {8, "pixel-error", "4", "160x96", "1", 160},          {10, "none", "1", "160x96", "0", 160},
+  };
+  for (const Expected& e : expected) {
+    const RenderResult& r = by_ticket[e.ticket];
+    EXPECT_EQ(r.status, 200) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Mode"), "interactive") << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Degraded"), e.degraded) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Pixel-Error"), e.pixel_error) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Render-Size"), e.size) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Queue"), e.queue) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Jpeg-Quality"), std::string(e.ticket == 10 ? "85" : "60")) << e.ticket;
+    EXPECT_EQ(r.quality, e.ticket == 10 ? 85 : 60) << e.ticket;
+    EXPECT_EQ(r.image.width, e.width) << e.ticket;  // the image has the size rendered
+    EXPECT_NE(header_of(r, "X-Plantview-Render-Ms").find('.'), std::string::npos) << e.ticket;
+  }
+  EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Client"), "id-2");
+  const RenderResult& s = by_ticket[9];
+  EXPECT_EQ(header_of(s, "X-Plantview-Mode"), "still");
+  EXPECT_EQ(header_of(s, "X-Plantview-Degraded"), "none");
+  EXPECT_EQ(header_of(s, "X-Plantview-Pixel-Error"), "1");
+  EXPECT_EQ(header_of(s, "X-Plantview-Render-Size"), "160x96");
+  EXPECT_EQ(header_of(s, "X-Plantview-Queue"), "0");
+  EXPECT_EQ(s.image.width, 160u);
+  EXPECT_EQ(s.quality, 85);
+}
+
+TEST(RenderWorker, SeveralRenderersRenderAtOnceEachWithItsOwnContext) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  Results results;
+  RenderWorker worker;
+  ASSERT_TRUE(worker.start(*store, {16 << 20, -1, 2, 16}, results.notifier(), error)) << error;
+  EXPECT_EQ(worker.renderers(), 2u);
+  EXPECT_EQ(worker.device_description().rfind("2 renderers", 0), 0u) << worker.device_description();
+  results.hold(true);
+  uint64_t dropped = 0;
+  worker.submit(frame_job(1, "a"), dropped);
+  worker.submit(frame_job(2, "b"), dropped);
+  // Both results announced while neither renderer may go on: they rendered side by side.
+  ASSERT_TRUE(results.wait_for(2));
+  worker.submit(frame_job(3, "c"), dropped);
+  results.hold(false);
+  ASSERT_TRUE(results.wait_for(3));
+  worker.stop();
+  std::set<uint64_t> answered;
+  for (const RenderResult& r : worker.take_results()) {
+    EXPECT_EQ(r.status, 200) << r.body;
+    EXPECT_EQ(r.image.width, 64u);
+    answered.insert(r.ticket);
+  }
+  EXPECT_EQ(answered, (std::set<uint64_t>{1, 2, 3}));
+  EXPECT_TRUE(worker.idle());
+}
+
+TEST(RenderWorker, OnASoftwareRendererTwoRenderersAndOnePer16CoresOnLargeMachines) {
+  EXPECT_EQ(default_software_renderers(1), 1u);
+  EXPECT_EQ(default_software_renderers(2), 2u);
+  EXPECT_EQ(default_software_renderers(16), 2u);
+  EXPECT_EQ(default_software_renderers(64), 4u);
+}
+
+// --- objects by tag or id -----------------------------------------------------------------------
+
+TEST(Objects, AnObjectIsFoundByIdByTagAsStoredOrWithoutItsLeadingSlash) {
+  std::string error;
+  auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const uint64_t id = object_id("test", "/BOX-3");
+  for (const auto& [by_id, name] : std::vector<std::pair<uint64_t, std::string>>{
+           {id, std::to_string(id)}, {0, "/BOX-3"}, {0, "BOX-3"}}) {
+    const ObjectAnswer a = object_answer(*view, by_id, name);
+    EXPECT_EQ(a.status, 200) << name << ": " << a.body;
+    EXPECT_NE(a.body.find("\"id\":\"" + std::to_string(id) + "\""), std::string::npos) << a.body;
+    EXPECT_NE(a.body.find("\"name\":\"/BOX-3\""), std::string::npos) << a.body;
+  }
+  const ObjectAnswer none = object_answer(*view, 0, "BOX-9");
+  EXPECT_EQ(none.status, 404);
+  EXPECT_NE(none.body.find("no object has the tag 'BOX-9'"), std::string::npos) << none.body;
+  const ObjectAnswer digits = object_answer(*view, 12345, "12345");
+  EXPECT_EQ(digits.status, 404);
+  EXPECT_NE(digits.body.find("no object has the id or the tag '12345'"), std::string::npos) << digits.body;
+}
+
+TEST(Objects, ATagOfSeveralObjectsIsAConflictListingTheirIds) {
+  const test::TempDir dir;
+  std::string error;
+  {
+    auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+    ASSERT_TRUE(store) << error;
+    std::vector<Object> objects;
+    for (const char* source : {"a.rvm", "b.rvm"}) {
+      Object o;
+      o.name = "/TWIN";
+      o.source = source;
+      o.id = object_id(o.source, o.name);
+      o.object_class = ObjectClass::equipment;
+      o.primitives.push_back(Primitive{Placement{}, Box{1, 1, 1}});
+      objects.push_back(std::move(o));
+    }
+    const IngestResult result = ingest_objects(*store, objects);
+    ASSERT_TRUE(result) << result.error().message;
+  }
+  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const ObjectAnswer a = object_answer(*view, 0, "TWIN");
+  EXPECT_EQ(a.status, 409) << a.body;
+  EXPECT_NE(a.body.find("names 2 objects"), std::string::npos) << a.body;
+  for (const char* source : {"a.rvm", "b.rvm"})
+    EXPECT_NE(a.body.find("\"" + std::to_string(object_id(source, "/TWIN")) + "\""), std::string::npos) << a.body;
 }
 
 TEST(RenderWorker, AStoppedWorkerThatNeverStartedStopsCleanly) {

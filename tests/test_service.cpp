@@ -173,7 +173,11 @@ TEST(Service, ModelFrameStatsPickObjectsMetricsAndPage) {
   ASSERT_EQ(object.status, 200);
   EXPECT_EQ(json_of(object)["name"], "/BOX-2");
   EXPECT_EQ(c.request("/api/objects/12345").status, 404);
-  EXPECT_EQ(c.request("/api/objects/abc").status, 400);
+  EXPECT_EQ(c.request("/api/objects/abc").status, 404);  // a tag no object has
+  Response by_tag = c.request("/api/objects/BOX-2");  // as stored, "/BOX-2"
+  ASSERT_EQ(by_tag.status, 200) << by_tag.body;
+  EXPECT_EQ(json_of(by_tag)["id"], picked["id"]);
+  EXPECT_EQ(c.request("/api/objects/").status, 400);
 
   Response metrics = c.request("/metrics");
   ASSERT_EQ(metrics.status, 200);
@@ -213,7 +217,9 @@ TEST(Service, BadParametersAreRefusedWithAReason) {
       {"/api/frame?w=1&w=2", "twice"},
       {"/api/frame?w=%zz", "percent"},
       {"/api/pick?w=10&h=10&x=10&y=0", "inside"},
-      {"/api/pick?w=10&h=10", "inside"},
+      {"/api/pick?w=10&h=10", "missing 'x'"},
+      {"/api/pick?w=10&h=10&x=1", "missing 'y'"},
+      {"/api/frame?fov=30", "'fov' needs 'eye' and 'target'"},
       {"/api/stats?format=png", "unknown parameter 'format'"},
       {"/api/model?x=1", "no parameters"},
   };
@@ -274,9 +280,12 @@ TEST(Service, ASlowClientTimesOutAndADepartingOneDisturbsNobody) {
 TEST(Service, PipelinedRequestsAreAnsweredInOrder) {
   Server server;
   Client c(server.port());
+  // The second frame in another latest-wins slot (another connection's, by the id the server
+  // issued it), so that it does not supersede the first.
+  const std::string other = Client(server.port()).request("/api/stats?w=8&h=8").headers["x-plantview-client"];
   c.send("GET /api/frame?w=40&h=30&format=png HTTP/1.1\r\nHost: t\r\n\r\n"
          "GET /api/model HTTP/1.1\r\nHost: t\r\n\r\n"
-         "GET /api/frame?w=20&h=10&format=png&client=other HTTP/1.1\r\nHost: t\r\n\r\n"
+         "GET /api/frame?w=20&h=10&format=png&client=" + other + " HTTP/1.1\r\nHost: t\r\n\r\n"
          "GET /api/stats?w=20&h=10 HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n"
          "GET /api/model HTTP/1.1\r\nHost: t\r\n\r\n");
   EXPECT_TRUE(is_image(c.read(), 40, 30, ".png"));
@@ -313,16 +322,21 @@ TEST(Service, ThirtyTwoClientsOfFiftyFramesEachAllGetTheirImages) {
 
 TEST(Service, ANewerRequestOfTheSameClientSupersedesAWaitingOne) {
   Server server;
-  // Keep the render thread busy, then queue two requests of client "c": the first waits and is
-  // superseded by the second.
-  Client busy(server.port()), a(server.port()), b(server.port());
+  // Keep the render threads busy, then queue two requests of one client on two connections (the
+  // id the server issued to the first, sent by both): the first waits and is superseded by the
+  // second.
+  Client busy(server.port()), busy2(server.port()), a(server.port()), b(server.port());
+  const std::string id = a.request("/api/stats?w=8&h=8").headers["x-plantview-client"];
+  ASSERT_EQ(id.size(), 32u);
   busy.get("/api/frame?w=2000&h=2000&format=png&lod=none");
+  busy2.get("/api/frame?w=2000&h=2000&format=png&lod=none");
   std::this_thread::sleep_for(50ms);
-  a.get("/api/frame?w=30&h=30&client=c");
+  a.get("/api/frame?w=30&h=30&client=" + id);
   std::this_thread::sleep_for(50ms);
-  b.get("/api/frame?w=31&h=31&client=c");
+  b.get("/api/frame?w=31&h=31&client=" + id);
   Response first = a.read(), second = b.read();
   EXPECT_EQ(busy.read().status, 200);
+  EXPECT_EQ(busy2.read().status, 200);
   // The first may have started before the second arrived on a fast machine; then both are
   // images. Otherwise it is answered 409.
   EXPECT_TRUE(first.status == 409 || is_image(first, 30, 30, ".jpg")) << first.status;

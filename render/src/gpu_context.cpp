@@ -4,6 +4,8 @@
 #include <epoxy/gl.h>
 
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -42,6 +44,13 @@ bool has_extension(const char* list, const char* name) {
   return false;
 }
 
+// eglInitialize is not counted (EGL 1.5): one eglTerminate ends every context of the display,
+// also those current on other threads. The GpuContexts of one device share its display (several
+// render threads), so it is initialised and terminated under this lock, and terminated when
+// the last of its contexts is released.
+std::mutex display_users_mutex;
+std::map<EGLDisplay, int> display_users;  // guarded by display_users_mutex
+
 // A display with a current GL 4.5 core context, or an error. Owns what it made.
 struct Attempt {
   EGLDisplay display = EGL_NO_DISPLAY;
@@ -52,7 +61,11 @@ struct Attempt {
     if (display != EGL_NO_DISPLAY) {
       eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
       if (context != EGL_NO_CONTEXT) eglDestroyContext(display, context);
-      eglTerminate(display);
+      std::lock_guard lock(display_users_mutex);
+      if (--display_users[display] == 0) {
+        display_users.erase(display);
+        eglTerminate(display);
+      }
     }
     display = EGL_NO_DISPLAY;
     context = EGL_NO_CONTEXT;
@@ -65,10 +78,14 @@ struct Attempt {
       return false;
     }
     EGLint major = 0, minor = 0;
-    if (!eglInitialize(display, &major, &minor)) {
-      error = what + ": eglInitialize failed (" + egl_error_name(eglGetError()) + ")";
-      display = EGL_NO_DISPLAY;
-      return false;
+    {
+      std::lock_guard lock(display_users_mutex);
+      if (!eglInitialize(display, &major, &minor)) {
+        error = what + ": eglInitialize failed (" + egl_error_name(eglGetError()) + ")";
+        display = EGL_NO_DISPLAY;
+        return false;
+      }
+      ++display_users[display];
     }
     const char* extensions = eglQueryString(display, EGL_EXTENSIONS);
     if (!eglBindAPI(EGL_OPENGL_API)) {

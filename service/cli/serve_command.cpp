@@ -20,6 +20,10 @@ Action add_serve_command(CLI::App& app) {
   serve->add_option("--max-queue", options->max_queue, "Render requests waiting at most (then 503)")->capture_default_str();
   serve->add_option("--token", options->token, "Bearer token every request must carry (required off loopback)");
   serve->add_option("--device", options->device, "EGL device index");
+  serve->add_option("--renderers", options->renderers,
+                    "Render threads, each with its own context and vertex arena (0: one per EGL device; "
+                    "on a software renderer as the cores allow)")
+      ->check(CLI::Range(0u, 64u))->capture_default_str();
   serve->add_option("--web", options->web_directory, "Directory of the viewer page")->capture_default_str();
   auto request_timeout_s = std::make_shared<double>(10.0);
   serve->add_option("--request-timeout", *request_timeout_s,

@@ -1,17 +1,19 @@
+// Rules: objects_json.h.
 #include "server/objects_json.h"
 
 #include <nlohmann/json.hpp>
+#include <vector>
+
+#include "server/http.h"
 
 namespace plantview::service {
 
-bool object_json(const ReadView& view, uint64_t id, std::string& json, std::string& error) {
-  const auto slot = view.slot_of(id);
-  if (!slot) {
-    error = "no object " + std::to_string(id);
-    return false;
-  }
+namespace {
+
+// The object in `slot` as JSON; false with the store's message if it cannot be read.
+bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::string& error) {
   Object o;
-  if (!view.object(*slot, o, true, error)) return false;
+  if (!view.object(slot, o, true, error)) return false;
   nlohmann::json attributes = nlohmann::json::array();
   for (const auto& a : o.attributes) attributes.push_back({{"key", a.key}, {"value", a.value}});
   nlohmann::json j = {{"id", std::to_string(o.id)},
@@ -25,6 +27,59 @@ bool object_json(const ReadView& view, uint64_t id, std::string& json, std::stri
   // Attribute values are bytes as the source gave them: invalid UTF-8 is replaced, not refused.
   json = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   return true;
+}
+
+ObjectAnswer error_answer(int status, std::string_view message) { return {status, error_body(message)}; }
+
+// The object in `slot`, as object_json() gives it.
+ObjectAnswer slot_answer(const ReadView& view, uint32_t slot) {
+  std::string error, json;
+  if (!slot_json(view, slot, json, error)) return error_answer(500, error);
+  return {200, json + "\n"};
+}
+
+}  // namespace
+
+bool object_json(const ReadView& view, uint64_t id, std::string& json, std::string& error) {
+  const auto slot = view.slot_of(id);
+  if (!slot) {
+    error = "no object " + std::to_string(id);
+    return false;
+  }
+  return slot_json(view, *slot, json, error);
+}
+
+ObjectAnswer object_answer(const ReadView& view, uint64_t id, std::string_view name) {
+  std::string error;
+  if (id != 0) {
+    std::optional<uint32_t> slot;
+    if (!view.slot_of(id, slot, error)) return error_answer(500, error);
+    if (slot) return slot_answer(view, *slot);
+  }
+  std::vector<uint32_t> slots;
+  std::string as_stored(name);
+  if (!view.slots_named(as_stored, slots, error)) return error_answer(500, error);
+  if (slots.empty() && !name.empty() && name.front() != '/') {
+    as_stored = "/" + as_stored;
+    if (!view.slots_named(as_stored, slots, error)) return error_answer(500, error);
+  }
+  if (slots.empty()) {
+    const std::string what = "'" + std::string(name.substr(0, 128)) + "'";
+    return error_answer(404, (id != 0 ? "no object has the id or the tag " : "no object has the tag ") + what);
+  }
+  if (slots.size() > 1) {
+    nlohmann::json ids = nlohmann::json::array();
+    for (const uint32_t slot : slots) {
+      Object o;
+      if (!view.object(slot, o, false, error)) return error_answer(500, error);
+      ids.push_back(std::to_string(o.id));
+    }
+    const nlohmann::json body = {
+        {"error", "the tag " + as_stored + " names " + std::to_string(slots.size()) + " objects: ask by id"},
+        {"ids", ids}};
+    return {409, body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n"};
+  }
+  return slot_answer(view, slots.front());
 }
 
 }  // namespace plantview::service

@@ -1,7 +1,8 @@
-// What the routes hand to the render thread (a RenderJob) and what comes back (a RenderResult).
+// What the routes hand to the render workers (a RenderJob) and what comes back (a RenderResult).
 // Plain values: they cross threads by move, and nothing in them points anywhere.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
@@ -10,17 +11,34 @@
 
 namespace plantview::service {
 
+// What a frame asks of its quality (`mode` on /api/frame). Interactive frames may be rendered
+// cheaper while requests wait for the renderers (render_worker.h: choose_degradation); a still
+// is never degraded, only queued, and is antialiased where the renderer offers it.
+enum class FrameMode { still, interactive };
+
 struct RenderJob {
   enum class Kind { frame, stats, pick } kind = Kind::frame;
   Camera camera;                    // valid (validate_camera) when the routes made it
-  uint32_t width = 0, height = 0;   // pixels, 1..4096
+  uint32_t width = 0, height = 0;   // pixels, 1..4096: what the client asked for
   ImageFormat format = ImageFormat::jpeg;
   int quality = 85;                 // 1..100, JPEG only
   LodPolicy policy = LodPolicy::screen_space;
   double pixel_error = 1.0;         // pixels, (0, 1000]
+  FrameMode mode = FrameMode::still;  // frames only; stats and picks are never degraded
   uint32_t x = 0, y = 0;            // pick: a pixel inside width x height
-  std::string client;               // latest-wins key: a waiting job with the same key is replaced
+  // The latest-wins slot (routes.h: a connection's, or the one an issued client id names): the
+  // unit of round-robin, and with `kind` the key a newer job replaces a waiting one by. Never
+  // empty in a job the routes made.
+  std::string client;
+  std::string client_id;            // the id that names `client`, sent back as X-Plantview-Client
   uint64_t ticket = 0;              // the response it answers (the loop's bookkeeping)
+};
+
+// How a job was rendered, chosen by the worker when it takes the job (render_worker.h).
+struct Degradation {
+  double pixel_error_factor = 1;  // the job's pixel error times this
+  uint32_t size_divisor = 1;      // both sides divided by this (at least 1 pixel each)
+  bool any() const { return pixel_error_factor != 1 || size_divisor != 1; }
 };
 
 struct RenderResult {

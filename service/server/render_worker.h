@@ -1,26 +1,56 @@
-// The render thread of the service: owns the EGL context and the renderer, and runs frame,
-// statistics and pick jobs one at a time, in the order they wait.
+// The render threads of the service: N renderers, each on a thread of its own with its own EGL
+// context, Renderer and vertex arena, taking frame, statistics and pick jobs from one queue.
+//
+// Renderers
+//   - Each render thread makes its GpuContext and Renderer and uses them alone (a GL context is
+//     current on one thread; render.h). They share the Store, but each Renderer reads it through
+//     a read view of its own: a view is an LMDB read transaction, which belongs to the thread
+//     that began it, so N threads cannot share one. The views are snapshots of the same commit
+//     unless an import commits between two renderers' start.
+//   - Memory: every renderer has its own vertex arena of vertex_budget_bytes and its own cache of
+//     decoded objects, so N renderers hold up to N times one renderer's memory (on a software
+//     renderer the "GPU" arena is system memory).
+//   - How many (renderers = 0, automatic): on hardware, one per EGL device (the first device
+//     that works, then each later device that opens as hardware); on a software renderer
+//     (llvmpipe) default_software_renderers(cores): 2, and one per 16 cores on larger machines.
+//     llvmpipe rasterises each context with LP_NUM_THREADS threads; unless the environment
+//     sets it, start() sets it to the number of cores (at most 16, Mesa's limit) before the
+//     first context, so that a lone client's frame uses every core and two renderers overlap
+//     one's serial work (cull, choose, stream) with the other's rasterising. Measured on 2
+//     cores: render_worker.cpp, default_software_renderers.
+//
+// Scheduling (one queue for all renderers)
+//   - Round-robin across clients: each client (job.client) has a line of waiting jobs; the next
+//     job is the first of the first line, and a client whose job is taken goes to the back. A
+//     client with one request waiting is served after at most one job of every other client.
+//   - Latest wins: a job whose client and kind match a waiting one replaces it in its place (the
+//     older one's ticket is returned, to be answered 409). A running job is never replaced.
+//   - At most max_queue jobs wait; beyond that submit() refuses (busy).
+//   - Degradation: when a renderer takes a job, the requests that want a renderer (those
+//     waiting, those running on the other renderers, and this one) are compared with the number
+//     of renderers, and choose_degradation() says how much cheaper an interactive frame is
+//     rendered. Stills, statistics and picks are never degraded. The frame's X-Plantview-*
+//     headers say what was used.
 //
 // Threads
 //   - start(), submit(), take_results(), queue_depth(), idle() and stop() are called by one
 //     owning thread (the server's loop thread; a test's thread). They lock a mutex, briefly:
 //     never while a job renders.
-//   - `notify` (given to start) is called on the render thread each time a result is ready; it
-//     must not block and must be safe from any thread (the server passes uv_async_send).
-//   - The EGL context and renderer are made, used and destroyed on the render thread only.
-// Queueing: a job whose client key matches a waiting one replaces it in its place in line (the
-// older one's ticket is returned, to be answered 409); at most max_queue jobs wait, beyond that
-// submit() refuses (busy). A running job is never replaced.
-// Picks read their object from the renderer's snapshot of the store: the commit the frame was
-// drawn from.
-// Errors: start() fails with a message when the GPU context or renderer cannot be made; a job
-// that fails gives a 500 result with the renderer's message.
+//   - `notify` (given to start) is called on a render thread each time a result is ready; it
+//     must not block for long and must be safe from any thread (the server passes
+//     uv_async_send).
+// Picks read their object from the snapshot of the renderer that drew them: the commit the
+// frame was drawn from.
+// Errors: start() fails with a message when the first GPU context or renderer cannot be made,
+// or one of an explicit number of renderers cannot; a job that fails gives a 500 result with
+// the renderer's message.
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -32,50 +62,90 @@
 
 namespace plantview::service {
 
+struct RenderWorkerOptions {
+  uint64_t vertex_budget_bytes = 512ull << 20;  // per renderer
+  int device = -1;         // EGL device, as GpuContext::create takes it; < 0: automatic
+  uint32_t renderers = 0;  // render threads; 0: automatic (see the rules above)
+  uint32_t max_queue = 64; // jobs waiting at most
+};
+
+// Renderers on a software renderer when the number is automatic, for `cores` cores (measured on
+// llvmpipe with bench_service: see render_worker.cpp).
+uint32_t default_software_renderers(uint32_t cores);
+
+// How much cheaper an interactive frame is rendered when `demand` requests want one of
+// `renderers` renderers (demand counts the job itself). The ladder, by pressure = demand /
+// renderers:
+//   <= 1: nothing                                          X-Plantview-Degraded: none
+//   <= 3: pixel error x4                                                     pixel-error
+//   <= 6: pixel error x4, half the width and height                          pixel-error,resolution
+//   >  6: pixel error x4, a quarter of the width and height                  pixel-error,resolution
+// Stills, statistics and picks: nothing, whatever the demand. The pixel error counts pixels of
+// the image rendered, so a smaller image also draws coarser levels: on llvmpipe, where a frame
+// costs by its triangles more than by its pixels, that is most of what the smaller size saves.
+// The ladder was set by bench_service (README, "Serving under load").
+Degradation choose_degradation(const RenderJob& job, size_t demand, size_t renderers);
+
+// The JPEG quality of a degraded interactive frame at most (as the remote-rendering views of
+// vtk.js and trame use while the user interacts).
+constexpr int kDegradedJpegQuality = 60;
+
 class RenderWorker {
  public:
-  RenderWorker() = default;
+  RenderWorker();
   ~RenderWorker();  // stop()
   RenderWorker(const RenderWorker&) = delete;
   RenderWorker& operator=(const RenderWorker&) = delete;
 
-  // Starts the thread and waits until its context and renderer exist (or failed: false, error).
-  // `store` must outlive the worker.
-  bool start(const Store& store, uint64_t vertex_budget_bytes, int device, uint32_t max_queue,
-             std::function<void()> notify, std::string& error);
+  // Starts the render threads and waits until their contexts and renderers exist (or the first
+  // failed: false, error). `store` must outlive the worker.
+  bool start(const Store& store, const RenderWorkerOptions& options, std::function<void()> notify,
+             std::string& error);
 
   enum class Submitted { queued, replaced, busy };
-  // Queues a job. replaced: a waiting job of the same client was dropped (its ticket in
-  // `dropped`); busy: the queue is full and nothing was queued.
+  // Queues a job (job.client not empty). replaced: a waiting job of the same client and kind
+  // was dropped (its ticket in `dropped`); busy: the queue is full and nothing was queued.
   Submitted submit(RenderJob job, uint64_t& dropped);
-  // The results ready so far, in the order their jobs ran.
+  // The results ready so far, in the order they finished.
   std::vector<RenderResult> take_results();
-  size_t queue_depth() const;
-  bool idle() const;  // nothing queued, running or waiting to be taken
-  // Lets queued jobs finish, then ends the thread. Results not yet taken stay to be taken.
+  size_t queue_depth() const;  // jobs waiting (not running)
+  bool idle() const;           // nothing queued, running or waiting to be taken
+  // Lets queued jobs finish, then ends the threads. Results not yet taken stay to be taken.
   void stop();
   // Set by a successful start(), then constant.
+  size_t renderers() const { return threads_.size(); }
+  // One line: the renderers and the device(s) they render on.
   const std::string& device_description() const { return device_; }
-  uint64_t vertex_budget_bytes() const { return budget_; }
+  uint64_t vertex_budget_bytes() const { return budget_; }  // per renderer
 
  private:
-  void run(const Store* store, int device, std::string* error, bool* ready);
+  struct Thread;
+  struct ClientLine {
+    std::string client;
+    std::deque<RenderJob> jobs;  // at most one of each kind
+  };
+  bool start_thread(const Store& store, int device, std::string& description, std::string& error);
+  void run(Thread* thread, const Store* store);
 
   mutable std::mutex mutex_;
   std::condition_variable wake_, started_;
-  std::deque<RenderJob> queue_;         // guarded by mutex_
+  std::deque<ClientLine> lines_;        // guarded by mutex_; round-robin order
+  size_t waiting_ = 0;                  // guarded by mutex_; jobs in lines_
+  size_t running_ = 0;                  // guarded by mutex_
   std::vector<RenderResult> done_;      // guarded by mutex_
-  bool running_job_ = false;            // guarded by mutex_
   bool stopping_ = false;               // guarded by mutex_
-  uint32_t max_queue_ = 64;             // set before the thread starts
-  uint64_t budget_ = 0;                 // set before the thread starts
-  std::string device_;                  // written by the thread before start() returns
-  std::function<void()> notify_;        // set before the thread starts
-  std::thread thread_;
+  size_t serving_ = 0;                  // guarded by mutex_; renderers taking jobs
+  uint32_t max_queue_ = 64;             // set before the threads start
+  uint64_t budget_ = 0;                 // set before the threads start
+  std::string device_;                  // set by start()
+  std::function<void()> notify_;        // set before the threads start
+  std::vector<std::unique_ptr<Thread>> threads_;  // the owning thread's
 };
 
-// Runs one job on the renderer (the render thread): the renderer's options take the job's LOD
-// policy and pixel error. Frames come back with needs_encoding and the pixels.
-RenderResult execute_job(const RenderJob& job, Renderer& renderer);
+// Runs one job on a renderer (its render thread) as `degradation` says: the renderer's options
+// take the job's LOD policy and pixel error. `waiting`: the jobs that waited when it was taken
+// (X-Plantview-Queue). Frames come back with needs_encoding and the pixels.
+RenderResult execute_job(const RenderJob& job, const Degradation& degradation, size_t waiting,
+                         Renderer& renderer);
 
 }  // namespace plantview::service

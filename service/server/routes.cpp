@@ -5,9 +5,12 @@
 #include <charconv>
 #include <cmath>
 #include <initializer_list>
+#include <cstdio>
 #include <optional>
 #include <utility>
 #include <vector>
+
+#include <sys/random.h>
 
 namespace plantview::service {
 
@@ -81,12 +84,76 @@ bool parse_camera_fields(const CameraText& text, Camera& camera, std::string& er
   return validate_camera(camera, error);
 }
 
+// --- client ids ---------------------------------------------------------------------------------
+
+uint64_t rotl(uint64_t x, int b) { return (x << b) | (x >> (64 - b)); }
+
+// SipHash-2-4 (Aumasson and Bernstein) of one 64-bit word under a 128-bit key: a keyed hash
+// made for short inputs, so that an id cannot be made without the key.
+uint64_t siphash_word(const ClientKey& key, uint64_t word) {
+  uint64_t v0 = 0x736f6d6570736575ull ^ key[0], v1 = 0x646f72616e646f6dull ^ key[1];
+  uint64_t v2 = 0x6c7967656e657261ull ^ key[0], v3 = 0x7465646279746573ull ^ key[1];
+  const auto round = [&] {
+    v0 += v1; v1 = rotl(v1, 13); v1 ^= v0; v0 = rotl(v0, 32);
+    v2 += v3; v3 = rotl(v3, 16); v3 ^= v2;
+    v0 += v3; v3 = rotl(v3, 21); v3 ^= v0;
+    v2 += v1; v1 = rotl(v1, 17); v1 ^= v2; v2 = rotl(v2, 32);
+  };
+  const auto compress = [&](uint64_t m) {
+    v3 ^= m;
+    round();
+    round();
+    v0 ^= m;
+  };
+  compress(word);
+  compress(uint64_t(8) << 56);  // the length byte (8) and no tail
+  v2 ^= 0xff;
+  for (int i = 0; i < 4; ++i) round();
+  return v0 ^ v1 ^ v2 ^ v3;
+}
+
+bool parse_hex64(std::string_view text, uint64_t& out) {
+  if (text.size() != 16) return false;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out, 16);
+  return ec == std::errc() && end == text.data() + text.size();
+}
+
+// --- percent-decoding of a path segment ----------------------------------------------------------
+
+int hex_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// False with a message naming the offset of a bad escape ('+' is a plus sign in a path).
+bool percent_decode(std::string_view text, std::string& out, std::string& error) {
+  out.clear();
+  for (size_t i = 0; i < text.size(); ++i) {
+    if (text[i] != '%') {
+      out += text[i];
+      continue;
+    }
+    const int hi = i + 2 < text.size() ? hex_value(text[i + 1]) : -1;
+    const int lo = hi >= 0 ? hex_value(text[i + 2]) : -1;
+    if (hi < 0 || lo < 0) {
+      error = "bad percent escape at byte " + std::to_string(i) + " of the object's tag";
+      return false;
+    }
+    out += char(hi * 16 + lo);
+    i += 2;
+  }
+  return true;
+}
+
 // --- the view: camera, size and LOD shared by frame, stats and pick -----------------------------
 
 bool parse_view(const RouteConfig& config, const Fields& query, std::initializer_list<std::string_view> allowed,
-                RenderJob& job, std::string& error) {
+                uint64_t connection_id, RenderJob& job, std::string& error) {
   static constexpr std::string_view common[] = {"eye", "target", "up", "fov", "w", "h", "lod", "px", "client"};
   CameraText camera;
+  uint64_t slot = connection_id;
   job.width = 1280;
   job.height = 720;
   for (const auto& [key, value] : query) {
@@ -99,7 +166,7 @@ bool parse_view(const RouteConfig& config, const Fields& query, std::initializer
     else if (key == "target") camera.target = value;
     else if (key == "up") camera.up = value;
     else if (key == "fov") camera.fov = value;
-    else if (key == "client") job.client = value.substr(0, 128);
+    else if (key == "client") client_slot_of(config.client_key, value, slot);  // else: its own
     else if (key == "w" || key == "h") {
       uint32_t v = 0;
       if (!parse_u32(value, v) || v == 0 || v > kMaxSide) {
@@ -119,9 +186,16 @@ bool parse_view(const RouteConfig& config, const Fields& query, std::initializer
       }
     }
   }
+  job.client = "connection:" + std::to_string(slot);
+  job.client_id = issue_client_id(config.client_key, slot);
   // A query field given empty counts as absent (as the --camera text it once became did).
   if (camera.eye.empty() != camera.target.empty()) {
     error = "give both 'eye' and 'target', or neither (the default view)";
+    return false;
+  }
+  if (camera.eye.empty() && (camera.up || camera.fov)) {
+    error = std::string(camera.up ? "'up'" : "'fov'") +
+            " needs 'eye' and 'target': without them the view is the default one, which has its own";
     return false;
   }
   if (camera.eye.empty()) {
@@ -136,6 +210,14 @@ bool parse_view(const RouteConfig& config, const Fields& query, std::initializer
 
 bool parse_frame(const Fields& query, RenderJob& job, std::string& error) {
   for (const auto& [key, value] : query) {
+    if (key == "mode") {
+      if (value == "interactive") job.mode = FrameMode::interactive;
+      else if (value == "still") job.mode = FrameMode::still;
+      else {
+        error = "'mode' must be interactive or still";
+        return false;
+      }
+    }
     if (key == "format" && !image_format_from_name(value, job.format)) {
       error = "'format' must be jpeg or png";
       return false;
@@ -164,8 +246,14 @@ bool parse_pick(const Fields& query, RenderJob& job, std::string& error) {
     (key == "x" ? job.x : job.y) = v;
     (key == "x" ? have_x : have_y) = true;
   }
-  if (!have_x || !have_y || job.x >= job.width || job.y >= job.height) {
-    error = "'x' and 'y' must lie inside the w x h image";
+  if (!have_x || !have_y) {
+    error = !have_x ? "missing 'x' (the pixel column to pick, 0 at the left)"
+                    : "missing 'y' (the pixel row to pick, 0 at the top)";
+    return false;
+  }
+  if (job.x >= job.width || job.y >= job.height) {
+    error = "'x' and 'y' must lie inside the w x h image (" + std::to_string(job.width) + "x" +
+            std::to_string(job.height) + "), got " + std::to_string(job.x) + "," + std::to_string(job.y);
     return false;
   }
   return true;
@@ -179,24 +267,37 @@ std::variant<Reply, RenderJob> route_render(const Request& request, const RouteC
   const std::string& path = request.path;
   if (path == "/api/frame") {
     job.kind = RenderJob::Kind::frame;
-    if (!parse_view(config, request.query, {"format", "quality"}, job, error) ||
+    if (!parse_view(config, request.query, {"format", "quality", "mode"}, connection_id, job, error) ||
         !parse_frame(request.query, job, error))
       return error_reply(400, error);
   } else if (path == "/api/stats") {
     job.kind = RenderJob::Kind::stats;
-    if (!parse_view(config, request.query, {}, job, error)) return error_reply(400, error);
+    if (!parse_view(config, request.query, {}, connection_id, job, error)) return error_reply(400, error);
   } else if (path == "/api/pick") {
     job.kind = RenderJob::Kind::pick;
-    if (!parse_view(config, request.query, {"x", "y"}, job, error) || !parse_pick(request.query, job, error))
+    if (!parse_view(config, request.query, {"x", "y"}, connection_id, job, error) ||
+        !parse_pick(request.query, job, error))
       return error_reply(400, error);
   } else {
     return error_reply(404, "no such resource: " + path.substr(0, 128));
   }
-  // Latest wins per client and kind of request: a newer frame replaces a waiting frame, not a
-  // waiting pick.
-  if (job.client.empty()) job.client = "connection:" + std::to_string(connection_id);
-  job.client += job.kind == RenderJob::Kind::frame ? "/frame" : job.kind == RenderJob::Kind::stats ? "/stats" : "/pick";
   return job;
+}
+
+// /api/objects/{tag-or-id}: the rest of the path names the object.
+std::variant<Reply, ObjectLookup> route_object(std::string_view rest, bool no_parameters) {
+  constexpr size_t kMaxTagBytes = 1024;
+  ObjectLookup lookup;
+  std::string error;
+  if (rest.empty()) return error_reply(400, "missing the object's tag or id: /api/objects/{tag-or-id}");
+  if (rest.size() > 3 * kMaxTagBytes) return error_reply(400, "an object's tag is at most 1024 bytes");
+  if (!percent_decode(rest, lookup.name, error)) return error_reply(400, error);
+  if (lookup.name.size() > kMaxTagBytes) return error_reply(400, "an object's tag is at most 1024 bytes");
+  if (!no_parameters) return error_reply(400, "/api/objects takes no parameters");
+  uint64_t id = 0;
+  const auto [end, ec] = std::from_chars(lookup.name.data(), lookup.name.data() + lookup.name.size(), id);
+  if (ec == std::errc() && end == lookup.name.data() + lookup.name.size()) lookup.id = id;
+  return lookup;
 }
 
 // Compares in constant time over the expected length.
@@ -228,6 +329,35 @@ std::string endpoint_of(std::string_view path) {
   for (const auto& [known, name] : kEndpoints)
     if (path == known) return std::string(name);
   return "other";
+}
+
+ClientKey random_client_key() {
+  ClientKey key{};
+  // getrandom blocks only until the system's pool is first seeded (boot), and reads of up to
+  // 256 bytes are not interrupted.
+  size_t got = 0;
+  auto* bytes = reinterpret_cast<char*>(key.data());
+  while (got < sizeof key) {
+    const ssize_t n = getrandom(bytes + got, sizeof key - got, 0);
+    if (n > 0) got += size_t(n);
+  }
+  return key;
+}
+
+std::string issue_client_id(const ClientKey& key, uint64_t connection_id) {
+  char text[33];
+  std::snprintf(text, sizeof text, "%016llx%016llx", static_cast<unsigned long long>(connection_id),
+                static_cast<unsigned long long>(siphash_word(key, connection_id)));
+  return text;
+}
+
+bool client_slot_of(const ClientKey& key, std::string_view id, uint64_t& connection_id) {
+  uint64_t number = 0, tag = 0;
+  if (id.size() != 32 || !parse_hex64(id.substr(0, 16), number) || !parse_hex64(id.substr(16), tag)) return false;
+  // One comparison of two words: its time says nothing of how much of a guess was right.
+  if (siphash_word(key, number) != tag) return false;
+  connection_id = number;
+  return true;
 }
 
 Reply error_reply(int status, std::string_view message, Fields headers, bool close) {
@@ -263,15 +393,7 @@ Routed route(const Request& request, const RouteConfig& config, bool shutting_do
   } else if (path == "/metrics") {
     decision = MetricsPage{};
   } else if (path.rfind("/api/objects/", 0) == 0) {
-    const std::string id_text = path.substr(13);
-    uint64_t id = 0;
-    const auto [end, ec] = std::from_chars(id_text.data(), id_text.data() + id_text.size(), id);
-    if (id_text.empty() || ec != std::errc() || end != id_text.data() + id_text.size() || id == 0)
-      decision = error_reply(400, "an object id is a decimal number, got '" + id_text.substr(0, 32) + "'");
-    else if (!no_parameters)
-      decision = error_reply(400, "/api/objects takes no parameters");
-    else
-      decision = ObjectLookup{id};
+    std::visit([&](auto&& d) { decision = std::move(d); }, route_object(std::string_view(path).substr(13), no_parameters));
   } else {
     std::visit([&](auto&& d) { decision = std::move(d); }, route_render(request, config, connection_id));
   }

@@ -9,10 +9,23 @@
 //   - Every error reply is {"error": "..."} (application/json) naming what was wrong.
 //   - Camera parameters are parsed once into a Camera (eye, target and up as 3 numbers each,
 //     fov as 1, degrees) and checked with validate_camera; neither eye nor target: the default
-//     view (camera.h: default_camera of the config's overview_boxes, else of its bounds).
+//     view (camera.h: default_camera of the config's overview_boxes, else of its bounds), and
+//     then `up` or `fov` is refused (it would be ignored).
+//   - Missing parameters are named as missing (/api/pick without x: "missing 'x'").
+//   - Latest-wins slots: a render job's slot (RenderJob::client) is its connection's, or the one
+//     named by `client=ID` where ID is a client id this server issued (issue_client_id: the
+//     connection number and a keyed hash of it, so that ids cannot be guessed or forged without
+//     the server's key). Any other `client` value (another server's id, a made-up name, the old
+//     "connection:N" form) is ignored: the connection's own slot is used. So a client can only
+//     name its own slot, or one whose id it was given. Every render answer carries the id of
+//     the slot it used (X-Plantview-Client), for the client to send on other connections.
+//   - /api/objects/{tag-or-id}: the rest of the path, percent-decoded; all digits: an id (or a
+//     name, if no object has that id); anything else a name (tag), as stored, else with the
+//     leading '/' plant names carry ("P-101A" finds "/P-101A").
 // Threads: any; route() reads its inputs and nothing else.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -31,9 +44,20 @@ struct StaticFile {
   std::string bytes;
 };
 
+// The server's secret for client ids: 128 random bits, made once per process.
+using ClientKey = std::array<uint64_t, 2>;
+// From the operating system's random source (getrandom).
+ClientKey random_client_key();
+// The client id of a connection's latest-wins slot: 32 hex digits (the connection number, then
+// SipHash-2-4 of it under `key`).
+std::string issue_client_id(const ClientKey& key, uint64_t connection_id);
+// The connection number an id issued under `key` names; false if `id` is not such an id.
+bool client_slot_of(const ClientKey& key, std::string_view id, uint64_t& connection_id);
+
 // What the routes know of the server: fixed once it listens.
 struct RouteConfig {
   std::string token;                        // "": no token required
+  ClientKey client_key{};                   // the server's: random_client_key()
   std::map<std::string, StaticFile> files;  // by path ("/", "/viewer.js", ...)
   std::string model_json;                   // the /api/model answer
   DAabb bounds;                             // the model's
@@ -49,8 +73,11 @@ struct Reply {
   Fields headers;
   bool close = false;  // the connection closes after it, whatever the request asked
 };
+// /api/objects/{tag-or-id}: by id when `id` is not zero (then by `name` if no object has the id),
+// else by name (`name`, then "/" + name if no object has it and it does not start with '/').
 struct ObjectLookup {
-  uint64_t id = 0;  // not zero
+  uint64_t id = 0;
+  std::string name;  // never empty
 };
 struct MetricsPage {};
 
@@ -59,8 +86,8 @@ struct Routed {
   std::variant<Reply, RenderJob, ObjectLookup, MetricsPage> decision;
 };
 
-// `connection_id` names the connection in a render job's latest-wins key when the request has
-// no `client` parameter.
+// `connection_id`: the connection the request came on (its latest-wins slot, unless `client`
+// names an issued id).
 Routed route(const Request& request, const RouteConfig& config, bool shutting_down,
              uint64_t connection_id);
 

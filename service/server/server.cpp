@@ -90,7 +90,7 @@ class Server final : public ConnectionHost {
     return t;
   }
   void submit_render(Connection& c, const std::shared_ptr<Pending>& p, RenderJob job);
-  void look_up_object(Connection& c, const std::shared_ptr<Pending>& p, uint64_t id);
+  void look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ObjectLookup lookup);
   void on_render_done(RenderResult&& r);
   void deliver(RenderResult& r);
   void begin_shutdown();
@@ -116,7 +116,7 @@ void Server::on_request(Connection& c, const Request& request, const std::shared
     const MetricsGauges gauges{worker.vertex_budget_bytes(), worker.queue_depth(), connections.size()};
     c.answer(p, text_reply("text/plain; version=0.0.4", metrics_text(metrics, gauges)), false);
   } else if (auto* lookup = std::get_if<ObjectLookup>(&routed.decision)) {
-    look_up_object(c, p, lookup->id);
+    look_up_object(c, p, std::move(*lookup));
   } else {
     submit_render(c, p, std::move(std::get<RenderJob>(routed.decision)));
   }
@@ -144,16 +144,16 @@ struct ObjectWork {
   uv_work_t req{};
   Server* server = nullptr;
   const Store* store = nullptr;
-  uint64_t id = 0, ticket = 0;
-  bool found = false;
-  std::string json, error;
+  ObjectLookup lookup;
+  uint64_t ticket = 0;
+  ObjectAnswer answer;
 };
 
-void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, uint64_t id) {
+void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ObjectLookup lookup) {
   auto* work = new ObjectWork;
   work->server = this;
   work->store = store.get();
-  work->id = id;
+  work->lookup = std::move(lookup);
   work->ticket = add_ticket(c, p);
   work->req.data = work;
   ++works_in_flight;
@@ -161,16 +161,16 @@ void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ui
       loop, &work->req,
       [](uv_work_t* req) {
         auto* w = static_cast<ObjectWork*>(req->data);
-        const auto view = w->store->read(w->error);
-        w->found = view && object_json(*view, w->id, w->json, w->error);
+        std::string error;
+        const auto view = w->store->read(error);
+        w->answer = view ? object_answer(*view, w->lookup.id, w->lookup.name) : ObjectAnswer{500, error_body(error)};
       },
       [](uv_work_t* req, int) {
         const std::unique_ptr<ObjectWork> w(static_cast<ObjectWork*>(req->data));
         --w->server->works_in_flight;
         const Ticket t = w->server->take_ticket(w->ticket);
         if (!t.connection) return;
-        t.connection->answer(t.pending, w->found ? text_reply("application/json", w->json)
-                                                 : error_reply(w->error.rfind("no object", 0) == 0 ? 404 : 500, w->error));
+        t.connection->answer(t.pending, text_reply("application/json", std::move(w->answer.body), w->answer.status));
       });
 }
 
@@ -341,6 +341,7 @@ int run_server(const ServerOptions& options, std::string& error) {
   s.limits = {{options.max_header_bytes, options.max_body_bytes}, options.request_timeout_ms,
               options.idle_timeout_ms, options.max_unsent_bytes};
   s.routes.token = options.token;
+  s.routes.client_key = random_client_key();
   if (!is_loopback(options.host) && options.token.empty()) {
     error = "serve: listening on " + options.host + " (not loopback) requires --token";
     return 1;
@@ -363,7 +364,7 @@ int run_server(const ServerOptions& options, std::string& error) {
     for (auto& r : self.worker.take_results()) self.on_render_done(std::move(r));
   });
   s.results_ready.data = &s;
-  if (!s.worker.start(*s.store, options.vertex_budget_bytes, options.device, options.max_queue,
+  if (!s.worker.start(*s.store, {options.vertex_budget_bytes, options.device, options.renderers, options.max_queue},
                       [&s] { uv_async_send(&s.results_ready); }, error))
     return abandon(s, loop);
   std::fprintf(stderr, "plantview serve: rendering on %s\n", s.worker.device_description().c_str());

@@ -5,14 +5,19 @@
 //   - The loop thread (libuv) accepts connections, parses requests (http-parser), answers what
 //     needs no rendering or storage, and writes responses. It never blocks on rendering,
 //     storage or encoding.
-//   - One render thread owns the EGL context and the renderer: frames, statistics and picks
-//     run there, one at a time, and come back to the loop through a uv_async handle.
+//   - N render threads (`renderers`), each with its own EGL context, renderer and vertex
+//     arena: frames, statistics and picks run there, one per renderer at a time, taken
+//     round-robin across clients, and come back to the loop through a uv_async handle.
 //   - Object look-ups run on libuv's thread pool, each with its own read view of the store.
 //
 // Queueing rules
-//   - A client (the `client` query parameter, else the connection) has at most one render
-//     request of each kind (frame, stats, pick) waiting: a newer one replaces it, and the older
-//     is answered 409 (superseded).
+//   - A client (its connection, or the slot an id the server issued names: `client=` with the
+//     X-Plantview-Client header of an earlier answer) has at most one render request of each
+//     kind (frame, stats, pick) waiting: a newer one replaces it, and the older is answered 409
+//     (superseded). A client cannot name another's slot.
+//   - Under load (more requests than renderers) interactive frames (mode=interactive) are
+//     rendered cheaper: a coarser pixel error, then a lower resolution, JPEG quality 60 at most;
+//     stills (mode=still, the default) never are. X-Plantview-* headers say what was used.
 //   - At most `max_queue` render requests wait; past that the answer is 503 with Retry-After.
 //   - Responses on a connection go out in request order (pipelining). A connection whose
 //     unsent output exceeds a limit stops being read until the client catches up, so a slow
@@ -42,11 +47,14 @@ struct ServerOptions {
   std::string web_directory;           // where index.html, viewer.js and viewer.css are
   std::string host = "127.0.0.1";
   uint16_t port = 8080;                // 0: any free port (printed when listening)
-  uint64_t vertex_budget_bytes = 512ull << 20;
+  uint64_t vertex_budget_bytes = 512ull << 20;  // per renderer
   uint32_t max_clients = 64;           // open connections
   uint32_t max_queue = 64;             // render requests waiting
   std::string token;                   // required (as a Bearer token) unless on loopback
   int device = -1;                     // EGL device, as GpuContext::create takes it
+  uint32_t renderers = 0;              // render threads, each with its own context and vertex
+                                       // arena; 0: one per EGL device on hardware, on a software
+                                       // renderer as the cores allow (server/render_worker.h)
   uint32_t request_timeout_ms = 10000; // from a request's first byte to its last
   uint32_t idle_timeout_ms = 120000;   // a keep-alive connection with nothing to do
   uint32_t max_header_bytes = 16384;
