@@ -13,7 +13,8 @@
 //     pool work items are deleted in their after-work callbacks.
 //   - Admission (at accept): max_clients in all, max_clients_per_address from one address, and
 //     addresses not yet served only up to max_clients - reserved_clients. An address counts as
-//     served once a request of its has completed; the server remembers at most
+//     served once a request of its has completed (and not been refused for its token); the
+//     server remembers at most
 //     kMaxServedAddresses of them (the oldest are forgotten first).
 //   - Readiness: the store is open before the loop runs; a warm-up frame is queued first, and
 //     /readyz says 200 once it has been drawn, until the shutdown begins.
@@ -186,11 +187,12 @@ bool Server::health_check(Connection& c, const Request& request, const std::shar
 }
 
 void Server::on_request(Connection& c, const Request& request, const std::shared_ptr<Pending>& p) {
-  remember_served(c.address());
-  if (health_check(c, request, p)) return;
+  if (health_check(c, request, p)) return remember_served(c.address());
   // While draining, what has been read is still answered (the connection reads no more).
   Routed routed = route(request, routes, false, c.id());
   p->endpoint = routed.endpoint;
+  const auto* refused = std::get_if<Reply>(&routed.decision);
+  if (!refused || refused->status != 401) remember_served(c.address());  // a wrong token earns no slot
   if (auto* reply = std::get_if<Reply>(&routed.decision)) {
     c.answer(p, std::move(*reply));
   } else if (std::holds_alternative<MetricsPage>(routed.decision)) {

@@ -28,11 +28,12 @@
 // timeout of being accepted (else it is closed), and must take some of the bytes owed to it
 // within the write timeout while any wait (else it is closed); what it may leave unsent is
 // capped (max_unsent_bytes). At accept a connection is refused (503, Retry-After) beyond
-// max_clients open connections, beyond max_clients_per_address from one IP address, and, for an
-// address that has not completed a request yet, beyond max_clients - reserved_clients: the
-// reserved share stays for clients already served, so that connections that never send a byte
-// cannot lock out those who do. Behind a load balancer every connection comes from the
-// balancer's address: give max_clients_per_address room for its connections.
+// max_clients open connections, beyond max_clients_per_address from one IP address, and, for
+// an address that has not completed a request yet (one refused for its token does not count),
+// beyond max_clients - reserved_clients: the reserved share stays for clients already served,
+// so that connections that never send a byte cannot lock out those who do. Behind a load
+// balancer every connection comes from the balancer's address: give max_clients_per_address
+// room for its connections.
 //
 // Health (answered before the token check and routing, GET only, no parameters):
 //   /healthz  200 while the process runs its loop (liveness);
