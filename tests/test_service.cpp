@@ -520,11 +520,23 @@ TEST(Service, AClientThatDoesNotReadIsDisconnectedAtTheWriteDeadline) {
   EXPECT_NE(metrics.body.find("plantview_connections 1\n"), std::string::npos) << metrics.body;
 }
 
+// Polls /metrics until it shows `line`; false if it does not within `limit`.
+bool wait_for_metric(int port, const std::string& line, std::chrono::seconds limit = 10s) {
+  Client c(port);
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    if (c.request("/metrics").body.find(line) != std::string::npos) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return false;
+}
+
 TEST(Service, SigtermExitsWithinTheShutdownDeadlineDespiteAClientThatDoesNotRead) {
   const test::TempDir web;
   Server server({"--web", big_web_directory(web, 8u << 20).string(), "--shutdown-timeout", "1"});
   auto stuck = non_reading_client(server.port(), 4);
-  std::this_thread::sleep_for(300ms);
+  // Its requests have been read and the first answer is on its way.
+  ASSERT_TRUE(wait_for_metric(server.port(), "plantview_requests_total{endpoint=\"page\",status=\"200\"}"));
   const auto signalled = std::chrono::steady_clock::now();
   kill(server.pid(), SIGTERM);
   EXPECT_EQ(server.wait(), 0);
