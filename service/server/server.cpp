@@ -287,6 +287,7 @@ struct EncodeWork {
 
 void Server::on_render_done(RenderResult&& r) {
   if (r.ticket == warm_up_ticket) {
+    if (stopping) return;  // drawn after the signal: never ready
     ready = r.status == 200;
     if (ready) std::fprintf(stderr, "plantview serve: ready (first frame drawn)\n");
     else std::fprintf(stderr, "plantview serve: not ready: the first frame failed: %s\n", r.body.c_str());
