@@ -66,7 +66,7 @@ Action add_serve_command(CLI::App& app) {
   serve->add_option("--web", options->web_directory, "Directory of the viewer page")->capture_default_str();
   auto request_timeout_s = std::make_shared<double>(10.0);
   serve->add_option("--request-timeout", *request_timeout_s,
-                    "Seconds a client has to send a whole request (then 408)")
+                    "Seconds a client has to send a whole request (then 408), its first counted from connecting")
       ->check(CLI::Range(0.05, 3600.0))->capture_default_str();
   auto write_timeout_s = std::make_shared<double>(30.0);
   serve->add_option("--write-timeout", *write_timeout_s,
