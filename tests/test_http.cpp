@@ -513,32 +513,37 @@ TEST(Metrics, CountsHistogramAndGaugesAreExposedInPrometheusText) {
   slow.arena_bytes_resident = 222;
   slow.objects_evicted = 3;
   slow.arena_bytes_uploaded = 500;
-  m.count_rendered(fast);
-  m.count_rendered(slow);
+  m.count_rendered(RenderJob::Kind::frame, fast);
+  m.count_rendered(RenderJob::Kind::frame, slow);
+  m.count_rendered(RenderJob::Kind::pick, fast);  // its own histogram, not the frames'
   m.superseded = 4;
   m.rejected_busy = 5;
   const std::string text = metrics_text(m, {1 << 20, 6, 7});
   for (const std::string line : {
            "plantview_requests_total{endpoint=\"frame\",status=\"200\"} 2\n",
            "plantview_requests_total{endpoint=\"frame\",status=\"400\"} 1\n",
-           "plantview_frame_milliseconds_bucket{le=\"10\"} 1\n",
-           "plantview_frame_milliseconds_bucket{le=\"250\"} 1\n",
-           "plantview_frame_milliseconds_bucket{le=\"500\"} 2\n",
-           "plantview_frame_milliseconds_bucket{le=\"10000\"} 2\n",
-           "plantview_frame_milliseconds_bucket{le=\"+Inf\"} 2\n",
-           "plantview_frame_milliseconds_sum 309\n",
-           "plantview_frame_milliseconds_count 2\n",
-           "plantview_arena_bytes 222\n",
+           "plantview_render_milliseconds_bucket{kind=\"frame\",le=\"10\"} 1\n",
+           "plantview_render_milliseconds_bucket{kind=\"frame\",le=\"250\"} 1\n",
+           "plantview_render_milliseconds_bucket{kind=\"frame\",le=\"500\"} 2\n",
+           "plantview_render_milliseconds_bucket{kind=\"frame\",le=\"10000\"} 2\n",
+           "plantview_render_milliseconds_bucket{kind=\"frame\",le=\"+Inf\"} 2\n",
+           "plantview_render_milliseconds_sum{kind=\"frame\"} 309\n",
+           "plantview_render_milliseconds_count{kind=\"frame\"} 2\n",
+           "plantview_render_milliseconds_count{kind=\"stats\"} 0\n",
+           "plantview_render_milliseconds_bucket{kind=\"pick\",le=\"10\"} 1\n",
+           "plantview_render_milliseconds_count{kind=\"pick\"} 1\n",
+           "plantview_arena_bytes 111\n",
            "plantview_arena_budget_bytes 1048576\n",
-           "plantview_evictions_total 5\n",
-           "plantview_uploaded_bytes_total 1500\n",
+           "plantview_evictions_total 7\n",
+           "plantview_uploaded_bytes_total 2500\n",
            "plantview_queue_depth 6\n",
            "plantview_superseded_total 4\n",
            "plantview_busy_total 5\n",
            "plantview_connections 7\n",
-           "# TYPE plantview_frame_milliseconds histogram\n",
+           "# TYPE plantview_render_milliseconds histogram\n",
        })
     EXPECT_NE(text.find(line), std::string::npos) << line << "in\n" << text;
+  EXPECT_EQ(escape_label_value("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
 }
 
 // --- the render worker --------------------------------------------------------------------------

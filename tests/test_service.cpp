@@ -59,22 +59,34 @@ const std::string& small_store() {
   return dir;
 }
 
+// How a test starts its server besides the options: the environment and a program that runs
+// the server (e.g. setpriv), as argv before the plantview binary.
+struct Launch {
+  std::vector<std::pair<std::string, std::string>> environment;
+  std::vector<std::string> wrapper;
+};
+
 class Server {
  public:
-  explicit Server(std::vector<std::string> extra = {}, const std::string& store = small_store()) {
+  explicit Server(std::vector<std::string> extra = {}, const std::string& store = small_store(),
+                  const Launch& launch = {}) {
     int out[2];
     EXPECT_EQ(pipe(out), 0);
     pid_ = fork();
     if (pid_ == 0) {
       dup2(out[1], 1);
       close(out[0]);
-      std::vector<std::string> args = {PLANTVIEW_BIN, "serve", "--store", store, "--listen", "127.0.0.1:0",
-                                       "--vertex-budget", "64"};
+      for (const auto& [name, value] : launch.environment) setenv(name.c_str(), value.c_str(), 1);
+      std::vector<std::string> args = launch.wrapper;
+      for (const std::string& a : {std::string(PLANTVIEW_BIN), std::string("serve"), std::string("--store"), store,
+                                   std::string("--listen"), std::string("127.0.0.1:0"),
+                                   std::string("--vertex-budget"), std::string("64")})
+        args.push_back(a);
       args.insert(args.end(), extra.begin(), extra.end());
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(a.data());
       argv.push_back(nullptr);
-      execv(PLANTVIEW_BIN, argv.data());
+      execvp(argv[0], argv.data());
       _exit(127);
     }
     close(out[1]);
@@ -104,6 +116,22 @@ class Server {
     status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     return status_;
   }
+  // Waits at most `limit` for the server to exit; its status, or -1 (then it is killed).
+  int wait_at_most(std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (pid_ > 0 && std::chrono::steady_clock::now() < until) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = 0;
+        status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        return status_;
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    if (pid_ > 0) kill(pid_, SIGKILL);
+    wait();
+    return -1;
+  }
   pid_t pid() const { return pid_; }
 
  private:
@@ -130,6 +158,20 @@ bool is_image(const Response& r, uint32_t w, uint32_t h, const std::string& ext)
 }
 
 nlohmann::json json_of(const Response& r) { return nlohmann::json::parse(r.body, nullptr, false); }
+
+// Polls /readyz on one connection until it answers 200; the statuses seen, in order.
+std::vector<int> wait_until_ready(int port, std::chrono::seconds limit = 20s) {
+  std::vector<int> seen;
+  Client c(port);
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    const int status = c.request("/readyz").status;
+    if (seen.empty() || seen.back() != status) seen.push_back(status);
+    if (status == 200 || status == 0) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  return seen;
+}
 
 const std::string kView = "eye=-6,-12,8&target=7.5,0,0&up=0,0,1&fov=50";
 
@@ -183,7 +225,10 @@ TEST(Service, ModelFrameStatsPickObjectsMetricsAndPage) {
   ASSERT_EQ(metrics.status, 200);
   EXPECT_NE(metrics.body.find("plantview_requests_total{endpoint=\"frame\",status=\"200\"} 3"), std::string::npos)
       << metrics.body;
-  EXPECT_NE(metrics.body.find("plantview_frame_milliseconds_count"), std::string::npos);
+  EXPECT_NE(metrics.body.find("plantview_render_milliseconds_count{kind=\"frame\"} 3"), std::string::npos)
+      << metrics.body;
+  EXPECT_NE(metrics.body.find("plantview_render_milliseconds_count{kind=\"stats\"} 1"), std::string::npos);
+  EXPECT_NE(metrics.body.find("plantview_render_milliseconds_count{kind=\"pick\"} 2"), std::string::npos);
   EXPECT_NE(metrics.body.find("plantview_queue_depth"), std::string::npos);
 
   Response page = c.request("/");
@@ -345,6 +390,8 @@ TEST(Service, ANewerRequestOfTheSameClientSupersedesAWaitingOne) {
 
 TEST(Service, AFullQueueAnswers503WithRetryAfter) {
   Server server({"--max-queue", "1"});
+  // Not before the server's own first frame has left the queue.
+  ASSERT_EQ(wait_until_ready(server.port()).back(), 200);
   std::vector<std::unique_ptr<Client>> clients;
   for (int i = 0; i < 6; ++i) {
     clients.push_back(std::make_unique<Client>(server.port()));
@@ -406,6 +453,303 @@ TEST(Service, ShutdownFinishesTheFrameInFlight) {
   kill(server.pid(), SIGTERM);
   EXPECT_TRUE(is_image(c.read(), 1200, 1200, ".png"));
   EXPECT_EQ(server.wait(), 0);
+}
+
+
+// --- operations: health, drain, read-only stores, metrics ---------------------------------------
+
+TEST(Service, ReadyzSays503UntilTheFirstFrameThen200AndHealthzNeedsNoToken) {
+  Server server({"--token", "s3cret"});
+  const std::vector<int> seen = wait_until_ready(server.port());
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back(), 200);
+  for (size_t i = 0; i + 1 < seen.size(); ++i) EXPECT_EQ(seen[i], 503) << "before ready";
+  Client c(server.port());
+  Response live = c.request("/healthz");
+  EXPECT_EQ(live.status, 200);
+  EXPECT_EQ(c.request("/readyz?x=1").status, 400);
+  EXPECT_EQ(c.request("/api/model").status, 401);  // the token still guards everything else
+  Response metrics = c.request("/metrics", "Authorization: Bearer s3cret\r\n");
+  EXPECT_NE(metrics.body.find("plantview_ready 1\n"), std::string::npos) << metrics.body;
+  // The warm-up frame is the server's own: it is not counted as a client's.
+  EXPECT_NE(metrics.body.find("plantview_render_milliseconds_count{kind=\"frame\"} 0\n"), std::string::npos);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+TEST(Service, SigtermDrainLosesNoRequestAlreadyRead) {
+  Server server;
+  ASSERT_EQ(wait_until_ready(server.port()).back(), 200);
+  // A slow frame first, so that the others wait in the queue when the signal comes.
+  Client busy(server.port());
+  busy.get("/api/frame?w=1400&h=1400&format=png&lod=none");
+  // One frame per connection: each its own latest-wins slot, so none supersedes another.
+  constexpr int kClients = 16;
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int i = 0; i < kClients; ++i) {
+    clients.push_back(std::make_unique<Client>(server.port()));
+    clients.back()->get("/api/frame?w=" + std::to_string(40 + i) + "&h=30&format=png");
+  }
+  // Every request has been read once the server answers one sent after them on a connection
+  // of its own (connections are read in the order their bytes arrive).
+  Client probe(server.port());
+  EXPECT_EQ(probe.request("/healthz").status, 200);
+  kill(server.pid(), SIGTERM);
+  std::this_thread::sleep_for(100ms);
+  Client late(server.port());
+  EXPECT_FALSE(late.connected() && late.request("/healthz").status == 200) << "accepted after SIGTERM";
+  EXPECT_TRUE(is_image(busy.read(), 1400, 1400, ".png"));
+  int images = 0;
+  for (int i = 0; i < kClients; ++i) {
+    Response r = clients[size_t(i)]->read();
+    images += is_image(r, 40 + uint32_t(i), 30, ".png");
+    EXPECT_EQ(r.headers["connection"], "close");  // the last answer it owes, while draining
+    EXPECT_TRUE(clients[size_t(i)]->closed_by_server());
+  }
+  EXPECT_EQ(images, kClients);
+  EXPECT_EQ(server.wait(), 0);
+}
+
+// A viewer page of `bytes` bytes, so that a client that does not read leaves megabytes unsent
+// without any rendering.
+fs::path big_web_directory(const test::TempDir& dir, size_t bytes) {
+  fs::create_directories(dir.path());
+  std::ofstream(dir.path() / "index.html", std::ios::binary) << std::string(bytes, 'x');
+  return dir.path();
+}
+
+// Sends pipelined requests for the big page and reads nothing; the socket's receive buffer is
+// small, so the server's bytes stay queued.
+std::unique_ptr<Client> non_reading_client(int port, int pages) {
+  auto c = std::make_unique<Client>(port, test_support::ConnectOptions{"", 4096, 10});
+  std::string batch;
+  for (int i = 0; i < pages; ++i) batch += "GET / HTTP/1.1\r\nHost: t\r\n\r\n";
+  c->send(batch);
+  return c;
+}
+
+TEST(Service, AClientThatDoesNotReadIsDisconnectedAtTheWriteDeadline) {
+  const test::TempDir web;
+  constexpr size_t kPage = 8u << 20;
+  Server server({"--web", big_web_directory(web, kPage).string(), "--write-timeout", "0.5"});
+  auto stuck = non_reading_client(server.port(), 4);
+  std::this_thread::sleep_for(2500ms);
+  bool closed = false;
+  const size_t received = stuck->read_until_closed(closed);
+  EXPECT_TRUE(closed);
+  EXPECT_LT(received, 4 * kPage);
+  Client fine(server.port());
+  Response metrics = fine.request("/metrics");
+  EXPECT_NE(metrics.body.find("plantview_timed_out_connections_total 1\n"), std::string::npos) << metrics.body;
+  EXPECT_NE(metrics.body.find("plantview_connections 1\n"), std::string::npos) << metrics.body;
+}
+
+// Polls /metrics until it shows `line`; false if it does not within `limit`.
+bool wait_for_metric(int port, const std::string& line, std::chrono::seconds limit = 10s) {
+  Client c(port);
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    if (c.request("/metrics").body.find(line) != std::string::npos) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return false;
+}
+
+TEST(Service, SigtermExitsWithinTheShutdownDeadlineDespiteAClientThatDoesNotRead) {
+  const test::TempDir web;
+  Server server({"--web", big_web_directory(web, 8u << 20).string(), "--shutdown-timeout", "1"});
+  auto stuck = non_reading_client(server.port(), 4);
+  // Its requests have been read and the first answer is on its way.
+  ASSERT_TRUE(wait_for_metric(server.port(), "plantview_requests_total{endpoint=\"page\",status=\"200\"}"));
+  const auto signalled = std::chrono::steady_clock::now();
+  kill(server.pid(), SIGTERM);
+  // The deadline (1 s), then the render thread's and the store's close: a second or so, several
+  // under the sanitizers. Without the deadline it would wait for the client for ever.
+  EXPECT_EQ(server.wait_at_most(20s), 0);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
+  EXPECT_GE(seconds, 0.9);
+  EXPECT_LT(seconds, 15.0);
+}
+
+TEST(Service, ARequestFollowedByAHalfCloseIsAnsweredThenClosed) {
+  Server server;
+  Client c(server.port());
+  c.get("/api/frame?w=32&h=24&format=png");
+  c.half_close();
+  EXPECT_TRUE(is_image(c.read(), 32, 24, ".png"));
+  EXPECT_TRUE(c.closed_by_server());
+}
+
+// --- hostile clients: silent connections, per-address limits ------------------------------------
+
+test_support::ConnectOptions from(const std::string& address) {
+  return {.source_address = address, .receive_buffer_bytes = 0, .receive_timeout_s = 10};
+}
+
+TEST(Service, SilentConnectionsCannotLockOutAClientAlreadyServed) {
+  // A long request deadline: what lets the served client in is the reserved share, not the
+  // silent connections timing out.
+  Server server({"--max-clients", "16", "--request-timeout", "30"});
+  ASSERT_EQ(wait_until_ready(server.port()).back(), 200);  // from 127.0.0.1: served
+  {
+    Client known(server.port(), from("127.0.0.1"));
+    ASSERT_EQ(known.request("/api/model").status, 200);
+  }
+  std::vector<std::unique_ptr<Client>> silent;
+  for (int i = 0; i < 24; ++i)
+    silent.push_back(std::make_unique<Client>(server.port(), from("127.0.0." + std::to_string(2 + i % 4))));
+  std::this_thread::sleep_for(200ms);  // all accepted (or refused) by now
+  const auto start = std::chrono::steady_clock::now();
+  Client known(server.port(), from("127.0.0.1"));
+  EXPECT_TRUE(is_image(known.request("/api/frame?w=64&h=48"), 64, 48, ".jpg"));
+  // Well before the silent connections' deadline (30 s) would have freed a slot; about 0.1 s
+  // here, a few seconds under the sanitizers.
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 10s);
+  // A stranger meanwhile finds the unreserved slots full.
+  Client stranger(server.port(), from("127.0.0.20"));
+  Response refused = stranger.read();
+  EXPECT_EQ(refused.status, 503);
+  EXPECT_EQ(refused.headers["retry-after"], "1");
+  Response metrics = known.request("/metrics");
+  // 12 silent connections fill the unreserved three quarters; the other 12 and the stranger
+  // are refused.
+  EXPECT_NE(metrics.body.find("plantview_refused_connections_total 13\n"), std::string::npos) << metrics.body;
+}
+
+TEST(Service, ConnectionsPerAddressAreLimitedAndSilentOnesCloseAtTheRequestDeadline) {
+  Server server({"--max-per-address", "2", "--request-timeout", "0.5"});
+  Client a(server.port(), from("127.0.0.5")), b(server.port(), from("127.0.0.5"));
+  std::this_thread::sleep_for(100ms);
+  Client c(server.port(), from("127.0.0.5"));
+  Response r = c.read();
+  EXPECT_EQ(r.status, 503);
+  EXPECT_NE(r.body.find("127.0.0.5"), std::string::npos) << r.body;
+  Client other(server.port(), from("127.0.0.6"));
+  EXPECT_EQ(other.request("/api/model").status, 200);
+  // a and b never sent a byte: closed when the deadline passes, without an answer.
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_TRUE(a.closed_by_server());
+  EXPECT_TRUE(b.closed_by_server());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 2s);
+}
+
+TEST(Service, TheTokenComesFromAFileOrTheEnvironment) {
+  const test::TempDir dir;
+  fs::create_directories(dir.path());
+  const fs::path file = dir.path() / "token";
+  std::ofstream(file) << "fr0m-file\n";
+  {
+    Server server({"--token-file", file.string()});
+    Client c(server.port());
+    EXPECT_EQ(c.request("/api/model").status, 401);
+    EXPECT_EQ(c.request("/api/model", "Authorization: Bearer fr0m-file\r\n").status, 200);
+  }
+  {
+    Server server({}, small_store(), Launch{{{"PLANTVIEW_TOKEN", "fr0m-env"}}, {}});
+    Client c(server.port());
+    EXPECT_EQ(c.request("/api/model").status, 401);
+    EXPECT_EQ(c.request("/api/model", "Authorization: Bearer fr0m-env\r\n").status, 200);
+  }
+  const std::string both = std::string(PLANTVIEW_BIN) + " serve --store " + small_store() + " --token a --token-file " +
+                           file.string() + " >/dev/null 2>&1";
+  EXPECT_EQ(WEXITSTATUS(std::system(both.c_str())), 2);
+}
+
+// A copy of the test store (data.mdb only) in a directory of its own.
+fs::path copy_of_store(const test::TempDir& dir) {
+  fs::create_directories(dir.path());
+  fs::copy_file(fs::path(small_store()) / "data.mdb", dir.path() / "data.mdb");
+  return dir.path();
+}
+
+void expect_serves_frames(Server& server) {
+  ASSERT_GT(server.port(), 0);
+  EXPECT_EQ(wait_until_ready(server.port()).back(), 200);
+  Client c(server.port());
+  EXPECT_TRUE(is_image(c.request("/api/frame?w=48&h=32&format=png"), 48, 32, ".png"));
+  EXPECT_EQ(server.stop(), 0);
+}
+
+TEST(Service, AStoreInADirectoryTheServerMayNotWriteIsServed) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root to run the server as another user (nobody)";
+  if (std::system("command -v setpriv >/dev/null") != 0) GTEST_SKIP() << "setpriv (util-linux) is missing";
+  const test::TempDir dir;
+  const fs::path store = copy_of_store(dir);
+  // What a writer left: a lock file the reader may not write, in a directory it may not write.
+  { std::ofstream(store / "lock.mdb") << ""; }
+  fs::permissions(store / "data.mdb", fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::permissions(store / "lock.mdb", fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::permissions(store, fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                             fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec);
+  Server server({}, store.string(),
+                Launch{{{"HOME", "/tmp"}}, {"setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"}});
+  expect_serves_frames(server);
+  EXPECT_EQ(fs::file_size(store / "lock.mdb"), 0u);
+}
+
+TEST(Service, AStoreOnAReadOnlyMountIsServed) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root for a read-only bind mount (unshare -m)";
+  if (std::system("unshare -m true 2>/dev/null") != 0) GTEST_SKIP() << "unshare -m is not permitted here";
+  const test::TempDir dir;
+  const fs::path store = copy_of_store(dir);
+  // A private mount namespace: the bind mount is the server's alone and ends with it.
+  const std::string script = "mount --bind -o ro \"$1\" \"$1\" && shift && exec \"$@\"";
+  Server server({}, store.string(), Launch{{}, {"unshare", "-m", "sh", "-c", script, "sh", store.string()}});
+  expect_serves_frames(server);
+  EXPECT_FALSE(fs::exists(store / "lock.mdb"));  // nothing was written
+}
+
+// The python3 that has prometheus_client (Debian's python3-prometheus-client), or "".
+std::string python_with_prometheus_client() {
+  for (const char* python : {"/usr/bin/python3", "python3"})
+    if (std::system((std::string(python) + " -c 'import prometheus_client.parser' 2>/dev/null").c_str()) == 0)
+      return python;
+  return {};
+}
+
+TEST(Service, MetricsParseAsPrometheusTextAfterHostilePaths) {
+  const std::string python = python_with_prometheus_client();
+  if (python.empty()) GTEST_SKIP() << "python3 with prometheus_client (python3-prometheus-client) is missing";
+  Server server;
+  Client c(server.port());
+  // Paths a client might use to inject label text; each is answered and counted as 'other'
+  // (or as malformed HTTP).
+  for (const std::string path : {"/a\"b", "/a\\\\b", "/%0Ainjected{x=\"1\"} 1", "/a%22b"}) {
+    Client hostile(server.port());
+    hostile.send("GET " + path + " HTTP/1.1\r\nHost: t\r\n\r\n");
+    EXPECT_NE(hostile.read().status, 0) << path;
+  }
+  EXPECT_EQ(c.request("/api/frame?w=32&h=32").status, 200);
+  EXPECT_EQ(c.request("/api/stats?w=32&h=32").status, 200);
+  const Response metrics = c.request("/metrics");
+  ASSERT_EQ(metrics.status, 200);
+  const test::TempDir dir;
+  fs::create_directories(dir.path());
+  std::ofstream(dir.path() / "metrics.txt", std::ios::binary) << metrics.body;
+  // Parses the page, and prints every sample as name{labels} value, one a line.
+  std::ofstream(dir.path() / "parse.py") << R"(import sys
+from prometheus_client.parser import text_string_to_metric_families
+for family in text_string_to_metric_families(open(sys.argv[1]).read()):
+    for s in family.samples:
+        labels = ",".join(k + "=" + v for k, v in sorted(s.labels.items()))
+        print(f"{s.name}{{{labels}}} {s.value!r}")
+)";
+  const std::string command = python + " " + (dir.path() / "parse.py").string() + " " +
+                              (dir.path() / "metrics.txt").string() + " 2>&1";
+  FILE* p = popen(command.c_str(), "r");
+  std::string out;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p)) out += buf;
+  ASSERT_EQ(pclose(p), 0) << out << "\nfrom\n" << metrics.body;
+  const auto has = [&](const std::string& line) { return out.find(line + "\n") != std::string::npos; };
+  EXPECT_TRUE(has("plantview_render_milliseconds_count{kind=frame} 1.0")) << out;
+  EXPECT_TRUE(has("plantview_render_milliseconds_count{kind=stats} 1.0")) << out;
+  EXPECT_TRUE(has("plantview_render_milliseconds_count{kind=pick} 0.0")) << out;
+  EXPECT_TRUE(has("plantview_requests_total{endpoint=other,status=404} 3.0") ||
+              has("plantview_requests_total{endpoint=other,status=404} 4.0"))
+      << out;
+  EXPECT_EQ(out.find("injected"), std::string::npos) << out;
+  // Integers are written as integers (a byte count as 5.19906e+07 loses digits).
+  EXPECT_EQ(metrics.body.find("e+"), std::string::npos) << metrics.body;
 }
 
 }  // namespace

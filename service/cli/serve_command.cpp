@@ -1,4 +1,6 @@
 // `plantview serve`: the HTTP service and its viewer page.
+#include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <memory>
 
@@ -6,6 +8,43 @@
 #include "plantview/server.h"
 
 namespace plantview::cli {
+
+namespace {
+
+// The bearer token from --token, --token-file or PLANTVIEW_TOKEN (in that order; --token and
+// --token-file together are a usage error). A file holds the token on its first line; the line
+// end is not part of it. False with a message (exit status in `status`: 2 usage, 1 runtime).
+bool resolve_token(const std::string& flag, const std::string& file, std::string& token, std::string& error,
+                   int& status) {
+  status = 2;
+  if (!flag.empty() && !file.empty()) {
+    error = "--token and --token-file: give one of them";
+    return false;
+  }
+  if (!flag.empty()) {
+    token = flag;
+    return true;
+  }
+  if (!file.empty()) {
+    std::ifstream in(file, std::ios::binary);
+    status = 1;
+    if (!in) {
+      error = "--token-file: cannot read '" + file + "'";
+      return false;
+    }
+    std::getline(in, token);
+    if (!token.empty() && token.back() == '\r') token.pop_back();
+    if (token.empty()) {
+      error = "--token-file: '" + file + "' has no token on its first line";
+      return false;
+    }
+    return true;
+  }
+  if (const char* env = std::getenv("PLANTVIEW_TOKEN"); env && *env) token = env;
+  return true;
+}
+
+}  // namespace
 
 Action add_serve_command(CLI::App& app) {
   auto options = std::make_shared<service::ServerOptions>();
@@ -18,7 +57,11 @@ Action add_serve_command(CLI::App& app) {
   serve->add_option("--vertex-budget", *budget_mb, "GPU vertex arena (MB)")->capture_default_str();
   serve->add_option("--max-clients", options->max_clients, "Open connections at most")->capture_default_str();
   serve->add_option("--max-queue", options->max_queue, "Render requests waiting at most (then 503)")->capture_default_str();
-  serve->add_option("--token", options->token, "Bearer token every request must carry (required off loopback)");
+  auto token = std::make_shared<std::string>(), token_file = std::make_shared<std::string>();
+  serve->add_option("--token", *token,
+                    "Bearer token every request must carry (required off loopback; visible in ps: "
+                    "prefer --token-file or PLANTVIEW_TOKEN)");
+  serve->add_option("--token-file", *token_file, "File whose first line is the bearer token");
   serve->add_option("--device", options->device, "EGL device index");
   serve->add_option("--renderers", options->renderers,
                     "Render threads, each with its own context and vertex arena (0: one per EGL device; "
@@ -27,8 +70,24 @@ Action add_serve_command(CLI::App& app) {
   serve->add_option("--web", options->web_directory, "Directory of the viewer page")->capture_default_str();
   auto request_timeout_s = std::make_shared<double>(10.0);
   serve->add_option("--request-timeout", *request_timeout_s,
-                    "Seconds a client has to send a whole request (then 408)")
+                    "Seconds a client has to send a whole request (then 408), its first counted from connecting")
       ->check(CLI::Range(0.05, 3600.0))->capture_default_str();
+  auto write_timeout_s = std::make_shared<double>(30.0);
+  serve->add_option("--write-timeout", *write_timeout_s,
+                    "Seconds a client may leave answers unread before it is disconnected")
+      ->check(CLI::Range(0.05, 3600.0))->capture_default_str();
+  auto idle_timeout_s = std::make_shared<double>(120.0);
+  serve->add_option("--idle-timeout", *idle_timeout_s, "Seconds a keep-alive connection may idle")
+      ->check(CLI::Range(0.05, 86400.0))->capture_default_str();
+  auto shutdown_timeout_s = std::make_shared<double>(30.0);
+  serve->add_option("--shutdown-timeout", *shutdown_timeout_s,
+                    "Seconds after SIGTERM before connections still open are closed")
+      ->check(CLI::Range(0.0, 3600.0))->capture_default_str();
+  serve->add_option("--max-per-address", options->max_clients_per_address,
+                    "Open connections from one IP address at most (a load balancer is one address)")
+      ->check(CLI::Range(1u, 1u << 20))->capture_default_str();
+  serve->add_option("--reserved-clients", options->reserved_clients,
+                    "Of --max-clients, connections kept for addresses already served (default: a quarter)");
   return [=]() -> int {
     if (!serve->parsed()) return -1;
     const size_t colon = listen->rfind(':');
@@ -59,7 +118,18 @@ Action add_serve_command(CLI::App& app) {
     o.port = uint16_t(port);
     o.vertex_budget_bytes = *budget_mb << 20;
     o.request_timeout_ms = uint32_t(*request_timeout_s * 1000.0);
+    o.write_timeout_ms = uint32_t(*write_timeout_s * 1000.0);
+    o.idle_timeout_ms = uint32_t(*idle_timeout_s * 1000.0);
+    o.shutdown_timeout_ms = uint32_t(*shutdown_timeout_s * 1000.0);
+    if (serve->count("--reserved-clients") == 0) o.reserved_clients = o.max_clients / 4;
+    if (o.reserved_clients >= o.max_clients)
+      return usage_error("--reserved-clients must be less than --max-clients (" + std::to_string(o.max_clients) + ")");
     std::string error;
+    int token_status = 0;
+    if (!resolve_token(*token, *token_file, o.token, error, token_status)) {
+      std::cerr << "plantview: " << error << "\n";
+      return token_status;
+    }
     const int status = service::run_server(o, error);
     if (status != 0) std::cerr << "plantview: " << error << "\n";
     return status;

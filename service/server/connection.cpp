@@ -15,6 +15,17 @@ struct WriteRequest {
 uv_stream_t* stream(uv_tcp_t& tcp) { return reinterpret_cast<uv_stream_t*>(&tcp); }
 uv_handle_t* handle(auto& h) { return reinterpret_cast<uv_handle_t*>(&h); }
 
+std::string peer_address(uv_tcp_t& tcp) {
+  sockaddr_storage peer{};
+  int length = sizeof peer;
+  if (uv_tcp_getpeername(&tcp, reinterpret_cast<sockaddr*>(&peer), &length) != 0) return {};
+  char text[64] = {};
+  const int rc = peer.ss_family == AF_INET6
+                     ? uv_ip6_name(reinterpret_cast<const sockaddr_in6*>(&peer), text, sizeof text)
+                     : uv_ip4_name(reinterpret_cast<const sockaddr_in*>(&peer), text, sizeof text);
+  return rc == 0 ? std::string(text) : std::string();
+}
+
 }  // namespace
 
 Connection::Connection(ConnectionHost& host, uint64_t id)
@@ -29,20 +40,26 @@ Connection* Connection::accept(uv_stream_t* listener, ConnectionHost& host, uint
   auto* c = new Connection(host, id);
   uv_tcp_init(listener->loop, &c->tcp_);
   uv_timer_init(listener->loop, &c->timer_);
+  uv_timer_init(listener->loop, &c->write_timer_);
   c->tcp_.data = c;
   c->timer_.data = c;
+  c->write_timer_.data = c;
   if (uv_accept(listener, stream(c->tcp_)) != 0) {
     c->closing_ = true;
     uv_close(handle(c->timer_), on_closed);
+    uv_close(handle(c->write_timer_), on_closed);
     uv_close(handle(c->tcp_), on_closed);
     return nullptr;
   }
   uv_tcp_nodelay(&c->tcp_, 1);
+  c->address_ = peer_address(c->tcp_);
   return c;
 }
 
 void Connection::start() {
-  restart_timer(host_.connection_limits().idle_timeout_ms);
+  // The first request's deadline runs from now, not from its first byte: a connection that
+  // sends nothing (or one byte now and then) gives its slot back within request_timeout_ms.
+  restart_timer(host_.connection_limits().request_timeout_ms);
   start_reading();
 }
 
@@ -60,10 +77,10 @@ std::shared_ptr<Pending> Connection::push_pending(std::string endpoint) {
   return p;
 }
 
-void Connection::answer(const std::shared_ptr<Pending>& p, const Reply& reply, bool count) {
+void Connection::answer(const std::shared_ptr<Pending>& p, Reply reply, bool count) {
   if (reply.close) p->keep_alive = false;
   if (count) host_.on_answered(p->endpoint, reply.status);
-  p->bytes = http_response(reply.status, reply.content_type, reply.body, p->keep_alive, reply.headers);
+  p->reply = std::move(reply);
   p->ready = true;
   flush();
 }
@@ -74,7 +91,9 @@ void Connection::close() {
   host_.on_closing(*this);
   pending_.clear();
   uv_timer_stop(&timer_);
+  uv_timer_stop(&write_timer_);
   uv_close(handle(timer_), on_closed);
+  uv_close(handle(write_timer_), on_closed);
   uv_close(handle(tcp_), on_closed);
 }
 
@@ -100,8 +119,17 @@ void Connection::start_reading() {
 void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
   const std::unique_ptr<char[]> owned(buf->base);
   if (closing_) return;
+  if (n == UV_EOF) {
+    // A half-close: the client sends no more, but may still read. Answer what it completed;
+    // a request cut short by the close is dropped.
+    peer_done_ = true;
+    no_more_ = true;
+    stop_reading();
+    if (finished()) close();
+    return;
+  }
   if (n < 0) {
-    close();  // EOF or reset: answers still owed are dropped with the connection
+    close();  // a reset: answers still owed are dropped with the connection
     return;
   }
   if (n > 0 && !no_more_) read_bytes(std::string_view(buf->base, size_t(n)));
@@ -118,9 +146,11 @@ void Connection::read_bytes(std::string_view bytes) {
     bytes.remove_prefix(used);
     if (result == RequestParser::Result::error) return fail(parser_.error());
     if (result == RequestParser::Result::need_more) {
-      if (!was_in_request && parser_.in_request()) restart_timer(limits.request_timeout_ms);
+      // A later request's deadline runs from its first byte; the first one's from the accept.
+      if (served_ && !was_in_request && parser_.in_request()) restart_timer(limits.request_timeout_ms);
       return;
     }
+    served_ = true;
     restart_timer(limits.idle_timeout_ms);
     const Request& request = parser_.request();
     auto p = push_pending(endpoint_of(request.path));
@@ -145,16 +175,41 @@ void Connection::restart_timer(uint32_t ms) {
 
 void Connection::on_timer() {
   if (closing_) return;
-  if (parser_.in_request() && !no_more_) {
+  if (!no_more_ && parser_.in_request()) {
     // Too slow to send its request: answer and close.
     no_more_ = true;
     stop_reading();
+    host_.on_timed_out();
     answer(push_pending("timeout"), error_reply(408, "the request did not arrive in time", {}, true));
+  } else if (!served_ && finished()) {
+    host_.on_timed_out();  // connected and never sent a byte
+    close();
   } else if (finished()) {
     close();  // idle keep-alive connection
   } else {
     restart_timer(host_.connection_limits().idle_timeout_ms);
   }
+}
+
+uint64_t Connection::bytes_sent() const {
+  return written_bytes_ - uv_stream_get_write_queue_size(reinterpret_cast<const uv_stream_t*>(&tcp_));
+}
+
+// Runs every write_timeout_ms while bytes wait: closes the connection when the client has
+// taken none of them since the last look.
+void Connection::on_write_timer() {
+  if (closing_) return;
+  if (unsent_bytes_ == 0) {
+    uv_timer_stop(&write_timer_);
+    return;
+  }
+  const uint64_t sent = bytes_sent();
+  if (sent > sent_at_last_check_) {
+    sent_at_last_check_ = sent;
+    return;
+  }
+  host_.on_timed_out();
+  close();
 }
 
 // --- writing ------------------------------------------------------------------------------------
@@ -163,7 +218,13 @@ void Connection::write(std::string data) {
   auto* w = new WriteRequest;
   w->data = std::move(data);
   w->req.data = this;
+  if (unsent_bytes_ == 0) {
+    sent_at_last_check_ = written_bytes_;
+    const uint32_t ms = host_.connection_limits().write_timeout_ms;
+    uv_timer_start(&write_timer_, [](uv_timer_t* t) { static_cast<Connection*>(t->data)->on_write_timer(); }, ms, ms);
+  }
   unsent_bytes_ += w->data.size();
+  written_bytes_ += w->data.size();
   uv_buf_t buf = uv_buf_init(w->data.data(), unsigned(w->data.size()));
   const auto on_done = [](uv_write_t* req, int status) {
     auto* done = reinterpret_cast<WriteRequest*>(req);
@@ -183,6 +244,7 @@ void Connection::on_written(size_t bytes, int status) {
   unsent_bytes_ -= bytes;
   if (status < 0) return close();
   if (closing_) return;
+  if (unsent_bytes_ == 0) uv_timer_stop(&write_timer_);
   // A slow reader has caught up: read its next requests.
   if (!reading_ && !no_more_ && unsent_bytes_ <= host_.connection_limits().max_unsent_bytes / 4 &&
       pending_.size() < kMaxAnswersOwed && !host_.shutting_down())
@@ -196,10 +258,14 @@ void Connection::flush() {
   while (!pending_.empty() && pending_.front()->ready) {
     const auto p = pending_.front();
     pending_.pop_front();
-    if (!p->keep_alive) no_more_ = true;
-    write(std::move(p->bytes));
+    // Draining: the last answer owed tells the client not to send more on this connection.
+    const bool keep_alive = p->keep_alive && !(host_.shutting_down() && pending_.empty() && !parser_.in_request());
+    if (!keep_alive) no_more_ = true;
+    const Reply& r = p->reply;
+    write(http_response(r.status, r.content_type, r.body, keep_alive, r.headers));
+    p->reply = Reply{};
     if (closing_) return;
-    if (!p->keep_alive) {
+    if (!keep_alive) {
       // Nothing after a closing answer: later pipelined requests are dropped.
       for (auto& later : pending_) later->ready = false;
       pending_.clear();

@@ -11,9 +11,17 @@
 //   - Ownership: the Server owns its handles (listener, signals, shutdown timer, the worker's
 //     async) and closes each before the loop ends; connections own themselves (connection.h);
 //     pool work items are deleted in their after-work callbacks.
-//   - Shutdown: stop accepting and reading; close connections as they finish; once no
-//     connection, pool work or render job is left, stop the render thread and close the handles,
-//     so that uv_run returns and the store closes.
+//   - Admission (at accept): max_clients in all, max_clients_per_address from one address, and
+//     addresses not yet served only up to max_clients - reserved_clients. An address counts as
+//     served once a request of its has completed (and not been refused for its token); the
+//     server remembers at most
+//     kMaxServedAddresses of them (the oldest are forgotten first).
+//   - Readiness: the store is open before the loop runs; a warm-up frame is queued first, and
+//     /readyz says 200 once it has been drawn, until the shutdown begins.
+//   - Shutdown: stop accepting and reading; answer what was read; close connections as they
+//     finish, or all of them at the shutdown deadline; once no connection, pool work or render
+//     job is left, stop the render thread and close the handles, so that uv_run returns and the
+//     store closes.
 #include "plantview/server.h"
 
 #include <arpa/inet.h>
@@ -43,9 +51,12 @@ namespace plantview::service {
 
 namespace {
 
+constexpr size_t kMaxServedAddresses = 16384;
+
 struct Ticket {
   Connection* connection = nullptr;  // null once the connection has closed
   std::shared_ptr<Pending> pending;
+  RenderJob::Kind kind = RenderJob::Kind::frame;  // render tickets: for the metrics
 };
 
 class Server final : public ConnectionHost {
@@ -61,24 +72,41 @@ class Server final : public ConnectionHost {
   std::unique_ptr<Store> store;
   RenderWorker worker;
   std::unordered_set<Connection*> connections;
+  std::unordered_set<Connection*> admitted;  // started (not refused): count against the limits
+  std::unordered_map<std::string, uint32_t> admitted_by_address;
+  std::unordered_map<std::string, uint64_t> served_addresses;  // address -> when last served (uv_now, ms)
   std::unordered_map<uint64_t, Ticket> tickets;
   uint64_t next_ticket = 1, next_connection = 1;
+  uint64_t warm_up_ticket = 0;  // the first frame's: readiness waits for it
   int works_in_flight = 0;
+  bool ready = false;           // the renderer has drawn its first frame
   bool stopping = false;
+  uint64_t shutdown_started_ms = 0;
   Metrics metrics;
 
   const ConnectionLimits& connection_limits() const override { return limits; }
   bool shutting_down() const override { return stopping; }
   void on_request(Connection& c, const Request& request, const std::shared_ptr<Pending>& p) override;
   void on_answered(const std::string& endpoint, int status) override { metrics.count_answer(endpoint, status); }
+  void on_timed_out() override { metrics.timed_out_connections += 1; }
   void on_closing(Connection& c) override {
     connections.erase(&c);
+    if (admitted.erase(&c)) {
+      const auto it = admitted_by_address.find(c.address());
+      if (it != admitted_by_address.end() && --it->second == 0) admitted_by_address.erase(it);
+    }
     for (auto& [number, t] : tickets)
       if (t.connection == &c) t.connection = nullptr;
   }
+  // Why a new connection from `address` is refused, or "" to admit it.
+  std::string admission(const std::string& address) const;
+  void remember_served(const std::string& address);
+  bool health_check(Connection& c, const Request& request, const std::shared_ptr<Pending>& p);
+  void queue_warm_up();
 
-  uint64_t add_ticket(Connection& c, const std::shared_ptr<Pending>& p) {
-    tickets[next_ticket] = {&c, p};
+  uint64_t add_ticket(Connection& c, const std::shared_ptr<Pending>& p,
+                      RenderJob::Kind kind = RenderJob::Kind::frame) {
+    tickets[next_ticket] = {&c, p, kind};
     return next_ticket++;
   }
   // The ticket's connection and Pending, forgotten; connection null if it has gone.
@@ -106,14 +134,71 @@ Reply text_reply(std::string content_type, std::string body, int status = 200, F
   return r;
 }
 
+std::string Server::admission(const std::string& address) const {
+  if (admitted.size() >= options.max_clients) return "too many connections";
+  const auto open = admitted_by_address.find(address);
+  if (open != admitted_by_address.end() && open->second >= options.max_clients_per_address)
+    return "too many connections from " + address;
+  const uint32_t unreserved = options.max_clients - std::min(options.reserved_clients, options.max_clients);
+  if (admitted.size() >= unreserved && !served_addresses.count(address))
+    return "too many connections (the rest are kept for clients already served)";
+  return {};
+}
+
+void Server::remember_served(const std::string& address) {
+  const uint64_t now = uv_now(loop);
+  if (served_addresses.size() >= kMaxServedAddresses && !served_addresses.count(address)) {
+    // Forget the older half (a scan over at most kMaxServedAddresses, once per that many new
+    // addresses).
+    std::vector<uint64_t> times;
+    times.reserve(served_addresses.size());
+    for (const auto& [a, t] : served_addresses) times.push_back(t);
+    std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
+    const uint64_t median = times[times.size() / 2];
+    std::erase_if(served_addresses, [&](const auto& entry) { return entry.second <= median; });
+  }
+  served_addresses[address] = now;
+}
+
+// /healthz and /readyz: for probes and balancers, before the token and the routes.
+bool Server::health_check(Connection& c, const Request& request, const std::shared_ptr<Pending>& p) {
+  const bool live = request.path == "/healthz", readiness = request.path == "/readyz";
+  if (!live && !readiness) return false;
+  p->endpoint = live ? "healthz" : "readyz";
+  Reply reply;
+  reply.content_type = "text/plain; charset=utf-8";
+  if (request.method != "GET") {
+    reply = error_reply(405, "only GET is served", {{"Allow", "GET"}});
+  } else if (!request.query.empty() || !request.query_error.empty()) {
+    reply = error_reply(400, request.path + " takes no parameters");
+  } else if (live) {
+    reply.body = "alive\n";
+  } else if (stopping) {
+    reply.status = 503;
+    reply.body = "draining\n";
+  } else if (!ready) {
+    reply.status = 503;
+    reply.body = "starting: the renderer has not drawn its first frame yet\n";
+  } else {
+    reply.body = "ready\n";
+  }
+  c.answer(p, std::move(reply));
+  return true;
+}
+
 void Server::on_request(Connection& c, const Request& request, const std::shared_ptr<Pending>& p) {
-  Routed routed = route(request, routes, stopping, c.id());
+  if (health_check(c, request, p)) return remember_served(c.address());
+  // While draining, what has been read is still answered (the connection reads no more).
+  Routed routed = route(request, routes, false, c.id());
   p->endpoint = routed.endpoint;
+  const auto* refused = std::get_if<Reply>(&routed.decision);
+  if (!refused || refused->status != 401) remember_served(c.address());  // a wrong token earns no slot
   if (auto* reply = std::get_if<Reply>(&routed.decision)) {
-    c.answer(p, *reply);
+    c.answer(p, std::move(*reply));
   } else if (std::holds_alternative<MetricsPage>(routed.decision)) {
     metrics.count_answer(p->endpoint, 200);  // counted before it is written, so that it shows
-    const MetricsGauges gauges{worker.vertex_budget_bytes(), worker.queue_depth(), connections.size()};
+    MetricsGauges gauges{worker.vertex_budget_bytes(), worker.queue_depth(), connections.size()};
+    gauges.ready = ready && !stopping;
     c.answer(p, text_reply("text/plain; version=0.0.4", metrics_text(metrics, gauges)), false);
   } else if (auto* lookup = std::get_if<ObjectLookup>(&routed.decision)) {
     look_up_object(c, p, std::move(*lookup));
@@ -124,13 +209,14 @@ void Server::on_request(Connection& c, const Request& request, const std::shared
 
 void Server::submit_render(Connection& c, const std::shared_ptr<Pending>& p, RenderJob job) {
   job.ticket = next_ticket;
+  const RenderJob::Kind kind = job.kind;
   uint64_t dropped = 0;
   const auto submitted = worker.submit(std::move(job), dropped);
   if (submitted == RenderWorker::Submitted::busy) {
     metrics.rejected_busy += 1;
     return c.answer(p, error_reply(503, "too many frames waiting; retry shortly", {{"Retry-After", "1"}}));
   }
-  add_ticket(c, p);
+  add_ticket(c, p, kind);
   if (submitted == RenderWorker::Submitted::replaced) {
     metrics.superseded += 1;
     const Ticket t = take_ticket(dropped);
@@ -174,9 +260,21 @@ void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, Ob
       });
 }
 
+// The first frame after start-up: the renderer is warm, and the server ready.
+void Server::queue_warm_up() {
+  RenderJob job;
+  job.kind = RenderJob::Kind::frame;
+  job.width = job.height = 64;
+  job.camera = default_camera(routes.bounds, 1.0);
+  job.client = "server/warm-up";
+  job.ticket = warm_up_ticket = next_ticket++;
+  uint64_t dropped = 0;
+  worker.submit(std::move(job), dropped);
+}
+
 void Server::deliver(RenderResult& r) {
-  if (r.rendered) metrics.count_rendered(r.stats);
   const Ticket t = take_ticket(r.ticket);
+  if (r.rendered) metrics.count_rendered(t.kind, r.stats);
   if (!t.connection) return;  // the client went away
   t.connection->answer(t.pending, text_reply(r.content_type, std::move(r.body), r.status, std::move(r.headers)));
 }
@@ -188,6 +286,15 @@ struct EncodeWork {
 };
 
 void Server::on_render_done(RenderResult&& r) {
+  if (r.ticket == warm_up_ticket) {
+    if (stopping) return;  // drawn after the signal: never ready
+    ready = r.status == 200;
+    if (ready) std::fprintf(stderr, "plantview serve: ready (first frame drawn)\n");
+    else std::fprintf(stderr, "plantview serve: not ready: the first frame failed: %s\n", r.body.c_str());
+    return;
+  }
+  const auto ticket = tickets.find(r.ticket);
+  if (ticket == tickets.end() || !ticket->second.connection) return deliver(r);  // nobody to encode for
   if (!r.needs_encoding) return deliver(r);
   // Encode on libuv's pool: the render thread goes on with the next frame meanwhile.
   auto* work = new EncodeWork;
@@ -209,6 +316,7 @@ void Server::on_render_done(RenderResult&& r) {
 void Server::begin_shutdown() {
   if (stopping) return;
   stopping = true;
+  shutdown_started_ms = uv_now(loop);
   std::fprintf(stderr, "plantview serve: shutting down (finishing %zu requests)\n", tickets.size());
   uv_close(reinterpret_cast<uv_handle_t*>(&listener), nullptr);
   for (Connection* c : connections) c->stop_reading();
@@ -222,9 +330,14 @@ void Server::begin_shutdown() {
 // Closes finished connections; once nothing is left in flight, stops the render thread and
 // closes the server's handles, this timer's too (true).
 bool Server::finish_shutdown() {
+  const bool deadline = uv_now(loop) - shutdown_started_ms >= options.shutdown_timeout_ms;
   std::vector<Connection*> done;
   for (Connection* c : connections)
-    if (c->finished()) done.push_back(c);
+    if (c->finished() || deadline) done.push_back(c);
+  if (deadline && !done.empty()) {
+    std::fprintf(stderr, "plantview serve: shutdown deadline: closing %zu connections\n", done.size());
+    metrics.timed_out_connections += done.size();
+  }
   for (Connection* c : done) c->close();
   if (!connections.empty() || works_in_flight > 0 || !worker.idle()) return false;
   worker.stop();
@@ -288,10 +401,15 @@ void on_connection(uv_stream_t* listener, int status) {
   Connection* c = Connection::accept(listener, s, s.next_connection++);
   if (!c) return;
   s.connections.insert(c);
-  if (s.connections.size() > s.options.max_clients || s.stopping)
-    c->refuse(error_reply(503, "too many connections", {{"Retry-After", "1"}}));
-  else
-    c->start();
+  const std::string refused = s.stopping ? "the server is shutting down" : s.admission(c->address());
+  if (!refused.empty()) {
+    s.metrics.refused_connections += 1;
+    c->refuse(error_reply(503, refused, {{"Retry-After", "1"}}));
+    return;
+  }
+  s.admitted.insert(c);
+  s.admitted_by_address[c->address()] += 1;
+  c->start();
 }
 
 // Binds and listens; prints the address. False with `error` set.
@@ -339,7 +457,7 @@ int run_server(const ServerOptions& options, std::string& error) {
   Server& s = *server;
   s.options = options;
   s.limits = {{options.max_header_bytes, options.max_body_bytes}, options.request_timeout_ms,
-              options.idle_timeout_ms, options.max_unsent_bytes};
+              options.idle_timeout_ms, options.write_timeout_ms, options.max_unsent_bytes};
   s.routes.token = options.token;
   s.routes.client_key = random_client_key();
   if (!is_loopback(options.host) && options.token.empty()) {
@@ -348,6 +466,9 @@ int run_server(const ServerOptions& options, std::string& error) {
   }
   s.store = Store::open(options.store_directory, Store::Mode::read_only, error);
   if (!s.store || !describe_model(*s.store, s.routes, error)) return 1;
+  if (s.store->without_lock_file())
+    std::fprintf(stderr, "plantview serve: %s is read-only: reading it without LMDB's lock file "
+                 "(no import may write to it while this server runs)\n", options.store_directory.c_str());
   if (!load_web_files(options.web_directory, s.routes.files))
     std::fprintf(stderr, "plantview serve: no viewer page in %s (the API still works)\n",
                  options.web_directory.c_str());
@@ -368,6 +489,7 @@ int run_server(const ServerOptions& options, std::string& error) {
                       [&s] { uv_async_send(&s.results_ready); }, error))
     return abandon(s, loop);
   std::fprintf(stderr, "plantview serve: rendering on %s\n", s.worker.device_description().c_str());
+  s.queue_warm_up();
   // Frames are encoded through the image module: it loads while the server listens. Not earlier:
   // the render thread's EGL initialisation loads its drivers under the same loader lock.
   preload_image_io();

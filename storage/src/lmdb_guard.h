@@ -27,6 +27,10 @@ class LmdbEnv {
   LmdbEnv& operator=(const LmdbEnv&) = delete;
   MDB_env** out() { return &env_; }
   MDB_env* get() const { return env_; }
+  void reset() {
+    if (env_) mdb_env_close(env_);
+    env_ = nullptr;
+  }
 
  private:
   MDB_env* env_ = nullptr;

@@ -390,6 +390,7 @@ std::string statistics_json(const ModelStatistics& statistics) {
 struct Store::State {
   std::string directory;
   Mode mode;
+  bool without_lock = false;  // opened with MDB_NOLOCK (read-only directory or file system)
   detail::LmdbEnv env;
   Databases dbs{};
   // The snapshot of the newest state a view has read. Guarded by snapshot_mutex.
@@ -932,6 +933,7 @@ bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn
 Store::Store(std::unique_ptr<State> state) : state_(std::move(state)) {}
 Store::~Store() = default;
 const std::string& Store::directory() const { return state_->directory; }
+bool Store::without_lock_file() const { return state_->without_lock; }
 
 std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std::string& error) {
   auto state = std::make_unique<State>();
@@ -957,14 +959,26 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
             " is empty: not a plantview store (or a truncated copy)";
     return nullptr;
   }
-  int rc = mdb_env_create(state->env.out());
-  if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 8);
-  if (rc == MDB_SUCCESS) rc = mdb_env_set_mapsize(state->env.get(), kMapSizeBytes);
-  if (rc == MDB_SUCCESS) rc = mdb_env_set_maxreaders(state->env.get(), 254);
   // No readahead: readers fetch chunks of a few kilobytes at random, and readahead would bring
   // (and count in the process's memory) most of the file around them.
-  const unsigned flags = MDB_NOTLS | MDB_NORDAHEAD | (mode == Mode::read_only ? MDB_RDONLY : 0u);
-  if (rc == MDB_SUCCESS) rc = mdb_env_open(state->env.get(), directory.c_str(), flags, 0644);
+  const auto open_env = [&](unsigned extra_flags) {
+    state->env.reset();
+    int rc = mdb_env_create(state->env.out());
+    if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 8);
+    if (rc == MDB_SUCCESS) rc = mdb_env_set_mapsize(state->env.get(), kMapSizeBytes);
+    if (rc == MDB_SUCCESS) rc = mdb_env_set_maxreaders(state->env.get(), 254);
+    const unsigned flags = MDB_NOTLS | MDB_NORDAHEAD | (mode == Mode::read_only ? MDB_RDONLY : 0u) | extra_flags;
+    if (rc == MDB_SUCCESS) rc = mdb_env_open(state->env.get(), directory.c_str(), flags, 0644);
+    return rc;
+  };
+  int rc = open_env(0);
+  // A read-only directory or file system (a shared copy, a read-only volume): LMDB cannot
+  // create or open lock.mdb for writing. Read without the lock table then; the manual says what
+  // that requires (no writer while readers run).
+  if ((rc == EACCES || rc == EROFS) && mode == Mode::read_only) {
+    rc = open_env(MDB_NOLOCK);
+    state->without_lock = rc == MDB_SUCCESS;
+  }
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(directory, "opening", rc);
     // LMDB reads its two meta pages with read(): a file too short to hold them is "not an LMDB

@@ -6,12 +6,26 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <cerrno>
 #include <cstdlib>
 
 namespace plantview::test_support {
 
-HttpClient::HttpClient(int port, int receive_timeout_s) {
+HttpClient::HttpClient(int port, int receive_timeout_s)
+    : HttpClient(port, ConnectOptions{"", 0, receive_timeout_s}) {}
+
+HttpClient::HttpClient(int port, const ConnectOptions& options) {
   fd_ = socket(AF_INET, SOCK_STREAM, 0);
+  if (options.receive_buffer_bytes > 0)
+    setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes, sizeof options.receive_buffer_bytes);
+  if (!options.source_address.empty()) {
+    sockaddr_in local{};
+    local.sin_family = AF_INET;
+    if (inet_pton(AF_INET, options.source_address.c_str(), &local.sin_addr) != 1 ||
+        bind(fd_, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0)
+      return;  // not connected
+  }
+  const int receive_timeout_s = options.receive_timeout_s;
   sockaddr_in a{};
   a.sin_family = AF_INET;
   a.sin_port = htons(uint16_t(port));
@@ -73,6 +87,23 @@ HttpResponse HttpClient::request(const std::string& target, const std::string& h
 bool HttpClient::closed_by_server() {
   char c;
   return recv(fd_, &c, 1, 0) == 0;
+}
+
+void HttpClient::half_close() { shutdown(fd_, SHUT_WR); }
+
+size_t HttpClient::read_until_closed(bool& closed) {
+  size_t total = buffer_.size();
+  buffer_.clear();
+  char chunk[65536];
+  for (;;) {
+    const ssize_t n = recv(fd_, chunk, sizeof chunk, 0);
+    if (n > 0) {
+      total += size_t(n);
+      continue;
+    }
+    closed = n == 0 || errno == ECONNRESET;
+    return total;
+  }
 }
 
 bool HttpClient::fill() {

@@ -15,9 +15,17 @@ struct HttpResponse {
   std::string body;
 };
 
+// How to connect, for tests of per-address limits and of clients that do not read.
+struct ConnectOptions {
+  std::string source_address;     // "": any; else a local IPv4 address, e.g. "127.0.0.2"
+  int receive_buffer_bytes = 0;   // 0: the system's; else SO_RCVBUF, set before connecting
+  int receive_timeout_s = 60;
+};
+
 class HttpClient {
  public:
   explicit HttpClient(int port, int receive_timeout_s = 60);
+  HttpClient(int port, const ConnectOptions& options);
   ~HttpClient();
   HttpClient(const HttpClient&) = delete;
   HttpClient& operator=(const HttpClient&) = delete;
@@ -31,6 +39,12 @@ class HttpClient {
   HttpResponse request(const std::string& target, const std::string& headers = "");
   // True if the server closed the connection (a read returns 0) within the timeout.
   bool closed_by_server();
+  // Sends no more (shutdown(SHUT_WR)); responses can still be read.
+  void half_close();
+  // Reads and discards until the server closes or resets the connection, or the receive
+  // timeout passes. The bytes read (buffered ones included); `closed` says whether it ended by
+  // the server's close or reset.
+  size_t read_until_closed(bool& closed);
 
  private:
   bool fill();

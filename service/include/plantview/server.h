@@ -25,12 +25,31 @@
 //
 // Limits (each answered with a JSON error {"error": "..."} and the status in parentheses):
 // header bytes (431), body bytes (413), a request not complete within the request timeout
-// (408), connections beyond max_clients (503), malformed HTTP (400), bad, non-finite or unknown
-// parameters (400), images over 4096x4096 (400), unknown objects (404), methods other than GET
-// (405), a missing or wrong bearer token (401).
+// (408), connections refused at accept (503, below), malformed HTTP (400), bad, non-finite or
+// unknown parameters (400), images over 4096x4096 (400), unknown objects (404), methods other
+// than GET (405), a missing or wrong bearer token (401).
 //
-// Shutdown: SIGINT or SIGTERM stops accepting and reading; requests in flight finish and are
-// sent; then the render thread stops and the store is closed.
+// Hostile clients: every connection must send its first complete request within the request
+// timeout of being accepted (else it is closed), and must take some of the bytes owed to it
+// within the write timeout while any wait (else it is closed); what it may leave unsent is
+// capped (max_unsent_bytes). At accept a connection is refused (503, Retry-After) beyond
+// max_clients open connections, beyond max_clients_per_address from one IP address, and, for
+// an address that has not completed a request yet (one refused for its token does not count),
+// beyond max_clients - reserved_clients: the reserved share stays for clients already served,
+// so that connections that never send a byte cannot lock out those who do. Behind a load
+// balancer every connection comes from the balancer's address: give max_clients_per_address
+// room for its connections.
+//
+// Health (answered before the token check and routing, GET only, no parameters):
+//   /healthz  200 while the process runs its loop (liveness);
+//   /readyz   200 once the store is open and the renderer has drawn a first frame, 503 before
+//             that and while draining (readiness: a load balancer sends frames only when 200).
+//
+// Shutdown (drain): SIGINT or SIGTERM closes the listener (new connections are refused by the
+// kernel, so a balancer retries them elsewhere) and stops reading; every request already read
+// is answered, the last answer of each connection with "Connection: close"; then the render
+// thread stops, the store is closed and run_server returns 0. Connections still open
+// shutdown_timeout_ms after the signal (a client that does not read) are closed.
 //
 // This is the module's only public header. Inside (service/server/, private): the request
 // parser (bytes to requests, pure), routes (a request to a response or a job, pure), metrics,
@@ -60,6 +79,10 @@ struct ServerOptions {
   uint32_t max_header_bytes = 16384;
   uint32_t max_body_bytes = 65536;
   uint64_t max_unsent_bytes = 32ull << 20;  // per connection, before it stops being read
+  uint32_t write_timeout_ms = 30000;   // bytes owed and none taken by the client for this long
+  uint32_t shutdown_timeout_ms = 30000;  // after SIGTERM, connections still open are closed
+  uint32_t max_clients_per_address = 32; // open connections from one IP address
+  uint32_t reserved_clients = 16;      // of max_clients, kept for addresses already served
 };
 
 // Runs the service until SIGINT or SIGTERM. Prints "listening on http://HOST:PORT/" on stdout

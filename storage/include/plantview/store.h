@@ -57,6 +57,15 @@
 // and slots_named() also have short forms without a message, for callers that treat "cannot
 // tell" as "none".
 //
+// Read-only copies (several service replicas, or several hosts, reading one store): a store
+// opened read_only never writes data.mdb. LMDB keeps its reader table in lock.mdb beside it; where
+// that file cannot be created or opened for writing (a directory without write permission, a
+// read-only mount), open() falls back to LMDB's MDB_NOLOCK and readers keep no table. Then no
+// writer may change the store while those readers run (an import would reuse pages that a
+// reader still sees): replace a shared store by writing a new directory and switching readers
+// over, never by importing into it in place. Readers in a writable directory use lock.mdb as
+// usual and may run alongside an import.
+//
 // Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an
 // empty data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter
 // than the pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps
@@ -204,7 +213,8 @@ class Store {
  public:
   enum class Mode { read_only, read_write };
   // Opens (read_write: creating the directory and store if needed) the store in `directory`.
-  // read_only fails if there is no store there.
+  // read_only fails if there is no store there; it writes nothing, and opens a store in a
+  // directory or file system it may not write to (see "Read-only copies").
   static std::unique_ptr<Store> open(const std::string& directory, Mode mode, std::string& error);
   ~Store();
   Store(const Store&) = delete;
@@ -218,6 +228,8 @@ class Store {
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;
+  // True when a read-only store was opened without LMDB's lock file (see "Read-only copies").
+  bool without_lock_file() const;
 
  private:
   friend class Import;
