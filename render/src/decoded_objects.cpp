@@ -101,6 +101,9 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
     for (const auto& s : o.centreline) k.pipe_diameter_m = std::max(k.pipe_diameter_m, s.diameter_m);
   }
   k.vertex_count = vertex_count;
+  k.occluder = {};
+  if (may_occlude(k.object_class, k.colour))
+    build_occluder_shape(k.primitives, occluder_scratch_, k.occluder);
   return k;
 }
 

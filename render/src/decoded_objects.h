@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "hlod.h"
+#include "occlusion_occluders.h"
 #include "plantview/model.h"
 #include "plantview/primitives.h"
 
@@ -81,6 +82,7 @@ struct Known {
   uint8_t base = 0;
   uint32_t resident_centreline_first = 0;
   uint64_t last_seen = 0;           // frame
+  OccluderShape occluder;           // empty unless it may occlude (occlusion_occluders.h)
 };
 
 // Whether a pipeline run is drawn merged, decided once per frame by its first visible member.
@@ -148,6 +150,7 @@ class DecodedObjects {
   std::vector<PipelineRun> branch_runs_;
   std::vector<uint32_t> new_slots_;
   Object object_;  // decode target
+  std::vector<PackedVertex> occluder_scratch_;
 };
 
 }  // namespace plantview::detail

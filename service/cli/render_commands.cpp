@@ -95,7 +95,7 @@ int fail(const std::string& message) {
 
 struct RenderArgs {
   std::string store, camera, path, out, size = "1280x720", lod_policy = "screen-space",
-                                        shard = "0/1", format = "png";
+                                        shard = "0/1", format = "png", occlusion = "on";
   double pixel_error = 1.0;
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
@@ -117,6 +117,7 @@ int run_render(const RenderArgs& a) {
   options.centrelines = !a.no_centrelines;
   options.hlod = !a.no_hlod;
   options.subpixel_culling = !a.no_subpixel;
+  options.occlusion = a.occlusion == "on";
   options.samples = a.samples;
   if (!a.camera.empty() && !a.path.empty()) return fail("give --camera or --path, not both");
 
@@ -236,6 +237,8 @@ Action add_render_commands(CLI::App& app) {
   render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");
   render->add_flag("--no-hlod", args->no_hlod, "Never merge pipeline runs");
   render->add_flag("--no-subpixel-culling", args->no_subpixel, "Draw objects under the pixel error too");
+  render->add_option("--occlusion", args->occlusion, "Leave out objects hidden behind large ones: on or off")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   render->add_option("--samples", args->samples,
                      "Multisampling per pixel (1: off; default: 4 on a GPU, 1 on a software renderer)")
       ->check(CLI::Range(1u, 16u));
