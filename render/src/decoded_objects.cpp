@@ -102,8 +102,7 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   }
   k.vertex_count = vertex_count;
   k.occluder = {};
-  if (may_occlude(k.object_class, k.colour))
-    build_occluder_shape(k.primitives, occluder_scratch_, k.occluder);
+  k.occluder_built = false;
   return k;
 }
 
@@ -163,6 +162,18 @@ Known& DecodedObjects::know_run(uint32_t run) {
   o.primitives.push_back(merged_cylinder(r, r.start_m));
   o.centreline.push_back({glm::vec3(0.0f), glm::vec3(r.end_m - r.start_m), r.diameter_m});
   return add(key, o, true);
+}
+
+const OccluderShape* DecodedObjects::occluder(uint32_t slot, Known& k, std::string& error) {
+  if (!k.occluder_built) {
+    if (may_occlude(k.object_class, k.colour)) {
+      const std::vector<Primitive>* p = primitives(slot, k, error);
+      if (!p) return nullptr;
+      build_occluder_shape(*p, occluder_scratch_, k.occluder);
+    }
+    k.occluder_built = true;
+  }
+  return &k.occluder;
 }
 
 const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Known& k,

@@ -79,7 +79,9 @@ bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
   bool any = false;
   stats.occluders = 0;
   for (const VisibleObject& v : candidates_) {
-    const Known& k = objects.at(v.slot);
+    Known& k = objects.at(v.slot);
+    if (!may_occlude(k.object_class, k.colour)) continue;
+    if (!objects.occluder(v.slot, k, error)) return false;
     if (!drawn_as_solid(objects, k, v, frame_view, options)) continue;
     stats.occluders += 1;
     const glm::vec3 offset(k.origin_m - frame_view.eye_m);
