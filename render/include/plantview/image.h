@@ -61,4 +61,15 @@ bool compare_images(const Image& a, const Image& b, ImageComparison& out, std::s
 bool write_difference_image(const Image& a, const Image& b, const std::string& path,
                             std::string& error);
 
+// How much of a difference a small shift explains: a pixel is explained when a pixel of the
+// other image within shift_px of it (Euclidean, in pixels) has every channel (RGB) within
+// tolerance (0..1) of it; checked both ways (A's pixels in B, B's in A). Shows where a LOD moves
+// edges by more than it promises. Same sizes, shift_px 0..16, tolerance 0..1 (error otherwise).
+struct ShiftComparison {
+  double unexplained_share = 0;  // pixels not explained in one direction or the other
+  uint64_t unexplained_pixels = 0;
+};
+bool compare_images_shifted(const Image& a, const Image& b, uint32_t shift_px, double tolerance,
+                            ShiftComparison& out, std::string& error);
+
 }  // namespace plantview
