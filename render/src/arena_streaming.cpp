@@ -261,6 +261,8 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
     }
   };
   if (scratch_.size() < workers) scratch_.resize(workers);
+  for (Job& job : jobs_)  // a huge object's buffer is not kept for the frames after
+    if (job.vertices.capacity() > kKeptJobVertices) std::vector<PackedVertex>().swap(job.vertices);
   std::vector<std::thread> threads;
   for (unsigned t = 1; t < workers; ++t) threads.emplace_back(work, std::ref(scratch_[t]));
   if (job_count) work(scratch_[0]);
@@ -271,11 +273,14 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
                             const RenderOptions& options, FrameStats& stats, std::string& error) {
   begin_frame(plan);
   if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
-  prepare(plan.draws(), options.lod_policy);
-  for (size_t i = 0; i < plan.draws().size(); ++i) {
-    Draw& d = plan.draws()[i];
+  const std::span<Draw> draws = plan.draws();
+  for (size_t i = 0; i < draws.size(); ++i) {
+    // Draws are tessellated ahead a batch at a time: what waits for upload stays bounded.
+    const size_t batch = i % kPrepareBatch;
+    if (batch == 0) prepare(draws.subspan(i, std::min(kPrepareBatch, draws.size() - i)), options.lod_policy);
+    Draw& d = draws[i];
     bool resident = false;
-    const Job* job = job_of_draw_[i] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[i]];
+    const Job* job = job_of_draw_[batch] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[batch]];
     if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job)) return false;
     if (resident) {
       place(d, view, stats);

@@ -24,8 +24,9 @@
 //   (reused: no allocation per frame once warm). Uses the GlBackend it is given, which must
 //   outlive it.
 // Threads: the renderer's thread (it calls GL through the backend); newly resident objects are
-//   tessellated on every core first (std::thread::hardware_concurrency threads, each writing
-//   only its own objects and buffers), then placed and uploaded on the renderer's thread.
+//   tessellated on every core first, kPrepareBatch draws at a time (so that what waits for
+//   upload stays bounded; std::thread::hardware_concurrency threads, each writing only its own
+//   objects and buffers), then placed and uploaded on the renderer's thread.
 #pragma once
 
 #include <array>
@@ -128,7 +129,8 @@ class ArenaStreaming {
   // Safe on several threads at once for different objects.
   void tessellate(const std::vector<Primitive>& primitives, Known& k, uint8_t base,
                   std::vector<PackedVertex>& scratch, std::vector<PackedVertex>& out) const;
-  // Tessellates the frame's newly resident objects on every core (jobs_, job_of_draw_).
+  // Tessellates the newly resident objects of `draws` (a batch of the frame's) on every core
+  // (jobs_, job_of_draw_ by index in the batch).
   void prepare(std::span<Draw> draws, LodPolicy policy);
   // Makes `k` resident in the arena from level `base` on (tessellating it unless `prepared`
   // holds its vertices for that base), evicting if needed. fits = false when it cannot be
@@ -169,6 +171,8 @@ class ArenaStreaming {
   std::vector<std::vector<PackedVertex>> scratch_;  // one per worker
 };
 
-inline constexpr size_t kJobsPerWorker = 16;  // fewer new objects are not worth a thread
+inline constexpr size_t kJobsPerWorker = 16;     // fewer new objects are not worth a thread
+inline constexpr size_t kPrepareBatch = 256;     // draws tessellated ahead at a time
+inline constexpr size_t kKeptJobVertices = 1u << 16;  // a job buffer larger is freed
 
 }  // namespace plantview::detail
