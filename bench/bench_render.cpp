@@ -2,15 +2,20 @@
 // small vertex budget, and the time to the first image.
 //
 // Usage: bench_render [--quick] [--preset P] [--scale K] [--frames N] [--size WxH]
-//                     [--vertex-budget MB] [--store DIR] [--out-of-core]
-//   default        preset c, 1280x720, a 120-view walkthrough; policies none, distance and
-//                  screen-space (1 px, and 0.25 px) render every view in turn, each with its own renderer
-//                  (and arena) in this one process. Per policy: mean and 95th-percentile frame
-//                  time, triangles drawn, and the PSNR of each view against policy none's.
+//                     [--vertex-budget MB] [--store DIR] [--out-of-core] [--samples S]
+//                     [--interior N] [--pixel-error PX] [--extra-pixel-error PX]...
+//   default        preset c, 1280x720, 4 samples (antialiased stills), a 100-view walkthrough
+//                  then 12 views from inside the plant; policies none, distance and
+//                  screen-space (--pixel-error, 1 px), each with occlusion off and on (and
+//                  screen-space at each --extra-pixel-error with it on), render every view in
+//                  turn, each with its own renderer (and arena) in this one process. Per run:
+//                  triangles (walkthrough, interior), mean and 95th-percentile frame and CPU
+//                  time, PSNR against none without occlusion, and occlusion's id-buffer check
+//                  against the same policy without it.
 //   --out-of-core  one renderer (screen-space) with --vertex-budget (default 256) along the
 //                  walkthrough of a --scale K plant (default 100): peak resident memory of the
 //                  process, arena bytes, uploads and evictions per frame, frame times.
-//   --quick        preset a, 320x180, 6 views (the CTest smoke run).
+//   --quick        preset a, 320x180, 6 + 2 views, 1 sample (the CTest smoke run).
 // The store is generated (in a child process, so that its memory does not count) into a
 // temporary directory unless --store names one. Prints tables, then "json: " lines.
 #include <sys/resource.h>
@@ -127,76 +132,150 @@ double mean(const std::vector<double>& v) {
 }
 
 struct PolicyRun {
-  const char* name;
+  std::string name;
   RenderOptions options;
+  size_t reference = 0;  // the run with occlusion off at the same policy (itself if off)
   std::unique_ptr<Renderer> renderer;
-  std::vector<double> frame_ms, triangles, psnr;
+  std::vector<double> frame_ms, cpu_ms, walk_triangles, interior_triangles, psnr, id_match;
+  uint64_t missing = 0, occluded = 0;
   Image image;
 };
 
-int policies(const Store& store, const std::vector<Camera>& cameras, uint32_t w, uint32_t h,
-             uint64_t budget_bytes, uint64_t full_triangles) {
-  // Screen-space error at 1 px (the default) and at 0.25 px, to show the PSNR it buys.
-  std::vector<PolicyRun> runs(4);
-  runs[0].name = "none";
-  runs[0].options.lod_policy = LodPolicy::none;
-  runs[1].name = "distance";
-  runs[1].options.lod_policy = LodPolicy::distance;
-  runs[2].name = "screen-space 1px";
-  runs[2].options.lod_policy = LodPolicy::screen_space;
-  runs[3].name = "screen-space 0.25px";
-  runs[3].options.lod_policy = LodPolicy::screen_space;
-  runs[3].options.pixel_error = 0.25;
+// Random cameras inside the plant at eye height, looking level in random directions (seeded):
+// the views where most objects are hidden behind others.
+std::vector<Camera> interior_views(const DAabb& bounds, int count) {
+  std::vector<Camera> cameras;
+  uint64_t state = 2026;
+  const auto u = [&]() {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return double(state >> 11) / double(1ull << 53);
+  };
+  for (int i = 0; i < count; ++i) {
+    Camera c;
+    c.eye_m = {bounds.min.x + (0.1 + 0.8 * u()) * (bounds.max.x - bounds.min.x),
+               bounds.min.y + (0.1 + 0.8 * u()) * (bounds.max.y - bounds.min.y), bounds.min.z + 1.7};
+    const double a = u() * 2 * M_PI;
+    c.target_m = c.eye_m + glm::dvec3(std::cos(a), std::sin(a), -0.05) * 10.0;
+    cameras.push_back(c);
+  }
+  return cameras;
+}
+
+// Policies none, distance and screen-space, each with occlusion off and on (and screen-space
+// at the extra pixel errors, occlusion on), along the walkthrough and then the interior views.
+int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, uint32_t h,
+             uint64_t budget_bytes, uint64_t full_triangles, uint32_t samples,
+             double pixel_error, const std::vector<double>& extra_pixel_errors, int interior) {
+  std::vector<PolicyRun> runs;
+  for (const LodPolicy policy : {LodPolicy::none, LodPolicy::distance, LodPolicy::screen_space}) {
+    for (const bool occlusion : {false, true}) {
+      PolicyRun& r = runs.emplace_back();
+      r.options.lod_policy = policy;
+      r.options.pixel_error = pixel_error;
+      r.options.occlusion = occlusion;
+      char name[64];
+      std::snprintf(name, sizeof name, "%s%s occl %s", std::string(lod_policy_name(policy)).c_str(),
+                    policy == LodPolicy::screen_space ? (" " + std::to_string(pixel_error).substr(0, 4) + "px").c_str() : "",
+                    occlusion ? "on" : "off");
+      r.name = name;
+      r.reference = occlusion ? runs.size() - 2 : runs.size() - 1;
+    }
+  }
+  for (const double pe : extra_pixel_errors) {
+    PolicyRun& r = runs.emplace_back();
+    r.options.pixel_error = pe;
+    r.name = "screen-space " + std::to_string(pe).substr(0, 4) + "px occl on";
+    r.reference = runs.size() - 1;  // no id check: no run with occlusion off at this error
+  }
   std::string error;
+  std::vector<Camera> cameras = walk;
+  Renderer* first = nullptr;
   for (auto& r : runs) {
     r.options.vertex_budget_bytes = budget_bytes;
+    r.options.samples = samples;
     r.renderer = Renderer::create(store, r.options, error);
     if (!r.renderer) {
       std::fprintf(stderr, "bench_render: %s\n", error.c_str());
       return 1;
     }
+    if (!first) first = r.renderer.get();
   }
+  const auto inside = interior_views(first->model_bounds(), interior);
+  cameras.insert(cameras.end(), inside.begin(), inside.end());
   const bool tty = isatty(2);
   for (size_t v = 0; v < cameras.size(); ++v) {
-    for (auto& r : runs) {
+    const bool is_interior = v >= walk.size();
+    for (size_t i = 0; i < runs.size(); ++i) {
+      PolicyRun& r = runs[i];
       FrameStats stats;
-      if (!r.renderer->render(cameras[v], w, h, false, r.image, stats, error)) {
-        std::fprintf(stderr, "bench_render: view %zu, %s: %s\n", v, r.name, error.c_str());
+      if (!r.renderer->render(cameras[v], w, h, true, r.image, stats, error)) {
+        std::fprintf(stderr, "bench_render: view %zu, %s: %s\n", v, r.name.c_str(), error.c_str());
         return 1;
       }
       r.frame_ms.push_back(stats.ms.total);
-      r.triangles.push_back(double(stats.triangles));
-      if (&r != &runs[0]) {
+      r.cpu_ms.push_back(stats.ms.cpu);
+      r.occluded += stats.objects_occluded;
+      (is_interior ? r.interior_triangles : r.walk_triangles).push_back(double(stats.triangles));
+      if (i != 0) {
         ImageComparison c;
         if (!compare_images(runs[0].image, r.image, c, error)) return 1;
         r.psnr.push_back(std::isinf(c.psnr_db) ? 99.0 : c.psnr_db);
+      }
+      if (r.reference != i) {
+        // The id buffer against the same policy without occlusion, and the objects it shows
+        // that this one does not.
+        const auto& a = runs[r.reference].image.object_ids;
+        const auto& b = r.image.object_ids;
+        size_t same = 0;
+        for (size_t p = 0; p < a.size(); ++p) same += a[p] == b[p];
+        r.id_match.push_back(100.0 * double(same) / double(std::max<size_t>(a.size(), 1)));
+        std::vector<uint64_t> ia(a.begin(), a.end()), ib(b.begin(), b.end());
+        std::sort(ia.begin(), ia.end());
+        ia.erase(std::unique(ia.begin(), ia.end()), ia.end());
+        std::sort(ib.begin(), ib.end());
+        ib.erase(std::unique(ib.begin(), ib.end()), ib.end());
+        std::vector<uint64_t> lost;
+        std::set_difference(ia.begin(), ia.end(), ib.begin(), ib.end(), std::back_inserter(lost));
+        r.missing += lost.size();
       }
     }
     if (tty) std::fprintf(stderr, "\rview %zu/%zu", v + 1, cameras.size());
   }
   if (tty) std::fputc('\n', stderr);
 
-  std::printf("\nPolicies along a %zu-view walkthrough at %ux%u (full resolution: %.2f M triangles)\n",
-              cameras.size(), w, h, double(full_triangles) / 1e6);
-  std::printf("%-18s %10s %10s %10s %14s %9s %10s %10s %8s\n", "policy", "mean ms", "p95 ms",
-              "first ms", "mean triangles", "% of full", "PSNR mean", "PSNR min", "speedup");
-  // Frame times without the first view (which streams the whole start) and with it.
+  std::printf("\nPolicies along a %zu-view walkthrough and %d interior views at %ux%u, %u samples "
+              "(full resolution: %.2f M triangles)\n",
+              walk.size(), interior, w, h, samples, double(full_triangles) / 1e6);
+  std::printf("%-26s %9s %9s %7s %8s %8s %7s %7s %7s %7s %8s %7s %7s\n", "policy", "walk tri",
+              "inside tri", "in off/on", "frame ms", "p95 ms", "cpu ms", "cpu p95", "PSNR",
+              "PSNR min", "id match", "missing", "speedup");
+  // Frame times without the first view (which streams the whole start).
   const auto steady = [](const std::vector<double>& v) {
     return std::vector<double>(v.begin() + (v.size() > 1 ? 1 : 0), v.end());
   };
   const double none_mean = mean(steady(runs[0].frame_ms));
-  for (auto& r : runs) {
-    const auto ms = steady(r.frame_ms);
-    const double tri = mean(r.triangles);
-    const double psnr_mean = r.psnr.empty() ? INFINITY : mean(r.psnr);
-    const double psnr_min = r.psnr.empty() ? INFINITY : *std::min_element(r.psnr.begin(), r.psnr.end());
-    std::printf("%-18s %10.1f %10.1f %10.1f %14.0f %8.2f%% %10.1f %10.1f %7.1fx\n", r.name, mean(ms),
-                percentile(ms, 0.95), r.frame_ms.front(), tri, 100.0 * tri / double(full_triangles),
-                psnr_mean, psnr_min, none_mean / std::max(mean(ms), 1e-9));
-    nlohmann::json j = {{"bench", "render_policies"}, {"policy", r.name}, {"views", cameras.size()},
+  for (size_t i = 0; i < runs.size(); ++i) {
+    PolicyRun& r = runs[i];
+    const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms);
+    const double psnr_mean = r.psnr.empty() ? 99 : mean(r.psnr);
+    const double psnr_min = r.psnr.empty() ? 99 : *std::min_element(r.psnr.begin(), r.psnr.end());
+    const double id_min = r.id_match.empty() ? 100 : *std::min_element(r.id_match.begin(), r.id_match.end());
+    const double inside_ratio = mean(runs[r.reference].interior_triangles) / std::max(mean(r.interior_triangles), 1.0);
+    std::printf("%-26s %9.0f %9.0f %6.2fx %8.1f %8.1f %7.2f %7.2f %7.1f %7.1f %7.3f%% %7llu %6.1fx\n",
+                r.name.c_str(), mean(r.walk_triangles), mean(r.interior_triangles), inside_ratio,
+                mean(ms), percentile(ms, 0.95), mean(cpu), percentile(cpu, 0.95), psnr_mean, psnr_min,
+                id_min, (unsigned long long)r.missing, none_mean / std::max(mean(ms), 1e-9));
+    nlohmann::json j = {{"bench", "render_policies"}, {"policy", lod_policy_name(r.options.lod_policy)},
+                        {"pixel_error", r.options.pixel_error}, {"occlusion", r.options.occlusion},
+                        {"samples", samples}, {"walk_views", walk.size()}, {"interior_views", interior},
                         {"width", w}, {"height", h}, {"mean_ms", mean(ms)},
                         {"p95_ms", percentile(ms, 0.95)}, {"first_ms", r.frame_ms.front()},
-                        {"mean_triangles", tri}, {"full_triangles", full_triangles},
+                        {"cpu_mean_ms", mean(cpu)}, {"cpu_p95_ms", percentile(cpu, 0.95)},
+                        {"walk_mean_triangles", mean(r.walk_triangles)},
+                        {"interior_mean_triangles", mean(r.interior_triangles)},
+                        {"interior_triangles_off_over_on", inside_ratio},
+                        {"full_triangles", full_triangles}, {"objects_occluded", r.occluded},
+                        {"id_match_min_percent", id_min}, {"objects_missing", r.missing},
                         {"speedup_vs_none", none_mean / std::max(mean(ms), 1e-9)}};
     if (!r.psnr.empty()) {
       j["psnr_mean_db"] = psnr_mean;
@@ -204,7 +283,10 @@ int policies(const Store& store, const std::vector<Camera>& cameras, uint32_t w,
     }
     std::printf("json: %s\n", j.dump().c_str());
   }
-  std::printf("(PSNR of 99 dB stands for identical images; frame times exclude view 0.)\n");
+  std::printf("(PSNR against none with occlusion off, 99 dB standing for identical images; id match: the\n"
+              " worst view's share of pixels whose object id equals the same policy's without occlusion;\n"
+              " missing: objects shown without occlusion and not with it, summed over views; in off/on:\n"
+              " interior views' triangles without occlusion over with it; times exclude view 0.)\n");
   return 0;
 }
 
@@ -278,7 +360,10 @@ int main(int argc, char** argv) {
   bool quick = false, ooc = false;
   char preset = 'c';
   uint32_t scale = 0, w = 1280, h = 720;
-  int frames = 120;
+  int frames = 100, interior = 12;
+  uint32_t samples = 4;
+  double pixel_error = 1.0;
+  std::vector<double> extra_pixel_errors;
   uint64_t budget_mb = 0;
   std::string store_dir;
   for (int i = 1; i < argc; ++i) {
@@ -291,6 +376,10 @@ int main(int argc, char** argv) {
     else if (a == "--frames") frames = std::stoi(next());
     else if (a == "--vertex-budget") budget_mb = std::stoull(next());
     else if (a == "--store") store_dir = next();
+    else if (a == "--samples") samples = uint32_t(std::stoul(next()));
+    else if (a == "--interior") interior = std::stoi(next());
+    else if (a == "--pixel-error") pixel_error = std::stod(next());
+    else if (a == "--extra-pixel-error") extra_pixel_errors.push_back(std::stod(next()));
     else if (a == "--size") {
       const std::string s = next();
       if (std::sscanf(s.c_str(), "%ux%u", &w, &h) != 2) return 2;
@@ -304,6 +393,8 @@ int main(int argc, char** argv) {
     w = 320;
     h = 180;
     frames = 6;
+    interior = 2;
+    samples = 1;
   }
   if (scale == 0) scale = ooc ? 100 : 1;
   if (budget_mb == 0) budget_mb = ooc ? 256 : 1024;
@@ -367,7 +458,8 @@ int main(int argc, char** argv) {
     const auto cameras = ooc ? walkthrough_in_child(dir, frames) : walkthrough(*store, frames);
     if (cameras.empty()) return 1;
     const int status = ooc ? out_of_core(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles)
-                           : policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles);
+                           : policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles,
+                                      samples, pixel_error, extra_pixel_errors, interior);
     if (status != 0) return status;
   }
   store.reset();

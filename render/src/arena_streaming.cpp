@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <bit>
+#include <atomic>
+#include <thread>
 
 #include "decoded_objects.h"
 #include "frame_plan.h"
@@ -114,46 +116,59 @@ uint64_t ArenaStreaming::resident_vertices(const Known& k, uint8_t base) {
   return n;
 }
 
-bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, DecodedObjects& objects,
-                                   FrameStats& stats, std::string& error, bool& fits) {
-  base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
-  const std::vector<Primitive>* primitives = objects.primitives(key, k, error);
-  if (!primitives) return false;
-  vertices_.resize(k.vertex_count);
+void ArenaStreaming::tessellate(const std::vector<Primitive>& primitives, Known& k, uint8_t base,
+                                std::vector<PackedVertex>& scratch,
+                                std::vector<PackedVertex>& out) const {
+  scratch.resize(k.vertex_count);
   for (const auto& part : k.parts) {
-    write_vertices((*primitives)[part.primitive], *part.plan, glm::dvec3(0.0),
-                   std::span<PackedVertex>(vertices_.data() + part.first_vertex, part.plan->vertex_count));
+    write_vertices(primitives[part.primitive], *part.plan, glm::dvec3(0.0),
+                   std::span<PackedVertex>(scratch.data() + part.first_vertex, part.plan->vertex_count));
   }
   for (size_t s = 0; s < k.centreline.size(); ++s) {
     // A centreline's normal word is its diameter (gl_backend.h).
     const uint32_t diameter = std::bit_cast<uint32_t>(k.centreline[s].diameter_m);
-    vertices_[k.centreline_first + 2 * s] = {k.centreline[s].start_m, diameter};
-    vertices_[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, diameter};
+    scratch[k.centreline_first + 2 * s] = {k.centreline[s].start_m, diameter};
+    scratch[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, diameter};
   }
-  const std::vector<PackedVertex>* upload = &vertices_;
   k.resident_centreline_first = k.centreline_first;
   for (Known::Part& part : k.parts) {
     part.resident_first = part.first_vertex;
     part.resident_plan = nullptr;
   }
-  if (base > 0) {
-    // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
-    compacted_.clear();
-    for (Known::Part& part : k.parts) {
-      const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
-      part.resident_first = uint32_t(compacted_.size());
-      if (part_base == 0) {  // a one-level part (facet groups among them): all of it
-        compacted_.insert(compacted_.end(), vertices_.begin() + part.first_vertex,
-                          vertices_.begin() + part.first_vertex + part.plan->vertex_count);
-        continue;
-      }
-      const Compaction& c = compaction(*part.plan, part_base);
-      part.resident_plan = &c.plan;
-      for (const uint32_t v : c.kept) compacted_.push_back(vertices_[part.first_vertex + v]);
+  if (base == 0) {
+    out.swap(scratch);
+    return;
+  }
+  // Keep only the vertices that levels >= base use (coarser levels use a subset of them).
+  out.clear();
+  for (Known::Part& part : k.parts) {
+    const uint8_t part_base = uint8_t(part.plan->clamp_level(base));
+    part.resident_first = uint32_t(out.size());
+    if (part_base == 0) {  // a one-level part (facet groups among them): all of it
+      out.insert(out.end(), scratch.begin() + part.first_vertex,
+                 scratch.begin() + part.first_vertex + part.plan->vertex_count);
+      continue;
     }
-    k.resident_centreline_first = uint32_t(compacted_.size());
-    compacted_.insert(compacted_.end(), vertices_.begin() + k.centreline_first,
-                      vertices_.begin() + k.centreline_first + 2 * k.centreline.size());
+    const auto it = compactions_.find(CompactionKey{part.plan->indices[0].data(), part_base, part.plan->flip_winding});
+    const Compaction& c = it->second;  // made by resident_vertices() before any tessellation
+    part.resident_plan = &c.plan;
+    for (const uint32_t v : c.kept) out.push_back(scratch[part.first_vertex + v]);
+  }
+  k.resident_centreline_first = uint32_t(out.size());
+  out.insert(out.end(), scratch.begin() + k.centreline_first,
+             scratch.begin() + k.centreline_first + 2 * k.centreline.size());
+}
+
+bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, DecodedObjects& objects,
+                                   FrameStats& stats, std::string& error, bool& fits,
+                                   const std::vector<PackedVertex>* prepared) {
+  base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  const std::vector<PackedVertex>* upload = prepared;
+  if (!upload) {
+    const std::vector<Primitive>* primitives = objects.primitives(key, k, error);
+    if (!primitives) return false;
+    resident_vertices(k, base);  // makes the compactions it needs
+    tessellate(*primitives, k, base, vertices_, compacted_);
     upload = &compacted_;
   }
   const uint32_t count = uint32_t(upload->size());
@@ -217,13 +232,59 @@ bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std
   return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
 }
 
+void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
+  // Which draws will be tessellated, at the base they will most likely get (the arena's
+  // roominess as the frame starts); their compactions made here, on this thread.
+  const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
+  job_of_draw_.assign(draws.size(), UINT32_MAX);
+  size_t job_count = 0;
+  for (size_t i = 0; i < draws.size(); ++i) {
+    Draw& d = draws[i];
+    Known& k = *d.known;
+    const bool resident = residency_.resident(d.key);
+    if (resident && d.level >= k.base) continue;
+    if (k.primitives.empty() && !k.parts.empty()) continue;  // decoded again on this thread
+    const uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
+    resident_vertices(k, base);
+    if (jobs_.size() <= job_count) jobs_.emplace_back();
+    Job& job = jobs_[job_count];
+    job.draw = uint32_t(i);
+    job.base = base;
+    job_of_draw_[i] = uint32_t(job_count++);
+  }
+  // Tessellate them on every core: each job writes only its own buffers and its own object.
+  const unsigned workers = std::min<unsigned>(std::max(1u, std::thread::hardware_concurrency()),
+                                              unsigned((job_count + kJobsPerWorker - 1) / kJobsPerWorker));
+  std::atomic<size_t> next{0};
+  const auto work = [&](std::vector<PackedVertex>& scratch) {
+    for (size_t j = next++; j < job_count; j = next++) {
+      Job& job = jobs_[j];
+      Known& k = *draws[job.draw].known;
+      tessellate(k.primitives, k, job.base, scratch, job.vertices);
+    }
+  };
+  if (scratch_.size() < workers) scratch_.resize(workers);
+  for (Job& job : jobs_)  // a huge object's buffer is not kept for the frames after
+    if (job.vertices.capacity() > kKeptJobVertices) std::vector<PackedVertex>().swap(job.vertices);
+  std::vector<std::thread> threads;
+  for (unsigned t = 1; t < workers; ++t) threads.emplace_back(work, std::ref(scratch_[t]));
+  if (job_count) work(scratch_[0]);
+  for (std::thread& t : threads) t.join();
+}
+
 bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
                             const RenderOptions& options, FrameStats& stats, std::string& error) {
   begin_frame(plan);
   if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
-  for (Draw& d : plan.draws()) {
+  const std::span<Draw> draws = plan.draws();
+  for (size_t i = 0; i < draws.size(); ++i) {
+    // Draws are tessellated ahead a batch at a time: what waits for upload stays bounded.
+    const size_t batch = i % kPrepareBatch;
+    if (batch == 0) prepare(draws.subspan(i, std::min(kPrepareBatch, draws.size() - i)), options.lod_policy);
+    Draw& d = draws[i];
     bool resident = false;
-    if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident)) return false;
+    const Job* job = job_of_draw_[batch] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[batch]];
+    if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job)) return false;
     if (resident) {
       place(d, view, stats);
     } else if (d.visible) {
@@ -249,7 +310,8 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
 }
 
 bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy,
-                                     FrameStats& stats, std::string& error, bool& resident) {
+                                     FrameStats& stats, std::string& error, bool& resident,
+                                     const Job* job) {
   Known& k = *d.known;
   if (residency_.resident(d.key) && d.level < k.base) {
     release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
@@ -259,7 +321,11 @@ bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy
   if (resident) return true;
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
   const uint8_t base = resident_base(d.level, policy, roomy);
-  if (!make_resident(d.key, k, base, objects, stats, error, resident)) return false;
+  // The vertices tessellated ahead serve if they were made for this base.
+  const bool prepared = job && job->base == uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
+  if (!make_resident(d.key, k, base, objects, stats, error, resident,
+                     prepared ? &job->vertices : nullptr))
+    return false;
   if (!resident && base + 1u < k.level_count) {
     // Over budget: the coarsest level's vertices may still fit.
     if (!make_resident(d.key, k, uint8_t(k.level_count - 1), objects, stats, error, resident))
@@ -318,8 +384,11 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   draw_order_.clear();
   for (uint32_t i = 0; i < draws.size(); ++i)
     if (draws[i].drawn) draw_order_.push_back(i);
+  // Ties broken by key, so that the order of two objects does not depend on what else is drawn
+  // (coincident surfaces then resolve the same way with occlusion on or off).
   std::sort(draw_order_.begin(), draw_order_.end(), [&](uint32_t a, uint32_t b) {
-    return draws[a].distance_m < draws[b].distance_m;
+    if (draws[a].distance_m != draws[b].distance_m) return draws[a].distance_m < draws[b].distance_m;
+    return draws[a].key < draws[b].key;
   });
   for (const uint32_t i : draw_order_) {
     const Draw& d = draws[i];

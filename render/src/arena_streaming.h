@@ -23,7 +23,10 @@
 //   renderer's life: Known::Part::resident_plan points into them) and its scratch buffers
 //   (reused: no allocation per frame once warm). Uses the GlBackend it is given, which must
 //   outlive it.
-// Threads: the renderer's thread (it calls GL through the backend).
+// Threads: the renderer's thread (it calls GL through the backend); newly resident objects are
+//   tessellated on every core first, kPrepareBatch draws at a time (so that what waits for
+//   upload stays bounded; std::thread::hardware_concurrency threads, each writing only its own
+//   objects and buffers), then placed and uploaded on the renderer's thread.
 #pragma once
 
 #include <array>
@@ -115,15 +118,31 @@ class ArenaStreaming {
   const Compaction& compaction(const MeshPlan& plan, uint8_t base);
   // Vertices an object takes in the arena when resident from level `base` on.
   uint64_t resident_vertices(const Known& k, uint8_t base);
-  // Tessellates `k` into the arena from level `base` on, evicting if needed. fits = false when
-  // it cannot be placed without evicting what this frame shows.
+  // A draw's vertices tessellated ahead of streaming, at the base it will most likely get.
+  struct Job {
+    uint32_t draw = 0;
+    uint8_t base = 0;
+    std::vector<PackedVertex> vertices;
+  };
+  // The vertices `k` takes in the arena from level `base` on, into `out` (scratch: level 0's),
+  // and its parts' resident layout. The compactions it needs must exist (resident_vertices).
+  // Safe on several threads at once for different objects.
+  void tessellate(const std::vector<Primitive>& primitives, Known& k, uint8_t base,
+                  std::vector<PackedVertex>& scratch, std::vector<PackedVertex>& out) const;
+  // Tessellates the newly resident objects of `draws` (a batch of the frame's) on every core
+  // (jobs_, job_of_draw_ by index in the batch).
+  void prepare(std::span<Draw> draws, LodPolicy policy);
+  // Makes `k` resident in the arena from level `base` on (tessellating it unless `prepared`
+  // holds its vertices for that base), evicting if needed. fits = false when it cannot be
+  // placed without evicting what this frame shows.
   bool make_resident(uint32_t key, Known& k, uint8_t base, DecodedObjects& objects,
-                     FrameStats& stats, std::string& error, bool& fits);
+                     FrameStats& stats, std::string& error, bool& fits,
+                     const std::vector<PackedVertex>* prepared = nullptr);
   void release(uint32_t key, Known& k);
   // Makes a draw's object resident at the level chosen (or coarser, over budget) unless its
   // resident vertices serve it. resident = false: it cannot be, even at its coarsest level.
   bool ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy, FrameStats& stats,
-                       std::string& error, bool& resident);
+                       std::string& error, bool& resident, const Job* job);
   // A resident draw: its level (no finer than the resident base), arena offset, table entry,
   // and its indices counted into their lists.
   void place(Draw& d, const FrameView& view, FrameStats& stats);
@@ -147,6 +166,13 @@ class ArenaStreaming {
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
   std::vector<std::pair<uint32_t, uint64_t>> evicted_;
+  std::vector<Job> jobs_;
+  std::vector<uint32_t> job_of_draw_;
+  std::vector<std::vector<PackedVertex>> scratch_;  // one per worker
 };
+
+inline constexpr size_t kJobsPerWorker = 16;     // fewer new objects are not worth a thread
+inline constexpr size_t kPrepareBatch = 256;     // draws tessellated ahead at a time
+inline constexpr size_t kKeptJobVertices = 1u << 16;  // a job buffer larger is freed
 
 }  // namespace plantview::detail

@@ -101,6 +101,8 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
     for (const auto& s : o.centreline) k.pipe_diameter_m = std::max(k.pipe_diameter_m, s.diameter_m);
   }
   k.vertex_count = vertex_count;
+  k.occluder = {};
+  k.occluder_built = false;
   return k;
 }
 
@@ -160,6 +162,18 @@ Known& DecodedObjects::know_run(uint32_t run) {
   o.primitives.push_back(merged_cylinder(r, r.start_m));
   o.centreline.push_back({glm::vec3(0.0f), glm::vec3(r.end_m - r.start_m), r.diameter_m});
   return add(key, o, true);
+}
+
+const OccluderShape* DecodedObjects::occluder(uint32_t slot, Known& k, std::string& error) {
+  if (!k.occluder_built) {
+    if (may_occlude(k.object_class, k.colour)) {
+      const std::vector<Primitive>* p = primitives(slot, k, error);
+      if (!p) return nullptr;
+      build_occluder_shape(*p, occluder_scratch_, k.occluder);
+    }
+    k.occluder_built = true;
+  }
+  return &k.occluder;
 }
 
 const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Known& k,

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "hlod.h"
+#include "occlusion_occluders.h"
 #include "plantview/model.h"
 #include "plantview/primitives.h"
 
@@ -81,6 +82,8 @@ struct Known {
   uint8_t base = 0;
   uint32_t resident_centreline_first = 0;
   uint64_t last_seen = 0;           // frame
+  OccluderShape occluder;           // once built: empty unless it may occlude
+  bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
 };
 
 // Whether a pipeline run is drawn merged, decided once per frame by its first visible member.
@@ -111,6 +114,10 @@ class DecodedObjects {
   // or, where they were dropped, decoded again (valid until the next call). Null on a read
   // error.
   const std::vector<Primitive>* primitives(uint32_t key, const Known& k, std::string& error);
+
+  // The occluder shape of the object in `slot` (known), built the first time it is asked for
+  // (from its primitives, decoded again if dropped). Null on a read error.
+  const OccluderShape* occluder(uint32_t slot, Known& k, std::string& error);
 
   // Keeps the cache bounded: objects neither resident nor seen in frame `frame` go first, the
   // longest unseen first; those seen (drawn as boxes because the arena was full) only if that
@@ -148,6 +155,7 @@ class DecodedObjects {
   std::vector<PipelineRun> branch_runs_;
   std::vector<uint32_t> new_slots_;
   Object object_;  // decode target
+  std::vector<PackedVertex> occluder_scratch_;
 };
 
 }  // namespace plantview::detail

@@ -78,6 +78,12 @@ double FrameView::nearest_distance_m(const float mn[3], const float mx[3]) const
 
 void FramePlan::cull(const ReadView& view, const FrameView& frame_view,
                      const RenderOptions& options, FrameStats& stats) {
+  find_visible(view, frame_view, options, stats);
+  order();
+}
+
+void FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
+                             const RenderOptions& options, FrameStats& stats) {
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   // The frame's work is bounded: when more objects than kMaxVisibleObjects are in view, nodes
   // are boxed at ever larger sizes until they fit (huge plants seen whole).
@@ -88,7 +94,20 @@ void FramePlan::cull(const ReadView& view, const FrameView& frame_view,
   stats.objects_culled = view.spatial_entries().size() - visible_.size() - stats.objects_subpixel -
                          stats.objects_in_node_proxies;
   stats.node_proxies = node_boxes_.size();
-  // Largest on screen first, so that the budget goes where it shows most.
+}
+
+bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
+                        const RenderOptions& options, FrameStats& stats, std::string& error) {
+  // With a highlight, whatever hides the subject is drawn see-through: nothing may be left out.
+  if (!options.occlusion || !options.highlight_ids.empty()) return true;
+  if (!occlusion_.apply(view, objects, frame_view, options, visible_, node_boxes_, stats, error))
+    return false;
+  stats.objects_visible = visible_.size();
+  stats.node_proxies = node_boxes_.size();
+  return true;
+}
+
+void FramePlan::order() {
   std::sort(visible_.begin(), visible_.end(), [](const VisibleObject& a, const VisibleObject& b) {
     return a.px_per_m * a.extent_m() > b.px_per_m * b.extent_m();
   });
@@ -137,7 +156,7 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
       continue;
     }
     for (uint32_t e = node.first; e < node.first + node.count; ++e) {
-      VisibleObject v{entries[e].slot, {}, {}, 0.0, 0.0};
+      VisibleObject v{entries[e].slot, {}, {}, 0.0, 0.0, uint32_t(&node - nodes.data())};
       entry_bounds(node, entries[e], v.min, v.max);
       if (frame_view.outside(v.min, v.max)) continue;
       v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
@@ -155,24 +174,49 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
   return true;
 }
 
+bool drawn_as_centreline(const Known& k, const RenderOptions& options, double distance_m,
+                         double px_per_m) {
+  if (!options.centrelines || k.centreline.empty()) return false;
+  switch (options.lod_policy) {
+    case LodPolicy::none: return false;
+    case LodPolicy::screen_space: return k.pipe_diameter_m * px_per_m < 1.0;
+    case LodPolicy::distance: return distance_m > kCentrelineRadii * 0.5 * k.pipe_diameter_m;
+  }
+  return false;
+}
+
+RunDecisionInputs decide_run(const PipelineRun& run, const FrameView& frame_view,
+                             const RenderOptions& options) {
+  float mn[3], mx[3];
+  for (int a = 0; a < 3; ++a) {
+    mn[a] = float(run.bounds.min[a] - frame_view.spatial_origin_m[a]);
+    mx[a] = float(run.bounds.max[a] - frame_view.spatial_origin_m[a]);
+  }
+  RunDecisionInputs d;
+  d.distance_m = frame_view.nearest_distance_m(mn, mx);
+  d.px_per_m = pixels_per_metre(d.distance_m, frame_view.focal_px);
+  d.merged = options.hlod && options.lod_policy != LodPolicy::none &&
+             (options.lod_policy == LodPolicy::screen_space
+                  ? run.merge_error_m * d.px_per_m <= options.pixel_error
+                  : d.distance_m > kMergeRadii * 0.5 * run.diameter_m);
+  return d;
+}
+
 namespace {
 
 // The level for one object or run by the policy, and whether it is drawn as its centreline.
 void choose_level(const Known& k, const RenderOptions& options, double distance_m,
                   double px_per_m, double size_m, uint8_t& level, bool& centreline) {
   level = 0;
-  centreline = false;
-  const bool thin_pipe = options.centrelines && !k.centreline.empty();
+  centreline = drawn_as_centreline(k, options, distance_m, px_per_m);
   switch (options.lod_policy) {
     case LodPolicy::none: break;
     case LodPolicy::screen_space:
       level = uint8_t(choose_level_screen_space(k.error_m.data(), k.level_count, px_per_m,
                                                 options.pixel_error));
-      centreline = thin_pipe && k.pipe_diameter_m * px_per_m < 1.0;
       break;
     case LodPolicy::distance:
       level = uint8_t(choose_level_distance(k.level_count, distance_m, size_m));
-      centreline = thin_pipe && distance_m > kCentrelineRadii * 0.5 * k.pipe_diameter_m;
       break;
   }
 }
@@ -194,16 +238,9 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
       RunDecision& decision = objects.decision(r);
       if (decision.frame != frame) {
         decision.frame = frame;
-        float mn[3], mx[3];
-        for (int a = 0; a < 3; ++a) {
-          mn[a] = float(run.bounds.min[a] - frame_view.spatial_origin_m[a]);
-          mx[a] = float(run.bounds.max[a] - frame_view.spatial_origin_m[a]);
-        }
-        const double d = frame_view.nearest_distance_m(mn, mx);
-        const double px = pixels_per_metre(d, frame_view.focal_px);
-        decision.merged = options.lod_policy == LodPolicy::screen_space
-                              ? run.merge_error_m * px <= options.pixel_error
-                              : d > kMergeRadii * 0.5 * run.diameter_m;
+        const RunDecisionInputs inputs = decide_run(run, frame_view, options);
+        const double d = inputs.distance_m, px = inputs.px_per_m;
+        decision.merged = inputs.merged;
         if (decision.merged) {
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;

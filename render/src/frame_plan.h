@@ -1,7 +1,7 @@
 // Frame plan: the renderer's frontend, no GL. From a camera the frame's view; from the store's
 // spatial tree what is visible (cull); from the decoded objects a level per visible object and
 // the pipeline runs drawn merged (choose); and the rule for which level an object is made
-// resident from. Occlusion culling will be a stage here, between cull and choose.
+// resident from. Occlusion culling (occlusion.h) is a stage here, between cull and choose.
 //
 // Rules
 //   - One derivation of the view: the focal length comes from lod.h (focal_length), rounded to
@@ -27,10 +27,12 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "occlusion.h"
 #include "plantview/render.h"
 
 namespace plantview {
@@ -40,6 +42,7 @@ class ReadView;
 namespace plantview::detail {
 
 struct Known;
+struct PipelineRun;
 class DecodedObjects;
 
 inline constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
@@ -77,6 +80,7 @@ struct VisibleObject {
   float min[3], max[3];  // metres, relative to the spatial origin
   double distance_m;     // to the nearest point of its bounds
   double px_per_m;       // pixels a metre spans there
+  uint32_t leaf = 0;     // the spatial tree's leaf that holds it (index into spatial_nodes())
   float extent_m() const { return std::max({max[0] - min[0], max[1] - min[1], max[2] - min[2]}); }
 };
 
@@ -105,13 +109,36 @@ inline uint8_t resident_base(uint32_t level, LodPolicy policy, bool roomy) {
   return uint8_t(level > 0 && roomy ? level - 1 : level);
 }
 
+// Whether a pipeline run is drawn merged this frame, and its nearest distance and pixels per
+// metre there (the same decision choose() makes; occlusion uses it to know what is drawn).
+struct RunDecisionInputs {
+  bool merged = false;
+  double distance_m = 0, px_per_m = 0;
+};
+RunDecisionInputs decide_run(const PipelineRun& run, const FrameView& frame_view,
+                             const RenderOptions& options);
+// Whether a pipe (k.centreline not empty) is drawn as its centreline at that distance.
+bool drawn_as_centreline(const Known& k, const RenderOptions& options, double distance_m,
+                         double px_per_m);
+
 class FramePlan {
  public:
   // 1. Cull: fills visible() and node_boxes(), largest on screen first, and the statistics
   //    objects_visible, objects_culled, objects_subpixel, node_proxies, node_proxy_pixels and
-  //    objects_in_node_proxies. The view's spans must be valid for the call.
+  //    objects_in_node_proxies. The view's spans must be valid for the call. Equivalent to
+  //    find_visible() then order(), with no occlusion culling.
   void cull(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
             FrameStats& stats);
+  // 1a. The frustum and subpixel part of cull, in tree order (not ordered yet).
+  void find_visible(const ReadView& view, const FrameView& frame_view,
+                    const RenderOptions& options, FrameStats& stats);
+  // 1b. Occlusion culling (occlusion.h), when options.occlusion: drops the hidden objects and
+  //     node boxes (objects_occluded, nodes_occluded, occluders; objects_visible and
+  //     node_proxies updated). Occluders are decoded into `objects`. False on a read error.
+  bool occlude(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
+               const RenderOptions& options, FrameStats& stats, std::string& error);
+  // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
+  void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
   //    hlod_members counted). Every visible object must be decoded in `objects`; those seen
   //    get last_seen = frame. Merged runs are decoded (made) here.
@@ -131,6 +158,7 @@ class FramePlan {
   std::vector<std::array<float, 6>> node_boxes_;
   std::vector<Draw> draws_;
   std::vector<uint32_t> stack_, count_stack_;
+  OcclusionCulling occlusion_;
 };
 
 }  // namespace plantview::detail

@@ -13,11 +13,15 @@ std::string FrameStats::to_json() const {
     levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
   char times[400];
   std::snprintf(times, sizeof times,
-                "{\"cull\":%.3f,\"choose\":%.3f,\"stream\":%.3f,\"draw\":%.3f,"
-                "\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
-                ms.cull, ms.choose, ms.stream, ms.draw, ms.read_back, ms.encode, ms.total);
+                "{\"cull\":%.3f,\"occlusion\":%.3f,\"choose\":%.3f,\"stream\":%.3f,"
+                "\"cpu\":%.3f,\"draw\":%.3f,\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
+                ms.cull, ms.occlusion, ms.choose, ms.stream, ms.cpu, ms.draw, ms.read_back,
+                ms.encode, ms.total);
   return "{\"objects_visible\":" + std::to_string(objects_visible) +
          ",\"objects_culled\":" + std::to_string(objects_culled) +
+         ",\"objects_occluded\":" + std::to_string(objects_occluded) +
+         ",\"nodes_occluded\":" + std::to_string(nodes_occluded) +
+         ",\"occluders\":" + std::to_string(occluders) +
          ",\"triangles\":" + std::to_string(triangles) + ",\"lines\":" + std::to_string(lines) +
          ",\"triangles_by_level\":[" + levels + "]" +
          ",\"centreline_pipes\":" + std::to_string(centreline_pipes) +
@@ -44,8 +48,10 @@ namespace detail {
 
 void report_times(const StageTimes& stages, double total_ms, FrameStats::Times& ms) {
   ms.cull = stages.cull;
+  ms.occlusion = stages.occlusion;
   ms.choose = stages.choose + stages.index_lists;
   ms.stream = stages.stream + stages.decode;
+  ms.cpu = ms.cull + ms.occlusion + ms.choose + ms.stream;
   ms.draw = stages.draw;
   ms.read_back = stages.read_back;
   ms.total = total_ms;

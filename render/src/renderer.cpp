@@ -69,8 +69,12 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   clock.lap();
 
   // Frontend: what is visible, decoded where new, and at which level.
-  plan.cull(*view, frame_view, options, stats);
+  plan.find_visible(*view, frame_view, options, stats);
   times.cull = clock.lap();
+  if (!plan.occlude(*view, objects, frame_view, options, stats, error)) return false;
+  times.occlusion = clock.lap();
+  plan.order();
+  times.cull += clock.lap();
   if (!objects.decode(plan.visible(), options.hlod, error)) return false;
   times.decode = clock.lap();
   plan.choose(objects, frame_view, options, frame_number, stats);

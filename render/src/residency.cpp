@@ -62,20 +62,19 @@ uint64_t RangeAllocator::largest_free() const {
 }
 
 void Residency::mark_visible(uint32_t key) {
-  const auto it = entries_.find(key);
-  if (it != entries_.end()) it->second.visible_frame = frame_;
+  if (Entry* e = entries_.find(key)) e->visible_frame = frame_;
 }
 
 std::optional<uint64_t> Residency::offset(uint32_t key) const {
-  const auto it = entries_.find(key);
-  if (it == entries_.end()) return std::nullopt;
-  return it->second.offset;
+  const Entry* e = entries_.find(key);
+  if (!e) return std::nullopt;
+  return e->offset;
 }
 
 uint32_t Residency::counter(uint32_t key) const {
-  const auto it = entries_.find(key);
-  if (it == entries_.end() || it->second.visible_frame >= ended_) return 0;
-  return uint32_t(ended_ - it->second.visible_frame);
+  const Entry* e = entries_.find(key);
+  if (!e || e->visible_frame >= ended_) return 0;
+  return uint32_t(ended_ - e->visible_frame);
 }
 
 std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
@@ -86,13 +85,14 @@ std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
   while (!place) {
     if (!candidates_built_) {
       candidates_.clear();
-      for (const auto& [k, e] : entries_)
+      entries_.for_each([&](uint32_t k, const Entry& e) {
         if (e.visible_frame != frame_) candidates_.push_back(k);
+      });
       // Best candidate last: largest counter (the longest unseen), then largest size, then key
       // for determinism.
       std::sort(candidates_.begin(), candidates_.end(), [&](uint32_t a, uint32_t b) {
-        const Entry& ea = entries_.at(a);
-        const Entry& eb = entries_.at(b);
+        const Entry& ea = *entries_.find(a);
+        const Entry& eb = *entries_.find(b);
         if (ea.visible_frame != eb.visible_frame) return ea.visible_frame > eb.visible_frame;
         if (ea.units != eb.units) return ea.units < eb.units;
         return a > b;
@@ -101,28 +101,28 @@ std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
     }
     // Candidates made visible or dropped since the list was built are skipped.
     while (!candidates_.empty()) {
-      const auto it = entries_.find(candidates_.back());
-      if (it != entries_.end() && it->second.visible_frame != frame_) break;
+      const Entry* e = entries_.find(candidates_.back());
+      if (e && e->visible_frame != frame_) break;
       candidates_.pop_back();
     }
     if (candidates_.empty()) return std::nullopt;
     const uint32_t victim = candidates_.back();
     candidates_.pop_back();
-    const Entry e = entries_.at(victim);
+    const Entry e = *entries_.find(victim);
     allocator_.release(e.offset, e.units);
     entries_.erase(victim);
     evicted.emplace_back(victim, e.units);
     place = allocator_.allocate(units);
   }
-  entries_.emplace(key, Entry{*place, units, frame_});
+  entries_.insert(key, Entry{*place, units, frame_});
   return place;
 }
 
 void Residency::drop(uint32_t key) {
-  const auto it = entries_.find(key);
-  if (it == entries_.end()) return;
-  allocator_.release(it->second.offset, it->second.units);
-  entries_.erase(it);
+  const Entry* e = entries_.find(key);
+  if (!e) return;
+  allocator_.release(e->offset, e->units);
+  entries_.erase(key);
 }
 
 

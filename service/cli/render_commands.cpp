@@ -109,7 +109,7 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 
 struct RenderArgs {
   std::string store, camera, path, views, out, size = "1280x720", lod_policy = "screen-space",
-                                               shard = "0/1", format = "png";
+                                               shard = "0/1", format = "png", occlusion = "on";
   double pixel_error = 1.0;
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
@@ -178,6 +178,7 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   plan.options.centrelines = !a.no_centrelines;
   plan.options.hlod = !a.no_hlod;
   plan.options.subpixel_culling = !a.no_subpixel;
+  plan.options.occlusion = a.occlusion == "on";
   plan.options.samples = a.samples;
   if (!parse_antialias(a.antialias, plan.options))
     return usage_error("--antialias: '" + a.antialias +
@@ -548,6 +549,8 @@ Action add_render_commands(CLI::App& app) {
                      "automatic (multisampling on a GPU, 2x2 supersampling on a software renderer), "
                      "multisampling, supersampling, edge-filter or off")
       ->capture_default_str();
+  render->add_option("--occlusion", args->occlusion, "Leave out objects hidden behind large ones: on or off")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   render->add_option("--samples", args->samples,
                      "Multisampling samples per pixel (1: none; default 4 where multisampling is used)")
       ->check(CLI::Range(1u, 16u));

@@ -70,5 +70,15 @@ bool write_difference_image(const Image& a, const Image& b, const std::string& p
 // /usr/share/fonts/truetype/dejavu), the module cannot be loaded or the image is malformed.
 bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
                  std::string& error);
+// How much of a difference a small shift explains: a pixel is explained when a pixel of the
+// other image within shift_px of it (Euclidean, in pixels) has every channel (RGB) within
+// tolerance (0..1) of it; checked both ways (A's pixels in B, B's in A). Shows where a LOD moves
+// edges by more than it promises. Same sizes, shift_px 0..16, tolerance 0..1 (error otherwise).
+struct ShiftComparison {
+  double unexplained_share = 0;  // pixels not explained in one direction or the other
+  uint64_t unexplained_pixels = 0;
+};
+bool compare_images_shifted(const Image& a, const Image& b, uint32_t shift_px, double tolerance,
+                            ShiftComparison& out, std::string& error);
 
 }  // namespace plantview

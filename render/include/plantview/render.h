@@ -7,6 +7,10 @@
 //               node spanning under 3 x the pixel error is drawn as one box (that size doubles
 //               until at most 60,000 objects remain in view), so a far view of a huge plant
 //               costs what the image holds, not what the plant holds;
+//   1b. occlude (on by default) the largest objects on screen are rasterised on the CPU into a
+//               small conservative depth buffer; tree leaves, objects and node boxes hidden
+//               behind them are left out: neither decoded, tessellated, uploaded nor drawn, and
+//               their visibility counters age like culled objects'. Nothing visible is dropped;
 //   2. choose   a level per visible object by LodPolicy (screen-space error by default); pipes
 //               whose diameter projects under about a pixel are drawn as their centreline.
 //               Pipeline HLOD: a straight run of pipes and inline components is drawn as one
@@ -133,10 +137,16 @@ struct RenderOptions {
   // lighter, id 0 in the id buffer); whatever lies between the eye and them is drawn
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
+  bool occlusion = true;                           // leave out objects hidden behind large
+                                                   // equipment and structures (conservative:
+                                                   // nothing visible is ever left out)
 };
 
 struct FrameStats {
   uint64_t objects_visible = 0, objects_culled = 0;  // culled: outside the frustum
+  uint64_t objects_occluded = 0;  // in the frustum but hidden behind occluders (not drawn)
+  uint64_t nodes_occluded = 0;    // tree leaves and node boxes found hidden as a whole
+  uint64_t occluders = 0;         // objects rasterised as occluders
   uint64_t triangles = 0, lines = 0;
   std::array<uint64_t, 8> triangles_by_level{};
   uint64_t centreline_pipes = 0;  // pipes (and merged runs) drawn as their centreline
@@ -154,8 +164,11 @@ struct FrameStats {
   uint64_t arena_bytes_budget = 0, arena_bytes_resident = 0;
   uint64_t arena_bytes_uploaded = 0, arena_bytes_evicted = 0;
   uint64_t objects_resident = 0, objects_tessellated = 0, objects_evicted = 0;
+  // cpu: the frame's CPU work before drawing, cull + occlusion + choose + stream (each part
+  // as measured; choose includes writing the index lists, stream decoding new objects).
   struct Times {
-    double cull = 0, choose = 0, stream = 0, draw = 0, read_back = 0, encode = 0, total = 0;
+    double cull = 0, occlusion = 0, choose = 0, stream = 0, cpu = 0, draw = 0, read_back = 0,
+           encode = 0, total = 0;
   } ms;
   // One JSON object (one line): the fields above, times under "ms".
   std::string to_json() const;

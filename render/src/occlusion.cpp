@@ -1,0 +1,137 @@
+// Occlusion culling: occluder selection, rasterisation and the tests (rules in occlusion.h).
+#include "occlusion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "decoded_objects.h"
+#include "frame_plan.h"
+#include "lod.h"
+#include "plantview/store.h"
+
+namespace plantview::detail {
+
+namespace {
+
+// The nearest view depth (along -z, metres) of an eye-relative box: that of its nearest corner.
+float nearest_depth(const glm::mat3& rotation, const glm::vec3& lo, const glm::vec3& hi) {
+  float depth = std::numeric_limits<float>::infinity();
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 p(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
+    depth = std::min(depth, -(rotation * p).z);
+  }
+  return depth;
+}
+
+// Whether `k` (seen as `v`) has an occluder shape and is drawn as its solids this frame: not a
+// pipe drawn as its centreline, nor a member of a run drawn merged.
+bool drawn_as_solid(DecodedObjects& objects, const Known& k, const VisibleObject& v,
+                    const FrameView& frame_view, const RenderOptions& options) {
+  if (k.occluder.empty()) return false;
+  if (drawn_as_centreline(k, options, v.distance_m, v.px_per_m)) return false;
+  return k.run < 0 || !decide_run(objects.run(uint32_t(k.run)), frame_view, options).merged;
+}
+
+}  // namespace
+
+bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
+  const glm::mat3 r(frame_view.rotation);
+  glm::vec3 centre, half;
+  for (int a = 0; a < 3; ++a) {
+    centre[a] = 0.5f * (mn[a] + mx[a]) + frame_view.shift_m[a];
+    half[a] = 0.5f * (mx[a] - mn[a]);
+  }
+  const glm::vec3 c = r * centre;
+  glm::vec3 e;
+  for (int row = 0; row < 3; ++row)
+    e[row] = std::abs(r[0][row]) * half.x + std::abs(r[1][row]) * half.y + std::abs(r[2][row]) * half.z;
+  // Rounding of the rotation: grow the box by a hair so that its view bounds contain it.
+  e += glm::vec3(1e-5f * (std::abs(c.x) + std::abs(c.y) + std::abs(c.z)) + 1e-5f);
+  return buffer_.hidden(c - e, c + e);
+}
+
+bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
+                             const FrameView& frame_view, const RenderOptions& options,
+                             std::vector<VisibleObject>& visible,
+                             std::vector<std::array<float, 6>>& node_boxes, FrameStats& stats,
+                             std::string& error) {
+  ++frame_;
+  buffer_.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
+                float(kNearPlaneM));
+
+  // 1. Occluders: the largest on screen, decoded (new ones) to know their shapes.
+  candidates_.clear();
+  for (const VisibleObject& v : visible)
+    if (v.px_per_m * v.extent_m() >= kOccluderMinPixels) candidates_.push_back(v);
+  const auto larger = [](const VisibleObject& a, const VisibleObject& b) {
+    return a.px_per_m * a.extent_m() > b.px_per_m * b.extent_m();
+  };
+  if (candidates_.size() > kMaxOccluders) {
+    std::nth_element(candidates_.begin(), candidates_.begin() + kMaxOccluders, candidates_.end(), larger);
+    candidates_.resize(kMaxOccluders);
+  }
+  if (candidates_.empty()) return true;
+  if (!objects.decode(candidates_, options.hlod, error)) return false;
+
+  // 2. Rasterise them.
+  const glm::mat3 rotation(frame_view.rotation);
+  bool any = false;
+  stats.occluders = 0;
+  for (const VisibleObject& v : candidates_) {
+    Known& k = objects.at(v.slot);
+    if (!may_occlude(k.object_class, k.colour)) continue;
+    if (!objects.occluder(v.slot, k, error)) return false;
+    if (!drawn_as_solid(objects, k, v, frame_view, options)) continue;
+    stats.occluders += 1;
+    const glm::vec3 offset(k.origin_m - frame_view.eye_m);
+    uint32_t first = 0;
+    for (size_t piece = 0; piece < k.occluder.ends.size(); ++piece) {
+      const uint32_t end = k.occluder.ends[piece];
+      // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h).
+      const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
+      if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) {
+        first = end;
+        continue;
+      }
+      piece_.clear();
+      for (uint32_t p = first; p < end; ++p) piece_.push_back(rotation * (offset + k.occluder.points[p]));
+      first = end;
+      any |= buffer_.add_convex(piece_);
+    }
+  }
+  if (!any) return true;
+
+  // 3. Test leaves (once each), then objects; then node boxes.
+  const auto nodes = view.spatial_nodes();
+  if (leaf_tests_.size() != nodes.size()) leaf_tests_.assign(nodes.size(), 0);
+  size_t kept = 0;
+  for (size_t i = 0; i < visible.size(); ++i) {
+    const VisibleObject& v = visible[i];
+    uint64_t& leaf = leaf_tests_[v.leaf];
+    if (leaf / 2 != frame_) {
+      const bool h = hidden(frame_view, nodes[v.leaf].min, nodes[v.leaf].max);
+      leaf = frame_ * 2 + (h ? 1 : 0);
+      stats.nodes_occluded += h;
+    }
+    if ((leaf & 1) || hidden(frame_view, v.min, v.max)) {
+      stats.objects_occluded += 1;
+      continue;
+    }
+    visible[kept++] = v;
+  }
+  visible.resize(kept);
+  kept = 0;
+  for (size_t i = 0; i < node_boxes.size(); ++i) {
+    const auto& b = node_boxes[i];
+    if (hidden(frame_view, &b[0], &b[3])) {
+      stats.nodes_occluded += 1;
+      continue;
+    }
+    node_boxes[kept++] = b;
+  }
+  node_boxes.resize(kept);
+  return true;
+}
+
+}  // namespace plantview::detail

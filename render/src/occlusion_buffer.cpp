@@ -1,0 +1,122 @@
+// Occlusion buffer: inner-conservative rasterisation of convex silhouettes and bounds tests
+// (rules in occlusion_buffer.h).
+#include "occlusion_buffer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace plantview::detail {
+
+namespace {
+
+constexpr float kFar = std::numeric_limits<float>::infinity();
+
+double cross(const glm::vec2& o, const glm::vec2& a, const glm::vec2& b) {
+  return double(a.x - o.x) * double(b.y - o.y) - double(a.y - o.y) * double(b.x - o.x);
+}
+
+// Andrew's monotone chain: the convex hull of `points` (sorted here), counter-clockwise,
+// without collinear points. Fewer than 3 corners: no area.
+void convex_hull(std::vector<glm::vec2>& points, std::vector<glm::vec2>& hull) {
+  std::sort(points.begin(), points.end(), [](const glm::vec2& a, const glm::vec2& b) {
+    return a.x < b.x || (a.x == b.x && a.y < b.y);
+  });
+  hull.assign(2 * points.size(), glm::vec2(0.0f));
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross(hull[k - 2], hull[k - 1], points[i - 1]) <= 0) --k;
+    hull[k++] = points[i - 1];
+  }
+  hull.resize(k > 1 ? k - 1 : k);  // the last point repeats the first
+}
+
+}  // namespace
+
+void OcclusionBuffer::begin(uint32_t image_width, uint32_t image_height, float focal,
+                            float aspect, float near_m) {
+  if (image_width >= image_height) {
+    width_ = std::min(image_width, kMaxCells);
+    height_ = std::max<uint32_t>(1, uint32_t(std::lround(double(width_) * image_height / image_width)));
+  } else {
+    height_ = std::min(image_height, kMaxCells);
+    width_ = std::max<uint32_t>(1, uint32_t(std::lround(double(height_) * image_width / image_height)));
+  }
+  sx_ = 0.5f * float(width_) * focal / aspect;
+  sy_ = 0.5f * float(height_) * focal;
+  near_m_ = near_m;
+  cells_.assign(size_t(width_) * height_, kFar);
+}
+
+glm::vec2 OcclusionBuffer::to_cells(const glm::vec3& p) const {
+  const float d = -p.z;
+  return {p.x / d * sx_ + 0.5f * float(width_), p.y / d * sy_ + 0.5f * float(height_)};
+}
+
+bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
+  if (view_points.size() < 3) return false;
+  float far_m = 0;
+  projected_.clear();
+  for (const glm::vec3& p : view_points) {
+    if (-p.z <= near_m_) return false;
+    far_m = std::max(far_m, -p.z);
+    projected_.push_back(to_cells(p));
+  }
+  convex_hull(projected_, hull_);
+  if (hull_.size() < 3) return false;
+  float y_min = hull_[0].y, y_max = hull_[0].y;
+  for (const glm::vec2& c : hull_) {
+    y_min = std::min(y_min, c.y);
+    y_max = std::max(y_max, c.y);
+  }
+  const int row_first = std::max(0, int(std::floor(y_min)));
+  const int row_last = std::min(int(height_) - 1, int(std::ceil(y_max)) - 1);
+  bool covered = false;
+  for (int j = row_first; j <= row_last; ++j) {
+    // The cells [i, i+1] x [j, j+1] wholly inside every edge: each edge's function is smallest
+    // at the cell corner farthest against its normal.
+    double lo = 0, hi = double(width_) - 1;
+    for (size_t e = 0; e < hull_.size() && lo <= hi; ++e) {
+      const glm::vec2& a = hull_[e];
+      const glm::vec2& b = hull_[(e + 1) % hull_.size()];
+      const double ea = -(double(b.y) - a.y), eb = double(b.x) - a.x;
+      const double ec = -(ea * a.x + eb * a.y);
+      const double margin = 1e-4 * (std::abs(ea) + std::abs(eb));
+      const double r = margin - (eb * j + std::min(eb, 0.0) + ec + std::min(ea, 0.0));
+      if (ea > 0) lo = std::max(lo, std::ceil(r / ea));
+      else if (ea < 0) hi = std::min(hi, std::floor(r / ea));
+      else if (r > 0) hi = -1;
+    }
+    if (lo > hi) continue;
+    float* row = cells_.data() + size_t(j) * width_;
+    for (int i = int(lo); i <= int(hi); ++i) row[i] = std::min(row[i], far_m);
+    covered = true;
+  }
+  return covered;
+}
+
+bool OcclusionBuffer::hidden(const glm::vec3& mn, const glm::vec3& mx) const {
+  const float near_d = -mx.z, far_d = -mn.z;
+  if (near_d <= near_m_ || cells_.empty()) return false;
+  // The box's extreme x / d and y / d: each end over the nearer or farther face, whichever
+  // makes it extreme.
+  const float x0 = mn.x / (mn.x <= 0 ? near_d : far_d), x1 = mx.x / (mx.x >= 0 ? near_d : far_d);
+  const float y0 = mn.y / (mn.y <= 0 ? near_d : far_d), y1 = mx.y / (mx.y >= 0 ? near_d : far_d);
+  const float cx0 = x0 * sx_ + 0.5f * float(width_), cx1 = x1 * sx_ + 0.5f * float(width_);
+  const float cy0 = y0 * sy_ + 0.5f * float(height_), cy1 = y1 * sy_ + 0.5f * float(height_);
+  if (!(cx1 >= 0 && cy1 >= 0 && cx0 <= float(width_) && cy0 <= float(height_))) return false;
+  const int i0 = std::max(0, int(std::floor(cx0))), i1 = std::min(int(width_) - 1, int(std::floor(cx1)));
+  const int j0 = std::max(0, int(std::floor(cy0))), j1 = std::min(int(height_) - 1, int(std::floor(cy1)));
+  for (int j = j0; j <= j1; ++j) {
+    const float* row = cells_.data() + size_t(j) * width_;
+    for (int i = i0; i <= i1; ++i)
+      if (!(row[i] < near_d)) return false;
+  }
+  return true;
+}
+
+}  // namespace plantview::detail

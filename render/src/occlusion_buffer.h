@@ -1,0 +1,63 @@
+// Occlusion buffer: a small software depth buffer over the frame's image, filled with
+// occluders' silhouettes and queried with bounds. No GL: it works the same whatever draws the
+// frame (llvmpipe or a GPU).
+//
+// Rules (what makes it conservative: nothing it calls hidden is visible in the drawn image)
+//   - The buffer covers the image's normalised device square [-1, 1]^2 with width x height
+//     cells (a few hundred a side); a cell holds a view distance in metres (along the view
+//     axis), +infinity where no occluder covers it.
+//   - An occluder is a convex solid given by points that lie inside what is drawn of it; its
+//     silhouette is the convex hull of their projections. A cell takes the occluder's depth
+//     only if the whole cell lies inside that hull (inner conservative rasterisation), and the
+//     depth written is the occluder's farthest point: every covered cell holds a depth no
+//     nearer than the occluder's surface there, and nearer ones win (min).
+//   - Bounds are hidden when every cell their projected rectangle touches holds a depth
+//     strictly nearer than the bounds' nearest point. Bounds reaching in front of the near
+//     plane, and occluders that do, are never used (always visible / skipped).
+// Units: metres (view space: x right, y up, looking down -z) and buffer cells.
+// Ownership: owns its cells, reused frame after frame (no allocation once sized).
+// Threads: one owner thread.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace plantview::detail {
+
+class OcclusionBuffer {
+ public:
+  // Clears to +infinity at a size for an image of image_width x image_height: at most
+  // kMaxCells wide and high, the image's aspect kept. focal is 1 / tan(fov / 2) (vertical),
+  // aspect the image's width / height; near_m the near plane's distance.
+  void begin(uint32_t image_width, uint32_t image_height, float focal, float aspect, float near_m);
+
+  // Rasterises one convex occluder from its view-space points (inside the drawn solid).
+  // Returns whether it covered at least one cell. Skipped if a point is nearer than the near
+  // plane.
+  bool add_convex(std::span<const glm::vec3> view_points);
+
+  // Whether the view-space box [min, max] is hidden behind what was rasterised.
+  bool hidden(const glm::vec3& min, const glm::vec3& max) const;
+
+  uint32_t width() const { return width_; }
+  uint32_t height() const { return height_; }
+  float depth(uint32_t x, uint32_t y) const { return cells_[size_t(y) * width_ + x]; }
+
+  static constexpr uint32_t kMaxCells = 320;
+
+ private:
+  // Buffer coordinates of a view-space point (d = -z > 0).
+  glm::vec2 to_cells(const glm::vec3& p) const;
+
+  uint32_t width_ = 0, height_ = 0;
+  float sx_ = 1, sy_ = 1;  // cells per unit of x / d and y / d
+  float near_m_ = 0.05f;
+  std::vector<float> cells_;
+  // Scratch, reused.
+  std::vector<glm::vec2> projected_, hull_;
+};
+
+}  // namespace plantview::detail

@@ -1,0 +1,346 @@
+// Occlusion culling: the software depth buffer against an independent ray-cast oracle, and the
+// renderer with occlusion on against itself with it off (on whatever EGL offers: llvmpipe in
+// CI): a wall hides a row of pumps (not drawn, not uploaded) and they appear the frame the wall
+// is out of the way; along a random path the object-id buffers agree and no visible object is
+// missing; the CPU time is the sum of its parts.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "occlusion_buffer.h"
+#include "occlusion_occluders.h"
+#include "plantview/generate.h"
+#include "plantview/ingest.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "support/temp_dir.h"
+
+namespace plantview {
+namespace {
+
+using detail::OcclusionBuffer;
+using test::TempDir;
+
+// --- the buffer, without GL ---------------------------------------------------------------------
+
+struct ViewBox {
+  glm::vec3 min, max;
+  std::vector<glm::vec3> corners() const {
+    std::vector<glm::vec3> c;
+    for (int i = 0; i < 8; ++i)
+      c.push_back({i & 1 ? max.x : min.x, i & 2 ? max.y : min.y, i & 4 ? max.z : min.z});
+    return c;
+  }
+};
+
+// The distance along the ray from the eye (origin) through direction `d` to where it enters
+// `box`, or infinity (slab test: independent of the buffer's projection and rasterisation).
+float ray_enters(const glm::vec3& d, const ViewBox& box) {
+  float t0 = 0, t1 = std::numeric_limits<float>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0) {
+      if (box.min[a] > 0 || box.max[a] < 0) return std::numeric_limits<float>::infinity();
+      continue;
+    }
+    float ta = box.min[a] / d[a], tb = box.max[a] / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  return t0 <= t1 ? t0 : std::numeric_limits<float>::infinity();
+}
+
+TEST(OcclusionBuffer, BoxBehindAWallIsHiddenAndOneBesideItIsNot) {
+  OcclusionBuffer buffer;
+  buffer.begin(1280, 720, 1.0f, 16.0f / 9.0f, 0.05f);
+  const ViewBox wall{{-5, -3, -10.5f}, {5, 3, -10}};
+  ASSERT_TRUE(buffer.add_convex(wall.corners()));
+  EXPECT_TRUE(buffer.hidden({-1, -1, -20}, {1, 1, -18}));      // behind it
+  EXPECT_FALSE(buffer.hidden({-1, -1, -9}, {1, 1, -8}));       // in front of it
+  EXPECT_FALSE(buffer.hidden({6, -1, -20}, {12, 1, -18}));     // reaching past its edge
+  EXPECT_FALSE(buffer.hidden({-1, -1, -10.4f}, {1, 1, -9.9f})); // overlapping it in depth
+  EXPECT_FALSE(buffer.hidden({-1, -1, -20}, {1, 1, 0.5f}));     // reaching behind the eye
+}
+
+TEST(OcclusionBuffer, WhatItCallsHiddenIsHiddenForEveryRayThroughIt) {
+  // Random box occluders and random boxes; for every box the buffer calls hidden, rays from the
+  // eye through points spread over the box's surface must enter an occluder first.
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float focal = 1.0f / std::tan(glm::radians(25.0f)), aspect = 16.0f / 9.0f;
+  int hidden_boxes = 0, visible_boxes = 0;
+  for (int scene = 0; scene < 40; ++scene) {
+    OcclusionBuffer buffer;
+    buffer.begin(1280, 720, focal, aspect, 0.05f);
+    std::vector<ViewBox> occluders;
+    for (int o = 0; o < 6; ++o) {
+      const glm::vec3 c(u(rng) * 16 - 8, u(rng) * 10 - 5, -(4 + u(rng) * 20));
+      const glm::vec3 h(0.5f + u(rng) * 4, 0.5f + u(rng) * 3, 0.2f + u(rng) * 2);
+      occluders.push_back({c - h, c + h});
+      buffer.add_convex(occluders.back().corners());
+    }
+    for (int b = 0; b < 60; ++b) {
+      const glm::vec3 c(u(rng) * 20 - 10, u(rng) * 12 - 6, -(5 + u(rng) * 40));
+      const glm::vec3 h(0.1f + u(rng) * 2, 0.1f + u(rng) * 2, 0.1f + u(rng) * 2);
+      const ViewBox box{c - h, c + h};
+      if (!buffer.hidden(box.min, box.max)) {
+        ++visible_boxes;
+        continue;
+      }
+      ++hidden_boxes;
+      const int n = 12;
+      for (int face = 0; face < 6; ++face) {
+        for (int i = 0; i <= n; ++i) {
+          for (int j = 0; j <= n; ++j) {
+            glm::vec3 p;
+            const int axis = face / 2;
+            p[axis] = face % 2 ? box.max[axis] : box.min[axis];
+            const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+            p[a1] = box.min[a1] + (box.max[a1] - box.min[a1]) * float(i) / n;
+            p[a2] = box.min[a2] + (box.max[a2] - box.min[a2]) * float(j) / n;
+            // Only points on the screen matter (the image shows nothing else).
+            const float x = focal / aspect * p.x / -p.z, y = focal * p.y / -p.z;
+            if (std::abs(x) > 1 || std::abs(y) > 1) continue;
+            const float t_point = glm::length(p);
+            float t_occluder = std::numeric_limits<float>::infinity();
+            for (const auto& o : occluders) t_occluder = std::min(t_occluder, ray_enters(p / t_point, o));
+            ASSERT_LT(t_occluder, t_point) << "scene " << scene << " box " << b << " point " << p.x
+                                           << "," << p.y << "," << p.z << " is visible";
+          }
+        }
+      }
+    }
+  }
+  // The scenes hide some boxes and show others: the check above has something to check.
+  EXPECT_GT(hidden_boxes, 100);
+  EXPECT_GT(visible_boxes, 100);
+}
+
+// --- occluder shapes -------------------------------------------------------------------------
+
+// Whether p lies inside (or on, within rounding) the closed convex mesh of `primitive` at
+// `level`: on the inner side of every triangle's plane (the mesh as drawn: its own vertices and
+// indices).
+bool inside_mesh(const Primitive& primitive, uint32_t level, const glm::vec3& p) {
+  const MeshPlan plan = plan_mesh(primitive);
+  std::vector<PackedVertex> v(plan.vertex_count);
+  write_vertices(primitive, plan, glm::dvec3(0.0), v);
+  std::vector<uint32_t> idx(plan.index_count(level));
+  write_indices(plan, level, 0, std::span<uint32_t>(idx));
+  for (size_t t = 0; t + 2 < idx.size(); t += 3) {
+    const glm::vec3 a = v[idx[t]].position_m, b = v[idx[t + 1]].position_m, c = v[idx[t + 2]].position_m;
+    const glm::vec3 n = glm::cross(b - a, c - a);
+    // Slivers (three nearly collinear cap vertices of a fine ring) have no reliable plane in
+    // float; their neighbours span the same face.
+    if (glm::length(n) < 1e-3f * glm::length(b - a) * glm::length(c - a)) continue;
+    // Float rounding of long, thin triangles far from the origin: a relative margin.
+    const float margin = 1e-5f * (glm::length(p) + glm::length(b - a) + glm::length(c - a));
+    if (glm::dot(glm::normalize(n), p - a) > margin) return false;
+  }
+  return true;
+}
+
+TEST(OccluderShape, EveryPointLiesInsideEveryLevelOfTheDrawnMesh) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Primitive> primitives;
+  for (int i = 0; i < 12; ++i) {
+    // Random rotations (and a mirror now and then), sizes from a pipe to a vessel.
+    const glm::vec3 axis = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0, 0, 1.5f));
+    Placement placement;
+    placement.linear = glm::mat3(glm::rotate(glm::mat4(1.0f), 3.0f * u(rng), axis));
+    if (i % 5 == 4) placement.linear[0] = -placement.linear[0];
+    placement.translation_m = {10 * u(rng), 10 * u(rng), 10 * u(rng)};
+    const float size = 0.3f + 3 * (u(rng) + 1);
+    primitives.push_back({placement, Cylinder{0.5f * size, size * (1.5f + 4 * (u(rng) + 1))}});
+    primitives.push_back({placement, Box{size, 0.3f * size, 6 * size}});
+    primitives.push_back({placement, Sphere{size}});
+    primitives.push_back({placement, Snout{size, 0.6f * size, 2 * size, 0.2f * size, 0, 0, 0, 0, 0}});
+  }
+  std::vector<PackedVertex> scratch;
+  for (const Primitive& primitive : primitives) {
+    detail::OccluderShape shape;
+    detail::build_occluder_shape(std::span(&primitive, 1), scratch, shape);
+    ASSERT_FALSE(shape.empty()) << "kind " << int(primitive.kind());
+    const MeshPlan plan = plan_mesh(primitive);
+    for (uint32_t level = 0; level < plan.level_count; ++level)
+      for (const glm::vec3& p : shape.points)
+        ASSERT_TRUE(inside_mesh(primitive, level, p))
+            << "kind " << int(primitive.kind()) << " level " << level << " point " << p.x << "," << p.y << "," << p.z;
+  }
+}
+
+// --- the renderer ------------------------------------------------------------------------------
+
+GpuContext& context() {
+  static std::unique_ptr<GpuContext> ctx = [] {
+    std::string error;
+    auto c = GpuContext::create(-1, error);
+    if (!c) ADD_FAILURE() << error;
+    return c;
+  }();
+  if (!ctx) std::abort();
+  return *ctx;
+}
+
+Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin,
+                   std::vector<Primitive> primitives, Colour colour = {200, 120, 40, 255}) {
+  Object o;
+  o.name = name;
+  o.source = "test";
+  o.id = object_id(o.source, name);
+  o.object_class = cls;
+  o.colour = colour;
+  o.origin_m = origin;
+  o.primitives = std::move(primitives);
+  return o;
+}
+
+std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>& objects) {
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+  EXPECT_TRUE(store) << error;
+  const IngestResult result = ingest_objects(*store, objects);
+  EXPECT_TRUE(result) << result.error().message;
+  return store;
+}
+
+std::unique_ptr<Renderer> make_renderer(const Store& store, bool occlusion) {
+  context();
+  RenderOptions options;
+  options.vertex_budget_bytes = 16u << 20;
+  options.occlusion = occlusion;
+  std::string error;
+  auto r = Renderer::create(store, options, error);
+  EXPECT_TRUE(r) << error;
+  return r;
+}
+
+Camera look(glm::dvec3 eye, glm::dvec3 target) {
+  Camera c;
+  c.eye_m = eye;
+  c.target_m = target;
+  return c;
+}
+
+std::set<uint64_t> ids_in(const Image& image) {
+  std::set<uint64_t> ids(image.object_ids.begin(), image.object_ids.end());
+  ids.erase(0);
+  return ids;
+}
+
+TEST(Occlusion, AWallHidesARowOfPumpsUntilItIsOutOfTheWay) {
+  // A wall 20 m long at y = 0; five pumps (a motor cylinder on a base box) 4 m behind it.
+  std::vector<Object> objects;
+  objects.push_back(make_object("wall", ObjectClass::structure, {0, 0, 3},
+                                {Primitive{Placement{}, Box{20, 0.4f, 6}}}, {120, 120, 120, 255}));
+  std::vector<uint64_t> pumps;
+  for (int i = 0; i < 5; ++i) {
+    Placement motor;
+    motor.linear = glm::mat3(glm::vec3(0, 0, 1), glm::vec3(0, 1, 0), glm::vec3(-1, 0, 0));  // along x
+    motor.translation_m = {0, 0, 0.9f};
+    objects.push_back(make_object("P-10" + std::to_string(i), ObjectClass::equipment,
+                                  {-8 + 4.0 * i, 4, 0},
+                                  {Primitive{Placement{glm::mat3(1.0f), {0, 0, 0.25f}}, Box{1.6f, 0.8f, 0.5f}},
+                                   Primitive{motor, Cylinder{0.35f, 1.4f}}}));
+    pumps.push_back(objects.back().id);
+  }
+  TempDir dir;
+  auto store = make_store(dir, objects);
+  auto r = make_renderer(*store, true);
+  std::string error;
+  Image image;
+  FrameStats stats;
+
+  // From the front of the wall: only the wall is drawn, and only it is uploaded.
+  ASSERT_TRUE(r->render(look({0, -15, 2}, {0, 4, 1}), 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(ids_in(image), std::set<uint64_t>{objects[0].id});
+  EXPECT_EQ(stats.objects_occluded, 5u);
+  EXPECT_EQ(stats.objects_visible, 1u);
+  EXPECT_EQ(stats.objects_resident, 1u);
+  EXPECT_EQ(stats.objects_tessellated, 1u);
+  EXPECT_GT(stats.ms.occlusion, 0.0);
+
+  // From behind the pumps, the first frame: every pump is drawn (and the wall behind them).
+  ASSERT_TRUE(r->render(look({0, 20, 2}, {0, 4, 1}), 320, 180, true, image, stats, error)) << error;
+  const auto seen = ids_in(image);
+  for (const uint64_t id : pumps) EXPECT_TRUE(seen.count(id)) << "pump " << id << " missing";
+  EXPECT_EQ(stats.objects_occluded, 0u);
+  EXPECT_EQ(stats.objects_tessellated, 5u);
+
+  // And from above the wall's top (it no longer hides them): all drawn again.
+  ASSERT_TRUE(r->render(look({0, -15, 30}, {0, 4, 0}), 320, 180, true, image, stats, error)) << error;
+  const auto from_above = ids_in(image);
+  for (const uint64_t id : pumps) EXPECT_TRUE(from_above.count(id)) << "pump " << id << " missing";
+}
+
+TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
+  TempDir dir;
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+  ASSERT_TRUE(store) << error;
+  GenerateOptions g;
+  g.preset = 'a';
+  const IngestResult result = ingest_generated(*store, g);
+  ASSERT_TRUE(result) << result.error().message;
+  auto on = make_renderer(*store, true);
+  auto off = make_renderer(*store, false);
+  // Random cameras inside the plant, at eye height, looking level-ish in random directions:
+  // where occlusion matters most.
+  const DAabb bounds = on->model_bounds();
+  std::mt19937 rng(2026);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Camera> cameras;
+  std::vector<Camera> walk;
+  ASSERT_TRUE(make_camera_path(PathKind::walkthrough, 6, *store, walk, error)) << error;
+  cameras = walk;
+  for (int i = 0; i < 10; ++i) {
+    const glm::dvec3 eye(bounds.min.x + u(rng) * (bounds.max.x - bounds.min.x),
+                         bounds.min.y + u(rng) * (bounds.max.y - bounds.min.y), bounds.min.z + 1.7);
+    const double a = u(rng) * 2 * M_PI;
+    cameras.push_back(look(eye, eye + glm::dvec3(std::cos(a), std::sin(a), -0.05)));
+  }
+  uint64_t occluded = 0;
+  for (size_t v = 0; v < cameras.size(); ++v) {
+    Image a, b;
+    FrameStats sa, sb;
+    ASSERT_TRUE(on->render(cameras[v], 320, 180, true, a, sa, error)) << error;
+    ASSERT_TRUE(off->render(cameras[v], 320, 180, true, b, sb, error)) << error;
+    occluded += sa.objects_occluded;
+    size_t same = 0;
+    for (size_t p = 0; p < a.object_ids.size(); ++p) same += a.object_ids[p] == b.object_ids[p];
+    EXPECT_GE(double(same), 0.9995 * double(a.object_ids.size())) << "view " << v;
+    // Nothing visible without occlusion is missing at the end of the frame with it.
+    const auto with = ids_in(a);
+    for (const uint64_t id : ids_in(b)) EXPECT_TRUE(with.count(id)) << "view " << v << ": object " << id << " missing";
+    EXPECT_LE(sa.triangles, sb.triangles) << "view " << v;
+  }
+  EXPECT_GT(occluded, 0u) << "the path hides nothing: the comparison checks nothing";
+}
+
+TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {
+  TempDir dir;
+  auto store = make_store(dir, {make_object("wall", ObjectClass::structure, {0, 0, 3},
+                                            {Primitive{Placement{}, Box{20, 0.4f, 6}}}),
+                                make_object("pump", ObjectClass::equipment, {0, 4, 1},
+                                            {Primitive{Placement{}, Cylinder{0.4f, 1.0f}}})});
+  auto r = make_renderer(*store, true);
+  std::string error;
+  Image image;
+  FrameStats s;
+  ASSERT_TRUE(r->render(look({0, -15, 2}, {0, 4, 1}), 160, 90, false, image, s, error)) << error;
+  EXPECT_GT(s.ms.cpu, 0.0);
+  EXPECT_NEAR(s.ms.cpu, s.ms.cull + s.ms.occlusion + s.ms.choose + s.ms.stream, 1e-9);
+  EXPECT_LE(s.ms.cpu, s.ms.total);
+  EXPECT_NE(s.to_json().find("\"cpu\":"), std::string::npos);
+  EXPECT_NE(s.to_json().find("\"objects_occluded\":1"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace plantview
