@@ -14,6 +14,21 @@
 //     levels "Levels" says, its primitives in one mesh with one material (the object's colour:
 //     sRGB to linear baseColorFactor, alpha < 255 blended); facet groups and lines included
 //     (lines as a LINES primitive). Vertex-cache and vertex-fetch order by meshoptimizer.
+//   - Quantization (KHR_mesh_quantization, unless `quantize` is off): a mesh's positions are
+//     written as normalized int16 on a grid of its own, centred on its box and scaled by the
+//     smallest of 1, 1.5, 2, 3, 4, 6, 8, ... m that holds its half extent; its normals as
+//     normalized int8 (within 0.5 degree); the dequantization (grid centre and scale) is folded
+//     into the translation and scale of every node (or GPU instance) that draws the mesh, so
+//     a mesh up to 2 m across needs no node scale at all. The grid's worst error, half a step
+//     on each axis as a distance (sqrt(3)/2 * scale / 32767: 26 um at scale 1, 0.42 mm at 16),
+//     is kept within a tenth of the tolerance (kQuantizationShare; 0.5 mm at 5 mm) or, at full
+//     resolution and for a camera, within kQuantizationErrorM (0.05 mm); a mesh whose grid
+//     would be coarser stays float32, and so does a unit shape's (below: node scales stretch
+//     it). So an object's error is at most 1.1x the tolerance (plus the translations' 0.05 mm
+//     rounding). Indices are uint8 where a mesh has under 255 vertices. The extension is then
+//     listed in extensionsRequired (the int16 and int8 attributes are not core glTF). Readers:
+//     three.js, Babylon.js, Blender's importer, Cesium and gltf-transform read it; f3d 1.3
+//     (VTK 9.1) does not list it but reads the attributes and draws the file the same.
 //   - Instancing: objects that are the same up to a rigid transform (same primitives, shapes,
 //     relative placements to 0.1 mm / 1e-5, colour and levels) share one mesh; their nodes
 //     carry the rotation and translation (glTF's own "data instancing", which every reader
@@ -88,6 +103,10 @@ namespace plantview {
 class Store;
 
 inline constexpr uint32_t kGpuInstancingMin = 16;  // objects per mesh and parent to use EXT_mesh_gpu_instancing
+// Quantization's error bound: this share of the tolerance; at full resolution or for a camera,
+// kQuantizationErrorM (half the 0.1 mm to which objects are already taken as equal for sharing).
+inline constexpr double kQuantizationShare = 0.1;
+inline constexpr double kQuantizationErrorM = 5e-5;
 
 enum class GltfSplit { none, site, zone, pipeline, equipment };
 std::string_view gltf_split_name(GltfSplit split);
@@ -110,6 +129,7 @@ struct GltfExportOptions {
   bool hlod = true;                   // with camera: merged pipeline runs as the renderer has them
   bool share_meshes = true;           // false: a mesh per object (for comparison: what sharing saves)
   bool gpu_instancing = false;        // EXT_mesh_gpu_instancing for meshes repeated often
+  bool quantize = true;               // KHR_mesh_quantization where its error is within the bound
   GltfSplit split = GltfSplit::none;
   // Called with the fraction done (0..1) and what is being done; may be empty.
   std::function<void(double fraction, std::string_view stage)> progress;

@@ -62,25 +62,26 @@ struct Hasher {
 
 // A lone box or cylinder without scale becomes the unit shape, its sizes moved to `scale`
 // (the cylinder's radius stays: it decides the segment counts and the error).
-void unit_shape(Primitive& p, glm::vec3& scale) {
+bool unit_shape(Primitive& p, glm::vec3& scale) {
   const glm::mat3& c = p.placement.linear;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (std::abs(c[i][j] - (i == j ? 1.0f : 0.0f)) > 1e-6f) return;
+      if (std::abs(c[i][j] - (i == j ? 1.0f : 0.0f)) > 1e-6f) return false;
   constexpr float kMin = 1e-6f;
   if (Box* box = std::get_if<Box>(&p.shape)) {
-    if (box->size_x_m < kMin || box->size_y_m < kMin || box->size_z_m < kMin) return;
+    if (box->size_x_m < kMin || box->size_y_m < kMin || box->size_z_m < kMin) return false;
     scale = glm::vec3(box->size_x_m, box->size_y_m, box->size_z_m);
     *box = Box{1, 1, 1};
   } else if (Cylinder* cylinder = std::get_if<Cylinder>(&p.shape)) {
-    if (cylinder->height_m < kMin) return;
+    if (cylinder->height_m < kMin) return false;
     scale = glm::vec3(1, 1, cylinder->height_m);
     cylinder->height_m = 1;
   } else {
-    return;
+    return false;
   }
   // The shape's centre scales with it: placed at the node's origin it stays there.
   p.placement.translation_m /= scale;
+  return true;
 }
 
 }  // namespace
@@ -89,6 +90,7 @@ void canonicalise(const Object& object, CanonicalObject& out) {
   out.primitives.clear();
   out.plans.clear();
   out.scale = glm::vec3(1.0f);
+  out.unit_shape = false;
   if (object.primitives.empty()) {
     out.position_m = object.origin_m;
     out.rotation = glm::dquat(1, 0, 0, 0);
@@ -105,7 +107,7 @@ void canonicalise(const Object& object, CanonicalObject& out) {
     c.placement.translation_m =
         glm::vec3(inverse * (glm::dvec3(p.placement.translation_m) - glm::dvec3(first.translation_m)));
   }
-  if (out.primitives.size() == 1) unit_shape(out.primitives.front(), out.scale);
+  if (out.primitives.size() == 1) out.unit_shape = unit_shape(out.primitives.front(), out.scale);
   // Plans after every copy is in place: a facet group's plan points into its primitive.
   for (const Primitive& c : out.primitives) out.plans.push_back(plan_mesh(c));
 }

@@ -39,6 +39,7 @@ struct CanonicalObject {
   glm::dvec3 position_m{0.0};   // model space
   glm::dquat rotation{1, 0, 0, 0};
   glm::vec3 scale{1.0f};              // along the canonical axes
+  bool unit_shape = false;            // made of a unit shape: nodes stretch its mesh by any scale
   std::vector<Primitive> primitives;  // placements in the canonical frame
   std::vector<MeshPlan> plans;        // plan_mesh of each
 };
