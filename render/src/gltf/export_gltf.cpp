@@ -91,7 +91,9 @@ double quantization_error_m(const GltfExportOptions& options) {
 bool write_group(const ReadView& view, const GltfExportOptions& options, const ExportGroup& group,
                  const std::string& path, const glm::dvec3& origin_m, GltfFile& file,
                  GltfFileSummary& summary, uint64_t& done, uint64_t total, std::string& error) {
-  if (!file.open(path, origin_m, options.gpu_instancing, quantization_error_m(options), error)) return false;
+  if (!file.open(path, origin_m, options.gpu_instancing, quantization_error_m(options), options.share_meshes,
+                 error))
+    return false;
   if (options.gpu_instancing) {
     // Objects, and room for site, zone and pipeline nodes (about 4 % of a plant's objects are
     // pipelines).

@@ -156,6 +156,7 @@ struct GltfFile::State {
   GltfFileSummary streamed_summary;
   Part vertices, quantized, indices, accessors, meshes_text, text, nodes;
   double quantization_error_m = 0;
+  bool share_geometry = true;
   // Buffer views by first use: float vertices, quantized vertices, indices, instances.
   int float_view = -1, quantized_view = -1, index_view = -1, instance_view = -1, views = 0;
   int view(int& v) { return v >= 0 ? v : (v = views++); }
@@ -163,6 +164,13 @@ struct GltfFile::State {
   std::string write_error;  // the first write error, reported by the next fallible call
   tinygltf::Model model;    // the document's small parts
   std::unordered_map<MeshKey, int, MeshKeyHash> meshes;
+  // Each distinct geometry's primitives up to their material (meshes of another colour reuse
+  // its accessors), with its box and quantization.
+  struct Geometry {
+    std::string triangles, lines;
+    MeshInfo info;
+  };
+  std::unordered_map<MeshKey, Geometry, MeshKeyHash> geometries;
   std::vector<MeshInfo> mesh_info;
   std::map<uint32_t, int> materials;
   std::vector<Record> records;
@@ -210,10 +218,10 @@ struct GltfFile::State {
     return accessor_count++;
   }
 
-  // Writes vertices and indices, their accessors; returns the primitive's JSON. `info` has the
-  // mesh's box and quantization.
+  // Writes vertices and indices, their accessors; returns the primitive's JSON up to its
+  // material ({"attributes":..,"indices":N). `info` has the mesh's box and quantization.
   std::string primitive(const std::vector<GltfVertex>& vs, const std::vector<uint32_t>& is, int mode,
-                        int material_index, const MeshInfo& info) {
+                        const MeshInfo& info) {
     const std::string count = std::to_string(vs.size());
     std::string attributes;
     if (info.quantized) {
@@ -289,8 +297,7 @@ struct GltfFile::State {
     const uint64_t index = accessor("{\"bufferView\":" + std::to_string(view(index_view)) + ",\"byteOffset\":" +
                                     std::to_string(index_offset) + ",\"componentType\":" + std::to_string(component) +
                                     ",\"count\":" + std::to_string(is.size()) + ",\"type\":\"SCALAR\"}");
-    return "{\"attributes\":" + attributes + ",\"indices\":" + std::to_string(index) +
-           ",\"material\":" + std::to_string(material_index) + ",\"mode\":" + std::to_string(mode) + "}";
+    return "{\"attributes\":" + attributes + ",\"indices\":" + std::to_string(index);
   }
 
   // A node's placement relative to the origin with `mesh`'s dequantization folded in:
@@ -308,7 +315,8 @@ struct GltfFile::State {
     placement(mesh, position, q, scale, t);
     std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
     if (q != glm::quat(1, 0, 0, 0))
-      j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
+      j += ",\"rotation\":[" + json_number(q.x, 6) + "," + json_number(q.y, 6) + "," + json_number(q.z, 6) + "," +
+           json_number(q.w, 6) + "]";
     if (scale != glm::vec3(1.0f))
       j += ",\"scale\":[" + json_number(scale.x) + "," + json_number(scale.y) + "," + json_number(scale.z) + "]";
     return j;
@@ -385,8 +393,9 @@ GltfFile::~GltfFile() {
 }
 
 bool GltfFile::open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing,
-                    double quantization_error_m, std::string& error) {
+                    double quantization_error_m, bool share_geometry, std::string& error) {
   State& s = *state_;
+  s.share_geometry = share_geometry;
   s.path = path;
   s.quantization_error_m = quantization_error_m;
   s.origin_m = origin_m;
@@ -423,42 +432,50 @@ int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, 
   State& s = *state_;
   if (data.empty()) return s.meshes[key] = kNoMesh;
   const int material = s.material(colour);
-  State::MeshInfo info;
-  for (const std::vector<GltfVertex>* vs : {&data.triangle_vertices, &data.line_vertices}) {
-    for (const GltfVertex& v : *vs) {
-      for (int a = 0; a < 3; ++a) {
-        info.min[a] = info.has_box ? std::min(info.min[a], v.position[a]) : v.position[a];
-        info.max[a] = info.has_box ? std::max(info.max[a], v.position[a]) : v.position[a];
+  MeshKey geometry_id = geometry_key(data);
+  if (!s.share_geometry) geometry_id.a ^= s.mesh_info.size() + 1;
+  auto found = s.geometries.find(MeshKey{geometry_id.a, geometry_id.b ^ uint64_t(stretched)});
+  if (found == s.geometries.end()) {
+    State::Geometry g;
+    State::MeshInfo& info = g.info;
+    for (const std::vector<GltfVertex>* vs : {&data.triangle_vertices, &data.line_vertices}) {
+      for (const GltfVertex& v : *vs) {
+        for (int a = 0; a < 3; ++a) {
+          info.min[a] = info.has_box ? std::min(info.min[a], v.position[a]) : v.position[a];
+          info.max[a] = info.has_box ? std::max(info.max[a], v.position[a]) : v.position[a];
+        }
+        info.has_box = true;
       }
-      info.has_box = true;
     }
-  }
-  // The grid: centred on the box, the smallest short scale holding it; its worst error (half a
-  // step on each axis) must be within the bound.
-  if (s.quantization_error_m > 0 && !stretched && info.has_box) {
-    double half = 0;
-    for (int a = 0; a < 3; ++a) {
-      info.centre[a] = (double(info.min[a]) + double(info.max[a])) / 2;
-      half = std::max(half, (double(info.max[a]) - double(info.min[a])) / 2);
+    // The grid: centred on the box, the smallest short scale holding it; its worst error (half
+    // a step on each axis) must be within the bound.
+    if (s.quantization_error_m > 0 && !stretched && info.has_box) {
+      double half = 0;
+      for (int a = 0; a < 3; ++a) {
+        info.centre[a] = (double(info.min[a]) + double(info.max[a])) / 2;
+        half = std::max(half, (double(info.max[a]) - double(info.min[a])) / 2);
+      }
+      for (const double grid : kGridScales) {
+        if (grid < half * (1 + 1e-6)) continue;
+        info.grid_scale = grid;
+        info.quantized = std::sqrt(3.0) * 0.5 * grid / kQuantized <= s.quantization_error_m;
+        break;
+      }
+      if (!info.quantized) info.centre = glm::dvec3(0.0), info.grid_scale = 1;
     }
-    for (const double g : kGridScales) {
-      if (g < half * (1 + 1e-6)) continue;
-      info.grid_scale = g;
-      info.quantized = std::sqrt(3.0) * 0.5 * g / kQuantized <= s.quantization_error_m;
-      break;
-    }
-    if (!info.quantized) info.centre = glm::dvec3(0.0), info.grid_scale = 1;
-  }
-  std::string mesh = "{\"primitives\":[";
-  if (!data.triangles.empty()) {
-    mesh += s.primitive(data.triangle_vertices, data.triangles, kTriangles, material, info);
+    if (!data.triangles.empty()) g.triangles = s.primitive(data.triangle_vertices, data.triangles, kTriangles, info);
+    if (!data.lines.empty()) g.lines = s.primitive(data.line_vertices, data.lines, kLines, info);
     info.triangles = uint32_t(data.triangles.size() / 3);
-  }
-  if (!data.lines.empty()) {
-    if (!data.triangles.empty()) mesh += ",";
-    mesh += s.primitive(data.line_vertices, data.lines, kLines, material, info);
     info.lines = uint32_t(data.lines.size() / 2);
+    found = s.geometries.emplace(MeshKey{geometry_id.a, geometry_id.b ^ uint64_t(stretched)}, std::move(g)).first;
   }
+  const State::Geometry& g = found->second;
+  const State::MeshInfo info = g.info;
+  const std::string tail = ",\"material\":" + std::to_string(material);
+  std::string mesh = "{\"primitives\":[";
+  if (!g.triangles.empty()) mesh += g.triangles + tail + "}";  // mode: triangles, the default
+  if (!g.lines.empty())
+    mesh += (g.triangles.empty() ? "" : ",") + g.lines + tail + ",\"mode\":" + std::to_string(kLines) + "}";
   mesh += "]}";
   if (!s.meshes_text.append(s.mesh_info.empty() ? mesh : "," + mesh)) s.note_failure(s.meshes_text);
   if (s.failed) {
@@ -859,6 +876,7 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
   s.model = tinygltf::Model();
   s.meshes = {};
   s.mesh_info = {};
+  s.geometries = {};
   s.streamed_children = {};
   s.sites = {};
   s.zones = {};

@@ -55,8 +55,10 @@ class GltfFile {
   // normalized int16 on a grid of their own, normals as normalized int8, the dequantization in
   // the nodes' transforms) where the grid's worst error (half a step along each axis, as a
   // distance) is at most this; other meshes, and meshes nodes may stretch, stay float32.
+  // share_geometry: meshes of different colours with the same vertices and indices share their
+  // accessors (off to measure what sharing saves).
   bool open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing, double quantization_error_m,
-            std::string& error);
+            bool share_geometry, std::string& error);
   // Room for this many nodes, so that a large file's node table is not copied as it grows.
   void reserve(size_t nodes);
 

@@ -152,6 +152,15 @@ MeshKey mesh_key(const CanonicalObject& object, const PrimitiveLevels& levels, C
   return MeshKey{h.a, h.b};
 }
 
+MeshKey geometry_key(const MeshData& data) {
+  Hasher h;
+  h.bytes(data.triangle_vertices.data(), data.triangle_vertices.size() * sizeof(GltfVertex));
+  h.bytes(data.triangles.data(), data.triangles.size() * sizeof(uint32_t));
+  h.bytes(data.line_vertices.data(), data.line_vertices.size() * sizeof(GltfVertex));
+  h.bytes(data.lines.data(), data.lines.size() * sizeof(uint32_t));
+  return MeshKey{h.a, h.b};
+}
+
 void MeshBuilder::build(const CanonicalObject& object, const PrimitiveLevels& levels, MeshData& out) {
   tri_vertices_.clear();
   line_vertices_.clear();

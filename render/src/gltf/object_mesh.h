@@ -77,6 +77,10 @@ struct MeshData {
   bool empty() const { return triangles.empty() && lines.empty(); }
 };
 
+// What a mesh's data is (vertices, indices, lines), hashed: meshes of different colours with
+// the same geometry share its accessors.
+MeshKey geometry_key(const MeshData& data);
+
 class MeshBuilder {
  public:
   // Tessellates `object` at `levels` into `out` (replacing what was there).
