@@ -130,6 +130,7 @@ struct ReadBack {
   std::map<uint64_t, DAabb> bounds_by_id;        // model space, from every vertex
   DAabb bounds;
   uint64_t object_nodes = 0;
+  std::map<uint64_t, std::map<std::string, std::string>> attributes_by_id;  // extras but id and class
   uint64_t quantized_positions = 0;  // POSITION accessors of normalized int16
   bool quantization_required = false;  // KHR_mesh_quantization in extensionsRequired
 };
@@ -174,7 +175,12 @@ bool read_back(const fs::path& file, ReadBack& out, std::string& error) {
     uint64_t id = 0;
     if (owner.extras.Has("id")) {
       id = std::stoull(owner.extras.Get("id").Get<std::string>(), nullptr, 16);
-      if (&owner == &n) out.object_nodes += 1;
+      if (&owner == &n) {
+        out.object_nodes += 1;
+        std::map<std::string, std::string>& attributes = out.attributes_by_id[id];
+        for (const std::string& key : n.extras.Keys())
+          if (key != "id" && key != "class") attributes[key] = n.extras.Get(key).Get<std::string>();
+      }
     }
     if (n.mesh < 0) continue;
     for (const tinygltf::Primitive& p : model.meshes[size_t(n.mesh)].primitives) {
@@ -236,8 +242,13 @@ void expect_objects_match_store(const Store& store, const ReadBack& back, double
     const std::optional<uint32_t> slot = view->slot_of(id);
     ASSERT_TRUE(slot) << std::hex << id;
     Object o;
-    ASSERT_TRUE(view->object(*slot, o, false, error)) << error;
+    ASSERT_TRUE(view->object(*slot, o, true, error)) << error;
     EXPECT_EQ(triangles, template_triangles(o, tolerance_m)) << o.name;
+    // Its attributes (ASCII in these stores), each key's first value, as the extras' keys.
+    std::map<std::string, std::string> attributes;
+    for (const Attribute& a : o.attributes) attributes.emplace(a.key, a.value);
+    ASSERT_EQ(back.attributes_by_id.count(id), 1u) << o.name;
+    EXPECT_EQ(back.attributes_by_id.at(id), attributes) << o.name;
     // Every vertex within the object's bounds, up to the tolerance (and float rounding).
     const DAabb b = object_bounds(o), got = back.bounds_by_id.at(id);
     const double slack = tolerance_m + 1e-3;
