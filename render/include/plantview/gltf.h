@@ -80,7 +80,7 @@
 //   object at a time and streamed to temporary files beside the output, with the document's
 //   accessors, meshes and nodes as JSON text (a .glb is assembled from them at the end). What
 //   stays in memory is about 12 bytes per selected object (80 with gpu_instancing, whose
-//   grouping waits for the end) and about 200 per distinct mesh, besides the store's read view: not
+//   grouping waits for the end) and about 300 per distinct mesh, besides the store's read view: not
 //   the tessellated plant. Measured peak resident memory: preset c (40,746 objects) about
 //   20 MB at any tolerance; preset c at scale 100 (4.07 million objects) 240 MB at 5 mm.
 // Files: written to a temporary name in the destination directory and renamed when complete:

@@ -34,28 +34,35 @@ struct QuantizedVertex {
 };
 static_assert(sizeof(QuantizedVertex) == 12);
 
-// The int8 normal nearest `n` in direction whose length is closest to 1 (the validator allows
-// 0.00674 off unit length; plain rounding can land just outside).
+// The int8 normal nearest `n`: rounded, or where that lands more than 0.004 off unit length
+// (the validator allows 0.00674; rounding can land just outside), the neighbour closest in
+// direction and length.
 void quantize_normal(const float n[3], int8_t out[4]) {
   int base[3];
-  for (int a = 0; a < 3; ++a) base[a] = int(std::lround(double(n[a]) * 127.0));
-  double best = INFINITY;
+  for (int a = 0; a < 3; ++a) base[a] = std::clamp(int(std::lround(double(n[a]) * 127.0)), -127, 127);
+  auto length_of = [](const int c[3]) { return std::sqrt(double(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])) / 127.0; };
   int chosen[3] = {base[0], base[1], base[2]};
-  for (int dx = -1; dx <= 1; ++dx)
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dz = -1; dz <= 1; ++dz) {
-        const int c[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
-        if (std::abs(c[0]) > 127 || std::abs(c[1]) > 127 || std::abs(c[2]) > 127) continue;
-        const double length = std::sqrt(double(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])) / 127.0;
-        if (!(length > 0)) continue;
-        double misfit = 0;  // direction: distance from n after normalising, plus length off 1
-        for (int a = 0; a < 3; ++a) misfit += std::pow(c[a] / 127.0 / length - double(n[a]), 2);
-        misfit = std::sqrt(misfit) + 4 * std::abs(length - 1);
-        if (misfit < best) {
-          best = misfit;
-          chosen[0] = c[0], chosen[1] = c[1], chosen[2] = c[2];
+  if (std::abs(length_of(base) - 1) > 0.004) {
+    double best = INFINITY;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const int c[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+          if (std::abs(c[0]) > 127 || std::abs(c[1]) > 127 || std::abs(c[2]) > 127) continue;
+          const double length = length_of(c);
+          if (!(length > 0)) continue;
+          double misfit = 0;  // distance from n after normalising, plus length off 1
+          for (int a = 0; a < 3; ++a) {
+            const double d = c[a] / 127.0 / length - double(n[a]);
+            misfit += d * d;
+          }
+          misfit = std::sqrt(misfit) + 4 * std::abs(length - 1);
+          if (misfit < best) {
+            best = misfit;
+            chosen[0] = c[0], chosen[1] = c[1], chosen[2] = c[2];
+          }
         }
-      }
+  }
   for (int a = 0; a < 3; ++a) out[a] = int8_t(chosen[a]);
   out[3] = 0;
 }
@@ -432,11 +439,16 @@ int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, 
   State& s = *state_;
   if (data.empty()) return s.meshes[key] = kNoMesh;
   const int material = s.material(colour);
-  MeshKey geometry_id = geometry_key(data);
-  if (!s.share_geometry) geometry_id.a ^= s.mesh_info.size() + 1;
-  auto found = s.geometries.find(MeshKey{geometry_id.a, geometry_id.b ^ uint64_t(stretched)});
-  if (found == s.geometries.end()) {
-    State::Geometry g;
+  MeshKey geometry_id{};
+  if (s.share_geometry) {
+    geometry_id = geometry_key(data);
+    geometry_id.b ^= uint64_t(stretched);
+  }
+  auto found = s.share_geometry ? s.geometries.find(geometry_id) : s.geometries.end();
+  State::Geometry unshared;  // without sharing: not kept
+  const State::Geometry* geometry = found != s.geometries.end() ? &found->second : nullptr;
+  if (!geometry) {
+    State::Geometry& g = unshared;
     State::MeshInfo& info = g.info;
     for (const std::vector<GltfVertex>* vs : {&data.triangle_vertices, &data.line_vertices}) {
       for (const GltfVertex& v : *vs) {
@@ -467,9 +479,9 @@ int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, 
     if (!data.lines.empty()) g.lines = s.primitive(data.line_vertices, data.lines, kLines, info);
     info.triangles = uint32_t(data.triangles.size() / 3);
     info.lines = uint32_t(data.lines.size() / 2);
-    found = s.geometries.emplace(MeshKey{geometry_id.a, geometry_id.b ^ uint64_t(stretched)}, std::move(g)).first;
+    geometry = s.share_geometry ? &s.geometries.emplace(geometry_id, std::move(g)).first->second : &unshared;
   }
-  const State::Geometry& g = found->second;
+  const State::Geometry& g = *geometry;
   const State::MeshInfo info = g.info;
   const std::string tail = ",\"material\":" + std::to_string(material);
   std::string mesh = "{\"primitives\":[";
