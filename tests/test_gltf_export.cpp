@@ -469,6 +469,15 @@ TEST_F(GltfExport, CommandLineExitStatuses) {
   ASSERT_EQ(ok.status, 0) << ok.out;
   const nlohmann::json j = nlohmann::json::parse(ok.out, nullptr, false);
   EXPECT_GT(j.value("objects", 0), 0);
+  EXPECT_EQ(run(bin + " export --store " + store + " --xml " + out("x.xml").string() + " --no-quantization").status, 2);
+  const Outcome plain = run(bin + " export --store " + store + " --gltf " + out("plain-cli.glb").string() +
+                            " --class equipment --tolerance 10 --no-quantization");
+  ASSERT_EQ(plain.status, 0) << plain.out;
+  ReadBack back;
+  std::string error;
+  ASSERT_TRUE(read_back(out("plain-cli.glb"), back, error)) << error;
+  EXPECT_FALSE(back.quantization_required);
+  EXPECT_EQ(back.quantized_positions, 0u);
 }
 
 // With quantized vertices (the default): f3d 1.3 (VTK 9.1) does not list KHR_mesh_quantization
