@@ -1,7 +1,7 @@
 // glTF export (plantview/gltf.h): seconds, file size, triangles and peak memory of
 //   - Huldra: import (RVM + attributes into a new store) and a full-resolution GLB export, side
 //     by side with rvmparser's conversion of the same files when $RVMPARSER names its binary;
-//   - preset c at 1, 5 and 20 mm tolerance;
+//   - preset c at 1, 5 and 20 mm tolerance (and at 5 mm without quantization: what it saves);
 //   - preset c at full resolution with shared meshes and without (what sharing saves);
 //   - with --large, preset c at --scale 100 at 5 mm (the streaming bound: peak memory).
 // Each case runs in a child process of its own, so that its peak resident memory (wait4's
@@ -109,11 +109,13 @@ Row run_program(const std::string& name, const std::vector<std::string>& argv, c
   return row;
 }
 
-bool export_to(const Store& store, const fs::path& path, double tolerance_m, bool share, Row& r) {
+bool export_to(const Store& store, const fs::path& path, double tolerance_m, bool share, Row& r,
+               bool quantize = true) {
   GltfExportOptions o;
   o.path = path.string();
   o.tolerance_m = tolerance_m;
   o.share_meshes = share;
+  o.quantize = quantize;
   GltfExportSummary s;
   std::string error;
   if (export_gltf(store, o, s, error) != GltfExportStatus::ok) {
@@ -141,7 +143,8 @@ bool generate(const fs::path& dir, char preset, uint32_t scale) {
 }
 
 // Exports the store at `dir` in a child: open, export, timed from the open.
-Row export_case(const std::string& name, const fs::path& dir, const fs::path& out, double tolerance_m, bool share) {
+Row export_case(const std::string& name, const fs::path& dir, const fs::path& out, double tolerance_m, bool share,
+                bool quantize = true) {
   return in_child(name, [&](Row& r) {
     const auto start = Clock::now();
     std::string error;
@@ -150,7 +153,7 @@ Row export_case(const std::string& name, const fs::path& dir, const fs::path& ou
       std::fprintf(stderr, "bench_export: %s\n", error.c_str());
       return false;
     }
-    const bool ok = export_to(*store, out, tolerance_m, share, r);
+    const bool ok = export_to(*store, out, tolerance_m, share, r, quantize);
     r.seconds = since(start);
     return ok;
   });
@@ -211,6 +214,8 @@ int main(int argc, char** argv) {
         const std::string name = "preset c " + std::to_string(int(mm)) + " mm";
         rows.push_back(export_case(name, scratch / "c", scratch / ("c" + std::to_string(int(mm)) + ".glb"), mm / 1000, true));
       }
+      rows.push_back(export_case("preset c 5 mm, float32 vertices", scratch / "c", scratch / "c5-float.glb", 0.005,
+                                 true, false));
       rows.push_back(export_case("preset c full, shared meshes", scratch / "c", scratch / "c-shared.glb", 0, true));
       rows.push_back(export_case("preset c full, a mesh per object", scratch / "c", scratch / "c-own.glb", 0, false));
     }

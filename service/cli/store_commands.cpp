@@ -165,7 +165,7 @@ struct ExportOptions {
   double tolerance_mm = 0, pixel_error = 0;
   std::string camera, size = "1920x1080", classes, box, split = "none";
   std::vector<std::string> select;
-  bool no_hlod = false, gpu_instancing = false, no_sharing = false;
+  bool no_hlod = false, gpu_instancing = false, no_sharing = false, no_quantization = false;
 };
 
 // The glTF options checked and typed; a usage error (exit 2) otherwise.
@@ -204,6 +204,7 @@ int gltf_options(const ExportOptions& o, GltfExportOptions& g) {
   g.hlod = !o.no_hlod;
   g.gpu_instancing = o.gpu_instancing;
   g.share_meshes = !o.no_sharing;
+  g.quantize = !o.no_quantization;
   for (const std::string& glob : o.select) {
     if (glob.empty()) return usage_error("export: --select needs a non-empty pattern");
     g.selection.globs.push_back(glob);
@@ -272,7 +273,8 @@ int run_export(const ExportOptions& o) {
   if (o.xml.empty() == o.gltf.empty()) return usage_error("export: give exactly one of --xml FILE or --gltf FILE");
   if (!o.gltf.empty()) return run_export_gltf(o);
   if (o.tolerance_mm != 0 || o.pixel_error != 0 || !o.camera.empty() || !o.select.empty() || !o.classes.empty() ||
-      !o.box.empty() || o.split != "none" || o.no_hlod || o.gpu_instancing || o.no_sharing)
+      !o.box.empty() || o.split != "none" || o.no_hlod || o.gpu_instancing || o.no_sharing ||
+      o.no_quantization)
     return usage_error("export: --xml writes the whole model; selection and level options are for --gltf");
   std::string error;
   auto store = Store::open(o.store, Store::Mode::read_only, error);
@@ -350,6 +352,8 @@ Action add_store_commands(CLI::App& app) {
   export_cmd->add_option("--split", exp->split, "glTF: one file per site, zone, pipeline or equipment item");
   export_cmd->add_flag("--gpu-instancing", exp->gpu_instancing,
                        "glTF: EXT_mesh_gpu_instancing (then required) for meshes repeated 16 times or more");
+  export_cmd->add_flag("--no-quantization", exp->no_quantization,
+                       "glTF: float32 vertices only, no KHR_mesh_quantization (for readers without it)");
   export_cmd->add_flag("--no-sharing", exp->no_sharing,
                        "glTF: a mesh per object, none shared (to measure what sharing saves)");
 

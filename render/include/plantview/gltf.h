@@ -4,8 +4,10 @@
 //
 // What is written
 //   - One node per object, named by the object's name, its extras {"id": "<16 hex digits>",
-//     "class": "pipe", "attributes": {key: value...}} (attribute bytes that are not UTF-8 are
-//     read as Latin-1). Nodes sit in the model's hierarchy: a node per site (the object's
+//     "class": "pipe", key: value...}: each attribute of the object a key of its own beside id
+//     and class (Blender shows them as the object's custom properties, three.js as userData);
+//     attributes named "id" or "class" go to "attributes": {...} instead; a key repeated: its
+//     first value; attribute bytes that are not UTF-8 are read as Latin-1. Nodes sit in the model's hierarchy: a node per site (the object's
 //     source: the RVM file or "gen:<preset>"), below it a node per zone (the object's "Zone",
 //     else "Area" attribute, where it has one), below that the objects; a pipe or component
 //     hangs under its pipeline's node (a node with the pipeline's own name and attributes, also
@@ -14,6 +16,23 @@
 //     levels "Levels" says, its primitives in one mesh with one material (the object's colour:
 //     sRGB to linear baseColorFactor, alpha < 255 blended); facet groups and lines included
 //     (lines as a LINES primitive). Vertex-cache and vertex-fetch order by meshoptimizer.
+//   - Quantization (KHR_mesh_quantization, unless `quantize` is off): a mesh's positions are
+//     written as normalized int16 on a grid of its own, centred on its box and scaled by the
+//     smallest of 1, 1.5, 2, 3, 4, 6, 8, ... m that holds its half extent; its normals as
+//     normalized int8 (within 0.5 degree); the dequantization (grid centre and scale) is folded
+//     into the translation and scale of every node (or GPU instance) that draws the mesh, so
+//     a mesh up to 2 m across needs no node scale at all. The grid's worst error, half a step
+//     on each axis as a distance (sqrt(3)/2 * scale / 32767: 26 um at scale 1, 0.42 mm at 16),
+//     is kept within a tenth of the tolerance (kQuantizationShare; 0.5 mm at 5 mm) or, at full
+//     resolution and for a camera, within kQuantizationErrorM (0.05 mm); a mesh whose grid
+//     would be coarser stays float32, and so does a unit shape's (below: node scales stretch
+//     it). So an object's error is at most 1.1x the tolerance (plus the translations' 0.05 mm
+//     rounding; rotations are written to 6 decimals, 2e-6 rad, 0.06 mm at 30 m from a node's
+//     origin). Indices are uint8 where a mesh has under 255 vertices. Meshes that differ only
+//     in colour share their accessors. The extension is then
+//     listed in extensionsRequired (the int16 and int8 attributes are not core glTF). Readers:
+//     three.js, Babylon.js, Blender's importer, Cesium and gltf-transform read it; f3d 1.3
+//     (VTK 9.1) does not list it but reads the attributes and draws the file the same.
 //   - Instancing: objects that are the same up to a rigid transform (same primitives, shapes,
 //     relative placements to 0.1 mm / 1e-5, colour and levels) share one mesh; their nodes
 //     carry the rotation and translation (glTF's own "data instancing", which every reader
@@ -61,9 +80,9 @@
 //   object at a time and streamed to temporary files beside the output, with the document's
 //   accessors, meshes and nodes as JSON text (a .glb is assembled from them at the end). What
 //   stays in memory is about 12 bytes per selected object (80 with gpu_instancing, whose
-//   grouping waits for the end) and 60 per distinct mesh, besides the store's read view: not
+//   grouping waits for the end) and about 300 per distinct mesh, besides the store's read view: not
 //   the tessellated plant. Measured peak resident memory: preset c (40,746 objects) about
-//   20 MB at any tolerance; preset c at scale 100 (4.07 million objects) 240 MB at 5 mm.
+//   20 MB at any tolerance; preset c at scale 100 (4.07 million objects) 270 MB at 5 mm (2.2 GB written).
 // Files: written to a temporary name in the destination directory and renamed when complete:
 //   an error leaves no partial file behind (nor any file of a split).
 // Threads: export_gltf() runs on the calling thread and reads the store through a view of its
@@ -88,6 +107,10 @@ namespace plantview {
 class Store;
 
 inline constexpr uint32_t kGpuInstancingMin = 16;  // objects per mesh and parent to use EXT_mesh_gpu_instancing
+// Quantization's error bound: this share of the tolerance; at full resolution or for a camera,
+// kQuantizationErrorM (half the 0.1 mm to which objects are already taken as equal for sharing).
+inline constexpr double kQuantizationShare = 0.1;
+inline constexpr double kQuantizationErrorM = 5e-5;
 
 enum class GltfSplit { none, site, zone, pipeline, equipment };
 std::string_view gltf_split_name(GltfSplit split);
@@ -110,6 +133,7 @@ struct GltfExportOptions {
   bool hlod = true;                   // with camera: merged pipeline runs as the renderer has them
   bool share_meshes = true;           // false: a mesh per object (for comparison: what sharing saves)
   bool gpu_instancing = false;        // EXT_mesh_gpu_instancing for meshes repeated often
+  bool quantize = true;               // KHR_mesh_quantization where its error is within the bound
   GltfSplit split = GltfSplit::none;
   // Called with the fraction done (0..1) and what is being done; may be empty.
   std::function<void(double fraction, std::string_view stage)> progress;

@@ -81,11 +81,19 @@ std::string group_path(const std::filesystem::path& destination, const std::stri
   return (destination.parent_path() / (name + (binary ? ".glb" : ".gltf"))).string();
 }
 
+// The worst quantization error allowed (gltf.h): a tenth of the tolerance, else 0.05 mm.
+double quantization_error_m(const GltfExportOptions& options) {
+  if (!options.quantize) return 0;
+  return options.tolerance_m > 0 && !options.camera ? options.tolerance_m * kQuantizationShare : kQuantizationErrorM;
+}
+
 // Writes one group's file. False with a message (the file's temporaries removed).
 bool write_group(const ReadView& view, const GltfExportOptions& options, const ExportGroup& group,
                  const std::string& path, const glm::dvec3& origin_m, GltfFile& file,
                  GltfFileSummary& summary, uint64_t& done, uint64_t total, std::string& error) {
-  if (!file.open(path, origin_m, options.gpu_instancing, error)) return false;
+  if (!file.open(path, origin_m, options.gpu_instancing, quantization_error_m(options), options.share_meshes,
+                 error))
+    return false;
   if (options.gpu_instancing) {
     // Objects, and room for site, zone and pipeline nodes (about 4 % of a plant's objects are
     // pipelines).
@@ -106,7 +114,7 @@ bool write_group(const ReadView& view, const GltfExportOptions& options, const E
     int mesh = file.find_mesh(key);
     if (mesh == GltfFile::kUnknownMesh) {
       builder.build(c, levels, data);
-      mesh = file.add_mesh(key, data, colour, error);
+      mesh = file.add_mesh(key, data, colour, c.unit_shape, error);
     }
     return mesh;
   };

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -17,9 +18,54 @@ namespace plantview::detail::gltf {
 
 namespace {
 
-constexpr int kVertexView = 0, kIndexView = 1, kInstanceView = 2;
 constexpr int kTriangles = 4, kLines = 1;                           // glTF primitive modes
 constexpr int kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125;  // component types
+constexpr int kByte = 5120, kUnsignedByte = 5121, kShort = 5122;
+constexpr double kQuantized = 32767.0;  // normalized int16: q / 32767
+// Dequantization scales: the smallest that holds a mesh's half extent, from numbers short to
+// write (a node's scale carries it); 1 (no scale at all) for meshes up to 2 m across.
+constexpr double kGridScales[] = {1, 1.5, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256,
+                                  384, 512, 768, 1024, 1536, 2048, 3072, 4096};
+
+// A quantized vertex: position normalized int16 (x, y, z, padding), normal normalized int8.
+struct QuantizedVertex {
+  int16_t position[4];
+  int8_t normal[4];
+};
+static_assert(sizeof(QuantizedVertex) == 12);
+
+// The int8 normal nearest `n`: rounded, or where that lands more than 0.004 off unit length
+// (the validator allows 0.00674; rounding can land just outside), the neighbour closest in
+// direction and length.
+void quantize_normal(const float n[3], int8_t out[4]) {
+  int base[3];
+  for (int a = 0; a < 3; ++a) base[a] = std::clamp(int(std::lround(double(n[a]) * 127.0)), -127, 127);
+  auto length_of = [](const int c[3]) { return std::sqrt(double(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])) / 127.0; };
+  int chosen[3] = {base[0], base[1], base[2]};
+  if (std::abs(length_of(base) - 1) > 0.004) {
+    double best = INFINITY;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const int c[3] = {base[0] + dx, base[1] + dy, base[2] + dz};
+          if (std::abs(c[0]) > 127 || std::abs(c[1]) > 127 || std::abs(c[2]) > 127) continue;
+          const double length = length_of(c);
+          if (!(length > 0)) continue;
+          double misfit = 0;  // distance from n after normalising, plus length off 1
+          for (int a = 0; a < 3; ++a) {
+            const double d = c[a] / 127.0 / length - double(n[a]);
+            misfit += d * d;
+          }
+          misfit = std::sqrt(misfit) + 4 * std::abs(length - 1);
+          if (misfit < best) {
+            best = misfit;
+            chosen[0] = c[0], chosen[1] = c[1], chosen[2] = c[2];
+          }
+        }
+  }
+  for (int a = 0; a < 3; ++a) out[a] = int8_t(chosen[a]);
+  out[3] = 0;
+}
 
 double srgb_to_linear(uint8_t v) {
   const double c = v / 255.0;
@@ -100,6 +146,10 @@ struct GltfFile::State {
     float min[3], max[3];
     uint32_t triangles = 0, lines = 0;
     bool has_box = false;
+    // Quantized: model = node * (centre + grid_scale * q / 32767) for each int16 position q.
+    bool quantized = false;
+    glm::dvec3 centre{0.0};
+    double grid_scale = 1;
   };
 
   std::string path, temp_out, bin_name, temp_bin;
@@ -111,11 +161,23 @@ struct GltfFile::State {
   uint32_t streamed = 0;
   std::unordered_map<int, std::vector<uint32_t>> streamed_children;
   GltfFileSummary streamed_summary;
-  Part vertices, indices, accessors, meshes_text, text, nodes;
+  Part vertices, quantized, indices, accessors, meshes_text, text, nodes;
+  double quantization_error_m = 0;
+  bool share_geometry = true;
+  // Buffer views by first use: float vertices, quantized vertices, indices, instances.
+  int float_view = -1, quantized_view = -1, index_view = -1, instance_view = -1, views = 0;
+  int view(int& v) { return v >= 0 ? v : (v = views++); }
   uint64_t accessor_count = 0;
   std::string write_error;  // the first write error, reported by the next fallible call
   tinygltf::Model model;    // the document's small parts
   std::unordered_map<MeshKey, int, MeshKeyHash> meshes;
+  // Each distinct geometry's primitives up to their material (meshes of another colour reuse
+  // its accessors), with its box and quantization.
+  struct Geometry {
+    std::string triangles, lines;
+    MeshInfo info;
+  };
+  std::unordered_map<MeshKey, Geometry, MeshKeyHash> geometries;
   std::vector<MeshInfo> mesh_info;
   std::map<uint32_t, int> materials;
   std::vector<Record> records;
@@ -125,7 +187,7 @@ struct GltfFile::State {
   std::vector<uint64_t> pipeline_ids_unnamed;
 
   ~State() { close_parts(); }
-  Part* parts[6] = {&vertices, &indices, &accessors, &meshes_text, &text, &nodes};
+  Part* parts[7] = {&vertices, &quantized, &indices, &accessors, &meshes_text, &text, &nodes};
   void close_parts() {
     for (Part* p : parts) p->close();
   }
@@ -163,62 +225,105 @@ struct GltfFile::State {
     return accessor_count++;
   }
 
-  // Writes vertices and indices, their accessors; returns the primitive's JSON.
+  // Writes vertices and indices, their accessors; returns the primitive's JSON up to its
+  // material ({"attributes":..,"indices":N). `info` has the mesh's box and quantization.
   std::string primitive(const std::vector<GltfVertex>& vs, const std::vector<uint32_t>& is, int mode,
-                        int material_index, MeshInfo& info) {
-    float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (const GltfVertex& v : vs) {
-      for (int a = 0; a < 3; ++a) {
-        mn[a] = std::min(mn[a], v.position[a]);
-        mx[a] = std::max(mx[a], v.position[a]);
-      }
-    }
-    for (int a = 0; a < 3; ++a) {
-      info.min[a] = info.has_box ? std::min(info.min[a], mn[a]) : mn[a];
-      info.max[a] = info.has_box ? std::max(info.max[a], mx[a]) : mx[a];
-    }
-    info.has_box = true;
+                        const MeshInfo& info) {
     const std::string count = std::to_string(vs.size());
-    const uint64_t position = accessor("{\"bufferView\":" + std::to_string(kVertexView) + ",\"byteOffset\":" +
-                                       std::to_string(vertices.bytes) + ",\"componentType\":" + std::to_string(kFloat) +
-                                       ",\"count\":" + count + ",\"type\":\"VEC3\",\"min\":" + vec3_json(mn) +
-                                       ",\"max\":" + vec3_json(mx) + "}");
-    std::string attributes = "{\"POSITION\":" + std::to_string(position);
-    if (mode == kTriangles) {
-      const uint64_t normal = accessor("{\"bufferView\":" + std::to_string(kVertexView) + ",\"byteOffset\":" +
-                                       std::to_string(vertices.bytes + 12) + ",\"componentType\":" +
-                                       std::to_string(kFloat) + ",\"count\":" + count + ",\"type\":\"VEC3\"}");
-      attributes += ",\"NORMAL\":" + std::to_string(normal);
+    std::string attributes;
+    if (info.quantized) {
+      std::vector<QuantizedVertex> qs(vs.size());
+      int mn[3] = {32767, 32767, 32767}, mx[3] = {-32767, -32767, -32767};
+      for (size_t i = 0; i < vs.size(); ++i) {
+        for (int a = 0; a < 3; ++a) {
+          const double q = std::round((double(vs[i].position[a]) - info.centre[a]) / info.grid_scale * kQuantized);
+          qs[i].position[a] = int16_t(std::clamp(q, -kQuantized, kQuantized));
+          mn[a] = std::min(mn[a], int(qs[i].position[a]));
+          mx[a] = std::max(mx[a], int(qs[i].position[a]));
+        }
+        qs[i].position[3] = 0;
+        quantize_normal(vs[i].normal, qs[i].normal);
+      }
+      const std::string view_json = "{\"bufferView\":" + std::to_string(view(quantized_view)) + ",\"byteOffset\":";
+      const uint64_t position = accessor(view_json + std::to_string(quantized.bytes) + ",\"componentType\":" +
+                                         std::to_string(kShort) + ",\"normalized\":true,\"count\":" + count +
+                                         ",\"type\":\"VEC3\",\"min\":[" + std::to_string(mn[0]) + "," +
+                                         std::to_string(mn[1]) + "," + std::to_string(mn[2]) + "],\"max\":[" +
+                                         std::to_string(mx[0]) + "," + std::to_string(mx[1]) + "," +
+                                         std::to_string(mx[2]) + "]}");
+      attributes = "{\"POSITION\":" + std::to_string(position);
+      if (mode == kTriangles) {
+        const uint64_t normal = accessor(view_json + std::to_string(quantized.bytes + 8) + ",\"componentType\":" +
+                                         std::to_string(kByte) + ",\"normalized\":true,\"count\":" + count +
+                                         ",\"type\":\"VEC3\"}");
+        attributes += ",\"NORMAL\":" + std::to_string(normal);
+      }
+      if (!quantized.append(qs.data(), qs.size() * sizeof(QuantizedVertex))) note_failure(quantized);
+    } else {
+      float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+      for (const GltfVertex& v : vs) {
+        for (int a = 0; a < 3; ++a) {
+          mn[a] = std::min(mn[a], v.position[a]);
+          mx[a] = std::max(mx[a], v.position[a]);
+        }
+      }
+      const std::string view_json = "{\"bufferView\":" + std::to_string(view(float_view)) + ",\"byteOffset\":";
+      const uint64_t position = accessor(view_json + std::to_string(vertices.bytes) + ",\"componentType\":" +
+                                         std::to_string(kFloat) + ",\"count\":" + count + ",\"type\":\"VEC3\",\"min\":" +
+                                         vec3_json(mn) + ",\"max\":" + vec3_json(mx) + "}");
+      attributes = "{\"POSITION\":" + std::to_string(position);
+      if (mode == kTriangles) {
+        const uint64_t normal = accessor(view_json + std::to_string(vertices.bytes + 12) + ",\"componentType\":" +
+                                         std::to_string(kFloat) + ",\"count\":" + count + ",\"type\":\"VEC3\"}");
+        attributes += ",\"NORMAL\":" + std::to_string(normal);
+      }
+      if (!vertices.append(vs.data(), vs.size() * sizeof(GltfVertex))) note_failure(vertices);
     }
     attributes += "}";
-    if (!vertices.append(vs.data(), vs.size() * sizeof(GltfVertex))) note_failure(vertices);
 
-    // 16 bits while no index reaches 65535 (the primitive-restart value readers reject).
+    // 8 bits under 255 vertices, 16 under 65535 (255 and 65535 are the primitive-restart values
+    // readers reject), each mesh's indices padded to 4 bytes.
     const uint64_t index_offset = indices.bytes;
     int component;
     bool ok;
-    if (vs.size() < 65535) {
+    if (vs.size() < 255) {
+      component = kUnsignedByte;
+      std::vector<uint8_t> narrow(is.begin(), is.end());
+      narrow.resize((narrow.size() + 3) & ~size_t(3), 0);
+      ok = indices.append(narrow.data(), narrow.size());
+    } else if (vs.size() < 65535) {
       component = kUnsignedShort;
       std::vector<uint16_t> narrow(is.begin(), is.end());
-      if (narrow.size() % 2) narrow.push_back(0);  // each mesh's indices padded to 4 bytes
+      if (narrow.size() % 2) narrow.push_back(0);
       ok = indices.append(narrow.data(), narrow.size() * 2);
     } else {
       component = kUnsignedInt;
       ok = indices.append(is.data(), is.size() * 4);
     }
     if (!ok) note_failure(indices);
-    const uint64_t index = accessor("{\"bufferView\":" + std::to_string(kIndexView) + ",\"byteOffset\":" +
+    const uint64_t index = accessor("{\"bufferView\":" + std::to_string(view(index_view)) + ",\"byteOffset\":" +
                                     std::to_string(index_offset) + ",\"componentType\":" + std::to_string(component) +
                                     ",\"count\":" + std::to_string(is.size()) + ",\"type\":\"SCALAR\"}");
-    return "{\"attributes\":" + attributes + ",\"indices\":" + std::to_string(index) +
-           ",\"material\":" + std::to_string(material_index) + ",\"mode\":" + std::to_string(mode) + "}";
+    return "{\"attributes\":" + attributes + ",\"indices\":" + std::to_string(index);
   }
 
-  std::string transform_json(const glm::dvec3& position, const glm::quat& q, const glm::vec3& scale) const {
-    const glm::dvec3 t = position - origin_m;
+  // A node's placement relative to the origin with `mesh`'s dequantization folded in:
+  // node * (centre + grid_scale * v) = (t + R (S * centre)) R (S * grid_scale) v.
+  void placement(int mesh, const glm::dvec3& position, const glm::quat& q, glm::vec3& scale,
+                 glm::dvec3& translation) const {
+    translation = position - origin_m;
+    if (mesh < 0 || !mesh_info[size_t(mesh)].quantized) return;
+    const MeshInfo& info = mesh_info[size_t(mesh)];
+    translation += glm::dquat(q) * (glm::dvec3(scale) * info.centre);
+    scale *= float(info.grid_scale);
+  }
+  std::string transform_json(const glm::dvec3& position, const glm::quat& q, glm::vec3 scale, int mesh) const {
+    glm::dvec3 t;
+    placement(mesh, position, q, scale, t);
     std::string j = ",\"translation\":[" + json_number(t.x, 4) + "," + json_number(t.y, 4) + "," + json_number(t.z, 4) + "]";
     if (q != glm::quat(1, 0, 0, 0))
-      j += ",\"rotation\":[" + json_number(q.x) + "," + json_number(q.y) + "," + json_number(q.z) + "," + json_number(q.w) + "]";
+      j += ",\"rotation\":[" + json_number(q.x, 6) + "," + json_number(q.y, 6) + "," + json_number(q.z, 6) + "," +
+           json_number(q.w, 6) + "]";
     if (scale != glm::vec3(1.0f))
       j += ",\"scale\":[" + json_number(scale.x) + "," + json_number(scale.y) + "," + json_number(scale.z) + "]";
     return j;
@@ -247,7 +352,7 @@ struct GltfFile::State {
                    const glm::quat& rotation, const glm::vec3& scale, bool is_object) {
     std::string node = "{" + name_and_extras;
     if (mesh >= 0) node += ",\"mesh\":" + std::to_string(mesh);
-    node += transform_json(position, rotation, scale) + "}";
+    node += transform_json(position, rotation, scale, mesh) + "}";
     append_node(node);
     streamed_children[parent].push_back(streamed++);
     records[size_t(parent)].has_children = true;
@@ -295,9 +400,11 @@ GltfFile::~GltfFile() {
 }
 
 bool GltfFile::open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing,
-                    std::string& error) {
+                    double quantization_error_m, bool share_geometry, std::string& error) {
   State& s = *state_;
+  s.share_geometry = share_geometry;
   s.path = path;
+  s.quantization_error_m = quantization_error_m;
   s.origin_m = origin_m;
   s.gpu_instancing = gpu_instancing;
   const std::filesystem::path p(path);
@@ -309,8 +416,8 @@ bool GltfFile::open(const std::string& path, const glm::dvec3& origin_m, bool gp
     s.bin_name = p.stem().string() + ".bin";
     s.temp_bin = stem + ".bin";
   }
-  const char* suffixes[6] = {".vertices", ".indices", ".accessors", ".meshes", ".text", ".nodes"};
-  for (int i = 0; i < 6; ++i) {
+  const char* suffixes[7] = {".vertices", ".quantized", ".indices", ".accessors", ".meshes", ".text", ".nodes"};
+  for (int i = 0; i < 7; ++i) {
     if (!s.parts[i]->open(stem + suffixes[i])) {
       error = "cannot write " + path + ": " + system_reason();
       s.remove_all();
@@ -327,21 +434,60 @@ int GltfFile::find_mesh(const MeshKey& key) const {
   return it == state_->meshes.end() ? kUnknownMesh : it->second;
 }
 
-int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, std::string& error) {
+int GltfFile::add_mesh(const MeshKey& key, const MeshData& data, Colour colour, bool stretched,
+                       std::string& error) {
   State& s = *state_;
   if (data.empty()) return s.meshes[key] = kNoMesh;
   const int material = s.material(colour);
-  State::MeshInfo info;
-  std::string mesh = "{\"primitives\":[";
-  if (!data.triangles.empty()) {
-    mesh += s.primitive(data.triangle_vertices, data.triangles, kTriangles, material, info);
+  MeshKey geometry_id{};
+  if (s.share_geometry) {
+    geometry_id = geometry_key(data);
+    geometry_id.b ^= uint64_t(stretched);
+  }
+  auto found = s.share_geometry ? s.geometries.find(geometry_id) : s.geometries.end();
+  State::Geometry unshared;  // without sharing: not kept
+  const State::Geometry* geometry = found != s.geometries.end() ? &found->second : nullptr;
+  if (!geometry) {
+    State::Geometry& g = unshared;
+    State::MeshInfo& info = g.info;
+    for (const std::vector<GltfVertex>* vs : {&data.triangle_vertices, &data.line_vertices}) {
+      for (const GltfVertex& v : *vs) {
+        for (int a = 0; a < 3; ++a) {
+          info.min[a] = info.has_box ? std::min(info.min[a], v.position[a]) : v.position[a];
+          info.max[a] = info.has_box ? std::max(info.max[a], v.position[a]) : v.position[a];
+        }
+        info.has_box = true;
+      }
+    }
+    // The grid: centred on the box, the smallest short scale holding it; its worst error (half
+    // a step on each axis) must be within the bound.
+    if (s.quantization_error_m > 0 && !stretched && info.has_box) {
+      double half = 0;
+      for (int a = 0; a < 3; ++a) {
+        info.centre[a] = (double(info.min[a]) + double(info.max[a])) / 2;
+        half = std::max(half, (double(info.max[a]) - double(info.min[a])) / 2);
+      }
+      for (const double grid : kGridScales) {
+        if (grid < half * (1 + 1e-6)) continue;
+        info.grid_scale = grid;
+        info.quantized = std::sqrt(3.0) * 0.5 * grid / kQuantized <= s.quantization_error_m;
+        break;
+      }
+      if (!info.quantized) info.centre = glm::dvec3(0.0), info.grid_scale = 1;
+    }
+    if (!data.triangles.empty()) g.triangles = s.primitive(data.triangle_vertices, data.triangles, kTriangles, info);
+    if (!data.lines.empty()) g.lines = s.primitive(data.line_vertices, data.lines, kLines, info);
     info.triangles = uint32_t(data.triangles.size() / 3);
-  }
-  if (!data.lines.empty()) {
-    if (!data.triangles.empty()) mesh += ",";
-    mesh += s.primitive(data.line_vertices, data.lines, kLines, material, info);
     info.lines = uint32_t(data.lines.size() / 2);
+    geometry = s.share_geometry ? &s.geometries.emplace(geometry_id, std::move(g)).first->second : &unshared;
   }
+  const State::Geometry& g = *geometry;
+  const State::MeshInfo info = g.info;
+  const std::string tail = ",\"material\":" + std::to_string(material);
+  std::string mesh = "{\"primitives\":[";
+  if (!g.triangles.empty()) mesh += g.triangles + tail + "}";  // mode: triangles, the default
+  if (!g.lines.empty())
+    mesh += (g.triangles.empty() ? "" : ",") + g.lines + tail + ",\"mode\":" + std::to_string(kLines) + "}";
   mesh += "]}";
   if (!s.meshes_text.append(s.mesh_info.empty() ? mesh : "," + mesh)) s.note_failure(s.meshes_text);
   if (s.failed) {
@@ -505,32 +651,35 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
           return false;
         }
         objects += (objects.empty() ? "{" : ",{") + text + "}";
-        const glm::dvec3 t = mr.position_m - origin_m;
+        glm::vec3 scale = mr.scale;
+        glm::dvec3 t;
+        s.placement(r.mesh, mr.position_m, mr.rotation, scale, t);
         instance_data.insert(instance_data.end(), {float(t.x), float(t.y), float(t.z)});
       }
       const size_t rotations = instance_data.size();
+      const float grid_scale = float(s.mesh_info[size_t(r.mesh)].grid_scale);
       bool scaled = false;
       for (uint32_t m : members) {
         const glm::quat& q = s.records[m].rotation;
         instance_data.insert(instance_data.end(), {q.x, q.y, q.z, q.w});
-        scaled = scaled || s.records[m].scale != glm::vec3(1.0f);
+        scaled = scaled || s.records[m].scale * grid_scale != glm::vec3(1.0f);
       }
       const size_t scales = instance_data.size();
       if (scaled) {
         for (uint32_t m : members) {
-          const glm::vec3& v = s.records[m].scale;
+          const glm::vec3 v = s.records[m].scale * grid_scale;
           instance_data.insert(instance_data.end(), {v.x, v.y, v.z});
         }
       }
-      const uint64_t t = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+      const uint64_t t = s.accessor("{\"bufferView\":" + std::to_string(s.view(s.instance_view)) + ",\"byteOffset\":" +
                                     std::to_string(translations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
                                     ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC3\"}");
-      const uint64_t q = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+      const uint64_t q = s.accessor("{\"bufferView\":" + std::to_string(s.view(s.instance_view)) + ",\"byteOffset\":" +
                                     std::to_string(rotations * 4) + ",\"componentType\":" + std::to_string(kFloat) +
                                     ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC4\"}");
       std::string scale_attribute;
       if (scaled) {
-        const uint64_t v = s.accessor("{\"bufferView\":" + std::to_string(kInstanceView) + ",\"byteOffset\":" +
+        const uint64_t v = s.accessor("{\"bufferView\":" + std::to_string(s.view(s.instance_view)) + ",\"byteOffset\":" +
                                       std::to_string(scales * 4) + ",\"componentType\":" + std::to_string(kFloat) +
                                       ",\"count\":" + std::to_string(members.size()) + ",\"type\":\"VEC3\"}");
         scale_attribute = ",\"SCALE\":" + std::to_string(v);
@@ -547,7 +696,7 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
       node += text;
       if (!r.has_children) {
         if (r.mesh >= 0) node += ",\"mesh\":" + std::to_string(r.mesh);
-        if (r.placed) node += s.transform_json(r.position_m, r.rotation, r.scale);
+        if (r.placed) node += s.transform_json(r.position_m, r.rotation, r.scale, r.mesh);
       }
     }
     const auto streamed = s.streamed_children.find(int(i));
@@ -561,7 +710,7 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
     node += "}";
     if (split_geometry[i]) {
       node += ",{\"name\":\"geometry\",\"mesh\":" + std::to_string(r.mesh) +
-              s.transform_json(r.position_m, r.rotation, r.scale) + "}";
+              s.transform_json(r.position_m, r.rotation, r.scale, r.mesh) + "}";
     }
     s.append_node(node);
   }
@@ -579,26 +728,32 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
   // 4. The document's small parts by tinygltf: buffer views over [vertices][indices][instances],
   //    materials, the scene, the asset; the arrays spliced in after them.
   tinygltf::Model& m = s.model;
-  const uint64_t bin_bytes = s.vertices.bytes + s.indices.bytes + instance_data.size() * 4;
-  if (s.vertices.bytes > 0) {
-    tinygltf::BufferView v;
-    v.buffer = 0;
-    v.byteLength = size_t(s.vertices.bytes);
-    v.byteStride = sizeof(GltfVertex);
-    v.target = TINYGLTF_TARGET_ARRAY_BUFFER;
-    m.bufferViews.push_back(v);
-    tinygltf::BufferView i;
-    i.buffer = 0;
-    i.byteOffset = size_t(s.vertices.bytes);
-    i.byteLength = size_t(s.indices.bytes);
-    i.target = TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER;
-    m.bufferViews.push_back(i);
+  const uint64_t bin_bytes = s.vertices.bytes + s.quantized.bytes + s.indices.bytes + instance_data.size() * 4;
+  {
+    // [float vertices][quantized vertices][indices][instances], listed by view number.
+    std::vector<std::pair<int, tinygltf::BufferView>> views;
+    auto view = [&](int number, uint64_t offset, uint64_t length, size_t stride, int target) {
+      if (number < 0 || length == 0) return;
+      tinygltf::BufferView v;
+      v.buffer = 0;
+      v.byteOffset = size_t(offset);
+      v.byteLength = size_t(length);
+      v.byteStride = stride;
+      v.target = target;
+      views.emplace_back(number, v);
+    };
+    view(s.float_view, 0, s.vertices.bytes, sizeof(GltfVertex), TINYGLTF_TARGET_ARRAY_BUFFER);
+    view(s.quantized_view, s.vertices.bytes, s.quantized.bytes, sizeof(QuantizedVertex), TINYGLTF_TARGET_ARRAY_BUFFER);
+    view(s.index_view, s.vertices.bytes + s.quantized.bytes, s.indices.bytes, 0, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    view(s.instance_view, s.vertices.bytes + s.quantized.bytes + s.indices.bytes, instance_data.size() * 4, 0, 0);
+    std::sort(views.begin(), views.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (auto& [number, v] : views) m.bufferViews.push_back(std::move(v));
+    if (s.quantized.bytes > 0) {
+      // Readers without it cannot read the int16 and int8 attributes.
+      m.extensionsUsed.push_back("KHR_mesh_quantization");
+      m.extensionsRequired.push_back("KHR_mesh_quantization");
+    }
     if (!instance_data.empty()) {
-      tinygltf::BufferView t;
-      t.buffer = 0;
-      t.byteOffset = size_t(s.vertices.bytes + s.indices.bytes);
-      t.byteLength = instance_data.size() * 4;
-      m.bufferViews.push_back(t);
       m.extensionsUsed.push_back("EXT_mesh_gpu_instancing");
       // The extension defines no fallback: a reader without it would draw one copy.
       m.extensionsRequired.push_back("EXT_mesh_gpu_instancing");
@@ -702,7 +857,8 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
     }
   }
   if (ok && bin_bytes) {
-    ok = copy_file_into(bin, s.vertices.path, error) && copy_file_into(bin, s.indices.path, error) &&
+    ok = copy_file_into(bin, s.vertices.path, error) && copy_file_into(bin, s.quantized.path, error) &&
+         copy_file_into(bin, s.indices.path, error) &&
          put(bin, instance_data.data(), instance_data.size() * 4);
     const char zeros[4] = {};
     if (s.binary) ok = ok && put(bin, zeros, size_t(bin_padded - bin_bytes));
@@ -732,6 +888,7 @@ bool GltfFile::finish(GltfFileSummary& summary, std::string& error) {
   s.model = tinygltf::Model();
   s.meshes = {};
   s.mesh_info = {};
+  s.geometries = {};
   s.streamed_children = {};
   s.sites = {};
   s.zones = {};

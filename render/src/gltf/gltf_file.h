@@ -5,9 +5,12 @@
 //   - Nodes: a node per object, under its site, zone and pipeline nodes (made on first use); a
 //     pipeline node made for a member gets its name and extras when the pipeline object is
 //     added, or from name_pipeline() (the export looks up those not selected).
-//   - Data: vertices (24 bytes: position, normal) go to one temporary file, indices (uint16
-//     where a mesh has under 65,535 vertices, else uint32, each mesh's padded to 4 bytes) to
-//     another; finish() writes the binary chunk as [vertices][indices][instance transforms].
+//   - Data: float vertices (24 bytes: position, normal) go to one temporary file, quantized
+//     ones (12 bytes: int16 position, int8 normal, each padded to 4 bytes) to another, indices
+//     (uint8 where a mesh has under 255 vertices, uint16 under 65,535, else uint32, each mesh's
+//     padded to 4 bytes) to a third; finish() writes the binary chunk as [float vertices]
+//     [quantized vertices][indices][instance transforms]. Buffer views are numbered as first
+//     used (an empty one is invalid glTF).
 //   - Document: the arrays that grow with the plant (accessors, meshes, nodes) are written as
 //     JSON text to temporary files as they come. An object's node is written when it is added
 //     (4 bytes stay, its number in its parent's children); group nodes (sites, zones,
@@ -48,16 +51,25 @@ class GltfFile {
   // Starts the file `path` (.glb: binary; otherwise text with a .bin beside it), its positions
   // relative to origin_m (model space). False with the path and reason when its temporary files
   // cannot be made.
-  bool open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing, std::string& error);
+  // quantization_error_m > 0: meshes are written with KHR_mesh_quantization (positions as
+  // normalized int16 on a grid of their own, normals as normalized int8, the dequantization in
+  // the nodes' transforms) where the grid's worst error (half a step along each axis, as a
+  // distance) is at most this; other meshes, and meshes nodes may stretch, stay float32.
+  // share_geometry: meshes of different colours with the same vertices and indices share their
+  // accessors (off to measure what sharing saves).
+  bool open(const std::string& path, const glm::dvec3& origin_m, bool gpu_instancing, double quantization_error_m,
+            bool share_geometry, std::string& error);
   // Room for this many nodes, so that a large file's node table is not copied as it grows.
   void reserve(size_t nodes);
 
   // The mesh already written for `key`: its index, kNoMesh (nothing to draw) or kUnknownMesh.
   static constexpr int kNoMesh = -1, kUnknownMesh = -2;
   int find_mesh(const MeshKey& key) const;
-  // Writes `data` as a new mesh of `colour`'s material. Returns its index (kNoMesh if empty), or
-  // kUnknownMesh with `error` set when a temporary file cannot be written.
-  int add_mesh(const MeshKey& key, const MeshData& data, Colour colour, std::string& error);
+  // Writes `data` as a new mesh of `colour`'s material. `stretched`: nodes scale it by sizes of
+  // their own (a unit shape), so a grid's error would grow with them: never quantized. Returns
+  // its index (kNoMesh if empty), or kUnknownMesh with `error` set when a temporary file cannot
+  // be written.
+  int add_mesh(const MeshKey& key, const MeshData& data, Colour colour, bool stretched, std::string& error);
 
   // A node for `object`, placed at position_m (model space) with `rotation` and `scale`,
   // drawing `mesh` (kNoMesh: none). `zone` may be empty (no zone node).

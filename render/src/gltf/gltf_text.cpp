@@ -72,18 +72,17 @@ std::string object_extras(const Object& object) {
   std::snprintf(id, sizeof id, "%016llx", static_cast<unsigned long long>(object.id));
   std::string out = "{\"id\":\"" + std::string(id) + "\",\"class\":\"" +
                     std::string(class_name(object.object_class)) + "\"";
-  if (!object.attributes.empty()) {
-    out += ",\"attributes\":{";
-    for (size_t i = 0; i < object.attributes.size(); ++i) {
-      const Attribute& a = object.attributes[i];
-      bool repeated = false;
-      for (size_t k = 0; k < i && !repeated; ++k) repeated = object.attributes[k].key == a.key;
-      if (repeated) continue;
-      if (out.back() != '{') out += ',';
-      out += json_string(utf8_text(a.key)) + ":" + json_string(utf8_text(a.value));
-    }
-    out += "}";
+  std::string reserved;  // attributes named "id" or "class"
+  for (size_t i = 0; i < object.attributes.size(); ++i) {
+    const Attribute& a = object.attributes[i];
+    bool repeated = false;
+    for (size_t k = 0; k < i && !repeated; ++k) repeated = object.attributes[k].key == a.key;
+    if (repeated) continue;
+    const std::string pair = json_string(utf8_text(a.key)) + ":" + json_string(utf8_text(a.value));
+    if (a.key == "id" || a.key == "class") reserved += (reserved.empty() ? "" : ",") + pair;
+    else out += "," + pair;
   }
+  if (!reserved.empty()) out += ",\"attributes\":{" + reserved + "}";
   return out + "}";
 }
 

@@ -13,8 +13,9 @@ namespace plantview::detail::gltf {
 std::string utf8_text(std::string_view bytes);
 // A JSON string literal (quotes included) of UTF-8 text.
 std::string json_string(std::string_view utf8);
-// An object's node extras as JSON text: {"id": "<16 hex digits>", "class": "...",
-// "attributes": {...}} (a key repeated in the attributes: its first value).
+// An object's node extras as JSON text: {"id": "<16 hex digits>", "class": "...", then each
+// attribute as key: value} (a key repeated: its first value); attributes named "id" or "class"
+// go to {"attributes": {...}} instead.
 std::string object_extras(const Object& object);
 // A number as JSON text: the shortest form that reads back as `value` rounded to `decimals`.
 std::string json_number(double value, int decimals);

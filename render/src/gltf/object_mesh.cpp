@@ -62,25 +62,26 @@ struct Hasher {
 
 // A lone box or cylinder without scale becomes the unit shape, its sizes moved to `scale`
 // (the cylinder's radius stays: it decides the segment counts and the error).
-void unit_shape(Primitive& p, glm::vec3& scale) {
+bool unit_shape(Primitive& p, glm::vec3& scale) {
   const glm::mat3& c = p.placement.linear;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j)
-      if (std::abs(c[i][j] - (i == j ? 1.0f : 0.0f)) > 1e-6f) return;
+      if (std::abs(c[i][j] - (i == j ? 1.0f : 0.0f)) > 1e-6f) return false;
   constexpr float kMin = 1e-6f;
   if (Box* box = std::get_if<Box>(&p.shape)) {
-    if (box->size_x_m < kMin || box->size_y_m < kMin || box->size_z_m < kMin) return;
+    if (box->size_x_m < kMin || box->size_y_m < kMin || box->size_z_m < kMin) return false;
     scale = glm::vec3(box->size_x_m, box->size_y_m, box->size_z_m);
     *box = Box{1, 1, 1};
   } else if (Cylinder* cylinder = std::get_if<Cylinder>(&p.shape)) {
-    if (cylinder->height_m < kMin) return;
+    if (cylinder->height_m < kMin) return false;
     scale = glm::vec3(1, 1, cylinder->height_m);
     cylinder->height_m = 1;
   } else {
-    return;
+    return false;
   }
   // The shape's centre scales with it: placed at the node's origin it stays there.
   p.placement.translation_m /= scale;
+  return true;
 }
 
 }  // namespace
@@ -89,6 +90,7 @@ void canonicalise(const Object& object, CanonicalObject& out) {
   out.primitives.clear();
   out.plans.clear();
   out.scale = glm::vec3(1.0f);
+  out.unit_shape = false;
   if (object.primitives.empty()) {
     out.position_m = object.origin_m;
     out.rotation = glm::dquat(1, 0, 0, 0);
@@ -105,7 +107,7 @@ void canonicalise(const Object& object, CanonicalObject& out) {
     c.placement.translation_m =
         glm::vec3(inverse * (glm::dvec3(p.placement.translation_m) - glm::dvec3(first.translation_m)));
   }
-  if (out.primitives.size() == 1) unit_shape(out.primitives.front(), out.scale);
+  if (out.primitives.size() == 1) out.unit_shape = unit_shape(out.primitives.front(), out.scale);
   // Plans after every copy is in place: a facet group's plan points into its primitive.
   for (const Primitive& c : out.primitives) out.plans.push_back(plan_mesh(c));
 }
@@ -147,6 +149,15 @@ MeshKey mesh_key(const CanonicalObject& object, const PrimitiveLevels& levels, C
       for (int r = 0; r < 3; ++r) h.quantised(p.placement.linear[c][r], 1e-5);
     for (int a = 0; a < 3; ++a) h.quantised(p.placement.translation_m[a], 1e-4);
   }
+  return MeshKey{h.a, h.b};
+}
+
+MeshKey geometry_key(const MeshData& data) {
+  Hasher h;
+  h.bytes(data.triangle_vertices.data(), data.triangle_vertices.size() * sizeof(GltfVertex));
+  h.bytes(data.triangles.data(), data.triangles.size() * sizeof(uint32_t));
+  h.bytes(data.line_vertices.data(), data.line_vertices.size() * sizeof(GltfVertex));
+  h.bytes(data.lines.data(), data.lines.size() * sizeof(uint32_t));
   return MeshKey{h.a, h.b};
 }
 

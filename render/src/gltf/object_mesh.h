@@ -39,6 +39,7 @@ struct CanonicalObject {
   glm::dvec3 position_m{0.0};   // model space
   glm::dquat rotation{1, 0, 0, 0};
   glm::vec3 scale{1.0f};              // along the canonical axes
+  bool unit_shape = false;            // made of a unit shape: nodes stretch its mesh by any scale
   std::vector<Primitive> primitives;  // placements in the canonical frame
   std::vector<MeshPlan> plans;        // plan_mesh of each
 };
@@ -75,6 +76,10 @@ struct MeshData {
   std::vector<uint32_t> triangles, lines;  // indices, 3 and 2 per element
   bool empty() const { return triangles.empty() && lines.empty(); }
 };
+
+// What a mesh's data is (vertices, indices, lines), hashed: meshes of different colours with
+// the same geometry share its accessors.
+MeshKey geometry_key(const MeshData& data);
 
 class MeshBuilder {
  public:
