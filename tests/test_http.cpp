@@ -19,6 +19,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/box_row.h"
 #include "server/metrics.h"
 #include "server/objects_json.h"
 #include "server/render_worker.h"
@@ -559,17 +560,7 @@ const std::string& six_boxes() {
       ADD_FAILURE() << "cannot create the test store: " << error;
       return store_dir.str();
     }
-    std::vector<Object> objects;
-    for (int i = 0; i < 6; ++i) {
-      Object o;
-      o.name = "/BOX-" + std::to_string(i);
-      o.source = "test";
-      o.id = object_id(o.source, o.name);
-      o.object_class = ObjectClass::equipment;
-      o.origin_m = {i * 3.0, 0, 0};
-      o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
-      objects.push_back(std::move(o));
-    }
+    const std::vector<Object> objects = test::box_row_objects();
     const IngestResult result = ingest_objects(*store, objects);
     EXPECT_TRUE(result) << result.error().message;
     return store_dir.str();

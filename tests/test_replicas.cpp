@@ -26,6 +26,7 @@
 
 #include "plantview/ingest.h"
 #include "plantview/store.h"
+#include "support/box_row.h"
 #include "support/http_client.h"
 #include "support/temp_dir.h"
 
@@ -42,18 +43,7 @@ void build_store(const std::string& dir) {
   std::string error;
   auto store = Store::open(dir, Store::Mode::read_write, error);
   ASSERT_TRUE(store) << error;
-  std::vector<Object> objects;
-  for (int i = 0; i < 6; ++i) {
-    Object o;
-    o.name = "/BOX-" + std::to_string(i);
-    o.source = "test";
-    o.id = object_id(o.source, o.name);
-    o.object_class = ObjectClass::equipment;
-    o.origin_m = {i * 3.0, 0, 0};
-    o.colour = {uint8_t(40 * i), 120, 200, 255};
-    o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
-    objects.push_back(std::move(o));
-  }
+  const std::vector<Object> objects = test::box_row_objects();
   const IngestResult result = ingest_objects(*store, objects);
   ASSERT_TRUE(result) << result.error().message;
 }

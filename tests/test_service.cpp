@@ -18,6 +18,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/box_row.h"
 #include "support/http_client.h"
 #include "support/temp_dir.h"
 
@@ -39,19 +40,7 @@ const std::string& small_store() {
       ADD_FAILURE() << "cannot create the test store: " << error;
       return d.string();
     }
-    std::vector<Object> objects;
-    for (int i = 0; i < 6; ++i) {
-      Object o;
-      o.name = "/BOX-" + std::to_string(i);
-      o.source = "test";
-      o.id = object_id(o.source, o.name);
-      o.object_class = ObjectClass::equipment;
-      o.origin_m = {i * 3.0, 0, 0};
-      o.colour = {uint8_t(40 * i), 120, 200, 255};
-      o.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
-      o.attributes = {{"Type", "EQUI"}, {"Index", std::to_string(i)}};
-      objects.push_back(std::move(o));
-    }
+    const std::vector<Object> objects = test::box_row_objects();
     const IngestResult result = ingest_objects(*store, objects);
     EXPECT_TRUE(result) << result.error().message;
     return d.string();
