@@ -86,8 +86,8 @@ class Frontend {
   Planned plan(const Camera& camera, uint32_t w, uint32_t h, const RenderOptions& options) {
     Planned out;
     const FrameView view = detail::make_frame_view(camera, w, h, view_->spatial_origin());
-    plan_.cull(*view_, view, options, out.stats);
     std::string error;
+    EXPECT_TRUE(plan_.cull(*view_, view, options, out.stats, error)) << error;
     EXPECT_TRUE(objects_.decode(plan_.visible(), options.hlod, error)) << error;
     plan_.choose(objects_, view, options, ++frame_, out.stats);
     for (const Draw& d : plan_.draws()) {

@@ -297,9 +297,10 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
               d.known->colour, d.known->id, stats);
     }
   }
-  for (const auto& b : plan.node_boxes()) {
-    add_box(view.spatial_origin_m + glm::dvec3(b[0], b[1], b[2]) - view.eye_m,
-            glm::vec3(b[3] - b[0], b[4] - b[1], b[5] - b[2]), Colour{150, 150, 150, 255}, 0, stats);
+  for (const NodeBox& b : plan.node_boxes()) {
+    add_box(view.spatial_origin_m + glm::dvec3(b.min[0], b.min[1], b.min[2]) - view.eye_m,
+            glm::vec3(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]), b.colour, 0,
+            stats);
   }
   residency_.end_frame();
   stats.objects_resident = residency_.resident_count() - 1;  // not the proxy cube

@@ -102,6 +102,8 @@ class DecodedObjects {
   bool decode(std::span<const VisibleObject> visible, bool hlod, std::string& error);
   // A known object or run (null if not known).
   Known* find(uint32_t key);
+  // Objects and runs known now.
+  size_t known_count() const { return known_.size(); }
   // A known object; it must be known (decoded this frame or before).
   Known& at(uint32_t slot) { return known_.at(slot); }
   // The merged cylinder of run `run`, made the first time it is asked for.

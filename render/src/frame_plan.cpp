@@ -76,31 +76,40 @@ double FrameView::nearest_distance_m(const float mn[3], const float mx[3]) const
   return glm::length(nearest);
 }
 
-void FramePlan::cull(const ReadView& view, const FrameView& frame_view,
-                     const RenderOptions& options, FrameStats& stats) {
-  find_visible(view, frame_view, options, stats);
+bool FramePlan::cull(const ReadView& view, const FrameView& frame_view,
+                     const RenderOptions& options, FrameStats& stats, std::string& error) {
+  if (!find_visible(view, frame_view, options, stats, error)) return false;
   order();
+  return true;
 }
 
-void FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
-                             const RenderOptions& options, FrameStats& stats) {
+bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
+                             const RenderOptions& options, FrameStats& stats, std::string& error) {
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
+  blocks_.begin_frame();
   // The frame's work is bounded: when more objects than kMaxVisibleObjects are in view, nodes
   // are boxed at ever larger sizes until they fit (huge plants seen whole).
   double node_proxy_px = kNodeProxyPixels * options.pixel_error;
-  while (!cull_pass(view, frame_view, options, node_proxy_px, stats)) node_proxy_px *= 2;
+  for (bool done = false; !done; node_proxy_px *= 2) {
+    if (!cull_pass(view, frame_view, options, node_proxy_px, stats, done, error)) return false;
+    if (done) break;
+  }
   stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
   stats.objects_visible = visible_.size();
-  stats.objects_culled = view.spatial_entries().size() - visible_.size() - stats.objects_subpixel -
+  stats.objects_culled = view.spatial_objects() - visible_.size() - stats.objects_subpixel -
                          stats.objects_in_node_proxies;
   stats.node_proxies = node_boxes_.size();
+  stats.spatial_blocks_walked = blocks_.walked();
+  stats.spatial_blocks_held = blocks_.held();
+  return true;
 }
 
 bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
                         const RenderOptions& options, FrameStats& stats, std::string& error) {
   // With a highlight, whatever hides the subject is drawn see-through: nothing may be left out.
   if (!options.occlusion || !options.highlight_ids.empty()) return true;
-  if (!occlusion_.apply(view, objects, frame_view, options, visible_, node_boxes_, stats, error))
+  if (!occlusion_.apply(view, blocks_, objects, frame_view, options, visible_, node_boxes_, stats,
+                        error))
     return false;
   stats.objects_visible = visible_.size();
   stats.node_proxies = node_boxes_.size();
@@ -113,42 +122,95 @@ void FramePlan::order() {
   });
 }
 
-// One walk of the tree with nodes under node_proxy_px boxed. Returns false, unfinished, once
-// more than kMaxVisibleObjects are found and boxing larger nodes can still make them fewer.
+namespace {
+
+// Pixels the largest side of a node's box spans, seen from the frame's eye.
+double node_pixels(const SpatialNode& node, const FrameView& frame_view) {
+  const double extent_m = std::max({node.max[0] - node.min[0], node.max[1] - node.min[1], node.max[2] - node.min[2]});
+  return extent_m * frame_view.focal_px /
+         std::max(frame_view.nearest_distance_m(node.min, node.max), kNearPlaneM);
+}
+
+// Objects beneath a node of a block (block-local subtree walk; nodes inside a block are few).
+uint64_t objects_beneath(const SpatialBlock& block, uint32_t node, std::vector<uint32_t>& stack) {
+  uint64_t objects = 0;
+  stack.assign(1, node);
+  while (!stack.empty()) {
+    const SpatialNode& n = block.nodes[stack.back()];
+    stack.pop_back();
+    if (n.count) objects += n.count;
+    else stack.insert(stack.end(), {n.first, n.first + 1});
+  }
+  return objects;
+}
+
+}  // namespace
+
+// Tree-level HLOD: a whole node that spans only a few pixels is drawn as boxes instead of its
+// objects (which are then not even decoded, nor their block read for a top node), so that the
+// cost of a far view of a huge plant is bounded by the image, not by the plant.
 bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
-                          const RenderOptions& options, double node_proxy_px, FrameStats& stats) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
+                          const RenderOptions& options, double node_proxy_px, FrameStats& stats,
+                          bool& done, std::string& error) {
+  const auto top = view.spatial_top();
+  const auto top_objects = view.spatial_top_objects();
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   const bool bounded = subpixel_culling && node_proxy_px < kMaxNodeProxyPixels;
   stats.objects_subpixel = stats.objects_in_node_proxies = 0;
   visible_.clear();
   node_boxes_.clear();
-  stack_.clear();
-  if (!nodes.empty()) stack_.push_back(0);
-  while (!stack_.empty()) {
-    const SpatialNode& node = nodes[stack_.back()];
-    stack_.pop_back();
+  top_stack_.clear();
+  done = false;
+  if (!top.empty()) top_stack_.push_back(0);
+  while (!top_stack_.empty()) {
+    const uint32_t t = top_stack_.back();
+    top_stack_.pop_back();
+    const SpatialNode& node = top[t];
     if (frame_view.outside(node.min, node.max)) continue;
-    // Tree-level HLOD: a whole node that spans only a few pixels is drawn as one box instead of
-    // its objects (which are then not even decoded), so that the cost of a far view of a huge
-    // plant is bounded by the image, not by the plant.
-    if (subpixel_culling && (node.count == 0 || node.count > 1)) {
-      const double extent_m = std::max({node.max[0] - node.min[0], node.max[1] - node.min[1], node.max[2] - node.min[2]});
-      const double px = extent_m * frame_view.focal_px /
-                        std::max(frame_view.nearest_distance_m(node.min, node.max), kNearPlaneM);
-      if (px < node_proxy_px) {
-        node_boxes_.push_back({node.min[0], node.min[1], node.min[2], node.max[0], node.max[1], node.max[2]});
-        // Count the objects it stands for.
-        count_stack_.assign(1, uint32_t(&node - nodes.data()));
-        while (!count_stack_.empty()) {
-          const SpatialNode& n = nodes[count_stack_.back()];
-          count_stack_.pop_back();
-          if (n.count) stats.objects_in_node_proxies += n.count;
-          else count_stack_.insert(count_stack_.end(), {n.first, n.first + 1});
-        }
-        continue;
+    if (subpixel_culling && top_objects[t] > 1 && node_pixels(node, frame_view) < node_proxy_px) {
+      // The far-field proxy: boxes whose union is the node's bounds, in its objects' colours.
+      for (const ProxyBox& b : view.spatial_proxy(t)) {
+        if (frame_view.outside(b.min, b.max)) continue;
+        node_boxes_.push_back({{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}, b.colour});
       }
+      stats.objects_in_node_proxies += top_objects[t];
+      continue;
+    }
+    if (node.count == 0) {
+      top_stack_.push_back(node.first);
+      top_stack_.push_back(node.first + 1);
+      continue;
+    }
+    if (!cull_block(view, node.first, frame_view, options, node_proxy_px, subpixel_culling, stats,
+                    error))
+      return false;
+    if (bounded && visible_.size() > kMaxVisibleObjects) return true;
+  }
+  done = true;
+  return true;
+}
+
+bool FramePlan::cull_block(const ReadView& view, uint32_t block_index, const FrameView& frame_view,
+                           const RenderOptions& options, double node_proxy_px,
+                           bool subpixel_culling, FrameStats& stats, std::string& error) {
+  const SpatialBlock* block = blocks_.get(view, block_index, error);
+  if (!block) return false;
+  const auto& nodes = block->nodes;
+  const auto& entries = block->entries;
+  stack_.assign(1, 0);
+  while (!stack_.empty()) {
+    const uint32_t n = stack_.back();
+    stack_.pop_back();
+    const SpatialNode& node = nodes[n];
+    // The block's root was tested as its top node.
+    if (n != 0 && frame_view.outside(node.min, node.max)) continue;
+    if (n != 0 && subpixel_culling && (node.count == 0 || node.count > 1) &&
+        node_pixels(node, frame_view) < node_proxy_px) {
+      node_boxes_.push_back({{node.min[0], node.min[1], node.min[2]},
+                             {node.max[0], node.max[1], node.max[2]},
+                             kNodeBoxColour});
+      stats.objects_in_node_proxies += objects_beneath(*block, n, count_stack_);
+      continue;
     }
     if (node.count == 0) {
       stack_.push_back(node.first);
@@ -156,7 +218,7 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
       continue;
     }
     for (uint32_t e = node.first; e < node.first + node.count; ++e) {
-      VisibleObject v{entries[e].slot, {}, {}, 0.0, 0.0, uint32_t(&node - nodes.data())};
+      VisibleObject v{entries[e].slot, {}, {}, 0.0, 0.0, block_index, n};
       entry_bounds(node, entries[e], v.min, v.max);
       if (frame_view.outside(v.min, v.max)) continue;
       v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
@@ -169,7 +231,6 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
       }
       visible_.push_back(v);
     }
-    if (bounded && visible_.size() > kMaxVisibleObjects) return false;
   }
   return true;
 }

@@ -8,18 +8,24 @@
 //     float as the projection matrix holds it, and every pixels-per-metre figure (culling,
 //     level choice, node boxes) is focal_px / distance, the distance to the nearest point of
 //     the bounds and no nearer than the near plane. What is chosen is what is drawn.
-//   - cull: nodes and objects outside the frustum are dropped (no far plane). Screen-space
-//     policy with subpixel culling: an object whose extent spans under the pixel error is left
-//     out, and a node spanning under kNodeProxyPixels x the pixel error is kept as one box,
-//     that size doubling until at most kMaxVisibleObjects objects remain. The visible objects
-//     are ordered largest on screen first, so that the arena's budget goes where it shows most.
+//   - cull walks the store's paged spatial index (store.h): the resident top, then the blocks
+//     under the top nodes it enters, read on demand and held for the frame (frame_blocks.h).
+//     Nodes and objects outside the frustum are dropped (no far plane). Screen-space policy
+//     with subpixel culling: an object whose extent spans under the pixel error is left out,
+//     and a node spanning under kNodeProxyPixels x the pixel error is drawn whole: a top node
+//     as its far-field proxy (up to kProxyBoxes boxes in its objects' colours, stored with the
+//     top, so a far node reads no block), a node inside a block as one grey box. That size
+//     doubles until at most kMaxVisibleObjects objects remain. The visible objects are ordered
+//     largest on screen first, so that the arena's budget goes where it shows most.
+//   - Memory: nothing here is sized by the plant. What cull keeps follows the frame: its
+//     visible objects (at most kMaxVisibleObjects), node boxes, and the blocks it walked.
 //   - choose: LodPolicy; merged runs replace their visible members (one draw per run).
 //   - resident_base: one level of slack (see there).
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
 //   the eye (so that plants kilometres from the origin keep float precision).
 // Ownership: a FramePlan owns its lists and reuses them frame after frame (no allocation once
 //   warm); visible() and node_boxes() are valid until the next cull(), draws() until the next
-//   choose(). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
+//   choose(). The blocks walked are held until the cull after next (frame_blocks.h). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
 // Threads: the renderer's thread.
 #pragma once
 
@@ -32,6 +38,7 @@
 
 #include <glm/glm.hpp>
 
+#include "frame_blocks.h"
 #include "occlusion.h"
 #include "plantview/render.h"
 
@@ -47,6 +54,7 @@ class DecodedObjects;
 
 inline constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
 inline constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
+inline constexpr Colour kNodeBoxColour{150, 150, 150, 255};  // nodes inside blocks drawn whole
 
 // A camera's view of the store for one frame.
 struct FrameView {
@@ -80,8 +88,15 @@ struct VisibleObject {
   float min[3], max[3];  // metres, relative to the spatial origin
   double distance_m;     // to the nearest point of its bounds
   double px_per_m;       // pixels a metre spans there
-  uint32_t leaf = 0;     // the spatial tree's leaf that holds it (index into spatial_nodes())
+  // The leaf that holds it: block `block` of the spatial index, its node `node` (block-local).
+  uint32_t block = 0, node = 0;
   float extent_m() const { return std::max({max[0] - min[0], max[1] - min[1], max[2] - min[2]}); }
+};
+
+// A spatial node drawn whole as a box (node proxies, far-field proxies): not pickable.
+struct NodeBox {
+  float min[3], max[3];  // metres, relative to the spatial origin
+  Colour colour;
 };
 
 // One object, or one merged run, to draw: its level chosen here, its place in the arena filled
@@ -125,13 +140,15 @@ class FramePlan {
  public:
   // 1. Cull: fills visible() and node_boxes(), largest on screen first, and the statistics
   //    objects_visible, objects_culled, objects_subpixel, node_proxies, node_proxy_pixels and
-  //    objects_in_node_proxies. The view's spans must be valid for the call. Equivalent to
-  //    find_visible() then order(), with no occlusion culling.
-  void cull(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
-            FrameStats& stats);
-  // 1a. The frustum and subpixel part of cull, in tree order (not ordered yet).
-  void find_visible(const ReadView& view, const FrameView& frame_view,
-                    const RenderOptions& options, FrameStats& stats);
+  //    objects_in_node_proxies. `view` must be the same snapshot frame after frame (else
+  //    reset_view()). Equivalent to find_visible() then order(), with no occlusion culling.
+  //    False with a message if a block of the index cannot be read.
+  bool cull(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
+            FrameStats& stats, std::string& error);
+  // 1a. The frustum and subpixel part of cull, in tree order (not ordered yet): a leaf's
+  //     objects are consecutive in visible().
+  bool find_visible(const ReadView& view, const FrameView& frame_view,
+                    const RenderOptions& options, FrameStats& stats, std::string& error);
   // 1b. Occlusion culling (occlusion.h), when options.occlusion: drops the hidden objects and
   //     node boxes (objects_occluded, nodes_occluded, occluders; objects_visible and
   //     node_proxies updated). Occluders are decoded into `objects`. False on a read error.
@@ -145,19 +162,31 @@ class FramePlan {
   void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
               uint64_t frame, FrameStats& stats);
 
+  // Forgets the blocks held (a new snapshot of the store).
+  void reset_view() { blocks_.reset(); }
+
   std::span<const VisibleObject> visible() const { return visible_; }
-  // Boxes of tree nodes drawn whole: min xyz, max xyz, relative to the spatial origin.
-  std::span<const std::array<float, 6>> node_boxes() const { return node_boxes_; }
+  // Boxes of nodes drawn whole.
+  std::span<const NodeBox> node_boxes() const { return node_boxes_; }
+  // The blocks this frame's cull walked (those of visible()'s leaves among them).
+  const FrameBlocks& blocks() const { return blocks_; }
   std::span<Draw> draws() { return draws_; }
   std::span<const Draw> draws() const { return draws_; }
 
  private:
+  // One walk with nodes under node_proxy_px drawn whole. `done` false: it stopped early, more
+  // than kMaxVisibleObjects being found while larger boxes could make them fewer.
   bool cull_pass(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
-                 double node_proxy_px, FrameStats& stats);
+                 double node_proxy_px, FrameStats& stats, bool& done, std::string& error);
+  // Walks block `block` (under top node `top`) as cull_pass does; false on a read error.
+  bool cull_block(const ReadView& view, uint32_t block, const FrameView& frame_view,
+                  const RenderOptions& options, double node_proxy_px, bool subpixel_culling,
+                  FrameStats& stats, std::string& error);
   std::vector<VisibleObject> visible_;
-  std::vector<std::array<float, 6>> node_boxes_;
+  std::vector<NodeBox> node_boxes_;
+  FrameBlocks blocks_;
   std::vector<Draw> draws_;
-  std::vector<uint32_t> stack_, count_stack_;
+  std::vector<uint32_t> top_stack_, stack_, count_stack_;
   OcclusionCulling occlusion_;
 };
 

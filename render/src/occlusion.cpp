@@ -51,12 +51,11 @@ bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], co
   return buffer_.hidden(c - e, c + e);
 }
 
-bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
-                             const FrameView& frame_view, const RenderOptions& options,
-                             std::vector<VisibleObject>& visible,
-                             std::vector<std::array<float, 6>>& node_boxes, FrameStats& stats,
+bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks,
+                             DecodedObjects& objects, const FrameView& frame_view,
+                             const RenderOptions& options, std::vector<VisibleObject>& visible,
+                             std::vector<NodeBox>& node_boxes, FrameStats& stats,
                              std::string& error) {
-  ++frame_;
   buffer_.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
                 float(kNearPlaneM));
 
@@ -102,19 +101,20 @@ bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
   }
   if (!any) return true;
 
-  // 3. Test leaves (once each), then objects; then node boxes.
-  const auto nodes = view.spatial_nodes();
-  if (leaf_tests_.size() != nodes.size()) leaf_tests_.assign(nodes.size(), 0);
+  // 3. Test leaves (once each: a leaf's objects are consecutive), then objects; then node boxes.
   size_t kept = 0;
+  bool leaf_hidden = false;
+  uint32_t leaf_block = UINT32_MAX, leaf_node = UINT32_MAX;
   for (size_t i = 0; i < visible.size(); ++i) {
     const VisibleObject& v = visible[i];
-    uint64_t& leaf = leaf_tests_[v.leaf];
-    if (leaf / 2 != frame_) {
-      const bool h = hidden(frame_view, nodes[v.leaf].min, nodes[v.leaf].max);
-      leaf = frame_ * 2 + (h ? 1 : 0);
-      stats.nodes_occluded += h;
+    if (v.block != leaf_block || v.node != leaf_node) {
+      leaf_block = v.block;
+      leaf_node = v.node;
+      const SpatialNode& leaf = blocks.at(v.block).nodes[v.node];
+      leaf_hidden = hidden(frame_view, leaf.min, leaf.max);
+      stats.nodes_occluded += leaf_hidden;
     }
-    if ((leaf & 1) || hidden(frame_view, v.min, v.max)) {
+    if (leaf_hidden || hidden(frame_view, v.min, v.max)) {
       stats.objects_occluded += 1;
       continue;
     }
@@ -123,8 +123,8 @@ bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
   visible.resize(kept);
   kept = 0;
   for (size_t i = 0; i < node_boxes.size(); ++i) {
-    const auto& b = node_boxes[i];
-    if (hidden(frame_view, &b[0], &b[3])) {
+    const NodeBox& b = node_boxes[i];
+    if (hidden(frame_view, b.min, b.max)) {
       stats.nodes_occluded += 1;
       continue;
     }

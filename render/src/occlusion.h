@@ -15,6 +15,9 @@
 //     solids are not occluders: pipes drawn as centrelines, members of merged runs, see-through
 //     objects (occlusion_occluders.h).
 //   - A hidden occluder may still hide others: whatever it covers, what hides it covers too.
+//   - Memory follows the frame, not the plant: leaves are tested as the cull visited them (a
+//     leaf's visible objects are consecutive), through the frame's blocks; nothing is kept per
+//     node or per object between frames.
 // Units: metres, pixels. Ownership: owns its buffer and scratch (reused).
 // Threads: the renderer's thread.
 #pragma once
@@ -34,7 +37,9 @@ class ReadView;
 namespace plantview::detail {
 
 class DecodedObjects;
+class FrameBlocks;
 struct FrameView;
+struct NodeBox;
 struct VisibleObject;
 
 inline constexpr size_t kMaxOccluders = 384;
@@ -42,12 +47,14 @@ inline constexpr double kOccluderMinPixels = 24;
 
 class OcclusionCulling {
  public:
-  // Drops the hidden objects of `visible` (order kept) and the hidden `node_boxes`; counts
-  // objects_occluded and nodes_occluded (leaves whose visible objects were all hidden at once,
-  // and node boxes). False if an occluder cannot be decoded.
-  bool apply(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
-             const RenderOptions& options, std::vector<VisibleObject>& visible,
-             std::vector<std::array<float, 6>>& node_boxes, FrameStats& stats, std::string& error);
+  // Drops the hidden objects of `visible` (in cull's tree order: a leaf's objects consecutive;
+  // order kept) and the hidden `node_boxes`; counts objects_occluded and nodes_occluded
+  // (leaves whose visible objects were all hidden at once, and node boxes). `blocks` holds the
+  // blocks of the visible objects' leaves. False if an occluder cannot be decoded.
+  bool apply(const ReadView& view, const FrameBlocks& blocks, DecodedObjects& objects,
+             const FrameView& frame_view, const RenderOptions& options,
+             std::vector<VisibleObject>& visible, std::vector<NodeBox>& node_boxes,
+             FrameStats& stats, std::string& error);
 
   const OcclusionBuffer& buffer() const { return buffer_; }
 
@@ -56,9 +63,6 @@ class OcclusionCulling {
   bool hidden(const FrameView& frame_view, const float min[3], const float max[3]) const;
 
   OcclusionBuffer buffer_;
-  // Per tree node: the frame its leaf test ran in (times 2) plus 1 if it was hidden.
-  std::vector<uint64_t> leaf_tests_;
-  uint64_t frame_ = 0;
   // Scratch, reused.
   std::vector<VisibleObject> candidates_;
   std::vector<glm::vec3> piece_;

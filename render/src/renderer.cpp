@@ -42,6 +42,7 @@ bool Renderer::State::open_view(std::string& error) {
   const ModelStatistics statistics = view->info().statistics;
   bounds = statistics.bounds;
   objects.reset(*view);
+  plan.reset_view();
   // A model larger than the budget at full resolution (one that will fill it) gets the whole
   // arena now: growing it later copies it, and the old and new buffers together would exceed
   // the budget for a moment. Smaller ones grow as they need (a new buffer costs zeroing it).
@@ -69,7 +70,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   clock.lap();
 
   // Frontend: what is visible, decoded where new, and at which level.
-  plan.find_visible(*view, frame_view, options, stats);
+  if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
   times.cull = clock.lap();
   if (!plan.occlude(*view, objects, frame_view, options, stats, error)) return false;
   times.occlusion = clock.lap();
@@ -89,6 +90,8 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     times.index_lists = clock.lap();
   }
   objects.forget_old(frame_number, streaming.residency());
+  stats.objects_known = objects.known_count();
+  stats.residency_bytes = streaming.residency().bookkeeping_bytes();
   times.stream += clock.lap();
 
   // Backend: draw and read back (render() only).

@@ -13,10 +13,10 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <map>
 #include <optional>
-#include <unordered_map>
 #include <vector>
 
 namespace plantview::detail {
@@ -39,9 +39,12 @@ class RangeAllocator {
   std::multimap<uint64_t, uint64_t> by_size_;      // size -> offset
 };
 
-// Values by residency key in flat arrays: a 4-byte index per slot (keys below 2^31) and per
-// merged run (keys 2^31 + r, r below 2^24) into a dense array; other keys (the proxy cube) in a
-// small map. Lookups are two array reads, not a hash. Pointers stay valid until the next insert.
+// Values by residency key (any uint32_t, the proxy cube's UINT32_MAX included) in a dense
+// array, found through an open-addressing hash table (linear probing, at most half full,
+// backward-shift deletion: no tombstones). Memory follows the keys present at most at once (the
+// working set: what is resident), never the slot numbers: 8 bytes a table cell (2 to 4 per key)
+// plus the dense entry. Lookups are a multiply, a probe or two and an array read. Pointers stay
+// valid until the next insert.
 template <class T>
 class FlatKeyMap {
  public:
@@ -63,18 +66,36 @@ class FlatKeyMap {
       alive_.push_back(0);
     }
     alive_[i] = 1;
-    set_index(key, i);
+    if ((size_ + 1) * 2 > cells_.size()) grow();
+    place(key, i);
     ++size_;
   }
   void erase(uint32_t key) {
-    const uint32_t i = index_of(key);
-    if (i == kAbsent) return;
-    alive_[i] = 0;
-    free_.push_back(i);
-    set_index(key, kAbsent);
+    if (cells_.empty()) return;
+    size_t at = home(key);
+    while (cells_[at].index != kAbsent && cells_[at].key != key) at = (at + 1) & mask();
+    if (cells_[at].index == kAbsent) return;
+    alive_[cells_[at].index] = 0;
+    free_.push_back(cells_[at].index);
     --size_;
+    // Backward shift: pull later cells of the run into the hole where their home allows.
+    size_t hole = at;
+    for (size_t next = (hole + 1) & mask(); cells_[next].index != kAbsent; next = (next + 1) & mask()) {
+      const size_t h = home(cells_[next].key);
+      // `next` may move to `hole` if its home is not in (hole, next] (cyclically).
+      const bool stays = hole < next ? (h > hole && h <= next) : (h > hole || h <= next);
+      if (stays) continue;
+      cells_[hole] = cells_[next];
+      hole = next;
+    }
+    cells_[hole].index = kAbsent;
   }
   size_t size() const { return size_; }
+  // Bytes held by the map itself (table, dense entries, free list): for memory bounds.
+  size_t bytes() const {
+    return cells_.capacity() * sizeof(Cell) + dense_.capacity() * sizeof(dense_[0]) +
+           alive_.capacity() + free_.capacity() * sizeof(uint32_t);
+  }
   // f(key, value) for every present key, in no particular order.
   template <class F>
   void for_each(F f) const {
@@ -83,36 +104,34 @@ class FlatKeyMap {
   }
 
  private:
-  static constexpr uint32_t kAbsent = UINT32_MAX, kHighBit = 0x80000000u, kRuns = 1u << 24;
+  static constexpr uint32_t kAbsent = UINT32_MAX;
+  struct Cell {
+    uint32_t key = 0, index = kAbsent;  // index into dense_; kAbsent: empty cell
+  };
+  size_t mask() const { return cells_.size() - 1; }
+  size_t home(uint32_t key) const { return size_t((uint64_t(key) * 0x9E3779B97F4A7C15ull) >> shift_); }
   uint32_t index_of(uint32_t key) const {
-    if (!(key & kHighBit)) return key < slots_.size() ? slots_[key] : kAbsent;
-    const uint32_t r = key & ~kHighBit;
-    if (r < kRuns) return r < runs_.size() ? runs_[r] : kAbsent;
-    const auto it = others_.find(key);
-    return it == others_.end() ? kAbsent : it->second;
+    if (cells_.empty()) return kAbsent;
+    for (size_t at = home(key);; at = (at + 1) & mask()) {
+      const Cell& c = cells_[at];
+      if (c.index == kAbsent || c.key == key) return c.index;
+    }
   }
-  void set_index(uint32_t key, uint32_t i) {
-    std::vector<uint32_t>* table = nullptr;
-    uint32_t at = key;
-    if (!(key & kHighBit)) {
-      table = &slots_;
-    } else if ((key & ~kHighBit) < kRuns) {
-      table = &runs_;
-      at = key & ~kHighBit;
-    }
-    if (!table) {
-      if (i == kAbsent) others_.erase(key);
-      else others_[key] = i;
-      return;
-    }
-    if (at >= table->size()) {
-      if (i == kAbsent) return;
-      table->resize(std::max<size_t>(at + 1, table->size() * 2), kAbsent);
-    }
-    (*table)[at] = i;
+  void place(uint32_t key, uint32_t index) {
+    size_t at = home(key);
+    while (cells_[at].index != kAbsent) at = (at + 1) & mask();
+    cells_[at] = {key, index};
   }
-  std::vector<uint32_t> slots_, runs_;
-  std::unordered_map<uint32_t, uint32_t> others_;
+  void grow() {
+    std::vector<Cell> old = std::move(cells_);
+    const size_t n = std::max<size_t>(16, old.size() * 2);
+    cells_.assign(n, Cell{});
+    shift_ = 64 - uint32_t(std::countr_zero(n));
+    for (const Cell& c : old)
+      if (c.index != kAbsent) place(c.key, c.index);
+  }
+  std::vector<Cell> cells_;  // a power of two in size
+  uint32_t shift_ = 64;
   std::vector<std::pair<uint32_t, T>> dense_;
   std::vector<uint8_t> alive_;
   std::vector<uint32_t> free_;
@@ -143,6 +162,10 @@ class Residency {
   uint64_t used_units() const { return allocator_.used(); }
   uint64_t capacity_units() const { return allocator_.capacity(); }
   size_t resident_count() const { return entries_.size(); }
+  // Bytes of the per-object bookkeeping (follows the resident count, not the plant).
+  size_t bookkeeping_bytes() const {
+    return entries_.bytes() + candidates_.capacity() * sizeof(uint32_t);
+  }
 
  private:
   struct Entry {

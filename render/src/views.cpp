@@ -70,22 +70,58 @@ Camera default_camera(const DAabb& bounds, double aspect) {
   return default_camera(std::span<const DAabb>(&bounds, 1), aspect);
 }
 
+// Two passes over the index, block after block (memory: max_boxes boxes, not the plant's): the
+// union of the objects' bounds, then each object's bounds into its cell of the grid over it.
+// Where the index cannot be read, the top's root bounds stand for the plant.
 std::vector<DAabb> overview_boxes(const ReadView& view, size_t max_boxes) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
+  max_boxes = std::max<size_t>(max_boxes, 1);
   const glm::dvec3 origin = view.spatial_origin();
+  const auto object_box = [&](const SpatialNode& leaf, const SpatialEntry& entry) {
+    float mn[3], mx[3];
+    entry_bounds(leaf, entry, mn, mx);
+    DAabb b;
+    b.min = origin + glm::dvec3(mn[0], mn[1], mn[2]);
+    b.max = origin + glm::dvec3(mx[0], mx[1], mx[2]);
+    return b;
+  };
+  const auto root_box = [&]() -> std::vector<DAabb> {
+    const auto top = view.spatial_top();
+    if (top.empty()) return {};
+    DAabb b;
+    b.min = origin + glm::dvec3(top[0].min[0], top[0].min[1], top[0].min[2]);
+    b.max = origin + glm::dvec3(top[0].max[0], top[0].max[1], top[0].max[2]);
+    return {b};
+  };
   std::vector<DAabb> boxes;
-  boxes.reserve(entries.size());
-  for (const SpatialNode& node : nodes) {
-    for (uint32_t i = node.first; node.count > 0 && i < node.first + node.count; ++i) {
-      float mn[3], mx[3];
-      entry_bounds(node, entries[i], mn, mx);
-      DAabb& b = boxes.emplace_back();
-      b.min = origin + glm::dvec3(mn[0], mn[1], mn[2]);
-      b.max = origin + glm::dvec3(mx[0], mx[1], mx[2]);
-    }
-  }
-  return views::merge_on_grid(std::move(boxes), std::max<size_t>(max_boxes, 1));
+  DAabb all;
+  bool many = false;
+  std::string error;
+  if (!view.for_each_spatial_entry(
+          [&](const SpatialNode& leaf, const SpatialEntry& entry) {
+            const DAabb b = object_box(leaf, entry);
+            all.extend(b);
+            if (!many) {
+              boxes.push_back(b);
+              many = boxes.size() > max_boxes;
+              if (many) std::vector<DAabb>().swap(boxes);
+            }
+            return true;
+          },
+          error))
+    return root_box();
+  if (!many) return boxes;
+  const views::MergeGrid grid = views::MergeGrid::over(all, max_boxes);
+  boxes.assign(grid.size(), DAabb{});
+  if (!view.for_each_spatial_entry(
+          [&](const SpatialNode& leaf, const SpatialEntry& entry) {
+            const DAabb b = object_box(leaf, entry);
+            boxes[grid.cell_of(b)].extend(b);
+            return true;
+          },
+          error))
+    return root_box();
+  std::erase_if(boxes, [](const DAabb& b) { return b.empty(); });
+  return boxes;
 }
 
 bool make_review_views(const Store& store, const ReviewViewOptions& options,
@@ -162,6 +198,10 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
       views_out.push_back(std::move(v));
     }
     report(0.5 + 0.5 * double(i + 1) / double(chosen.size()));
+  }
+  if (!occluders.error().empty()) {
+    error = occluders.error();
+    return false;
   }
   out = std::move(views_out);
   return true;

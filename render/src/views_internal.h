@@ -42,15 +42,28 @@ bool read_subjects(const ReadView& view, std::string_view per, std::vector<Subje
 // lies in one cell of a grid over `bounds` (their union) with cubic cells. Fewer boxes than that
 // come back as they are.
 std::vector<DAabb> merge_on_grid(std::vector<DAabb> boxes, size_t max_cells);
+// The grid merge_on_grid merges on: cubic cells over `all`, at most `max_cells` (>= 1) of them.
+struct MergeGrid {
+  DAabb all;
+  double cell_m = 1;
+  glm::ivec3 cells{1};
+  static MergeGrid over(const DAabb& all, size_t max_cells);
+  size_t size() const { return size_t(cells.x) * size_t(cells.y) * size_t(cells.z); }
+  // The cell of the box's centre (clamped into the grid).
+  size_t cell_of(const DAabb& b) const;
+};
 
 // `key` made safe as a view name (camera.h: is_safe_view_name): every run of other characters
 // becomes one '-', leading '-' and '.' go, at most `max_chars`; "view" if nothing is left.
 std::string safe_name(std::string_view key, size_t max_chars);
 
-// Other objects' bounds near a camera, from the store's spatial index.
+// Other objects' bounds near a camera, from the store's spatial index (the top, then the blocks
+// a query reaches, read for the query and dropped after it). A block that cannot be read hides
+// nothing; error() then says which (the first such failure).
 class Occluders {
  public:
   explicit Occluders(const ReadView& view) : view_(view) {}
+  const std::string& error() const { return error_; }
   // True if `eye_m` lies inside (or within `margin_m` of) the bounds of an object whose slot is
   // not in `excluded` (ascending).
   bool eye_inside(const glm::dvec3& eye_m, double margin_m, std::span<const uint32_t> excluded) const;
@@ -63,6 +76,7 @@ class Occluders {
 
  private:
   const ReadView& view_;
+  mutable std::string error_;
 };
 
 // The camera for one subject seen along `direction` (from eye to target), placed as

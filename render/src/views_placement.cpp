@@ -11,12 +11,12 @@ namespace plantview::views {
 namespace {
 
 // Visits the bounds (model space) of every object in the spatial index whose box may meet the
-// query: `node_test` decides for each node's box and each object's box.
+// query: `test` decides for each node's box (top nodes, then the blocks' nodes) and each
+// object's box. A block that cannot be read is skipped, the first such error kept in `error`.
 template <typename Test, typename Visit>
-void for_each_box(const ReadView& view, const Test& test, const Visit& visit) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
-  if (nodes.empty()) return;
+void for_each_box(const ReadView& view, const Test& test, const Visit& visit, std::string& error) {
+  const auto top = view.spatial_top();
+  if (top.empty()) return;
   const glm::dvec3 origin = view.spatial_origin();
   const auto box = [&](const float mn[3], const float mx[3]) {
     DAabb b;
@@ -24,21 +24,38 @@ void for_each_box(const ReadView& view, const Test& test, const Visit& visit) {
     b.max = origin + glm::dvec3(mx[0], mx[1], mx[2]);
     return b;
   };
-  std::vector<uint32_t> stack{0};
-  while (!stack.empty()) {
-    const SpatialNode& node = nodes[stack.back()];
-    stack.pop_back();
-    if (!test(box(node.min, node.max))) continue;
-    if (node.count == 0) {
-      stack.push_back(node.first);
-      stack.push_back(node.first + 1);
+  std::vector<uint32_t> top_stack{0}, stack;
+  while (!top_stack.empty()) {
+    const SpatialNode& t = top[top_stack.back()];
+    top_stack.pop_back();
+    if (!test(box(t.min, t.max))) continue;
+    if (t.count == 0) {
+      top_stack.push_back(t.first);
+      top_stack.push_back(t.first + 1);
       continue;
     }
-    for (uint32_t i = node.first; i < node.first + node.count; ++i) {
-      float mn[3], mx[3];
-      entry_bounds(node, entries[i], mn, mx);
-      const DAabb b = box(mn, mx);
-      if (test(b)) visit(entries[i].slot, b);
+    std::string why;
+    const auto block = view.spatial_block(t.first, why);
+    if (!block) {
+      if (error.empty()) error = why;
+      continue;
+    }
+    stack.assign(1, 0);
+    while (!stack.empty()) {
+      const SpatialNode& node = block->nodes[stack.back()];
+      stack.pop_back();
+      if (!test(box(node.min, node.max))) continue;
+      if (node.count == 0) {
+        stack.push_back(node.first);
+        stack.push_back(node.first + 1);
+        continue;
+      }
+      for (uint32_t i = node.first; i < node.first + node.count; ++i) {
+        float mn[3], mx[3];
+        entry_bounds(node, block->entries[i], mn, mx);
+        const DAabb b = box(mn, mx);
+        if (test(b)) visit(block->entries[i].slot, b);
+      }
     }
   }
 }
@@ -90,7 +107,8 @@ bool Occluders::eye_inside(const glm::dvec3& eye_m, double margin_m,
   bool inside = false;
   for_each_box(
       view_, [&](const DAabb& b) { return !inside && contains(b, eye_m, margin_m); },
-      [&](uint32_t slot, const DAabb&) { inside = inside || !excluded_slot(excluded, slot); });
+      [&](uint32_t slot, const DAabb&) { inside = inside || !excluded_slot(excluded, slot); },
+      error_);
   return inside;
 }
 
@@ -107,7 +125,8 @@ bool Occluders::segment_blocked(const glm::dvec3& from_m, const glm::dvec3& to_m
       [&](uint32_t slot, const DAabb& b) {
         if (excluded_slot(excluded, slot) || second_largest_side(b) < min_side_m) return;
         first = std::min(first, clip_segment(b, from_m, to_m).first * length_m);
-      });
+      },
+      error_);
   first_hit_m = first;
   return std::isfinite(first);
 }

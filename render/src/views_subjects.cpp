@@ -100,21 +100,29 @@ std::vector<DAabb> merge_on_grid(std::vector<DAabb> boxes, size_t max_cells) {
   if (boxes.size() <= max_cells) return boxes;
   DAabb all;
   for (const DAabb& b : boxes) all.extend(b);
-  const glm::dvec3 extent = glm::max(all.max - all.min, glm::dvec3(1e-3));
-  double cell_m = std::cbrt(extent.x * extent.y * extent.z / double(max_cells));
-  glm::ivec3 cells;
-  for (;; cell_m *= 1.1) {
-    cells = glm::ivec3(glm::ceil(extent / cell_m));
-    if (uint64_t(cells.x) * uint64_t(cells.y) * uint64_t(cells.z) <= max_cells) break;
-  }
-  std::vector<DAabb> merged(size_t(cells.x) * size_t(cells.y) * size_t(cells.z));
-  for (const DAabb& b : boxes) {
-    const glm::ivec3 c = glm::clamp(glm::ivec3((0.5 * (b.min + b.max) - all.min) / cell_m),
-                                    glm::ivec3(0), cells - 1);
-    merged[(size_t(c.z) * size_t(cells.y) + size_t(c.y)) * size_t(cells.x) + size_t(c.x)].extend(b);
-  }
+  const MergeGrid grid = MergeGrid::over(all, max_cells);
+  std::vector<DAabb> merged(grid.size());
+  for (const DAabb& b : boxes) merged[grid.cell_of(b)].extend(b);
   std::erase_if(merged, [](const DAabb& b) { return b.empty(); });
   return merged;
+}
+
+MergeGrid MergeGrid::over(const DAabb& all, size_t max_cells) {
+  MergeGrid g;
+  g.all = all;
+  const glm::dvec3 extent = glm::max(all.max - all.min, glm::dvec3(1e-3));
+  g.cell_m = std::cbrt(extent.x * extent.y * extent.z / double(max_cells));
+  for (;; g.cell_m *= 1.1) {
+    g.cells = glm::ivec3(glm::ceil(extent / g.cell_m));
+    if (uint64_t(g.cells.x) * uint64_t(g.cells.y) * uint64_t(g.cells.z) <= max_cells) break;
+  }
+  return g;
+}
+
+size_t MergeGrid::cell_of(const DAabb& b) const {
+  const glm::ivec3 c = glm::clamp(glm::ivec3((0.5 * (b.min + b.max) - all.min) / cell_m),
+                                  glm::ivec3(0), cells - 1);
+  return (size_t(c.z) * size_t(cells.y) + size_t(c.y)) * size_t(cells.x) + size_t(c.x);
 }
 
 std::string safe_name(std::string_view key, size_t max_chars) {

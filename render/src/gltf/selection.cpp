@@ -56,7 +56,7 @@ bool choose_as_renderer(const ReadView& view, const GltfExportOptions& options, 
   FramePlan plan;
   FrameStats stats;
   const FrameView frame_view = make_frame_view(*options.camera, options.width, options.height, view.spatial_origin());
-  plan.cull(view, frame_view, render, stats);
+  if (!plan.cull(view, frame_view, render, stats, error)) return false;
   if (!objects.decode(plan.visible(), render.hlod, error)) return false;
   plan.choose(objects, frame_view, render, 1, stats);
   for (const Draw& d : plan.draws()) {

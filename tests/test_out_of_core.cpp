@@ -1,0 +1,206 @@
+// Out-of-core rendering (issue 15): what the renderer keeps per object and per node follows what
+// its frames touched, not the size of the plant; and the overview of a plant of thirty units
+// draws about what the overview of one does (far nodes drawn as their stored far-field proxies).
+// The residency key map against a standard map (an independent oracle), then a generated
+// preset c at --scale 30 rendered by the real renderer (on whatever EGL offers: llvmpipe in CI).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <unordered_map>
+
+#include "decoded_objects.h"
+#include "plantview/camera.h"
+#include "plantview/generate.h"
+#include "plantview/ingest.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "residency.h"
+#include "support/temp_dir.h"
+
+namespace plantview {
+namespace {
+
+using detail::FlatKeyMap;
+using test::TempDir;
+
+// --- the residency key map ------------------------------------------------------------------
+
+TEST(ResidencyKeyMap, MemoryFollowsTheKeysPresentNotHowLargeTheyAre) {
+  // Slots of a 40-million-object plant, merged runs and the proxy cube's key: an array indexed
+  // by slot would hold 160 MB here.
+  FlatKeyMap<uint64_t> map;
+  const uint32_t keys[] = {0u, 39'999'999u, 20'000'000u, 0x80000000u | 5u, 0x80ffffffu, UINT32_MAX};
+  for (const uint32_t k : keys) map.insert(k, uint64_t(k) * 3);
+  EXPECT_EQ(map.size(), std::size(keys));
+  for (const uint32_t k : keys) {
+    ASSERT_NE(map.find(k), nullptr) << k;
+    EXPECT_EQ(*map.find(k), uint64_t(k) * 3);
+  }
+  EXPECT_EQ(map.find(1), nullptr);
+  EXPECT_LT(map.bytes(), 1024u);
+}
+
+TEST(ResidencyKeyMap, AgreesWithAStandardMapUnderRandomInsertsAndErases) {
+  FlatKeyMap<uint32_t> map;
+  std::unordered_map<uint32_t, uint32_t> oracle;
+  std::mt19937 rng(15);
+  // Keys from a small range (many collisions and re-inserts) and from the whole range.
+  const auto random_key = [&] {
+    return rng() % 4 == 0 ? uint32_t(rng()) : uint32_t(rng() % 3000);
+  };
+  size_t peak = 0;
+  for (int step = 0; step < 200000; ++step) {
+    const uint32_t key = random_key();
+    const bool present = oracle.count(key) > 0;
+    ASSERT_EQ(map.find(key) != nullptr, present) << "step " << step << " key " << key;
+    if (present && rng() % 2) {
+      map.erase(key);
+      oracle.erase(key);
+    } else if (!present) {
+      const uint32_t value = uint32_t(rng());
+      map.insert(key, value);
+      oracle[key] = value;
+    } else {
+      ASSERT_EQ(*map.find(key), oracle[key]);
+    }
+    ASSERT_EQ(map.size(), oracle.size());
+    peak = std::max(peak, oracle.size());
+  }
+  size_t seen = 0;
+  map.for_each([&](uint32_t k, uint32_t v) {
+    ++seen;
+    ASSERT_TRUE(oracle.count(k)) << k;
+    EXPECT_EQ(oracle[k], v);
+  });
+  EXPECT_EQ(seen, oracle.size());
+  // The table follows the most keys present at once (cells at most 4 per key, 8 bytes each;
+  // dense entries 8 bytes, doubled by growth; free list and flags).
+  EXPECT_LE(map.bytes(), 64 * peak + 1024);
+}
+
+// --- the renderer on a preset c of thirty units ----------------------------------------------
+
+// A generated preset c, shared by the tests of this file (generating is most of their time).
+const Store& preset_c(uint32_t scale) {
+  static std::map<uint32_t, std::pair<std::unique_ptr<TempDir>, std::unique_ptr<Store>>> stores;
+  auto& entry = stores[scale];
+  if (!entry.second) {
+    entry.first = std::make_unique<TempDir>();
+    std::string error;
+    entry.second = Store::open(entry.first->str(), Store::Mode::read_write, error);
+    if (!entry.second) {
+      ADD_FAILURE() << error;
+      std::abort();
+    }
+    GenerateOptions options;
+    options.preset = 'c';
+    options.scale = scale;
+    const IngestResult result = ingest_generated(*entry.second, options);
+    if (!result) ADD_FAILURE() << result.error().message;
+  }
+  return *entry.second;
+}
+
+DAabb bounds_of(const Store& store) {
+  std::string error;
+  const auto view = store.read(error);
+  EXPECT_TRUE(view) << error;
+  return view ? view->info().statistics.bounds : DAabb{};
+}
+
+// Eye-height views walking along an aisle of a box `region`: `frames` cameras from one end of
+// its x extent towards the other, looking ahead and a little aside.
+std::vector<Camera> walk(const DAabb& region, int frames) {
+  std::vector<Camera> path;
+  const double y = region.min.y + 0.45 * (region.max.y - region.min.y);
+  const double z = region.min.z + 1.7;
+  for (int i = 0; i < frames; ++i) {
+    const double x = region.min.x + (0.1 + 0.8 * i / std::max(frames - 1, 1)) * (region.max.x - region.min.x);
+    Camera c;
+    c.eye_m = {x, y, z};
+    c.target_m = {x + 20.0, y + 5.0 * ((i % 2) ? 1 : -1), z - 1.0};
+    path.push_back(c);
+  }
+  return path;
+}
+
+TEST(OutOfCore, RendererMemoryFollowsWhatThePathSawNotThePlant) {
+  const DAabb unit = bounds_of(preset_c(1));
+  const Store& store = preset_c(30);
+  std::string error;
+  const auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  const uint64_t plant_objects = view->spatial_objects();
+  const DAabb plant = view->info().statistics.bounds;
+  ASSERT_GT(plant_objects, 1'000'000u);
+
+  RenderOptions options;
+  options.vertex_budget_bytes = 64ull << 20;
+  auto renderer = Renderer::create(store, options, error);
+  ASSERT_TRUE(renderer) << error;
+
+  // A walk through the first unit, then one through the first unit of the last row (units are
+  // laid out row by row: its slots are among the plant's highest), then the overview.
+  std::vector<Camera> path = walk(unit, 4);
+  DAabb far_unit = unit;
+  far_unit.min.y += plant.max.y - unit.max.y;
+  far_unit.max.y += plant.max.y - unit.max.y;
+  for (const Camera& c : walk(far_unit, 4)) path.push_back(c);
+  path.push_back(default_camera(plant, 16.0 / 9.0));
+
+  uint64_t max_visible = 0, max_resident = 0, max_walked = 0, last_walked = 0;
+  for (size_t i = 0; i < path.size(); ++i) {
+    FrameStats stats;
+    Image image;
+    ASSERT_TRUE(renderer->render(path[i], 480, 270, false, image, stats, error)) << error;
+    max_visible = std::max(max_visible, stats.objects_visible + stats.objects_occluded);
+    max_resident = std::max(max_resident, stats.objects_resident);
+    max_walked = std::max(max_walked, stats.spatial_blocks_walked);
+    SCOPED_TRACE("frame " + std::to_string(i));
+    // Blocks: those this frame and the last one walked, no more.
+    EXPECT_LE(stats.spatial_blocks_held, stats.spatial_blocks_walked + last_walked);
+    last_walked = stats.spatial_blocks_walked;
+    // Decoded objects: the resident ones, this frame's and a fixed number more.
+    EXPECT_LE(stats.objects_known, detail::kKnownObjectsKept + max_resident + max_visible);
+    // Residency bookkeeping: a few dozen bytes for each object resident at once, not 4 bytes
+    // a slot up to the highest slot seen.
+    EXPECT_LE(stats.residency_bytes, 160 * (max_resident + 1) + 4096);
+  }
+  std::printf("x30: %llu objects; path: at most %llu visible, %llu resident, %llu blocks walked\n",
+              (unsigned long long)plant_objects, (unsigned long long)max_visible,
+              (unsigned long long)max_resident, (unsigned long long)max_walked);
+  // The path saw a small part of the plant, so the bounds above are not the plant's size.
+  EXPECT_LT(max_walked * kSpatialBlockObjects, plant_objects / 2);
+  EXPECT_LT(detail::kKnownObjectsKept + max_resident + max_visible, plant_objects / 10);
+}
+
+TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
+  const auto overview_triangles = [](const Store& store, FrameStats& stats) {
+    std::string error;
+    const auto view = store.read(error);
+    EXPECT_TRUE(view) << error;
+    auto renderer = Renderer::create(store, RenderOptions{}, error);
+    EXPECT_TRUE(renderer) << error;
+    if (!view || !renderer) return uint64_t(0);
+    const Camera camera = default_camera(overview_boxes(*view), 16.0 / 9.0);
+    EXPECT_TRUE(renderer->statistics(camera, 1280, 720, stats, error)) << error;
+    return stats.triangles;
+  };
+  FrameStats one_stats, thirty_stats;
+  const uint64_t one = overview_triangles(preset_c(1), one_stats);
+  const uint64_t thirty = overview_triangles(preset_c(30), thirty_stats);
+  std::printf("overview triangles: x1 %llu, x30 %llu (%llu node boxes for %llu objects)\n",
+              (unsigned long long)one, (unsigned long long)thirty,
+              (unsigned long long)thirty_stats.node_proxies,
+              (unsigned long long)thirty_stats.objects_in_node_proxies);
+  ASSERT_GT(one, 0u);
+  EXPECT_LE(thirty, 2 * one);
+  // Far nodes were drawn as proxies: the thirty units are there, as boxes where far.
+  EXPECT_GT(thirty_stats.objects_in_node_proxies, 0u);
+}
+
+}  // namespace
+}  // namespace plantview
