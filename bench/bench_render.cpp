@@ -12,9 +12,14 @@
 //                  triangles (walkthrough, interior), mean and 95th-percentile frame and CPU
 //                  time, PSNR against none without occlusion, and occlusion's id-buffer check
 //                  against the same policy without it.
-//   --out-of-core  one renderer (screen-space) with --vertex-budget (default 256) along the
-//                  walkthrough of a --scale K plant (default 100): peak resident memory of the
-//                  process, arena bytes, uploads and evictions per frame, frame times.
+//   --out-of-core  a --store DIR (or a generated --scale K plant, default 100), as `plantview
+//                  render` would show it: the time from Store::open to the overview's PNG
+//                  written (open + first read, then renderer and overview frame), the
+//                  overview's triangles and node boxes; then one renderer (screen-space) with
+//                  --vertex-budget (default 256) along a --frames walkthrough (default 10),
+//                  every image written: peak resident memory of the process (walkthrough +
+//                  overview, images written), arena bytes, uploads and evictions per frame,
+//                  frame times, the renderer's per-object memory (blocks held, objects known).
 //   --quick        preset a, 320x180, 6 + 2 views, 1 sample (the CTest smoke run).
 // The store is generated (in a child process, so that its memory does not count) into a
 // temporary directory unless --store names one. Prints tables, then "json: " lines.
@@ -290,50 +295,101 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   return 0;
 }
 
-int out_of_core(const Store& store, const std::vector<Camera>& cameras, uint32_t w, uint32_t h,
-                uint64_t budget_bytes, uint64_t full_triangles) {
+// The out-of-core run (see the usage above). The walkthrough is computed first, in a child.
+int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_t budget_bytes) {
+  const auto cameras = walkthrough_in_child(dir, frames);
+  if (cameras.empty()) return 1;
+  const fs::path out = fs::temp_directory_path() / ("plantview-bench-ooc-" + std::to_string(::getpid()));
+  fs::create_directories(out);
+  std::string error;
+  const auto fail = [&](const std::string& what) {
+    std::fprintf(stderr, "bench_render: %s\n", what.c_str());
+    fs::remove_all(out);
+    return 1;
+  };
+  // As `plantview render` does: the context and the image libraries first.
+  const auto context_start = Clock::now();
+  auto context = GpuContext::create(-1, error);
+  if (!context) return fail(error);
+  preload_image_io();
+  const double context_s = seconds_since(context_start);
+  std::printf("device: %s\n", context->description().c_str());
+
+  // Opening the store and writing its overview image.
+  const auto open_start = Clock::now();
+  auto store = Store::open(dir.string(), Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  uint64_t objects = 0, full_triangles = 0;
+  {
+    auto view = store->read(error);
+    if (!view) return fail(error);
+    const StoreInfo info = view->info();
+    objects = info.objects;
+    full_triangles = info.statistics.triangles;
+  }
+  const double open_s = seconds_since(open_start);
   RenderOptions options;
   options.vertex_budget_bytes = budget_bytes;
-  std::string error;
-  auto renderer = Renderer::create(store, options, error);
-  if (!renderer) {
-    std::fprintf(stderr, "bench_render: %s\n", error.c_str());
-    return 1;
-  }
+  auto renderer = Renderer::create(*store, options, error);
+  if (!renderer) return fail(error);
+  const Camera overview =
+      default_camera(overview_boxes(renderer->read_view()), double(w) / double(h));
   Image image;
+  FrameStats overview_stats;
+  if (!renderer->render(overview, w, h, false, image, overview_stats, error) ||
+      !write_image((out / "overview.png").string(), image, 90, error))
+    return fail(error);
+  const double overview_s = seconds_since(open_start);
+
   std::vector<double> ms, uploaded, evicted_objects, resident;
   uint64_t max_resident = 0, proxies = 0, coarsened = 0, triangles = 0;
+  uint64_t max_blocks_held = 0, max_known = 0, max_residency_bytes = 0;
   const bool tty = isatty(2);
   for (size_t v = 0; v < cameras.size(); ++v) {
     FrameStats stats;
-    if (!renderer->render(cameras[v], w, h, false, image, stats, error)) {
-      std::fprintf(stderr, "bench_render: view %zu: %s\n", v, error.c_str());
-      return 1;
-    }
+    char name[32];
+    std::snprintf(name, sizeof name, "%06zu.png", v);
+    if (!renderer->render(cameras[v], w, h, false, image, stats, error) ||
+        !write_image((out / name).string(), image, 90, error))
+      return fail("view " + std::to_string(v) + ": " + error);
     ms.push_back(stats.ms.total);
     uploaded.push_back(double(stats.arena_bytes_uploaded));
     evicted_objects.push_back(double(stats.objects_evicted));
     resident.push_back(double(stats.arena_bytes_resident));
     max_resident = std::max(max_resident, stats.arena_bytes_resident);
+    max_blocks_held = std::max(max_blocks_held, stats.spatial_blocks_held);
+    max_known = std::max(max_known, stats.objects_known);
+    max_residency_bytes = std::max(max_residency_bytes, stats.residency_bytes);
     proxies += stats.budget_proxies;
     coarsened += stats.budget_coarsened;
     triangles += stats.triangles;
-    if (stats.arena_bytes_resident > budget_bytes) {
-      std::fprintf(stderr, "bench_render: view %zu: arena %llu bytes over its budget\n", v,
-                   (unsigned long long)stats.arena_bytes_resident);
-      return 1;
-    }
+    if (stats.arena_bytes_resident > budget_bytes)
+      return fail("view " + std::to_string(v) + ": arena " +
+                  std::to_string(stats.arena_bytes_resident) + " bytes over its budget");
     if (tty)
       std::fprintf(stderr, "\rview %zu/%zu  %.0f ms  arena %.0f MB  peak %.0f MB   ", v + 1,
                    cameras.size(), stats.ms.total, stats.arena_bytes_resident / 1048576.0,
                    peak_rss_bytes() / 1048576.0);
   }
   if (tty) std::fputc('\n', stderr);
+  fs::remove_all(out);
   const double peak = double(peak_rss_bytes());
-  std::printf("\nOut of core: %zu views at %ux%u, %.0f M triangles at full resolution, budget %llu MB\n",
-              cameras.size(), w, h, double(full_triangles) / 1e6,
-              (unsigned long long)(budget_bytes >> 20));
-  std::printf("  peak resident memory of the process  %.0f MB\n", peak / 1048576.0);
+  std::printf("\nOut of core: %s, %llu objects, %.0f M triangles at full resolution\n",
+              dir.c_str(), (unsigned long long)objects, double(full_triangles) / 1e6);
+  std::printf("  GPU context and image libraries             %.2f s\n", context_s);
+  std::printf("  Store::open + first read + info             %.3f s\n", open_s);
+  std::printf("  ... + overview rendered and written (PNG)   %.2f s  (frame %.0f ms, cull %.0f ms)\n",
+              overview_s, overview_stats.ms.total, overview_stats.ms.cull);
+  std::printf("  overview at %ux%u: %.2f M triangles, %llu objects, %llu node boxes (nodes under "
+              "%.0f px, %llu objects)\n",
+              w, h, double(overview_stats.triangles) / 1e6,
+              (unsigned long long)overview_stats.objects_visible,
+              (unsigned long long)overview_stats.node_proxies, overview_stats.node_proxy_pixels,
+              (unsigned long long)overview_stats.objects_in_node_proxies);
+  std::printf("  walkthrough: %zu views at %ux%u, budget %llu MB, images written\n", cameras.size(),
+              w, h, (unsigned long long)(budget_bytes >> 20));
+  std::printf("  peak resident memory of the process  %.0f MB (overview + walkthrough)\n",
+              peak / 1048576.0);
   std::printf("  arena resident: mean %.0f MB, max %.0f MB (never over budget)\n",
               mean(resident) / 1048576.0, double(max_resident) / 1048576.0);
   std::printf("  uploaded per frame: mean %.1f MB, p95 %.1f MB; evictions per frame: mean %.0f, max %.0f\n",
@@ -343,11 +399,21 @@ int out_of_core(const Store& store, const std::vector<Camera>& cameras, uint32_t
               "proxies %llu, coarsened %llu\n",
               mean(ms), percentile(ms, 0.95), ms.front(), double(triangles) / double(ms.size()),
               (unsigned long long)proxies, (unsigned long long)coarsened);
-  nlohmann::json j = {{"bench", "render_out_of_core"}, {"views", cameras.size()},
+  std::printf("  per-object memory, most at once: %llu index blocks held, %llu objects decoded, "
+              "residency table %.1f MB\n",
+              (unsigned long long)max_blocks_held, (unsigned long long)max_known,
+              max_residency_bytes / 1048576.0);
+  nlohmann::json j = {{"bench", "render_out_of_core"}, {"store", dir.string()},
+                      {"objects", objects}, {"views", cameras.size()},
                       {"budget_bytes", budget_bytes}, {"peak_rss_bytes", peak},
+                      {"open_seconds", open_s}, {"overview_seconds", overview_s},
+                      {"overview_triangles", overview_stats.triangles},
+                      {"overview_node_boxes", overview_stats.node_proxies},
                       {"arena_max_bytes", max_resident}, {"arena_mean_bytes", mean(resident)},
                       {"uploaded_mean_bytes", mean(uploaded)}, {"evictions_mean", mean(evicted_objects)},
                       {"mean_ms", mean(ms)}, {"p95_ms", percentile(ms, 0.95)},
+                      {"blocks_held_max", max_blocks_held}, {"objects_known_max", max_known},
+                      {"residency_bytes_max", max_residency_bytes},
                       {"full_triangles", full_triangles}};
   std::printf("json: %s\n", j.dump().c_str());
   return 0;
@@ -357,7 +423,7 @@ int out_of_core(const Store& store, const std::vector<Camera>& cameras, uint32_t
 
 int main(int argc, char** argv) {
   const auto process_start = Clock::now();
-  bool quick = false, ooc = false;
+  bool quick = false, ooc = false, frames_given = false;
   char preset = 'c';
   uint32_t scale = 0, w = 1280, h = 720;
   int frames = 100, interior = 12;
@@ -373,7 +439,7 @@ int main(int argc, char** argv) {
     else if (a == "--out-of-core") ooc = true;
     else if (a == "--preset") preset = next().c_str()[0];
     else if (a == "--scale") scale = uint32_t(std::stoul(next()));
-    else if (a == "--frames") frames = std::stoi(next());
+    else if (a == "--frames") frames = std::stoi(next()), frames_given = true;
     else if (a == "--vertex-budget") budget_mb = std::stoull(next());
     else if (a == "--store") store_dir = next();
     else if (a == "--samples") samples = uint32_t(std::stoul(next()));
@@ -397,6 +463,7 @@ int main(int argc, char** argv) {
     samples = 1;
   }
   if (scale == 0) scale = ooc ? 100 : 1;
+  if (ooc && !frames_given) frames = 10;
   if (budget_mb == 0) budget_mb = ooc ? 256 : 1024;
 
   fs::path dir = store_dir;
@@ -409,6 +476,11 @@ int main(int argc, char** argv) {
     if (s < 0) return 1;
     std::printf("generated preset %c x%u in %.1f s\n", preset, scale, s);
     remove_after = true;
+  }
+  if (ooc) {
+    const int status = out_of_core(dir, frames, w, h, uint64_t(budget_mb) << 20);
+    if (remove_after) fs::remove_all(dir);
+    return status;
   }
   std::string error;
   auto store = Store::open(dir.string(), Store::Mode::read_only, error);
@@ -432,10 +504,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::printf("device: %s\n", context->description().c_str());
-    // As `plantview render` does, once the context exists; not out of core, which writes no
-    // image (OpenImageIO's libraries would count in its peak).
-    if (!ooc) preload_image_io();
-    if (!ooc) {
+    // As `plantview render` does, once the context exists.
+    preload_image_io();
+    {
       RenderOptions options;
       options.vertex_budget_bytes = uint64_t(budget_mb) << 20;
       auto renderer = Renderer::create(*store, options, error);
@@ -455,11 +526,10 @@ int main(int argc, char** argv) {
                   (unsigned long long)stats.triangles);
       std::printf("json: {\"bench\":\"render_first_image\",\"seconds\":%.3f}\n", seconds_since(start));
     }
-    const auto cameras = ooc ? walkthrough_in_child(dir, frames) : walkthrough(*store, frames);
+    const auto cameras = walkthrough(*store, frames);
     if (cameras.empty()) return 1;
-    const int status = ooc ? out_of_core(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles)
-                           : policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles,
-                                      samples, pixel_error, extra_pixel_errors, interior);
+    const int status = policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles,
+                                samples, pixel_error, extra_pixel_errors, interior);
     if (status != 0) return status;
   }
   store.reset();

@@ -87,8 +87,8 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
                              const RenderOptions& options, FrameStats& stats, std::string& error) {
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   blocks_.begin_frame();
-  // The frame's work is bounded: when more objects than kMaxVisibleObjects are in view, nodes
-  // are boxed at ever larger sizes until they fit (huge plants seen whole).
+  // The frame's work is bounded: when more than kMaxDrawnItems objects and boxes are in view,
+  // nodes are boxed at ever larger sizes until they fit (huge plants seen whole).
   double node_proxy_px = kNodeProxyPixels * options.pixel_error;
   for (bool done = false; !done; node_proxy_px *= 2) {
     if (!cull_pass(view, frame_view, options, node_proxy_px, stats, done, error)) return false;
@@ -184,7 +184,7 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
     if (!cull_block(view, node.first, frame_view, options, node_proxy_px, subpixel_culling, stats,
                     error))
       return false;
-    if (bounded && visible_.size() > kMaxVisibleObjects) return true;
+    if (bounded && visible_.size() + node_boxes_.size() > kMaxDrawnItems) return true;
   }
   done = true;
   return true;
@@ -195,6 +195,7 @@ bool FramePlan::cull_block(const ReadView& view, uint32_t block_index, const Fra
                            bool subpixel_culling, FrameStats& stats, std::string& error) {
   const SpatialBlock* block = blocks_.get(view, block_index, error);
   if (!block) return false;
+  const size_t visible_before = visible_.size();
   const auto& nodes = block->nodes;
   const auto& entries = block->entries;
   stack_.assign(1, 0);
@@ -232,6 +233,7 @@ bool FramePlan::cull_block(const ReadView& view, uint32_t block_index, const Fra
       visible_.push_back(v);
     }
   }
+  if (visible_.size() == visible_before) blocks_.release(block_index);
   return true;
 }
 

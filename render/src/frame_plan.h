@@ -15,10 +15,10 @@
 //     and a node spanning under kNodeProxyPixels x the pixel error is drawn whole: a top node
 //     as its far-field proxy (up to kProxyBoxes boxes in its objects' colours, stored with the
 //     top, so a far node reads no block), a node inside a block as one grey box. That size
-//     doubles until at most kMaxVisibleObjects objects remain. The visible objects are ordered
+//     doubles until at most kMaxDrawnItems objects and boxes remain. The visible objects are ordered
 //     largest on screen first, so that the arena's budget goes where it shows most.
 //   - Memory: nothing here is sized by the plant. What cull keeps follows the frame: its
-//     visible objects (at most kMaxVisibleObjects), node boxes, and the blocks it walked.
+//     visible objects and node boxes (kMaxDrawnItems), and the blocks it walked.
 //   - choose: LodPolicy; merged runs replace their visible members (one draw per run).
 //   - resident_base: one level of slack (see there).
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
@@ -52,8 +52,13 @@ struct Known;
 struct PipelineRun;
 class DecodedObjects;
 
-inline constexpr size_t kMaxVisibleObjects = 60000;  // objects drawn one by one in a frame, at most
-inline constexpr double kMaxNodeProxyPixels = 256;   // ... unless nodes this size would have to be boxes
+// Objects drawn one by one plus node boxes in a frame, at most, unless nodes of
+// kMaxNodeProxyPixels would have to be boxes. Measured on preset c at 1280x720 and the default
+// pixel error: one unit's overview and walkthrough views need at most 31,700 (so they draw
+// every object they did before), and larger plants' overviews stop boxing where boxes and
+// objects fit: x100 at 24-pixel nodes, 0.70 M triangles (60,000 objects alone drew 3.3 M).
+inline constexpr size_t kMaxDrawnItems = 32768;
+inline constexpr double kMaxNodeProxyPixels = 256;
 inline constexpr Colour kNodeBoxColour{150, 150, 150, 255};  // nodes inside blocks drawn whole
 
 // A camera's view of the store for one frame.
@@ -175,7 +180,7 @@ class FramePlan {
 
  private:
   // One walk with nodes under node_proxy_px drawn whole. `done` false: it stopped early, more
-  // than kMaxVisibleObjects being found while larger boxes could make them fewer.
+  // than kMaxDrawnItems objects and boxes being found while larger boxes could make them fewer.
   bool cull_pass(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
                  double node_proxy_px, FrameStats& stats, bool& done, std::string& error);
   // Walks block `block` (under top node `top`) as cull_pass does; false on a read error.

@@ -55,6 +55,10 @@ std::string plural(std::string_view per) {
   return per == "equipment" ? "equipment" : std::string(per) + "s";
 }
 
+// Plants up to this many objects are fitted to their objects' bounds, larger ones to their
+// spatial blocks' (reading every block of 40 M objects twice would take seconds).
+constexpr uint64_t kOverviewExactObjects = 1u << 20;
+
 // Leaves room for a repeat's "-NNN" and a side's "-N" within the 200 characters of a name.
 constexpr size_t kMaxBaseNameChars = 190;
 
@@ -70,12 +74,24 @@ Camera default_camera(const DAabb& bounds, double aspect) {
   return default_camera(std::span<const DAabb>(&bounds, 1), aspect);
 }
 
-// Two passes over the index, block after block (memory: max_boxes boxes, not the plant's): the
-// union of the objects' bounds, then each object's bounds into its cell of the grid over it.
-// Where the index cannot be read, the top's root bounds stand for the plant.
+// Up to kOverviewExactObjects objects: two passes over the index, block after block (memory:
+// max_boxes boxes, not the plant's): the union of the objects' bounds, then each object's
+// bounds into its cell of the grid over it. Beyond, the top's block leaves stand for their
+// objects (no block is read: milliseconds at any size). Where the index cannot be read, the
+// top's root bounds stand for the plant.
 std::vector<DAabb> overview_boxes(const ReadView& view, size_t max_boxes) {
   max_boxes = std::max<size_t>(max_boxes, 1);
   const glm::dvec3 origin = view.spatial_origin();
+  if (view.spatial_objects() > kOverviewExactObjects) {
+    std::vector<DAabb> boxes;
+    for (const SpatialNode& node : view.spatial_top()) {
+      if (node.count == 0) continue;
+      DAabb& b = boxes.emplace_back();
+      b.min = origin + glm::dvec3(node.min[0], node.min[1], node.min[2]);
+      b.max = origin + glm::dvec3(node.max[0], node.max[1], node.max[2]);
+    }
+    return views::merge_on_grid(std::move(boxes), max_boxes);
+  }
   const auto object_box = [&](const SpatialNode& leaf, const SpatialEntry& entry) {
     float mn[3], mx[3];
     entry_bounds(leaf, entry, mn, mx);

@@ -2,11 +2,14 @@
 // object-id buffer and the frame's LOD statistics, for models far larger than memory.
 //
 // Per frame (Zhou et al. 2012 section 4, Su et al. section 5.3):
-//   1. cull     walk the store's spatial tree against the view frustum. Screen-space policy:
+//   1. cull     walk the store's paged spatial index (its resident top, then the blocks it
+//               enters, read on demand) against the view frustum. Screen-space policy:
 //               objects whose extent projects under the pixel error are left out, and a tree
-//               node spanning under 3 x the pixel error is drawn as one box (that size doubles
-//               until at most 60,000 objects remain in view), so a far view of a huge plant
-//               costs what the image holds, not what the plant holds;
+//               node spanning under 3 x the pixel error is drawn whole: a top node as its
+//               stored far-field proxy (a few boxes in its objects' colours), a node inside a
+//               block as one box (that size doubles until at most 32,768 objects and boxes
+//               remain in view), so a far view of a huge plant costs what the image holds,
+//               not what the plant holds, and reads none of the far blocks;
 //   1b. occlude (on by default) the largest objects on screen are rasterised on the CPU into a
 //               small conservative depth buffer; tree leaves, objects and node boxes hidden
 //               behind them are left out: neither decoded, tessellated, uploaded nor drawn, and
@@ -158,7 +161,8 @@ struct FrameStats {
   uint64_t objects_subpixel = 0;  // in the frustum but under the pixel error on screen
   uint64_t node_proxies = 0;      // tree nodes of a few pixels drawn as one box each
   double node_proxy_pixels = 0;   // the node size (px) under which they were: 3 x the pixel
-                                  // error, more when the view holds over 60,000 objects
+                                  // error, more when the view holds over 32,768 objects
+                                  // and boxes
   uint64_t objects_in_node_proxies = 0;
   uint64_t draw_commands = 0;
   uint64_t arena_bytes_budget = 0, arena_bytes_resident = 0;
