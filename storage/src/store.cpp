@@ -269,13 +269,6 @@ struct Snapshot {
   glm::dvec3 origin{0.0};
   std::vector<SpatialNode> nodes;     // about one per 4 objects (32 B each)
   std::vector<SpatialEntry> entries;  // one per object with geometry (16 B)
-  // ADAPTER over format 2 (the paged index's API, derived from the arrays above): the top of
-  // the tree cut where a node holds <= kSpatialBlockObjects, each such node a block.
-  std::vector<SpatialNode> top;
-  std::vector<uint32_t> top_objects;
-  std::vector<uint32_t> block_roots;  // per block: its root in `nodes`
-  std::vector<uint32_t> proxy_first;  // per top node: [proxy_first[i], proxy_first[i + 1])
-  std::vector<ProxyBox> proxies;
   // Built by the first slot_of() or slots_named() that needs them:
   mutable LazyTable<std::vector<uint32_t>> slots_by_id;  // every slot, by (id, slot) (4 B)
   mutable LazyTable<std::vector<NameSlot>> names;        // sorted (8 B)
@@ -445,73 +438,8 @@ struct Store::State {
         return nullptr;
       }
     }
-    build_adapter_top(*s);
     if (!latest || latest->txn_id < txn_id) latest = s;
     return s;
-  }
-
-  // ADAPTER: the top, blocks and grey proxies (the node's descendants 3 levels down) from the
-  // format 2 arrays.
-  static void build_adapter_top(Snapshot& s) {
-    const auto& nodes = s.nodes;
-    if (nodes.empty()) return;
-    std::vector<uint32_t> count(nodes.size(), 0);
-    for (size_t i = nodes.size(); i-- > 0;)  // children come after their parent
-      count[i] = nodes[i].count ? nodes[i].count : count[nodes[i].first] + count[nodes[i].first + 1];
-    std::vector<std::pair<uint32_t, uint32_t>> stack{{0u, 0u}};  // (full node, top node)
-    s.top.resize(1);
-    s.top_objects.resize(1);
-    while (!stack.empty()) {
-      const auto [n, t] = stack.back();
-      stack.pop_back();
-      SpatialNode top = nodes[n];
-      s.top_objects[t] = count[n];
-      if (nodes[n].count || count[n] <= kSpatialBlockObjects) {
-        top.first = uint32_t(s.block_roots.size());
-        top.count = count[n];
-        s.block_roots.push_back(n);
-      } else {
-        top.first = uint32_t(s.top.size());
-        top.count = 0;
-        s.top.resize(s.top.size() + 2);
-        s.top_objects.resize(s.top.size());
-        stack.push_back({nodes[n].first + 1, top.first + 1});
-        stack.push_back({nodes[n].first, top.first});
-      }
-      s.top[t] = top;
-    }
-    // Proxies: each top node's full-tree node, 3 levels down.
-    std::vector<uint32_t> full_of_top(s.top.size());
-    {
-      std::vector<std::pair<uint32_t, uint32_t>> st{{0u, 0u}};
-      while (!st.empty()) {
-        const auto [n, t] = st.back();
-        st.pop_back();
-        full_of_top[t] = n;
-        if (s.top[t].count == 0) {
-          st.push_back({nodes[n].first, s.top[t].first});
-          st.push_back({nodes[n].first + 1, s.top[t].first + 1});
-        }
-      }
-    }
-    for (size_t t = 0; t < s.top.size(); ++t) {
-      s.proxy_first.push_back(uint32_t(s.proxies.size()));
-      std::vector<uint32_t> level{full_of_top[t]}, next;
-      for (int depth = 0; depth < 3; ++depth) {
-        next.clear();
-        for (uint32_t n : level) {
-          if (nodes[n].count) next.push_back(n);
-          else next.insert(next.end(), {nodes[n].first, nodes[n].first + 1});
-        }
-        level.swap(next);
-      }
-      for (uint32_t n : level) {
-        ProxyBox b{};
-        for (int a = 0; a < 3; ++a) b.min[a] = nodes[n].min[a], b.max[a] = nodes[n].max[a];
-        s.proxies.push_back(b);
-      }
-    }
-    s.proxy_first.push_back(uint32_t(s.proxies.size()));
   }
 };
 
@@ -911,72 +839,6 @@ std::span<const SpatialEntry> ReadView::spatial_entries() const {
   return state_->snapshot->entries;
 }
 glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->origin; }
-
-std::span<const SpatialNode> ReadView::spatial_top() const { return state_->snapshot->top; }
-std::span<const uint32_t> ReadView::spatial_top_objects() const {
-  return state_->snapshot->top_objects;
-}
-uint64_t ReadView::spatial_objects() const { return state_->snapshot->entries.size(); }
-uint32_t ReadView::spatial_block_count() const {
-  return uint32_t(state_->snapshot->block_roots.size());
-}
-
-std::shared_ptr<const SpatialBlock> ReadView::spatial_block(uint32_t block, std::string& error) const {
-  const Snapshot& s = *state_->snapshot;
-  if (block >= s.block_roots.size()) {
-    error = "store " + state_->store->directory + ": spatial block " + std::to_string(block) +
-            " is beyond the " + std::to_string(s.block_roots.size()) + " blocks";
-    return nullptr;
-  }
-  auto out = std::make_shared<SpatialBlock>();
-  out->nodes.push_back(s.nodes[s.block_roots[block]]);
-  std::vector<std::pair<uint32_t, uint32_t>> stack{{s.block_roots[block], 0u}};  // (full, local)
-  while (!stack.empty()) {
-    const auto [n, local] = stack.back();
-    stack.pop_back();
-    const SpatialNode& node = s.nodes[n];
-    if (node.count) {
-      out->nodes[local].first = uint32_t(out->entries.size());
-      out->entries.insert(out->entries.end(), s.entries.begin() + node.first,
-                          s.entries.begin() + node.first + node.count);
-    } else {
-      const uint32_t first = uint32_t(out->nodes.size());
-      out->nodes[local].first = first;
-      out->nodes.push_back(s.nodes[node.first]);
-      out->nodes.push_back(s.nodes[node.first + 1]);
-      stack.push_back({node.first + 1, first + 1});
-      stack.push_back({node.first, first});
-    }
-  }
-  return out;
-}
-
-std::span<const ProxyBox> ReadView::spatial_proxy(uint32_t top_node) const {
-  const Snapshot& s = *state_->snapshot;
-  if (top_node + 1 >= s.proxy_first.size()) return {};
-  return std::span<const ProxyBox>(s.proxies).subspan(
-      s.proxy_first[top_node], s.proxy_first[top_node + 1] - s.proxy_first[top_node]);
-}
-
-bool ReadView::for_each_spatial_entry(
-    const std::function<bool(const SpatialNode& leaf, const SpatialEntry& entry)>& fn,
-    std::string& /*error*/) const {
-  const Snapshot& s = *state_->snapshot;
-  if (s.nodes.empty()) return true;
-  std::vector<uint32_t> stack{0};
-  while (!stack.empty()) {
-    const SpatialNode& node = s.nodes[stack.back()];
-    stack.pop_back();
-    if (node.count == 0) {
-      stack.push_back(node.first + 1);
-      stack.push_back(node.first);
-      continue;
-    }
-    for (uint32_t e = node.first; e < node.first + node.count; ++e)
-      if (!fn(node, s.entries[e])) return true;
-  }
-  return true;
-}
 
 bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const {
   State& s = *state_;

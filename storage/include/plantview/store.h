@@ -121,27 +121,6 @@ inline void entry_bounds(const SpatialNode& leaf, const SpatialEntry& entry, flo
   }
 }
 
-// The paged spatial index (format 3; see r6 interfaces). The hierarchy is split in two: a
-// top, resident while a view lives, whose leaves are blocks; and blocks of at most
-// kSpatialBlockObjects objects, each with its own subtree, read on demand.
-inline constexpr uint32_t kSpatialBlockObjects = 2048;
-inline constexpr uint32_t kProxyBoxes = 8;
-
-// A block: kSpatialBlockObjects objects or fewer, consecutive in tree order, with its own
-// subtree: nodes[0] is its root; count == 0 inner (children first, first + 1, block-local),
-// count > 0 leaf over entries [first, first + count) of this block. Immutable.
-struct SpatialBlock {
-  std::vector<SpatialNode> nodes;
-  std::vector<SpatialEntry> entries;
-};
-
-// A box of a top node's far-field proxy: the bounds of a group of the node's objects (metres,
-// relative to the spatial origin) and the colour of the largest of them.
-struct ProxyBox {
-  float min[3], max[3];
-  Colour colour;
-};
-
 // What `plantview info` shows.
 struct StoreInfo {
   uint32_t format_version = 0;
@@ -190,34 +169,11 @@ class ReadView {
   ReadView& operator=(const ReadView&) = delete;
 
   StoreInfo info() const;
-  // The spatial hierarchy (empty for an empty store); valid while this view lives.
-  // ADAPTER: spatial_nodes()/spatial_entries() are gone in format 3 and kept here only so that
-  // the storage tests and bench_ingest of this branch build; the renderer does not use them.
+  // The spatial hierarchy (empty for an empty store); valid while this view lives. No work per
+  // call: the arrays are decoded once per committed state.
   std::span<const SpatialNode> spatial_nodes() const;
   std::span<const SpatialEntry> spatial_entries() const;
   glm::dvec3 spatial_origin() const;
-
-  // The top of the hierarchy, resident while a view lives: a binary tree whose leaves are
-  // blocks. count == 0: inner node, children `first` and `first + 1` (top indices); count > 0:
-  // a block leaf: block index `first`, whose root bounds equal this node's. Node 0 is the root.
-  // Empty for a store without geometry.
-  std::span<const SpatialNode> spatial_top() const;
-  // Objects (with geometry) beneath each top node, parallel to spatial_top().
-  std::span<const uint32_t> spatial_top_objects() const;
-  uint64_t spatial_objects() const;  // entries in the whole hierarchy
-  uint32_t spatial_block_count() const;
-  // The block, decoded on demand. The pointer keeps the block alive (hold the blocks of a frame
-  // for the frame). Null with a message naming the store and block on a read or decode error.
-  std::shared_ptr<const SpatialBlock> spatial_block(uint32_t block, std::string& error) const;
-  // Far-field proxy of a top node: at most kProxyBoxes boxes whose union has exactly the
-  // node's bounds, each with the colour of the largest object it covers. Empty only for an
-  // empty store.
-  std::span<const ProxyBox> spatial_proxy(uint32_t top_node) const;
-  // Every entry in tree order, block after block: for whole-plant passes (views, benches). fn
-  // returns false to stop. False with a message on a read error.
-  bool for_each_spatial_entry(
-      const std::function<bool(const SpatialNode& leaf, const SpatialEntry& entry)>& fn,
-      std::string& error) const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
   // its record is corrupt (error says which). Cost: decompressing the slot's chunk of 64 slots
