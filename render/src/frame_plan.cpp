@@ -1,5 +1,6 @@
 // Frame plan: view, cull and choose (rules in frame_plan.h).
 #include "frame_plan.h"
+#include "spatial_flat.h"
 
 #include <algorithm>
 #include <cmath>
@@ -91,7 +92,7 @@ void FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
   while (!cull_pass(view, frame_view, options, node_proxy_px, stats)) node_proxy_px *= 2;
   stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
   stats.objects_visible = visible_.size();
-  stats.objects_culled = view.spatial_entries().size() - visible_.size() - stats.objects_subpixel -
+  stats.objects_culled = detail::flat_spatial(view).entries.size() - visible_.size() - stats.objects_subpixel -
                          stats.objects_in_node_proxies;
   stats.node_proxies = node_boxes_.size();
 }
@@ -117,8 +118,8 @@ void FramePlan::order() {
 // more than kMaxVisibleObjects are found and boxing larger nodes can still make them fewer.
 bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
                           const RenderOptions& options, double node_proxy_px, FrameStats& stats) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
+  const auto nodes = detail::flat_spatial(view).nodes;
+  const auto entries = detail::flat_spatial(view).entries;
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   const bool bounded = subpixel_culling && node_proxy_px < kMaxNodeProxyPixels;
   stats.objects_subpixel = stats.objects_in_node_proxies = 0;

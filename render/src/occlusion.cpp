@@ -1,5 +1,6 @@
 // Occlusion culling: occluder selection, rasterisation and the tests (rules in occlusion.h).
 #include "occlusion.h"
+#include "spatial_flat.h"
 
 #include <algorithm>
 #include <cmath>
@@ -103,7 +104,7 @@ bool OcclusionCulling::apply(const ReadView& view, DecodedObjects& objects,
   if (!any) return true;
 
   // 3. Test leaves (once each), then objects; then node boxes.
-  const auto nodes = view.spatial_nodes();
+  const auto nodes = detail::flat_spatial(view).nodes;
   if (leaf_tests_.size() != nodes.size()) leaf_tests_.assign(nodes.size(), 0);
   size_t kept = 0;
   for (size_t i = 0; i < visible.size(); ++i) {

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "views_internal.h"
+#include "spatial_flat.h"
 
 namespace plantview {
 
@@ -71,8 +72,8 @@ Camera default_camera(const DAabb& bounds, double aspect) {
 }
 
 std::vector<DAabb> overview_boxes(const ReadView& view, size_t max_boxes) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
+  const auto nodes = detail::flat_spatial(view).nodes;
+  const auto entries = detail::flat_spatial(view).entries;
   const glm::dvec3 origin = view.spatial_origin();
   std::vector<DAabb> boxes;
   boxes.reserve(entries.size());

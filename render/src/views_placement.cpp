@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "views_internal.h"
+#include "spatial_flat.h"
 
 namespace plantview::views {
 
@@ -14,8 +15,8 @@ namespace {
 // query: `node_test` decides for each node's box and each object's box.
 template <typename Test, typename Visit>
 void for_each_box(const ReadView& view, const Test& test, const Visit& visit) {
-  const auto nodes = view.spatial_nodes();
-  const auto entries = view.spatial_entries();
+  const auto nodes = detail::flat_spatial(view).nodes;
+  const auto entries = detail::flat_spatial(view).entries;
   if (nodes.empty()) return;
   const glm::dvec3 origin = view.spatial_origin();
   const auto box = [&](const float mn[3], const float mx[3]) {

@@ -268,7 +268,9 @@ class BlockCache {
     const auto it = entries_.find(block);
     if (it == entries_.end()) return nullptr;
     lru_.splice(lru_.begin(), lru_, it->second.position);
-    return it->second.block;
+    auto found = it->second.block;
+    evict_locked();  // blocks let go since the last call may now go
+    return found;
   }
   void insert(uint32_t block, const std::shared_ptr<const SpatialBlock>& decoded) {
     const size_t bytes = sizeof(SpatialBlock) + decoded->nodes.capacity() * sizeof(SpatialNode) +
@@ -278,8 +280,17 @@ class BlockCache {
     lru_.push_front(block);
     entries_.emplace(block, Entry{decoded, bytes, lru_.begin()});
     bytes_ += bytes;
-    // Least recently used first, skipping blocks somebody holds (use_count > 1: the cache's
-    // pointer and theirs).
+    evict_locked();
+  }
+  size_t bytes() const {
+    std::lock_guard lock(mutex_);
+    return bytes_;
+  }
+
+ private:
+  // Least recently used first, skipping blocks somebody holds (use_count > 1: the cache's
+  // pointer and theirs).
+  void evict_locked() {
     for (auto it = lru_.end(); bytes_ > bound_ && it != lru_.begin();) {
       --it;
       auto e = entries_.find(*it);
@@ -289,12 +300,6 @@ class BlockCache {
       it = lru_.erase(it);
     }
   }
-  size_t bytes() const {
-    std::lock_guard lock(mutex_);
-    return bytes_;
-  }
-
- private:
   struct Entry {
     std::shared_ptr<const SpatialBlock> block;
     size_t bytes;
