@@ -1029,6 +1029,33 @@ struct ReadView::State {
     detail::expand_block(block_entries, *out);
     return out;
   }
+
+  // The slots under the hash of `name` in the names database, in slot order (unconfirmed).
+  bool name_candidates(std::string_view name, std::vector<uint32_t>& candidates,
+                       std::string& error) {
+    candidates.clear();
+    const uint32_t hash = name_hash(name);
+    detail::LmdbCursor cursor;
+    int rc = cursor.open(txn.get(), store->dbs.names);
+    const NameKey start(hash, 0);
+    MDB_val k = start.val(), v;
+    if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+    while (rc == MDB_SUCCESS) {
+      if (k.mv_size != 8) {
+        error = "store " + store->directory + ": names: a key of " + std::to_string(k.mv_size) +
+                " bytes, not 8";
+        return false;
+      }
+      if (detail::read_be32(k.mv_data) != hash) break;
+      candidates.push_back(detail::read_be32(static_cast<const uint8_t*>(k.mv_data) + 4));
+      rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
+    }
+    if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
+      error = lmdb_message(store->directory, "reading the names", rc);
+      return false;
+    }
+    return true;
+  }
 };
 
 ReadView::ReadView(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -1168,29 +1195,9 @@ std::optional<uint32_t> ReadView::slot_of(uint64_t id) const {
 
 bool ReadView::slots_named(std::string_view name, std::vector<uint32_t>& slots,
                            std::string& error) const {
-  State& s = *state_;
   slots.clear();
-  const uint32_t hash = name_hash(name);
-  detail::LmdbCursor cursor;
-  int rc = cursor.open(s.txn.get(), s.store->dbs.names);
-  const NameKey start(hash, 0);
-  MDB_val k = start.val(), v;
-  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
   std::vector<uint32_t> candidates;
-  while (rc == MDB_SUCCESS) {
-    if (k.mv_size != 8) {
-      error = "store " + s.store->directory + ": names: a key of " + std::to_string(k.mv_size) +
-              " bytes, not 8";
-      return false;
-    }
-    if (detail::read_be32(k.mv_data) != hash) break;
-    candidates.push_back(detail::read_be32(static_cast<const uint8_t*>(k.mv_data) + 4));
-    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
-  }
-  if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
-    error = lmdb_message(s.store->directory, "reading the names", rc);
-    return false;
-  }
+  if (!state_->name_candidates(name, candidates, error)) return false;
   // A hash may collide: confirm by the name itself.
   for (uint32_t slot : candidates) {
     Object o;
@@ -1201,9 +1208,13 @@ bool ReadView::slots_named(std::string_view name, std::vector<uint32_t>& slots,
 }
 
 std::vector<uint32_t> ReadView::slots_named(std::string_view name) const {
-  std::vector<uint32_t> out;
+  std::vector<uint32_t> candidates, out;
   std::string error;
-  slots_named(name, out, error);
+  if (!state_->name_candidates(name, candidates, error)) return out;
+  for (uint32_t slot : candidates) {
+    Object o;
+    if (object(slot, o, false, error) && o.name == name) out.push_back(slot);
+  }
   return out;
 }
 
