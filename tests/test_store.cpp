@@ -834,34 +834,6 @@ void put_raw(const std::string& dir, const char* database, std::string_view key,
   mdb_env_close(env);
 }
 
-// An id whose stored slot is damaged fails its lookup with a message naming the store; the rest
-// of the store still reads.
-TEST(Store, ADamagedIdValueFailsItsLookupWithAMessage) {
-  TempDir dir;
-  std::vector<Object> objects;
-  for (int i = 0; i < 100; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
-  {
-    auto store = open_store(dir.str());
-    import_objects(*store, objects, "a");
-  }
-  const detail::Key64 key(objects[5].id);
-  const uint8_t three[3] = {1, 2, 3};
-  put_raw(dir.str(), "ids", std::string_view(reinterpret_cast<const char*>(key.bytes), 8), three);
-  auto store = open_store(dir.str(), Store::Mode::read_only);
-  std::string error;
-  auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
-  std::optional<uint32_t> slot;
-  EXPECT_FALSE(view->slot_of(objects[5].id, slot, error));
-  EXPECT_FALSE(slot.has_value());
-  EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
-  EXPECT_NE(error.find("id " + std::to_string(objects[5].id)), std::string::npos) << error;
-  EXPECT_FALSE(view->slot_of(objects[5].id).has_value());
-  EXPECT_EQ(view->slots_named("/BOX-5"), std::vector<uint32_t>{5});
-  ASSERT_TRUE(view->slot_of(objects[6].id, slot, error)) << error;
-  EXPECT_EQ(slot, 6u);
-}
-
 // Every decoder of the store's own bytes refuses each truncation of a valid input, and survives
 // (refuses or accepts, without reading out of bounds) every single corrupted byte.
 TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {

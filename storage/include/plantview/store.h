@@ -18,8 +18,11 @@
 //                                (layouts in chunks.h and record.h)
 //   attributes  block (u32)   -> the same for the objects' key/value attributes: blocks of 4096
 //                                slots, chunks of 256
-//   ids         id (u64)      -> u32 slot of the object with that id
-//   names       (u32 hash of the name, u32 slot) -> empty: the slots by name hash
+//   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
+//                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
+//                                an object on disk)
+//   names       u16 (the top 16 bits of the 32-bit name hash) -> sorted duplicates: u16 rest of
+//                                the hash, u32 slot (about 7 bytes an object)
 //   spatial_a / spatial_b     -> u32 block -> zstd: the grid entries (bounds on a grid of
 //                                1/1024 m, slot, colour) of kSpatialBlockObjects objects or fewer,
 //                                consecutive in the Morton order of their centres; the top says
