@@ -49,11 +49,16 @@ bool finish(Store& store, Row& row) {
     return false;
   }
   Object object;
-  for (const SpatialEntry& e : view->spatial_entries()) {
-    if (!view->object(e.slot, object, false, error)) {
-      std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
-      return false;
-    }
+  bool ok = true;
+  const bool walked = view->for_each_spatial_entry(
+      [&](const SpatialNode&, const SpatialEntry& e) {
+        ok = view->object(e.slot, object, false, error);
+        return ok;
+      },
+      error);
+  if (!walked || !ok) {
+    std::fprintf(stderr, "bench_ingest: %s\n", error.c_str());
+    return false;
   }
   row.read_seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const StoreInfo info = view->info();

@@ -23,6 +23,7 @@
 #include "plantview/store.h"
 // The store's internal encodings, for the truncation tests below.
 #include "chunks.h"
+#include "lmdb_guard.h"
 #include "spatial.h"
 #include "tables.h"
 #include "support/temp_dir.h"
@@ -60,19 +61,26 @@ Object sample_object(const std::string& source, const std::string& name, glm::dv
   return o;
 }
 
-// Every entry's bounds (entry_bounds() through the leaf that holds it), by entry index.
-std::vector<std::array<float, 6>> entry_boxes(std::span<const SpatialNode> nodes, size_t entries,
-                                              std::span<const SpatialEntry> entry_list) {
-  std::vector<std::array<float, 6>> boxes(entries);
-  for (const SpatialNode& node : nodes) {
-    for (uint32_t k = node.first; node.count > 0 && k < node.first + node.count; ++k) {
-      entry_bounds(node, entry_list[k], boxes[k].data(), boxes[k].data() + 3);
-    }
-  }
-  return boxes;
-}
-std::vector<std::array<float, 6>> entry_boxes(const ReadView& view) {
-  return entry_boxes(view.spatial_nodes(), view.spatial_entries().size(), view.spatial_entries());
+// An entry of the spatial hierarchy with its leaf and its bounds (entry_bounds()).
+struct FlatEntry {
+  SpatialNode leaf;
+  SpatialEntry entry;
+  std::array<float, 6> box;
+};
+// Every entry in tree order (for_each_spatial_entry).
+std::vector<FlatEntry> flat_entries(const ReadView& view) {
+  std::vector<FlatEntry> out;
+  std::string error;
+  EXPECT_TRUE(view.for_each_spatial_entry(
+      [&](const SpatialNode& leaf, const SpatialEntry& entry) {
+        FlatEntry f{leaf, entry, {}};
+        entry_bounds(leaf, entry, f.box.data(), f.box.data() + 3);
+        out.push_back(f);
+        return true;
+      },
+      error))
+      << error;
+  return out;
 }
 
 std::unique_ptr<Store> open_store(const std::string& dir, Store::Mode mode = Store::Mode::read_write) {
@@ -151,7 +159,8 @@ void expect_indexes_agree(const Store& store) {
       << error;
   for (const auto& [name, slots] : slots_by_name) EXPECT_EQ(view->slots_named(name), slots) << name;
   EXPECT_EQ(count, view->info().objects);
-  EXPECT_EQ(view->spatial_entries().size(), count);
+  EXPECT_EQ(view->spatial_objects(), count);
+  EXPECT_EQ(flat_entries(*view).size(), count);
 }
 
 TEST(Store, ObjectsComeBackExactlyAsTheyWentIn) {
@@ -174,7 +183,9 @@ TEST(Store, InfoCountsObjectsPrimitivesAndTrianglesAndBounds) {
   objects[1].object_class = ObjectClass::pipe;
   import_objects(*store, objects, "a");
   std::string error;
-  const StoreInfo info = store->read(error)->info();
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const StoreInfo info = view->info();
   const ModelStatistics expected = model_statistics(PlantModel{objects});
   EXPECT_EQ(info.format_version, kStoreFormatVersion);
   EXPECT_EQ(info.objects, 2u);
@@ -221,7 +232,7 @@ TEST(Store, ImportingASourceAgainReplacesWhatItBroughtAndKeepsOthers) {
   auto view = store->read(error);
   EXPECT_EQ(view->info().objects, 2u);
   EXPECT_TRUE(view->slots_named("/A1").empty());
-  EXPECT_EQ(view->spatial_entries().size(), 2u);
+  EXPECT_EQ(view->spatial_objects(), 2u);
 }
 
 TEST(Store, AnAbandonedImportLeavesTheStoreAsItWas) {
@@ -270,35 +281,58 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
   import_objects(*store, objects, "s");
   std::string error;
   auto view = store->read(error);
-  const auto nodes = view->spatial_nodes();
-  const auto entries = view->spatial_entries();
-  ASSERT_EQ(entries.size(), 500u);
+  ASSERT_TRUE(view) << error;
+  ASSERT_EQ(view->spatial_objects(), 500u);
   std::set<uint32_t> seen;
-  std::vector<SpatialNode> leaf_of(entries.size());
-  // Walk from the root: every entry is reached once, inside every node above it.
+  // Walk from the top's root into every block: every entry is reached once, inside every node
+  // above it; a block's root has exactly its top leaf's bounds.
+  const auto top = view->spatial_top();
+  ASSERT_FALSE(top.empty());
+  std::vector<FlatEntry> entries;
   struct Item { uint32_t node; SpatialNode parent; };
-  std::vector<Item> stack{{0, nodes[0]}};
-  while (!stack.empty()) {
-    const Item item = stack.back();
-    stack.pop_back();
-    const SpatialNode& n = nodes[item.node];
+  std::vector<Item> top_stack{{0, top[0]}};
+  while (!top_stack.empty()) {
+    const Item item = top_stack.back();
+    top_stack.pop_back();
+    const SpatialNode& t = top[item.node];
     for (int a = 0; a < 3; ++a) {
-      ASSERT_GE(n.min[a], item.parent.min[a]);
-      ASSERT_LE(n.max[a], item.parent.max[a]);
+      ASSERT_GE(t.min[a], item.parent.min[a]);
+      ASSERT_LE(t.max[a], item.parent.max[a]);
     }
-    if (n.count == 0) {
-      stack.push_back({n.first, n});
-      stack.push_back({n.first + 1, n});
+    if (t.count == 0) {
+      top_stack.push_back({t.first, t});
+      top_stack.push_back({t.first + 1, t});
       continue;
     }
-    for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-      EXPECT_TRUE(seen.insert(entries[i].slot).second);
-      leaf_of[i] = n;
-      float lo[3], hi[3];
-      entry_bounds(n, entries[i], lo, hi);
+    auto block = view->spatial_block(t.first, error);
+    ASSERT_TRUE(block) << error;
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(block->nodes[0].min[a], t.min[a]);
+      EXPECT_EQ(block->nodes[0].max[a], t.max[a]);
+    }
+    std::vector<Item> stack{{0, block->nodes[0]}};
+    while (!stack.empty()) {
+      const Item in = stack.back();
+      stack.pop_back();
+      const SpatialNode& n = block->nodes[in.node];
       for (int a = 0; a < 3; ++a) {
-        EXPECT_GE(lo[a], n.min[a]);
-        EXPECT_LE(hi[a], n.max[a]);
+        ASSERT_GE(n.min[a], in.parent.min[a]);
+        ASSERT_LE(n.max[a], in.parent.max[a]);
+      }
+      if (n.count == 0) {
+        stack.push_back({n.first, n});
+        stack.push_back({n.first + 1, n});
+        continue;
+      }
+      for (uint32_t i = n.first; i < n.first + n.count; ++i) {
+        EXPECT_TRUE(seen.insert(block->entries[i].slot).second);
+        FlatEntry f{n, block->entries[i], {}};
+        entry_bounds(n, f.entry, f.box.data(), f.box.data() + 3);
+        for (int a = 0; a < 3; ++a) {
+          EXPECT_GE(f.box[a], n.min[a]);
+          EXPECT_LE(f.box[3 + a], n.max[a]);
+        }
+        entries.push_back(f);
       }
     }
   }
@@ -306,17 +340,16 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
   // Entries contain their objects' true bounds (rounded outward), and not by much more: the
   // grid and float rounding, and two of the leaf's 1/65535 steps.
   const glm::dvec3 origin = view->spatial_origin();
-  const auto boxes = entry_boxes(*view);
-  for (size_t i = 0; i < entries.size(); ++i) {
+  for (const FlatEntry& f : entries) {
     Object o;
-    ASSERT_TRUE(view->object(entries[i].slot, o, false, error));
+    ASSERT_TRUE(view->object(f.entry.slot, o, false, error));
     const DAabb b = object_bounds(o);
     for (int a = 0; a < 3; ++a) {
-      EXPECT_LE(origin[a] + boxes[i][a], b.min[a]);
-      EXPECT_GE(origin[a] + boxes[i][3 + a], b.max[a]);
-      const double slack_m = 0.002 + 2.0 * (leaf_of[i].max[a] - leaf_of[i].min[a]) / 65535;
-      EXPECT_NEAR(origin[a] + boxes[i][a], b.min[a], slack_m);
-      EXPECT_NEAR(origin[a] + boxes[i][3 + a], b.max[a], slack_m);
+      EXPECT_LE(origin[a] + f.box[a], b.min[a]);
+      EXPECT_GE(origin[a] + f.box[3 + a], b.max[a]);
+      const double slack_m = 0.002 + 2.0 * (f.leaf.max[a] - f.leaf.min[a]) / 65535;
+      EXPECT_NEAR(origin[a] + f.box[a], b.min[a], slack_m);
+      EXPECT_NEAR(origin[a] + f.box[3 + a], b.max[a], slack_m);
     }
   }
 }
@@ -389,13 +422,11 @@ TEST(Store, ReplacingAnObjectInTheMiddleOfAChunkKeepsItsNeighbours) {
   }
   // The replacement's bounds are in the spatial index, the old ones are not.
   size_t entries_for_slot = 0;
-  const auto boxes = entry_boxes(*view);
-  for (size_t i = 0; i < boxes.size(); ++i) {
-    const SpatialEntry& e = view->spatial_entries()[i];
-    EXPECT_NE(e.slot, old_slot);
-    if (e.slot == *slot) {
+  for (const FlatEntry& f : flat_entries(*view)) {
+    EXPECT_NE(f.entry.slot, old_slot);
+    if (f.entry.slot == *slot) {
       ++entries_for_slot;
-      EXPECT_LE(view->spatial_origin().x + boxes[i][0], -50.0);
+      EXPECT_LE(view->spatial_origin().x + f.box[0], -50.0);
     }
   }
   EXPECT_EQ(entries_for_slot, 1u);
@@ -625,27 +656,37 @@ TEST(Store, TwoThreadsLookUpSlotsOnViewsOfTheSameStateAtOnce) {
   EXPECT_EQ(wrong_b, 0u);
 }
 
-// The stored spatial index's grid boxes by slot (no Store open on `dir`).
+// The stored spatial blocks' grid boxes by slot (no Store open on `dir`).
 std::map<uint32_t, std::array<int32_t, 6>> stored_grid_boxes(const std::string& dir) {
   std::map<uint32_t, std::array<int32_t, 6>> out;
   MDB_env* env = nullptr;
   EXPECT_EQ(mdb_env_create(&env), MDB_SUCCESS);
-  mdb_env_set_maxdbs(env, 8);
+  mdb_env_set_maxdbs(env, 12);
   EXPECT_EQ(mdb_env_open(env, dir.c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
   MDB_txn* txn = nullptr;
-  MDB_dbi dbi;
+  MDB_dbi meta, blocks;
   EXPECT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
-  EXPECT_EQ(mdb_dbi_open(txn, "indexes", 0, &dbi), MDB_SUCCESS);
-  MDB_val k{7, const_cast<char*>("spatial")}, v;
-  EXPECT_EQ(mdb_get(txn, dbi, &k, &v), MDB_SUCCESS);
+  EXPECT_EQ(mdb_dbi_open(txn, "meta", 0, &meta), MDB_SUCCESS);
+  MDB_val k{11, const_cast<char*>("spatial_top")}, v;
+  EXPECT_EQ(mdb_get(txn, meta, &k, &v), MDB_SUCCESS);
   std::vector<uint8_t> raw;
   std::string error;
   detail::ZstdDCtx dctx(ZSTD_createDCtx());
   EXPECT_TRUE(detail::inflate_frame(dctx.get(), {static_cast<const uint8_t*>(v.mv_data), v.mv_size}, raw, error));
-  glm::dvec3 origin;
-  std::vector<detail::GridEntry> grid;
-  EXPECT_TRUE(detail::decode_spatial(raw.data(), raw.size(), origin, grid, error)) << error;
-  for (const auto& e : grid) out[e.slot] = {e.min[0], e.min[1], e.min[2], e.max[0], e.max[1], e.max[2]};
+  detail::DecodedTop top;
+  EXPECT_TRUE(detail::decode_top(raw.data(), raw.size(), top, error)) << error;
+  EXPECT_EQ(mdb_dbi_open(txn, top.database == 0 ? "spatial_a" : "spatial_b", 0, &blocks), MDB_SUCCESS);
+  for (uint32_t b = 0; b < top.block_entries.size(); ++b) {
+    const detail::Key32 key(b);
+    MDB_val bk = key.val(), bv;
+    EXPECT_EQ(mdb_get(txn, blocks, &bk, &bv), MDB_SUCCESS);
+    EXPECT_TRUE(detail::inflate_frame(dctx.get(), {static_cast<const uint8_t*>(bv.mv_data), bv.mv_size}, raw, error));
+    std::vector<detail::BlockEntry> entries;
+    EXPECT_TRUE(detail::decode_block(raw.data(), raw.size(), entries, error)) << error;
+    for (const auto& e : entries) {
+      out[e.grid.slot] = {e.grid.min[0], e.grid.min[1], e.grid.min[2], e.grid.max[0], e.grid.max[1], e.grid.max[2]};
+    }
+  }
   mdb_txn_abort(txn);
   mdb_env_close(env);
   return out;
@@ -678,8 +719,7 @@ TEST(Store, AnObjectBeyondTheSpatialGridIsRefusedNamingItsSlot) {
   import_objects(*store, {box_object("a", 0, {})}, "a");
   std::string error;
   auto import = store->begin_import(error);
-  ASSERT_TRUE(import->put(box_object("far", 1, {1e10, 0, 0}), error)) << error;
-  EXPECT_FALSE(import->commit(error));
+  EXPECT_FALSE(import->put(box_object("far", 1, {1e10, 0, 0}), error));
   EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
   EXPECT_NE(error.find("slot 1"), std::string::npos) << error;
   import.reset();
@@ -717,9 +757,26 @@ TEST(Store, AStoreOfAnotherFormatVersionIsRefusedNotMisread) {
     std::string error;
     EXPECT_FALSE(Store::open(dir.str(), mode, error));
     EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
-    EXPECT_NE(error.find("format version 1"), std::string::npos) << error;
-    EXPECT_NE(error.find("version " + std::to_string(kStoreFormatVersion)), std::string::npos) << error;
+    EXPECT_NE(error.find("has format 1; this build reads format " +
+                         std::to_string(kStoreFormatVersion)), std::string::npos) << error;
   }
+}
+
+// A format 2 store (whole-index tables read into memory) is refused with what to do about it.
+TEST(Store, AFormat2StoreIsRefusedWithAnInstructionToImportAgain) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+  }
+  std::string current("format\0\0\0\0", 10), old("format\x02\0\0\0", 10);
+  const uint32_t version = kStoreFormatVersion;
+  std::memcpy(current.data() + 6, &version, 4);
+  ASSERT_GE(patch_file(fs::path(dir.str()) / "data.mdb", current, old), 1);
+  std::string error;
+  EXPECT_FALSE(Store::open(dir.str(), Store::Mode::read_only, error));
+  EXPECT_NE(error.find("store " + dir.str() + " has format 2; this build reads format 3: import or "
+                       "generate it again"), std::string::npos) << error;
 }
 
 TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
@@ -764,7 +821,7 @@ void put_raw(const std::string& dir, const char* database, std::string_view key,
              std::span<const uint8_t> bytes) {
   MDB_env* env = nullptr;
   ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
-  mdb_env_set_maxdbs(env, 8);
+  mdb_env_set_maxdbs(env, 12);
   ASSERT_EQ(mdb_env_open(env, dir.c_str(), 0, 0644), MDB_SUCCESS);
   MDB_txn* txn = nullptr;
   MDB_dbi dbi;
@@ -775,80 +832,6 @@ void put_raw(const std::string& dir, const char* database, std::string_view key,
   ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
   ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
   mdb_env_close(env);
-}
-
-void put_index_value(const std::string& dir, const std::string& key, const std::vector<uint8_t>& value) {
-  put_raw(dir, "indexes", key, value);
-}
-
-std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
-  std::vector<uint8_t> frame;
-  std::string error;
-  EXPECT_TRUE(detail::compress_frame(detail::make_compressor().get(), raw, frame, error)) << error;
-  return frame;
-}
-
-// The name table is read on the first slots_named(): a damaged one fails that call (and every
-// later one on views of that state), with a message naming the store and the table; the rest of
-// the store still reads.
-TEST(Store, ADamagedNameTableFailsNameLookupsWithAMessage) {
-  TempDir dir;
-  std::vector<Object> objects;
-  for (int i = 0; i < 100; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
-  {
-    auto store = open_store(dir.str());
-    import_objects(*store, objects, "a");
-  }
-  put_index_value(dir.str(), "names", {'n', 'o', 't', ' ', 'z', 's', 't', 'd'});
-  auto store = open_store(dir.str(), Store::Mode::read_only);
-  std::string error;
-  auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    std::vector<uint32_t> slots{99};
-    error.clear();
-    EXPECT_FALSE(view->slots_named("/BOX-5", slots, error));
-    EXPECT_TRUE(slots.empty());
-    EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
-    EXPECT_NE(error.find("name table"), std::string::npos) << error;
-  }
-  EXPECT_TRUE(store->read(error)->slots_named("/BOX-5").empty());
-  const auto slot = view->slot_of(objects[5].id);
-  ASSERT_TRUE(slot.has_value());
-  Object o;
-  ASSERT_TRUE(view->object(*slot, o, true, error)) << error;
-  EXPECT_TRUE(o == objects[5]);
-}
-
-// The id table is read whole when a state is first viewed: a damaged one, or one naming slots
-// the store never gave out (which would size the slot arrays), fails read() with a message.
-TEST(Store, ADamagedIdTableFailsReadWithAMessage) {
-  TempDir dir;
-  {
-    auto store = open_store(dir.str());
-    import_objects(*store, {box_object("a", 0, {}), box_object("a", 1, {})}, "a");
-  }
-  std::vector<uint8_t> beyond;
-  detail::encode_key_slots({{7, 0}, {8, 1}, {9, 4000000000u}}, beyond);
-  std::vector<uint8_t> doubled;
-  detail::encode_key_slots({{7, 1}, {8, 1}}, doubled);
-  std::vector<uint8_t> id_zero;
-  detail::encode_key_slots({{0, 0}, {8, 1}}, id_zero);
-  const std::pair<std::vector<uint8_t>, std::string> cases[] = {
-      {{'n', 'o', 't', ' ', 'z', 's', 't', 'd'}, "not a valid zstd frame"},
-      {zstd_frame(beyond), "slot 4000000000, beyond the store's next slot 2"},
-      {zstd_frame(doubled), "slot 1 has two ids"},
-      {zstd_frame(id_zero), "id 0"},
-  };
-  for (const auto& [value, reason] : cases) {
-    put_index_value(dir.str(), "ids", value);
-    auto store = open_store(dir.str(), Store::Mode::read_only);
-    std::string error;
-    EXPECT_FALSE(store->read(error));
-    EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
-    EXPECT_NE(error.find("id table: "), std::string::npos) << error;
-    EXPECT_NE(error.find(reason), std::string::npos) << error;
-  }
 }
 
 // Every decoder of the store's own bytes refuses each truncation of a valid input, and survives
@@ -862,50 +845,52 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
   encode_key_slots(table, keys);
   std::vector<uint8_t> runs;
   encode_slot_runs({1, 2, 3, 7, 8, 100, 4000}, runs);
-  std::vector<GridEntry> grid;
+  std::vector<BlockEntry> grid;
   for (uint32_t i = 0; i < 40; ++i) {
-    grid.push_back({{int32_t(i * 10), -int32_t(i), 5}, {int32_t(i * 10 + 4), 3, 9 + int32_t(i)}, 1000 - i});
+    grid.push_back({{{int32_t(i * 10), -int32_t(i), 5}, {int32_t(i * 10 + 4), 3, 9 + int32_t(i)}, 1000 - i},
+                    0x01020304u * i});
   }
-  build_spatial_tree(grid);
   std::vector<uint8_t> spatial;
-  encode_spatial({1, 2, 3}, grid, spatial);
+  encode_block(grid.data(), uint32_t(grid.size()), spatial);
+  std::vector<BlockSummary> summaries(3);
+  for (auto& summary : summaries) summarise_block(grid.data(), uint32_t(grid.size()), summary);
+  std::vector<uint8_t> top;
+  encode_top({1, 2, 3}, 1, summaries, top);
 
   std::vector<KeySlot> keys_back;
   std::vector<uint32_t> runs_back;
-  std::vector<GridEntry> grid_back;
-  glm::dvec3 origin;
+  std::vector<BlockEntry> grid_back;
+  DecodedTop top_back;
   std::string error;
   ASSERT_TRUE(decode_key_slots(keys.data(), keys.size(), keys_back, error)) << error;
   EXPECT_EQ(keys_back.size(), table.size());
   ASSERT_TRUE(decode_slot_runs(runs.data(), runs.size(), 5000, runs_back, error)) << error;
   EXPECT_EQ(runs_back, (std::vector<uint32_t>{1, 2, 3, 7, 8, 100, 4000}));
   EXPECT_FALSE(decode_slot_runs(runs.data(), runs.size(), 4000, runs_back, error));
-  ASSERT_TRUE(decode_spatial(spatial.data(), spatial.size(), origin, grid_back, error)) << error;
+  ASSERT_TRUE(decode_block(spatial.data(), spatial.size(), grid_back, error)) << error;
   ASSERT_EQ(grid_back.size(), grid.size());
   for (size_t i = 0; i < grid.size(); ++i) {
-    EXPECT_EQ(std::memcmp(&grid_back[i], &grid[i], sizeof(GridEntry)), 0) << i;
+    EXPECT_EQ(std::memcmp(&grid_back[i], &grid[i], sizeof(BlockEntry)), 0) << i;
   }
+  ASSERT_TRUE(decode_top(top.data(), top.size(), top_back, error)) << error;
+  EXPECT_EQ(top_back.entries, 120u);
+  EXPECT_EQ(top_back.database, 1);
+  EXPECT_EQ(top_back.origin, glm::dvec3(1, 2, 3));
   // The readers' form: entries in the same order, their grid boxes inside the float ones, each
   // leaf's entries inside it.
-  std::vector<SpatialNode> nodes_back;
-  std::vector<SpatialEntry> entries_back;
-  ASSERT_TRUE(decode_spatial_expanded(spatial.data(), spatial.size(), origin, nodes_back,
-                                      entries_back, error))
-      << error;
-  ASSERT_EQ(entries_back.size(), grid.size());
-  const auto boxes = entry_boxes(nodes_back, entries_back.size(), entries_back);
-  for (size_t i = 0; i < grid.size(); ++i) {
-    EXPECT_EQ(entries_back[i].slot, grid[i].slot) << i;
-    for (int a = 0; a < 3; ++a) {
-      EXPECT_LE(double(boxes[i][a]), grid[i].min[a] * kSpatialCellM) << i;
-      EXPECT_GE(double(boxes[i][3 + a]), grid[i].max[a] * kSpatialCellM) << i;
-    }
-  }
-  for (const SpatialNode& node : nodes_back) {
+  SpatialBlock expanded;
+  expand_block(grid_back, expanded);
+  ASSERT_EQ(expanded.entries.size(), grid.size());
+  for (const SpatialNode& node : expanded.nodes) {
     for (uint32_t k = node.first; node.count > 0 && k < node.first + node.count; ++k) {
+      EXPECT_EQ(expanded.entries[k].slot, grid[k].grid.slot) << k;
+      float lo[3], hi[3];
+      entry_bounds(node, expanded.entries[k], lo, hi);
       for (int a = 0; a < 3; ++a) {
-        EXPECT_LE(node.min[a], boxes[k][a]);
-        EXPECT_GE(node.max[a], boxes[k][3 + a]);
+        EXPECT_LE(double(lo[a]), grid[k].grid.min[a] * kSpatialCellM) << k;
+        EXPECT_GE(double(hi[a]), grid[k].grid.max[a] * kSpatialCellM) << k;
+        EXPECT_LE(node.min[a], lo[a]);
+        EXPECT_GE(node.max[a], hi[a]);
       }
     }
   }
@@ -917,19 +902,20 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
     EXPECT_FALSE(decode_slot_runs(runs.data(), n, 5000, runs_back, error)) << n;
   }
   for (size_t n = 0; n < spatial.size(); ++n) {
-    EXPECT_FALSE(decode_spatial(spatial.data(), n, origin, grid_back, error)) << n;
-    EXPECT_FALSE(decode_spatial_expanded(spatial.data(), n, origin, nodes_back, entries_back, error))
-        << n;
+    EXPECT_FALSE(decode_block(spatial.data(), n, grid_back, error)) << n;
+  }
+  for (size_t n = 0; n < top.size(); ++n) {
+    EXPECT_FALSE(decode_top(top.data(), n, top_back, error)) << n;
   }
   for (uint8_t value : {uint8_t(0x00), uint8_t(0x7f), uint8_t(0xff)}) {
-    for (auto* bytes : {&keys, &runs, &spatial}) {
+    for (auto* bytes : {&keys, &runs, &spatial, &top}) {
       for (size_t i = 0; i < bytes->size(); ++i) {
         std::vector<uint8_t> bad = *bytes;
         bad[i] = value;
         decode_key_slots(bad.data(), bad.size(), keys_back, error);
         decode_slot_runs(bad.data(), bad.size(), 5000, runs_back, error);
-        decode_spatial(bad.data(), bad.size(), origin, grid_back, error);
-        decode_spatial_expanded(bad.data(), bad.size(), origin, nodes_back, entries_back, error);
+        decode_block(bad.data(), bad.size(), grid_back, error);
+        decode_top(bad.data(), bad.size(), top_back, error);
       }
     }
   }

@@ -7,7 +7,7 @@ namespace plantview::detail {
 
 namespace {
 
-constexpr uint8_t kLayoutVersion = 3;
+constexpr uint8_t kLayoutVersion = 4;
 constexpr uint8_t kGeneralLinear = 0xff;
 constexpr uint8_t kScaled = 0x80;
 
@@ -253,6 +253,7 @@ void encode_object(const Object& o, std::vector<uint8_t>& out) {
   w.put(kLayoutVersion);
   w.put(uint8_t(o.object_class));
   w.put(o.colour);
+  w.put(o.id);
   for (int i = 0; i < 3; ++i) w.put(o.origin_m[i]);
   w.put_str(o.name);
   w.put_str(o.source);
@@ -284,6 +285,7 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& err
   o = Object{};
   uint8_t version = 0, object_class = 0;
   bool ok = r.get(version) && r.get(object_class) && r.get(o.colour);
+  ok = ok && r.get(o.id);
   if (ok && version != kLayoutVersion) {
     error = "record layout " + std::to_string(version) + " is not " + std::to_string(kLayoutVersion);
     return false;

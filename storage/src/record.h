@@ -1,7 +1,7 @@
 // Internal: the binary layout of object and attribute records, before compression.
 //
 // Object record (little-endian, no padding):
-//   u8 layout version (3) | u8 class | u8 r,g,b,a | f64 origin[3]
+//   u8 layout version (4) | u8 class | u8 r,g,b,a | u64 id | f64 origin[3]
 //   | str name | str source | u64 pipeline_id
 //   | u32 primitive count | primitives... | u32 connections | (f32 pos[3], dir[3], diameter)...
 //   | u32 segments | (f32 start[3], end[3], diameter)... | u32 branches | (str name, u32 n, u64 ids[n])...
@@ -26,9 +26,10 @@
 
 namespace plantview::detail {
 
-// The id is not part of the record: the store keeps it in its id table (store.cpp).
+// The id is part of the record (format 3): object() and for_each_object() need no table of the
+// id of every slot.
 void encode_object(const Object& object, std::vector<uint8_t>& out);
-// Decodes an object record (id 0, attributes left empty); false with a message on a malformed
+// Decodes an object record (attributes left empty); false with a message on a malformed
 // record.
 bool decode_object(const uint8_t* data, size_t size, Object& out, std::string& error);
 

@@ -2,11 +2,13 @@
 #include "plantview/store.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <list>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -16,6 +18,7 @@
 #include <sys/stat.h>
 
 #include "columns.h"
+#include "import_runs.h"
 #include "lmdb_guard.h"
 #include "record.h"
 #include "spatial.h"
@@ -25,9 +28,6 @@ namespace plantview {
 
 using detail::as_val;
 using detail::ColumnWriter;
-using detail::GridEntry;
-using detail::Key32;
-using detail::KeySlot;
 using detail::lmdb_message;
 
 namespace {
@@ -203,153 +203,186 @@ void add(ModelStatistics& total, const ModelStatistics& part) {
 }
 
 struct Databases {
-  MDB_dbi meta, objects, attributes, indexes, sources;
+  MDB_dbi meta, objects, attributes, sources, ids, names;
+  MDB_dbi spatial[2];  // spatial_a, spatial_b: the top says which holds the committed blocks
 };
 
-// How the pages of a value read in place stay after reading it (release_map_pages).
-enum class MapPages {
-  keep,      // a write transaction (its values may be its own copies of pages)
-  read_once  // a read transaction that inflates the value and never looks at it again
-};
-
-// An index value (indexes/<key>): a zstd frame, inflated into `raw`. `found` false if absent.
-bool read_index(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
-                std::vector<uint8_t>& raw, bool& found, std::string& why,
-                MapPages pages = MapPages::keep) {
-  MDB_val k = as_val(key), v;
-  const int rc = mdb_get(txn, dbi, &k, &v);
-  found = rc == MDB_SUCCESS;
-  raw.clear();
-  if (rc == MDB_NOTFOUND) return true;
-  if (rc != MDB_SUCCESS) {
-    why = mdb_strerror(rc);
-    return false;
-  }
+// A value read in a read transaction and inflated once: without readahead (MDB_NORDAHEAD) the
+// whole frame is asked for at once, and its pages are dropped from the resident set afterwards.
+bool inflate_read_once(const MDB_val& v, ZSTD_DCtx* dctx, std::vector<uint8_t>& raw,
+                       std::string& why) {
   const std::span<const uint8_t> frame(static_cast<const uint8_t*>(v.mv_data), v.mv_size);
-  if (pages == MapPages::keep) return detail::inflate_frame(dctx, frame, raw, why);
-  // Without readahead (MDB_NORDAHEAD) ask for the whole frame at once; drop it once inflated.
   detail::prefetch_map_pages(v.mv_data, v.mv_size);
   const bool ok = detail::inflate_frame(dctx, frame, raw, why);
   detail::release_map_pages(v.mv_data, v.mv_size);
   return ok;
 }
 
-// The key/slot table under indexes/<key> (empty if absent), whole: for an import.
-bool read_table(MDB_txn* txn, MDB_dbi dbi, std::string_view key, ZSTD_DCtx* dctx,
-                std::vector<KeySlot>& table, std::string& why) {
+// meta/"spatial_top" decoded (`found` false, `top` empty, when the store never had geometry).
+bool read_top(MDB_txn* txn, MDB_dbi meta, bool read_once, ZSTD_DCtx* dctx, detail::DecodedTop& top,
+              bool& found, std::string& why) {
+  top = detail::DecodedTop{};
+  MDB_val k = as_val("spatial_top"), v;
+  const int rc = mdb_get(txn, meta, &k, &v);
+  found = rc == MDB_SUCCESS;
+  if (rc == MDB_NOTFOUND) return true;
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+    return false;
+  }
   std::vector<uint8_t> raw;
-  bool found;
-  table.clear();
-  if (!read_index(txn, dbi, key, dctx, raw, found, why)) return false;
-  return !found || detail::decode_key_slots(raw.data(), raw.size(), table, why);
+  const std::span<const uint8_t> frame(static_cast<const uint8_t*>(v.mv_data), v.mv_size);
+  const bool ok = read_once ? inflate_read_once(v, dctx, raw, why)
+                            : detail::inflate_frame(dctx, frame, raw, why);
+  return ok && detail::decode_top(raw.data(), raw.size(), top, why);
 }
 
-// An entry of the name table as read views keep it (sorted by hash, then slot): the name hash
-// fits in 32 bits.
-struct NameSlot {
-  uint32_t hash, slot;
+uint32_t read_next_slot(MDB_txn* txn, MDB_dbi meta) {
+  uint32_t next_slot = 0;
+  MDB_val k = as_val("next_slot"), v;
+  if (mdb_get(txn, meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
+    std::memcpy(&next_slot, v.mv_data, 4);
+  }
+  return next_slot;
+}
+
+// ids/ and names/ are MDB_DUPSORT | MDB_DUPFIXED databases: a short key (the top 16 bits of the
+// id or name hash, big-endian) and, under it, sorted fixed-size values packed into pages (the
+// rest of the id or hash, then the slot, big-endian): about 11 and 7 bytes an object on disk
+// where a key and value per object would take 22 and 18.
+constexpr unsigned kIndexFlags = MDB_DUPSORT | MDB_DUPFIXED;
+
+void put_be(unsigned char* out, uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) out[i] = static_cast<unsigned char>(v >> (8 * (bytes - 1 - i)));
+}
+uint64_t get_be(const void* in, int bytes) {
+  const auto* b = static_cast<const unsigned char*>(in);
+  uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v = v << 8 | b[i];
+  return v;
+}
+
+// An entry of ids/ (id, slot) or of names/ (32-bit name hash, slot): key and value bytes.
+template <int KeyBits>
+struct IndexEntry {
+  static constexpr int kRestBytes = (KeyBits - 16) / 8;
+  static constexpr int kValueBytes = kRestBytes + 4;
+  unsigned char key[2];
+  unsigned char value[kValueBytes];
+  IndexEntry(uint64_t k, uint32_t slot) {
+    put_be(key, k >> (KeyBits - 16), 2);
+    put_be(value, k, kRestBytes);
+    put_be(value + kRestBytes, slot, 4);
+  }
+  MDB_val key_val() const { return as_val(key, 2); }
+  MDB_val value_val() const { return as_val(value, kValueBytes); }
+  uint16_t top() const { return uint16_t(get_be(key, 2)); }
+};
+using IdEntry = IndexEntry<64>;
+using NameEntry = IndexEntry<32>;
+
+// The slots stored under `k` (an id, or a name hash) in ids/ or names/, in slot order: an LMDB
+// error code, or MDB_BAD_VALSIZE for a value of the wrong size.
+template <int KeyBits>
+int index_slots(MDB_txn* txn, MDB_dbi dbi, uint64_t k, std::vector<uint32_t>& slots,
+                size_t at_most = SIZE_MAX) {
+  using Entry = IndexEntry<KeyBits>;
+  slots.clear();
+  detail::LmdbCursor cursor;
+  int rc = cursor.open(txn, dbi);
+  const Entry first(k, 0);
+  MDB_val key = first.key_val(), value = first.value_val();
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &key, &value, MDB_GET_BOTH_RANGE);
+  while (rc == MDB_SUCCESS && slots.size() < at_most) {
+    if (value.mv_size != size_t(Entry::kValueBytes)) return MDB_BAD_VALSIZE;
+    if (std::memcmp(value.mv_data, first.value, Entry::kRestBytes) != 0) break;
+    slots.push_back(uint32_t(get_be(static_cast<const unsigned char*>(value.mv_data) + Entry::kRestBytes, 4)));
+    rc = mdb_cursor_get(cursor.get(), &key, &value, MDB_NEXT_DUP);
+  }
+  return rc == MDB_NOTFOUND ? MDB_SUCCESS : rc;
+}
+
+// Writes sorted entries into ids/ or names/: appended when the database was empty.
+template <int KeyBits>
+struct IndexAppender {
+  MDB_txn* txn;
+  MDB_dbi dbi;
+  bool append;
+  bool any = false;
+  uint16_t last_top = 0;
+  int put(const IndexEntry<KeyBits>& e) {
+    MDB_val k = e.key_val(), v = e.value_val();
+    unsigned flags = 0;
+    if (append) flags = any && e.top() == last_top ? MDB_APPENDDUP : MDB_APPEND;
+    any = true;
+    last_top = e.top();
+    return mdb_put(txn, dbi, &k, &v, flags);
+  }
 };
 
-// A table a snapshot builds on first use: once, by whichever view first needs it (in that
-// view's own read transaction, which reads the same committed state as every other view of the
-// snapshot), and read-only afterwards.
-template <typename Table>
-struct LazyTable {
-  std::once_flag once;
-  Table table;
-  std::string error;  // set (and the table left empty) if the stored table could not be read
+// Decoded spatial blocks of one committed state, shared by its views (thread-safe). Bounded by
+// `bound_bytes` among blocks nobody holds, least recently used first.
+class BlockCache {
+ public:
+  explicit BlockCache(size_t bound_bytes) : bound_(bound_bytes) {}
+  std::shared_ptr<const SpatialBlock> find(uint32_t block) {
+    std::lock_guard lock(mutex_);
+    const auto it = entries_.find(block);
+    if (it == entries_.end()) return nullptr;
+    lru_.splice(lru_.begin(), lru_, it->second.position);
+    auto found = it->second.block;
+    evict_locked();  // blocks let go since the last call may now go
+    return found;
+  }
+  void insert(uint32_t block, const std::shared_ptr<const SpatialBlock>& decoded) {
+    const size_t bytes = sizeof(SpatialBlock) + decoded->nodes.capacity() * sizeof(SpatialNode) +
+                         decoded->entries.capacity() * sizeof(SpatialEntry);
+    std::lock_guard lock(mutex_);
+    if (entries_.count(block)) return;  // another view decoded it meanwhile
+    lru_.push_front(block);
+    entries_.emplace(block, Entry{decoded, bytes, lru_.begin()});
+    bytes_ += bytes;
+    evict_locked();
+  }
+  size_t bytes() const {
+    std::lock_guard lock(mutex_);
+    return bytes_;
+  }
+
+ private:
+  // Least recently used first, skipping blocks somebody holds (use_count > 1: the cache's
+  // pointer and theirs).
+  void evict_locked() {
+    for (auto it = lru_.end(); bytes_ > bound_ && it != lru_.begin();) {
+      --it;
+      auto e = entries_.find(*it);
+      if (e->second.block.use_count() > 1) continue;
+      bytes_ -= e->second.bytes;
+      entries_.erase(e);
+      it = lru_.erase(it);
+    }
+  }
+  struct Entry {
+    std::shared_ptr<const SpatialBlock> block;
+    size_t bytes;
+    std::list<uint32_t>::iterator position;
+  };
+  mutable std::mutex mutex_;
+  size_t bound_;
+  size_t bytes_ = 0;
+  std::list<uint32_t> lru_;  // most recently used first
+  std::unordered_map<uint32_t, Entry> entries_;
 };
 
-// What read views need decoded from one committed state of the store, shared by every view of
-// that state. Sizes per object (slot) at 4 million objects in comments.
+std::atomic<size_t> g_spatial_cache_bytes{kSpatialCacheBytes};
+
+// What read views share of one committed state of the store.
 struct Snapshot {
   size_t txn_id = 0;
-  // Decoded by the first view of the state (Store::read):
-  std::vector<uint64_t> id_by_slot;  // 0: no object in that slot; up to the highest slot (8 B)
-  glm::dvec3 origin{0.0};
-  std::vector<SpatialNode> nodes;     // about one per 4 objects (32 B each)
-  std::vector<SpatialEntry> entries;  // one per object with geometry (16 B)
-  // Built by the first slot_of() or slots_named() that needs them:
-  mutable LazyTable<std::vector<uint32_t>> slots_by_id;  // every slot, by (id, slot) (4 B)
-  mutable LazyTable<std::vector<NameSlot>> names;        // sorted (8 B)
+  uint32_t next_slot = 0;
+  detail::DecodedTop top;
+  BlockCache blocks{g_spatial_cache_bytes.load()};
 };
-
-// The id of every slot from the id table (checking the table on the way): an array indexed by
-// slot, allocated once to its exact size. `next_slot` bounds the slots (and so the memory a
-// corrupt table can ask for).
-bool decode_id_by_slot(const std::vector<uint8_t>& raw, uint32_t next_slot,
-                       std::vector<uint64_t>& id_by_slot, std::string& why) {
-  detail::KeySlotReader reader;
-  KeySlot pair;
-  // First pass: check every pair and find the highest slot.
-  if (!reader.open(raw.data(), raw.size(), why)) return false;
-  uint32_t end = 0;
-  for (uint64_t i = 0; i < reader.size(); ++i) {
-    if (!reader.next(pair, why)) return false;
-    if (pair.key == 0) {
-      why = "entry " + std::to_string(i) + " has id 0";
-      return false;
-    }
-    if (pair.slot >= next_slot) {
-      why = "entry " + std::to_string(i) + " has slot " + std::to_string(pair.slot) +
-            ", beyond the store's next slot " + std::to_string(next_slot);
-      return false;
-    }
-    end = std::max(end, pair.slot + 1);
-  }
-  if (!reader.finish(why)) return false;
-  // Second pass: fill in the ids.
-  id_by_slot.assign(end, 0);
-  reader.open(raw.data(), raw.size(), why);  // checked above
-  for (uint64_t i = 0; i < reader.size(); ++i) {
-    reader.next(pair, why);
-    if (id_by_slot[pair.slot] != 0) {
-      why = "slot " + std::to_string(pair.slot) + " has two ids";
-      return false;
-    }
-    id_by_slot[pair.slot] = pair.key;
-  }
-  return true;
-}
-
-// The slots of the id table in its order (by id, then slot), to be looked up through
-// `id_by_slot` (which was decoded from the same table).
-bool decode_slots_by_id(const std::vector<uint8_t>& raw, const std::vector<uint64_t>& id_by_slot,
-                        std::vector<uint32_t>& slots, std::string& why) {
-  detail::KeySlotReader reader;
-  KeySlot pair;
-  if (!reader.open(raw.data(), raw.size(), why)) return false;
-  slots.reserve(reader.size());
-  for (uint64_t i = 0; i < reader.size(); ++i) {
-    if (!reader.next(pair, why)) return false;
-    // The table was checked against the store's slots when the snapshot was made; this keeps
-    // lookups within id_by_slot should the bytes have changed since (a damaged disk).
-    if (pair.slot >= id_by_slot.size()) {
-      why = "entry " + std::to_string(i) + " has slot " + std::to_string(pair.slot) +
-            ", beyond the highest slot the snapshot was opened with";
-      return false;
-    }
-    slots.push_back(pair.slot);
-  }
-  return reader.finish(why);
-}
-
-bool decode_names(const std::vector<uint8_t>& raw, std::vector<NameSlot>& names,
-                  std::string& why) {
-  detail::KeySlotReader reader;
-  KeySlot pair;
-  if (!reader.open(raw.data(), raw.size(), why)) return false;
-  names.reserve(reader.size());
-  for (uint64_t i = 0; i < reader.size(); ++i) {
-    if (!reader.next(pair, why)) return false;
-    if (pair.key > UINT32_MAX) {
-      why = "entry " + std::to_string(i) + " has a name hash over 32 bits";
-      return false;
-    }
-    names.push_back({uint32_t(pair.key), pair.slot});
-  }
-  return reader.finish(why);
-}
 
 // Whether the data file holds every page the environment's newest meta page says is in use.
 // LMDB maps the file and reads pages in place, so a page beyond the end of the file (a partial
@@ -385,6 +418,37 @@ std::string statistics_json(const ModelStatistics& statistics) {
   return statistics_to_json(statistics).dump();
 }
 
+
+namespace detail {
+
+void set_spatial_cache_bytes(size_t bytes) { g_spatial_cache_bytes = bytes; }
+
+namespace {
+std::atomic<size_t> g_import_run_bytes{size_t(64) << 20};
+std::atomic<ImportStageHook> g_stage_hook{nullptr};
+}  // namespace
+
+size_t import_run_bytes() { return g_import_run_bytes; }
+void set_import_run_bytes(size_t bytes) { g_import_run_bytes = bytes; }
+void set_import_stage_hook(ImportStageHook hook) { g_stage_hook = hook; }
+void import_stage(const char* stage) {
+  if (const ImportStageHook hook = g_stage_hook.load()) hook(stage);
+}
+
+void remove_stale_runs(const std::string& directory) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("import-", 0) == 0 && name.size() > 4 &&
+        name.compare(name.size() - 4, 4, ".run") == 0) {
+      std::error_code ignored;
+      std::filesystem::remove(entry.path(), ignored);
+    }
+  }
+}
+
+}  // namespace detail
+
 // ---------------------------------------------------------------------------------------------
 
 struct Store::State {
@@ -395,48 +459,25 @@ struct Store::State {
   Databases dbs{};
   // The snapshot of the newest state a view has read. Guarded by snapshot_mutex.
   std::mutex snapshot_mutex;
-  std::shared_ptr<const Snapshot> latest;
+  std::shared_ptr<Snapshot> latest;
 
   std::string fail(std::string_view what, int rc) const { return lmdb_message(directory, what, rc); }
 
-  // The decoded snapshot a read transaction sees (decoding it unless the latest is that one).
-  // Each stage frees its buffers before the next allocates, so that the peak stays near what is
-  // kept.
-  std::shared_ptr<const Snapshot> snapshot_for(MDB_txn* txn, std::string& error) {
+  // The snapshot a read transaction sees: its spatial top decoded, unless the latest is that
+  // state already.
+  std::shared_ptr<Snapshot> snapshot_for(MDB_txn* txn, std::string& error) {
     const size_t txn_id = mdb_txn_id(txn);
     std::lock_guard lock(snapshot_mutex);
     if (latest && latest->txn_id == txn_id) return latest;
     auto s = std::make_shared<Snapshot>();
     s->txn_id = txn_id;
+    s->next_slot = read_next_slot(txn, dbs.meta);
     detail::ZstdDCtx dctx(ZSTD_createDCtx());
     std::string why;
     bool found;
-    // The id of every slot, for object() and for_each_object() (the slot lookups wait until
-    // slot_of() or slots_named() is called).
-    {
-      uint32_t next_slot = 0;
-      MDB_val k = as_val("next_slot"), v;
-      if (mdb_get(txn, dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
-        std::memcpy(&next_slot, v.mv_data, 4);
-      }
-      std::vector<uint8_t> raw;
-      if (!read_index(txn, dbs.indexes, "ids", dctx.get(), raw, found, why,
-                      MapPages::read_once) ||
-          (found && !decode_id_by_slot(raw, next_slot, s->id_by_slot, why))) {
-        error = "store " + directory + ": id table: " + why;
-        return nullptr;
-      }
-    }
-    // The spatial hierarchy, straight into the readers' form.
-    {
-      std::vector<uint8_t> raw;
-      if (!read_index(txn, dbs.indexes, "spatial", dctx.get(), raw, found, why,
-                      MapPages::read_once) ||
-          (found && !detail::decode_spatial_expanded(raw.data(), raw.size(), s->origin, s->nodes,
-                                                     s->entries, why))) {
-        error = "store " + directory + ": spatial index: " + why;
-        return nullptr;
-      }
+    if (!read_top(txn, dbs.meta, true, dctx.get(), s->top, found, why)) {
+      error = "store " + directory + ": spatial top (meta/\"spatial_top\"): " + why;
+      return nullptr;
     }
     if (!latest || latest->txn_id < txn_id) latest = s;
     return s;
@@ -445,6 +486,39 @@ struct Store::State {
 
 // ---------------------------------------------------------------------------------------------
 
+namespace {
+
+// An import's run records (import_runs.h), each sorted as the merge needs it.
+struct IdSlot {
+  uint64_t id;
+  uint32_t slot;
+  uint32_t unused = 0;
+};
+struct IdSlotLess {
+  bool operator()(const IdSlot& a, const IdSlot& b) const {
+    return a.id != b.id ? a.id < b.id : a.slot < b.slot;
+  }
+};
+struct HashSlot {
+  uint32_t hash, slot;
+};
+struct HashSlotLess {
+  bool operator()(const HashSlot& a, const HashSlot& b) const {
+    return a.hash != b.hash ? a.hash < b.hash : a.slot < b.slot;
+  }
+};
+struct SpatialItem {
+  detail::MortonKey key;
+  detail::BlockEntry entry;
+};
+struct SpatialItemLess {
+  bool operator()(const SpatialItem& a, const SpatialItem& b) const {
+    return a.key != b.key ? a.key < b.key : a.entry.grid.slot < b.entry.grid.slot;
+  }
+};
+
+}  // namespace
+
 struct Import::State {
   std::shared_ptr<Store::State> store;
   detail::LmdbTxn txn;
@@ -452,57 +526,72 @@ struct Import::State {
   ModelStatistics totals;        // as committed before, updated as objects come and go
   uint32_t next_slot = 0;
   uint32_t first_new_slot = 0;   // this import's objects are in [first_new_slot, next_slot)
-  std::vector<KeySlot> ids, names;                 // as committed (sorted)
-  std::unordered_map<uint64_t, uint32_t> new_ids;  // id -> slot, this import's live objects
-  std::vector<uint64_t> new_slot_ids;              // id by slot - first_new_slot
-  std::vector<KeySlot> new_names;                  // (name hash, slot), this import's objects
-  struct NewBounds {
-    DAabb bounds;
-    uint32_t slot;
-  };
-  std::vector<NewBounds> new_bounds;
-  std::unordered_set<uint32_t> removed;  // every slot this import removed (slots are never reused)
-  // Sources this import touched: every slot they had or got (removed ones included, filtered
-  // out at commit).
-  std::map<std::string, std::vector<uint32_t>, std::less<>> sources;
-  std::vector<uint32_t>* last_source = nullptr;
+  bool has_origin = false;       // the spatial origin is fixed (committed, or by this import)
+  glm::dvec3 origin{0.0};
+  // Every slot this import removed, one bit a slot (slots are never reused): the import's only
+  // memory per slot.
+  std::vector<uint64_t> removed_bits;
+  // This import's index data, spilled to sorted runs when a buffer fills.
+  detail::SpilledRuns<IdSlot, IdSlotLess> new_ids;
+  detail::SpilledRuns<HashSlot, HashSlotLess> new_names;
+  detail::SpilledRuns<SpatialItem, SpatialItemLess> new_spatial;
+  // Sources this import touched: every slot they had or got, as runs (removed ones included,
+  // filtered out at commit).
+  std::map<std::string, std::vector<detail::SlotRun>, std::less<>> sources;
+  std::vector<detail::SlotRun>* last_source = nullptr;
   std::string last_source_name;
   ColumnWriter objects, attributes;
   std::vector<uint8_t> raw;
+  std::vector<uint32_t> slots;  // scratch
   uint64_t put_count = 0;
+  detail::ZstdCCtx compressor = detail::make_compressor();
+  detail::ZstdDCtx dctx{ZSTD_createDCtx()};
 
-  explicit State(std::shared_ptr<Store::State> s)
+  explicit State(std::shared_ptr<Store::State> s, size_t run_bytes)
       : store(std::move(s)),
+        new_ids(store->directory, "ids", run_bytes / sizeof(IdSlot)),
+        new_names(store->directory, "names", run_bytes / sizeof(HashSlot)),
+        new_spatial(store->directory, "spatial", run_bytes / sizeof(SpatialItem)),
         objects(store->directory, "object", store->dbs.objects, detail::kObjectShape),
         attributes(store->directory, "attributes", store->dbs.attributes,
                    detail::kAttributeShape) {}
 
   std::string fail(std::string_view what, int rc) const { return store->fail(what, rc); }
+  std::string message(const std::string& what) const { return "store " + store->directory + ": " + what; }
 
-  // The slots of a source (as committed, plus this import's), loaded on first use.
-  bool source_slots(std::string_view source, std::vector<uint32_t>*& out, std::string& error) {
+  bool is_removed(uint32_t slot) const {
+    const size_t word = slot / 64;
+    return word < removed_bits.size() && (removed_bits[word] >> (slot % 64) & 1u);
+  }
+  void mark_removed(uint32_t slot) {
+    const size_t word = slot / 64;
+    if (word >= removed_bits.size()) removed_bits.resize(word + 1 + word / 4, 0);
+    removed_bits[word] |= uint64_t(1) << (slot % 64);
+  }
+
+  // The slot runs of a source (as committed, plus this import's), loaded on first use.
+  bool source_runs(std::string_view source, std::vector<detail::SlotRun>*& out, std::string& error) {
     if (last_source && last_source_name == source) {
       out = last_source;
       return true;
     }
     auto it = sources.find(source);
     if (it == sources.end()) {
-      std::vector<uint32_t> slots;
+      std::vector<detail::SlotRun> runs;
       MDB_val k = as_val(source), v;
       const int rc = mdb_get(txn.get(), store->dbs.sources, &k, &v);
       std::string why;
       if (rc == MDB_SUCCESS) {
         if (!detail::decode_slot_runs(static_cast<const uint8_t*>(v.mv_data), v.mv_size,
-                                      first_new_slot, slots, why)) {
-          error = "store " + store->directory + ": slots of source '" + std::string(source) +
-                  "': " + why;
+                                      first_new_slot, runs, why)) {
+          error = message("slots of source '" + std::string(source) + "': " + why);
           return false;
         }
       } else if (rc != MDB_NOTFOUND) {
         error = fail("reading the sources index", rc);
         return false;
       }
-      it = sources.emplace(std::string(source), std::move(slots)).first;
+      it = sources.emplace(std::string(source), std::move(runs)).first;
     }
     last_source = &it->second;
     last_source_name = it->first;
@@ -510,20 +599,20 @@ struct Import::State {
     return true;
   }
 
-  // Removes the object in `slot` (committed earlier, or put by this import).
+  // Removes the object in `slot` (committed earlier, or put by this import). A committed one's
+  // id and name keys go now; this import's are left out of the merge at commit.
   bool remove_slot(uint32_t slot, std::string& error) {
-    if (removed.count(slot)) return true;
+    if (is_removed(slot)) return true;
     std::span<const uint8_t> record;
     if (!objects.get(txn.get(), slot, record, error)) return false;
     Object old;
     std::string why;
     if (record.empty()) {
-      error = "store " + store->directory + ": slot " + std::to_string(slot) +
-              " is indexed but holds no object";
+      error = message("slot " + std::to_string(slot) + " is indexed but holds no object");
       return false;
     }
     if (!detail::decode_object(record.data(), record.size(), old, why)) {
-      error = "store " + store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+      error = message("object slot " + std::to_string(slot) + ": " + why);
       return false;
     }
     if (!objects.erase(txn.get(), slot, error) || !attributes.erase(txn.get(), slot, error)) {
@@ -532,103 +621,288 @@ struct Import::State {
     ModelStatistics part;
     part.add(old);
     subtract(totals, part);
-    removed.insert(slot);
+    mark_removed(slot);
     // The source's list is rewritten at commit (without the removed slots).
-    std::vector<uint32_t>* unused;
-    if (!source_slots(old.source, unused, error)) return false;
-    if (slot >= first_new_slot) {
-      auto it = new_ids.find(new_slot_ids[slot - first_new_slot]);
-      if (it != new_ids.end() && it->second == slot) new_ids.erase(it);
+    std::vector<detail::SlotRun>* unused;
+    if (!source_runs(old.source, unused, error)) return false;
+    if (slot < first_new_slot) {
+      const IdEntry id(old.id, slot);
+      MDB_val k = id.key_val(), v = id.value_val();
+      int rc = mdb_del(txn.get(), store->dbs.ids, &k, &v);
+      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;  // the id is another slot's (or nobody's)
+      if (rc == MDB_SUCCESS) {
+        const NameEntry name(name_hash(old.name), slot);
+        MDB_val nk = name.key_val(), nv = name.value_val();
+        rc = mdb_del(txn.get(), store->dbs.names, &nk, &nv);
+        if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
+      }
+      if (rc != MDB_SUCCESS) {
+        error = fail("removing slot " + std::to_string(slot) + " from the ids and names", rc);
+        return false;
+      }
     }
     return true;
   }
 
-  // The committed slot of an id, unless this import removed it.
-  std::optional<uint32_t> committed_slot(uint64_t id) const {
-    auto it = std::lower_bound(ids.begin(), ids.end(), KeySlot{id, 0});
-    for (; it != ids.end() && it->key == id; ++it) {
-      if (!removed.count(it->slot)) return it->slot;
-    }
-    return std::nullopt;
-  }
-
-  // A table as committed, less removed slots, plus this import's entries; sorted.
-  std::vector<KeySlot> merged(const std::vector<KeySlot>& committed,
-                              std::vector<KeySlot> added) const {
-    std::vector<KeySlot> out;
-    out.reserve(committed.size() + added.size());
-    for (const KeySlot& e : committed) {
-      if (!removed.count(e.slot)) out.push_back(e);
-    }
-    const size_t middle = out.size();
-    for (const KeySlot& e : added) {
-      if (!removed.count(e.slot)) out.push_back(e);
-    }
-    std::sort(out.begin() + middle, out.end());
-    std::inplace_merge(out.begin(), out.begin() + middle, out.end());
-    return out;
-  }
-
-  // Compresses and stores an index value under indexes/<key>.
-  bool put_index(std::string_view key, const std::vector<uint8_t>& raw_value, std::string& error) {
+  // Compresses and stores `raw_value` under `key` of `dbi`.
+  bool put_frame(MDB_dbi dbi, MDB_val key, const std::vector<uint8_t>& raw_value, unsigned flags,
+                 const std::string& what, std::string& error) {
     std::vector<uint8_t> frame;
     std::string why;
     if (!detail::compress_frame(compressor.get(), raw_value, frame, why)) {
-      error = "store " + store->directory + ": " + std::string(key) + ": " + why;
+      error = message(what + ": " + why);
       return false;
     }
-    MDB_val k = as_val(key), v = as_val(frame.data(), frame.size());
-    const int rc = mdb_put(txn.get(), store->dbs.indexes, &k, &v, 0);
+    MDB_val v = as_val(frame.data(), frame.size());
+    const int rc = mdb_put(txn.get(), dbi, &key, &v, flags);
     if (rc != MDB_SUCCESS) {
-      error = fail("writing the " + std::string(key) + " index", rc);
+      error = fail("writing " + what, rc);
       return false;
     }
     return true;
   }
 
-  // The spatial hierarchy over every object's bounds, rebuilt; sets totals.bounds.
-  bool write_spatial(std::string& error) {
-    detail::ZstdDCtx dctx(ZSTD_createDCtx());
-    std::vector<uint8_t> raw_value;
-    std::vector<GridEntry> entries;
-    glm::dvec3 origin(0.0);
-    bool found;
-    std::string why;
-    if (!read_index(txn.get(), store->dbs.indexes, "spatial", dctx.get(), raw_value, found, why) ||
-        (found &&
-         !detail::decode_spatial(raw_value.data(), raw_value.size(), origin, entries, why))) {
-      error = "store " + store->directory + ": spatial index: " + why;
+  bool database_empty(MDB_dbi dbi, bool& empty, std::string& error) {
+    MDB_stat stat;
+    const int rc = mdb_stat(txn.get(), dbi, &stat);
+    if (rc != MDB_SUCCESS) {
+      error = fail("reading database statistics", rc);
       return false;
     }
-    std::erase_if(entries, [&](const GridEntry& e) { return removed.count(e.slot) > 0; });
-    std::erase_if(new_bounds, [&](const NewBounds& b) { return removed.count(b.slot) > 0; });
-    // The origin is fixed by the first objects with geometry: whole metres near their centre.
-    if (entries.empty() && !new_bounds.empty()) {
-      DAabb all;
-      for (const NewBounds& b : new_bounds) all.extend(b.bounds);
-      origin = glm::floor(0.5 * (all.min + all.max));
-    }
-    for (const NewBounds& b : new_bounds) {
-      GridEntry e;
-      if (!detail::quantise_bounds(b.bounds, origin, b.slot, e)) {
-        error = "store " + store->directory + ": object slot " + std::to_string(b.slot) +
-                ": bounds are not finite or lie more than 2000 km from the model's origin";
-        return false;
-      }
-      entries.push_back(e);
-    }
-    detail::build_spatial_tree(entries);
-    DAabb bounds;
-    for (const GridEntry& e : entries) bounds.extend(detail::grid_bounds(e, origin));
-    totals.bounds = bounds;
-    detail::encode_spatial(origin, entries, raw_value);
-    return put_index("spatial", raw_value, error);
+    empty = stat.ms_entries == 0;
+    return true;
   }
 
+  bool merge_ids(std::string& error);
+  bool merge_names(std::string& error);
+  bool write_sources(std::string& error);
+  bool write_spatial(std::string& error);
   bool commit(std::string& error);
-
-  detail::ZstdCCtx compressor = detail::make_compressor();
 };
+
+// The ids: this import's (id, slot) in id order; of an id put more than once the latest slot
+// wins and the earlier ones are removed now. Appended when the database was empty.
+bool Import::State::merge_ids(std::string& error) {
+  bool empty;
+  if (!database_empty(store->dbs.ids, empty, error)) return false;
+  decltype(new_ids)::Merger merger(new_ids);
+  std::string why;
+  if (!merger.start(why)) {
+    error = message("merging the ids: " + why);
+    return false;
+  }
+  IdSlot current{}, next{};
+  bool have = false, done = false;
+  IndexAppender<64> out{txn.get(), store->dbs.ids, empty};
+  const auto write = [&](const IdSlot& e) {
+    if (is_removed(e.slot)) return true;
+    const int rc = out.put(IdEntry(e.id, e.slot));
+    if (rc != MDB_SUCCESS) error = fail("writing the ids", rc);
+    return rc == MDB_SUCCESS;
+  };
+  for (;;) {
+    const bool got = merger.next(next, done, why);
+    if (!got && !done) {
+      error = message("merging the ids: " + why);
+      return false;
+    }
+    if (!got) break;
+    if (have && next.id == current.id) {
+      // The same id put twice: the earlier slot goes.
+      if (!remove_slot(current.slot, error)) return false;
+    } else if (have && !write(current)) {
+      return false;
+    }
+    current = next;
+    have = true;
+  }
+  return !have || write(current);
+}
+
+bool Import::State::merge_names(std::string& error) {
+  bool empty;
+  if (!database_empty(store->dbs.names, empty, error)) return false;
+  decltype(new_names)::Merger merger(new_names);
+  std::string why;
+  if (!merger.start(why)) {
+    error = message("merging the names: " + why);
+    return false;
+  }
+  HashSlot e{};
+  bool done = false;
+  IndexAppender<32> out{txn.get(), store->dbs.names, empty};
+  while (merger.next(e, done, why)) {
+    if (is_removed(e.slot)) continue;
+    const int rc = out.put(NameEntry(e.hash, e.slot));
+    if (rc != MDB_SUCCESS) {
+      error = fail("writing the names", rc);
+      return false;
+    }
+  }
+  if (!done) {
+    error = message("merging the names: " + why);
+    return false;
+  }
+  return true;
+}
+
+// The sources touched: their slots, less what was removed.
+bool Import::State::write_sources(std::string& error) {
+  std::vector<detail::SlotRun> kept;
+  std::vector<uint8_t> raw_value;
+  for (auto& [source, runs] : sources) {
+    kept.clear();
+    for (const detail::SlotRun& r : runs) {
+      for (uint32_t s = r.first; s < r.first + r.length; ++s) {
+        if (is_removed(s)) continue;
+        if (!kept.empty() && kept.back().first + kept.back().length == s) {
+          ++kept.back().length;
+        } else {
+          kept.push_back({s, 1});
+        }
+      }
+    }
+    MDB_val k = as_val(source);
+    int rc;
+    if (kept.empty()) {
+      rc = mdb_del(txn.get(), store->dbs.sources, &k, nullptr);
+      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
+    } else {
+      detail::encode_slot_runs(kept, raw_value);
+      MDB_val v = as_val(raw_value.data(), raw_value.size());
+      rc = mdb_put(txn.get(), store->dbs.sources, &k, &v, 0);
+    }
+    if (rc != MDB_SUCCESS) {
+      error = fail("writing the sources index", rc);
+      return false;
+    }
+  }
+  return true;
+}
+
+// The spatial blocks: the committed ones' entries (block by block, less removed slots) merged
+// with this import's by (Morton key, slot), written into the other block database as they fill;
+// then the top. Sets totals.bounds.
+bool Import::State::write_spatial(std::string& error) {
+  const Databases& dbs = store->dbs;
+  MDB_txn* t = txn.get();
+  detail::DecodedTop old;
+  bool found;
+  std::string why;
+  if (!read_top(t, dbs.meta, false, dctx.get(), old, found, why)) {
+    error = message("spatial top (meta/\"spatial_top\"): " + why);
+    return false;
+  }
+  const uint8_t target = found ? uint8_t(1 - old.database) : 0;
+  const MDB_dbi in = dbs.spatial[old.database], out = dbs.spatial[target];
+  int rc = mdb_drop(t, out, 0);  // left empty by the last commit; emptied again to be sure
+  if (rc != MDB_SUCCESS) {
+    error = fail("emptying the spatial blocks", rc);
+    return false;
+  }
+  // The committed entries, in order.
+  uint32_t old_block = 0;
+  std::vector<detail::BlockEntry> old_entries;
+  size_t old_at = 0;
+  std::vector<uint8_t> raw_value;
+  const auto next_old = [&](SpatialItem& item, bool& ok) {
+    ok = true;
+    for (;;) {
+      while (old_at < old_entries.size()) {
+        const detail::BlockEntry& e = old_entries[old_at++];
+        if (is_removed(e.grid.slot)) continue;
+        item = {detail::morton_key(e.grid), e};
+        return true;
+      }
+      if (old_block >= old.block_entries.size()) return false;
+      const detail::Key32 key(old_block);
+      MDB_val k = key.val(), v;
+      rc = mdb_get(t, in, &k, &v);
+      const std::span<const uint8_t> frame(static_cast<const uint8_t*>(v.mv_data), v.mv_size);
+      if (rc != MDB_SUCCESS) {
+        error = fail("reading spatial block " + std::to_string(old_block), rc);
+      } else if (!detail::inflate_frame(dctx.get(), frame, raw_value, why) ||
+                 !detail::decode_block(raw_value.data(), raw_value.size(), old_entries, why)) {
+        error = message("spatial block " + std::to_string(old_block) + ": " + why);
+        rc = -1;
+      }
+      if (rc != MDB_SUCCESS) {
+        ok = false;
+        return false;
+      }
+      old_at = 0;
+      ++old_block;
+    }
+  };
+  decltype(new_spatial)::Merger merger(new_spatial);
+  if (!merger.start(why)) {
+    error = message("merging the spatial entries: " + why);
+    return false;
+  }
+  std::vector<detail::BlockSummary> summaries;
+  std::vector<detail::BlockEntry> block;
+  block.reserve(kSpatialBlockObjects);
+  const auto flush_block = [&]() {
+    if (block.empty()) return true;
+    detail::encode_block(block.data(), uint32_t(block.size()), raw_value);
+    const detail::Key32 key(uint32_t(summaries.size()));
+    if (!put_frame(out, key.val(), raw_value, MDB_APPEND,
+                   "spatial block " + std::to_string(summaries.size()), error)) {
+      return false;
+    }
+    summaries.emplace_back();
+    detail::summarise_block(block.data(), uint32_t(block.size()), summaries.back());
+    block.clear();
+    return true;
+  };
+  SpatialItem a{}, b{};
+  bool have_a = false, have_b = false, ok = true, done = false;
+  have_a = next_old(a, ok);
+  if (!ok) return false;
+  have_b = merger.next(b, done, why);
+  for (;;) {
+    if (!have_b && !done) {
+      error = message("merging the spatial entries: " + why);
+      return false;
+    }
+    if (have_b && is_removed(b.entry.grid.slot)) {
+      have_b = merger.next(b, done, why);
+      continue;
+    }
+    if (!have_a && !have_b) break;
+    const bool take_a = have_a && (!have_b || SpatialItemLess{}(a, b));
+    block.push_back(take_a ? a.entry : b.entry);
+    if (block.size() == kSpatialBlockObjects && !flush_block()) return false;
+    if (take_a) {
+      have_a = next_old(a, ok);
+      if (!ok) return false;
+    } else {
+      have_b = merger.next(b, done, why);
+    }
+  }
+  if (!flush_block()) return false;
+  detail::import_stage("blocks written");
+  if (found) {
+    rc = mdb_drop(t, in, 0);
+    if (rc != MDB_SUCCESS) {
+      error = fail("emptying the old spatial blocks", rc);
+      return false;
+    }
+  }
+  totals.bounds = DAabb{};
+  if (!summaries.empty()) {
+    detail::GroupSummary all;
+    for (const detail::BlockSummary& s : summaries) all.add(s.nodes[0]);
+    detail::GridEntry g;
+    std::copy(all.min, all.min + 3, g.min);
+    std::copy(all.max, all.max + 3, g.max);
+    totals.bounds = detail::grid_bounds(g, origin);
+  }
+  if (!has_origin) return true;  // never any geometry: no top
+  detail::encode_top(origin, target, summaries, raw_value);
+  MDB_val k = as_val("spatial_top");
+  return put_frame(dbs.meta, k, raw_value, 0, "the spatial top", error);
+}
 
 Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
 Import::~Import() = default;
@@ -637,12 +911,14 @@ uint64_t Import::objects_put() const { return state_->put_count; }
 bool Import::remove_source(std::string_view source, std::string& error) {
   State& s = *state_;
   assert(s.txn.get() && "remove_source() on a spent Import");
-  std::vector<uint32_t>* slots;
-  if (!s.source_slots(source, slots, error)) return false;
-  // remove_slot may load other sources (never this one again), which leaves `slots` in place.
-  const std::vector<uint32_t> copy = *slots;
-  for (uint32_t slot : copy) {
-    if (!s.remove_slot(slot, error)) return false;
+  std::vector<detail::SlotRun>* runs;
+  if (!s.source_runs(source, runs, error)) return false;
+  // remove_slot may load other sources (never this one again), which leaves `runs` in place.
+  const std::vector<detail::SlotRun> copy = *runs;
+  for (const detail::SlotRun& r : copy) {
+    for (uint32_t slot = r.first; slot < r.first + r.length; ++slot) {
+      if (!s.remove_slot(slot, error)) return false;
+    }
   }
   return true;
 }
@@ -651,32 +927,60 @@ bool Import::put(const Object& object, std::string& error) {
   State& s = *state_;
   assert(s.txn.get() && "put() on a spent Import");
   if (object.id == 0) {
-    error = "store " + s.store->directory + ": object '" + object.name + "' has id 0";
+    error = s.message("object '" + object.name + "' has id 0");
     return false;
   }
   if (s.next_slot == UINT32_MAX) {
-    error = "store " + s.store->directory + ": no slots left (4 billion objects put)";
+    error = s.message("no slots left (4 billion objects put)");
     return false;
   }
-  // An object with the same id is replaced.
-  if (auto it = s.new_ids.find(object.id); it != s.new_ids.end()) {
-    if (!s.remove_slot(it->second, error)) return false;
-  } else if (auto slot = s.committed_slot(object.id)) {
-    if (!s.remove_slot(*slot, error)) return false;
+  // An object committed with the same id is replaced (one put twice in this import is resolved
+  // at commit: the later wins).
+  {
+    const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, object.id, s.slots, 1);
+    if (rc != MDB_SUCCESS) {
+      error = s.fail("looking up id " + std::to_string(object.id), rc);
+      return false;
+    }
+    if (!s.slots.empty() && !s.remove_slot(s.slots[0], error)) return false;
   }
-  const uint32_t slot = s.next_slot++;
-  std::vector<uint32_t>* source_slots;
-  if (!s.source_slots(object.source, source_slots, error)) return false;
+  const uint32_t slot = s.next_slot;
+  // Bounds first: an object the grid cannot hold is refused before anything of it is written.
+  const DAabb bounds = object_bounds(object);
+  SpatialItem item{};
+  if (!bounds.empty()) {
+    if (!s.has_origin) {
+      // The origin is fixed by the first object with geometry: whole metres near its centre.
+      s.origin = glm::floor(0.5 * (bounds.min + bounds.max));
+      s.has_origin = true;
+    }
+    if (!detail::quantise_bounds(bounds, s.origin, slot, item.entry.grid)) {
+      error = s.message("object slot " + std::to_string(slot) +
+                        ": bounds are not finite or lie more than 2000 km from the model's origin");
+      return false;
+    }
+    item.key = detail::morton_key(item.entry.grid);
+    item.entry.colour = detail::pack_colour(object.colour);
+  }
+  std::vector<detail::SlotRun>* runs;
+  if (!s.source_runs(object.source, runs, error)) return false;
   detail::encode_object(object, s.raw);
   if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
   detail::encode_attributes(object.attributes, s.raw);
   if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
-  source_slots->push_back(slot);
-  s.new_ids[object.id] = slot;
-  s.new_slot_ids.push_back(object.id);
-  s.new_names.push_back({name_hash(object.name), slot});
-  const DAabb bounds = object_bounds(object);
-  if (!bounds.empty()) s.new_bounds.push_back({bounds, slot});
+  ++s.next_slot;
+  if (!runs->empty() && runs->back().first + runs->back().length == slot) {
+    ++runs->back().length;
+  } else {
+    runs->push_back({slot, 1});
+  }
+  std::string why;
+  if (!s.new_ids.add({object.id, slot}, why) ||
+      !s.new_names.add({name_hash(object.name), slot}, why) ||
+      (!bounds.empty() && !s.new_spatial.add(item, why))) {
+    error = s.message(why);
+    return false;
+  }
   ModelStatistics part;
   part.add(object);
   add(s.totals, part);
@@ -694,44 +998,16 @@ bool Import::commit(std::string& error) {
 
 bool Import::State::commit(std::string& error) {
   State& s = *this;
-  MDB_txn* write = s.txn.get();
   const Databases& dbs = s.store->dbs;
-  if (!s.objects.flush(write, error) || !s.attributes.flush(write, error)) return false;
-
-  // Id and name tables, rewritten whole: as committed, less what was removed, plus what came.
-  std::vector<KeySlot> added;
-  added.reserve(s.new_ids.size());
-  for (const auto& [id, slot] : s.new_ids) added.push_back({id, slot});
-  std::vector<uint8_t> raw_value;
-  detail::encode_key_slots(s.merged(s.ids, std::move(added)), raw_value);
-  if (!s.put_index("ids", raw_value, error)) return false;
-  detail::encode_key_slots(s.merged(s.names, std::move(s.new_names)), raw_value);
-  if (!s.put_index("names", raw_value, error)) return false;
-
-  // The sources touched: their slots, less what was removed.
-  for (auto& [source, slots] : s.sources) {
-    std::erase_if(slots, [&](uint32_t slot) { return s.removed.count(slot) > 0; });
-    MDB_val k = as_val(source);
-    int rc;
-    if (slots.empty()) {
-      rc = mdb_del(write, dbs.sources, &k, nullptr);
-      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
-    } else {
-      detail::encode_slot_runs(slots, raw_value);
-      MDB_val v = as_val(raw_value.data(), raw_value.size());
-      rc = mdb_put(write, dbs.sources, &k, &v, 0);
-    }
-    if (rc != MDB_SUCCESS) {
-      error = s.fail("writing the sources index", rc);
-      return false;
-    }
-  }
-
-  if (!s.write_spatial(error)) return false;
+  // Ids first: resolving an id put twice removes slots, which the other merges then leave out.
+  if (!s.merge_ids(error)) return false;
+  detail::import_stage("ids merged");
+  if (!s.objects.flush(s.txn.get(), error) || !s.attributes.flush(s.txn.get(), error)) return false;
+  if (!s.merge_names(error) || !s.write_sources(error) || !s.write_spatial(error)) return false;
 
   auto put_meta = [&](std::string_view key, const void* data, size_t size) {
     MDB_val k = as_val(key), v = as_val(data, size);
-    const int rc = mdb_put(write, dbs.meta, &k, &v, 0);
+    const int rc = mdb_put(s.txn.get(), dbs.meta, &k, &v, 0);
     if (rc != MDB_SUCCESS) error = s.fail("writing " + std::string(key), rc);
     return rc == MDB_SUCCESS;
   };
@@ -755,8 +1031,10 @@ bool Import::State::commit(std::string& error) {
 struct ReadView::State {
   std::shared_ptr<Store::State> store;
   detail::LmdbTxn txn;
-  std::shared_ptr<const Snapshot> snapshot;
+  std::shared_ptr<Snapshot> snapshot;
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
+  std::vector<uint8_t> raw;
+  std::vector<detail::BlockEntry> block_entries;
   // Decompressed chunks of this view: object() on neighbouring slots decompresses once.
   detail::ChunkCache objects, attributes;
 
@@ -766,48 +1044,54 @@ struct ReadView::State {
         attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
                    kChunkCacheBytes) {}
 
-  // Builds a lazy table of the snapshot from indexes/<key> unless it is built already (by this
-  // or another view of the snapshot). False with a message naming the store and `what`.
-  template <typename Table, typename Decode>
-  bool build_once(LazyTable<Table>& lazy, std::string_view key, std::string_view what,
-                  Decode decode, std::string& error) {
-    std::call_once(lazy.once, [&] {
-      lazy.table = {};  // a decoding that threw (out of memory) may have left some behind
-      std::vector<uint8_t> raw;
-      bool found;
-      std::string why;
-      if (!read_index(txn.get(), store->dbs.indexes, key, dctx.get(), raw, found, why,
-                      MapPages::read_once) ||
-          (found && !decode(raw, lazy.table, why))) {
-        lazy.table = {};
-        lazy.error = "store " + store->directory + ": " + std::string(what) + ": " + why;
+  // Block `b` read from LMDB and expanded, checked against the top.
+  std::shared_ptr<const SpatialBlock> decode_block(uint32_t b, std::string& error) {
+    const detail::DecodedTop& top = snapshot->top;
+    const detail::Key32 key(b);
+    MDB_val k = key.val(), v;
+    const int rc = mdb_get(txn.get(), store->dbs.spatial[top.database], &k, &v);
+    const std::string what = "store " + store->directory + ": spatial block " + std::to_string(b);
+    if (rc != MDB_SUCCESS) {
+      error = what + ": " + mdb_strerror(rc);
+      return nullptr;
+    }
+    std::string why;
+    if (!inflate_read_once(v, dctx.get(), raw, why) ||
+        !detail::decode_block(raw.data(), raw.size(), block_entries, why)) {
+      error = what + ": " + why;
+      return nullptr;
+    }
+    // What the top says of it must hold: the renderer relies on both.
+    int64_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) lo[a] = INT64_MAX, hi[a] = INT64_MIN;
+    for (const detail::BlockEntry& e : block_entries) {
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min<int64_t>(lo[a], e.grid.min[a]);
+        hi[a] = std::max<int64_t>(hi[a], e.grid.max[a]);
       }
-    });
-    if (!lazy.error.empty()) {
-      error = lazy.error;
+    }
+    bool agrees = block_entries.size() == top.block_entries[b];
+    for (int a = 0; a < 3; ++a) {
+      agrees = agrees && lo[a] == top.block_grid[b][a] && hi[a] == top.block_grid[b][3 + a];
+    }
+    if (!agrees) {
+      error = what + ": its entries or bounds differ from what the spatial top says of it";
+      return nullptr;
+    }
+    auto out = std::make_shared<SpatialBlock>();
+    detail::expand_block(block_entries, *out);
+    return out;
+  }
+
+  // The slots under the hash of `name` in the names database, in slot order (unconfirmed).
+  bool name_candidates(std::string_view name, std::vector<uint32_t>& candidates,
+                       std::string& error) {
+    const int rc = index_slots<32>(txn.get(), store->dbs.names, name_hash(name), candidates);
+    if (rc != MDB_SUCCESS) {
+      error = lmdb_message(store->directory, "reading the names", rc);
       return false;
     }
     return true;
-  }
-  bool slots_by_id_ready(std::string& error) {
-    return build_once(
-        snapshot->slots_by_id, "ids", "id table",
-        [this](const std::vector<uint8_t>& raw, std::vector<uint32_t>& slots, std::string& why) {
-          return decode_slots_by_id(raw, snapshot->id_by_slot, slots, why);
-        },
-        error);
-  }
-  bool names_ready(std::string& error) {
-    return build_once(snapshot->names, "names", "name table", decode_names, error);
-  }
-  // The entries of the names table with the hash of `name` (after names_ready()).
-  std::span<const NameSlot> name_candidates(std::string_view name) const {
-    const auto& names = snapshot->names.table;
-    const uint32_t hash = name_hash(name);
-    const auto [first, last] = std::equal_range(
-        names.begin(), names.end(), NameSlot{hash, 0},
-        [](const NameSlot& a, const NameSlot& b) { return a.hash < b.hash; });
-    return {first, last};
   }
 };
 
@@ -834,31 +1118,80 @@ StoreInfo ReadView::info() const {
   return info;
 }
 
-std::span<const SpatialNode> ReadView::spatial_nodes() const { return state_->snapshot->nodes; }
-std::span<const SpatialEntry> ReadView::spatial_entries() const {
-  return state_->snapshot->entries;
+std::span<const SpatialNode> ReadView::spatial_top() const { return state_->snapshot->top.nodes; }
+std::span<const uint32_t> ReadView::spatial_top_objects() const {
+  return state_->snapshot->top.objects;
 }
-glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->origin; }
+uint64_t ReadView::spatial_objects() const { return state_->snapshot->top.entries; }
+uint32_t ReadView::spatial_block_count() const {
+  return uint32_t(state_->snapshot->top.block_entries.size());
+}
+glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->top.origin; }
+
+std::span<const ProxyBox> ReadView::spatial_proxy(uint32_t top_node) const {
+  const detail::DecodedTop& top = state_->snapshot->top;
+  assert(top_node < top.nodes.size() && "spatial_proxy() of a node past the top");
+  if (top_node >= top.nodes.size()) return {};
+  return std::span<const ProxyBox>(top.proxies)
+      .subspan(top.proxy_first[top_node], top.proxy_first[top_node + 1] - top.proxy_first[top_node]);
+}
+
+std::shared_ptr<const SpatialBlock> ReadView::spatial_block(uint32_t block,
+                                                            std::string& error) const {
+  State& s = *state_;
+  assert(block < spatial_block_count() && "spatial_block() past the last block");
+  if (block >= spatial_block_count()) {
+    error = "store " + s.store->directory + ": no spatial block " + std::to_string(block) +
+            " (the store has " + std::to_string(spatial_block_count()) + ")";
+    return nullptr;
+  }
+  if (auto cached = s.snapshot->blocks.find(block)) return cached;
+  auto decoded = s.decode_block(block, error);
+  if (decoded) s.snapshot->blocks.insert(block, decoded);
+  return decoded;
+}
+
+bool ReadView::for_each_spatial_entry(
+    const std::function<bool(const SpatialNode& leaf, const SpatialEntry& entry)>& fn,
+    std::string& error) const {
+  State& s = *state_;
+  std::vector<uint32_t> stack;
+  for (uint32_t b = 0; b < spatial_block_count(); ++b) {
+    // A whole-plant pass leaves the cache to the views that page: a block not cached is decoded
+    // for its turn only.
+    auto block = s.snapshot->blocks.find(b);
+    if (!block) block = s.decode_block(b, error);
+    if (!block) return false;
+    stack.assign(1, 0);
+    while (!stack.empty()) {
+      const SpatialNode& node = block->nodes[stack.back()];
+      stack.pop_back();
+      if (node.count == 0) {
+        stack.push_back(node.first + 1);
+        stack.push_back(node.first);
+        continue;
+      }
+      for (uint32_t k = node.first; k < node.first + node.count; ++k) {
+        if (!fn(node, block->entries[k])) return true;
+      }
+    }
+  }
+  return true;
+}
 
 bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const {
   State& s = *state_;
-  const auto& id_by_slot = s.snapshot->id_by_slot;
-  if (slot >= id_by_slot.size() || id_by_slot[slot] == 0) {
-    error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
-    return false;
-  }
   std::span<const uint8_t> record;
   std::string why;
   bool ok = s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why);
   if (ok && record.empty()) {
-    why = "the record is missing";
-    ok = false;
+    error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
+    return false;
   }
   if (!ok || !detail::decode_object(record.data(), record.size(), out, why)) {
     error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
     return false;
   }
-  out.id = id_by_slot[slot];
   if (!with_attributes) return true;
   ok = s.attributes.record(s.txn.get(), s.dctx.get(), slot, record, why);
   if (ok && record.empty()) {
@@ -876,12 +1209,13 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
 bool ReadView::slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& error) const {
   State& s = *state_;
   slot.reset();
-  if (!s.slots_by_id_ready(error)) return false;
-  const auto& id_by_slot = s.snapshot->id_by_slot;
-  const auto& slots = s.snapshot->slots_by_id.table;
-  const auto it = std::partition_point(slots.begin(), slots.end(),
-                                       [&](uint32_t k) { return id_by_slot[k] < id; });
-  if (it != slots.end() && id_by_slot[*it] == id) slot = *it;
+  std::vector<uint32_t> slots;
+  const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, id, slots, 1);
+  if (rc != MDB_SUCCESS) {
+    error = lmdb_message(s.store->directory, "looking up id " + std::to_string(id), rc);
+    return false;
+  }
+  if (!slots.empty()) slot = slots[0];
   return true;
 }
 
@@ -895,32 +1229,39 @@ std::optional<uint32_t> ReadView::slot_of(uint64_t id) const {
 bool ReadView::slots_named(std::string_view name, std::vector<uint32_t>& slots,
                            std::string& error) const {
   slots.clear();
-  if (!state_->names_ready(error)) return false;
+  std::vector<uint32_t> candidates;
+  if (!state_->name_candidates(name, candidates, error)) return false;
   // A hash may collide: confirm by the name itself.
-  for (const NameSlot& e : state_->name_candidates(name)) {
+  for (uint32_t slot : candidates) {
     Object o;
-    if (!object(e.slot, o, false, error)) return false;
-    if (o.name == name) slots.push_back(e.slot);
+    if (!object(slot, o, false, error)) return false;
+    if (o.name == name) slots.push_back(slot);
   }
   return true;
 }
 
 std::vector<uint32_t> ReadView::slots_named(std::string_view name) const {
-  std::vector<uint32_t> out;
+  std::vector<uint32_t> candidates, out;
   std::string error;
-  if (!state_->names_ready(error)) return out;
-  for (const NameSlot& e : state_->name_candidates(name)) {
+  if (!state_->name_candidates(name, candidates, error)) return out;
+  for (uint32_t slot : candidates) {
     Object o;
-    if (object(e.slot, o, false, error) && o.name == name) out.push_back(e.slot);
+    if (object(slot, o, false, error) && o.name == name) out.push_back(slot);
   }
   return out;
 }
 
 bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn,
                                bool with_attributes, std::string& error) const {
-  const auto& id_by_slot = state_->snapshot->id_by_slot;
-  for (uint32_t slot = 0; slot < id_by_slot.size(); ++slot) {
-    if (id_by_slot[slot] == 0) continue;  // removed (or replaced) objects leave their slot empty
+  State& s = *state_;
+  for (uint32_t slot = 0; slot < s.snapshot->next_slot; ++slot) {
+    std::span<const uint8_t> record;
+    std::string why;
+    if (!s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why)) {
+      error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+      return false;
+    }
+    if (record.empty()) continue;  // removed (or replaced) objects leave their slot empty
     Object o;
     if (!object(slot, o, with_attributes, error)) return false;
     if (!fn(slot, std::move(o))) return true;
@@ -928,6 +1269,7 @@ bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn
   return true;
 }
 
+size_t ReadView::spatial_cache_bytes() const { return state_->snapshot->blocks.bytes(); }
 // ---------------------------------------------------------------------------------------------
 
 Store::Store(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -964,7 +1306,7 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   const auto open_env = [&](unsigned extra_flags) {
     state->env.reset();
     int rc = mdb_env_create(state->env.out());
-    if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 8);
+    if (rc == MDB_SUCCESS) rc = mdb_env_set_maxdbs(state->env.get(), 12);
     if (rc == MDB_SUCCESS) rc = mdb_env_set_mapsize(state->env.get(), kMapSizeBytes);
     if (rc == MDB_SUCCESS) rc = mdb_env_set_maxreaders(state->env.get(), 254);
     const unsigned flags = MDB_NOTLS | MDB_NORDAHEAD | (mode == Mode::read_only ? MDB_RDONLY : 0u) | extra_flags;
@@ -1012,11 +1354,10 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
     uint32_t version = 0;
     if (v.mv_size == 4) std::memcpy(&version, v.mv_data, 4);
     if (version != kStoreFormatVersion) {
-      error = "store " + directory + ": store format version " + std::to_string(version) +
-              ", but this plantview reads only version " + std::to_string(kStoreFormatVersion) +
-              (version < kStoreFormatVersion
-                   ? " (an older plantview wrote it: import the model again into a new store)"
-                   : " (a newer plantview wrote it)");
+      error = "store " + directory + " has format " + std::to_string(version) +
+              "; this build reads format " + std::to_string(kStoreFormatVersion) +
+              (version < kStoreFormatVersion ? ": import or generate it again"
+                                             : " (a newer plantview wrote it)");
       return nullptr;
     }
   }
@@ -1027,15 +1368,19 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   struct Named {
     const char* name;
     MDB_dbi* dbi;
+    unsigned flags;
   };
   const Named named[] = {
-      {"objects", &d.objects},
-      {"attributes", &d.attributes},
-      {"indexes", &d.indexes},
-      {"sources", &d.sources},
+      {"objects", &d.objects, 0},
+      {"attributes", &d.attributes, 0},
+      {"sources", &d.sources, 0},
+      {"ids", &d.ids, kIndexFlags},
+      {"names", &d.names, kIndexFlags},
+      {"spatial_a", &d.spatial[0], 0},
+      {"spatial_b", &d.spatial[1], 0},
   };
   for (const Named& n : named) {
-    rc = mdb_dbi_open(txn.get(), n.name, create, n.dbi);
+    rc = mdb_dbi_open(txn.get(), n.name, create | n.flags, n.dbi);
     if (rc != MDB_SUCCESS) {
       error = lmdb_message(directory, std::string("opening database '") + n.name + "'", rc);
       return nullptr;
@@ -1054,31 +1399,31 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
     error = "store " + state_->directory + ": opened read-only";
     return nullptr;
   }
-  auto s = std::make_unique<Import::State>(state_);
+  auto s = std::make_unique<Import::State>(state_, detail::import_run_bytes());
   int rc = s->txn.begin(state_->env.get(), 0);
   if (rc != MDB_SUCCESS) {
     error = state_->fail("starting an import", rc);
     return nullptr;
   }
+  // This transaction holds LMDB's writer lock: no other import runs, and run files left in the
+  // directory are a killed import's.
+  detail::remove_stale_runs(state_->directory);
   MDB_txn* txn = s->txn.get();
   if (!read_statistics(txn, state_->dbs.meta, state_->directory, s->totals, error)) {
     return nullptr;
   }
-  MDB_val k = as_val("next_slot"), v;
-  if (mdb_get(txn, state_->dbs.meta, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
-    std::memcpy(&s->next_slot, v.mv_data, 4);
-  }
+  s->next_slot = read_next_slot(txn, state_->dbs.meta);
   s->first_new_slot = s->next_slot;
-  detail::ZstdDCtx dctx(ZSTD_createDCtx());
+  // The spatial origin, fixed by the first objects with geometry ever imported.
+  detail::DecodedTop top;
+  bool found;
   std::string why;
-  if (!read_table(txn, state_->dbs.indexes, "ids", dctx.get(), s->ids, why)) {
-    error = "store " + state_->directory + ": id table: " + why;
+  if (!read_top(txn, state_->dbs.meta, false, s->dctx.get(), top, found, why)) {
+    error = "store " + state_->directory + ": spatial top (meta/\"spatial_top\"): " + why;
     return nullptr;
   }
-  if (!read_table(txn, state_->dbs.indexes, "names", dctx.get(), s->names, why)) {
-    error = "store " + state_->directory + ": name table: " + why;
-    return nullptr;
-  }
+  s->has_origin = found;
+  s->origin = top.origin;
   if (!s->objects.begin(txn, error) || !s->attributes.begin(txn, error)) return nullptr;
   return std::unique_ptr<Import>(new Import(std::move(s)));
 }

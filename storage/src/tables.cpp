@@ -104,6 +104,57 @@ void encode_slot_runs(const std::vector<uint32_t>& slots, std::vector<uint8_t>& 
   }
 }
 
+void encode_slot_runs(const std::vector<SlotRun>& runs, std::vector<uint8_t>& out) {
+  out.clear();
+  std::vector<SlotRun> joined;
+  for (const SlotRun& r : runs) {
+    if (r.length == 0) continue;
+    if (!joined.empty() && joined.back().first + joined.back().length == r.first) {
+      joined.back().length += r.length;
+    } else {
+      joined.push_back(r);
+    }
+  }
+  put_varint(out, joined.size());
+  uint64_t end = 0;
+  for (const SlotRun& r : joined) {
+    put_varint(out, r.first - end);
+    put_varint(out, r.length);
+    end = uint64_t(r.first) + r.length;
+  }
+}
+
+bool decode_slot_runs(const uint8_t* data, size_t size, uint32_t slot_limit,
+                      std::vector<SlotRun>& runs, std::string& error) {
+  VarintReader r(data, size);
+  uint64_t count = 0;
+  runs.clear();
+  if (!r.get(count) || count > r.remaining() / 2) {
+    error = "slot list is truncated";
+    return false;
+  }
+  uint64_t end = 0;
+  for (uint64_t i = 0; i < count; ++i) {
+    uint64_t gap, length;
+    if (!r.get(gap) || !r.get(length)) {
+      error = "slot list is truncated";
+      return false;
+    }
+    if (length == 0 || gap > slot_limit || length > slot_limit || end + gap + length > slot_limit ||
+        (i > 0 && gap == 0)) {
+      error = "slot list has an impossible run";
+      return false;
+    }
+    runs.push_back({uint32_t(end + gap), uint32_t(length)});
+    end = end + gap + length;
+  }
+  if (!r.at_end()) {
+    error = "trailing bytes after the slot list";
+    return false;
+  }
+  return true;
+}
+
 bool decode_slot_runs(const uint8_t* data, size_t size, uint32_t slot_limit,
                       std::vector<uint32_t>& slots, std::string& error) {
   VarintReader r(data, size);

@@ -48,6 +48,16 @@ class KeySlotReader {
   KeySlot previous_{};
 };
 
+// A run of consecutive slots [first, first + length).
+struct SlotRun {
+  uint32_t first, length;
+};
+// `runs` ascending, not overlapping (adjoining runs are joined).
+void encode_slot_runs(const std::vector<SlotRun>& runs, std::vector<uint8_t>& out);
+// The list as runs: memory follows the runs, not the slots (an import keeps a source's slots so).
+bool decode_slot_runs(const uint8_t* data, size_t size, uint32_t slot_limit,
+                      std::vector<SlotRun>& runs, std::string& error);
+
 // `slots` sorted ascending, without duplicates.
 void encode_slot_runs(const std::vector<uint32_t>& slots, std::vector<uint8_t>& out);
 // Every slot must be below `slot_limit` (the store's next slot), which also bounds the memory a

@@ -8,9 +8,8 @@
 //   - whatever is accepted is encoded again by the store's own encoder, and that decodes to the
 //     same value, bit for bit (and, where the layout has one spelling per value, the encoding is
 //     the input itself).
-// Decoders that read the same layout two ways (decode_key_slots and KeySlotReader,
-// decode_spatial and decode_spatial_expanded) must agree, and the expanded spatial hierarchy
-// must bound what it holds.
+// Decoders that read the same layout two ways (decode_key_slots and KeySlotReader) must agree,
+// and an expanded spatial block must bound what it holds.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -205,52 +204,60 @@ void slot_runs(const uint8_t* data, size_t size) {
   check(again == slots);
 }
 
-void spatial_index(const uint8_t* data, size_t size) {
-  glm::dvec3 origin, expanded_origin;
-  std::vector<GridEntry> grid;
-  std::string error, expanded_error;
-  const bool ok = decode_spatial(data, size, origin, grid, error);
-  std::vector<SpatialNode> nodes;
-  std::vector<SpatialEntry> entries;
-  const bool expanded_ok =
-      decode_spatial_expanded(data, size, expanded_origin, nodes, entries, expanded_error);
-  check(ok == expanded_ok && error == expanded_error);
-  if (!ok) {
+// A spatial block: decoded, written again bit for bit, and expanded into a hierarchy that bounds
+// what it holds.
+void spatial_block(const uint8_t* data, size_t size) {
+  std::vector<BlockEntry> entries;
+  std::string error;
+  if (!decode_block(data, size, entries, error)) {
     check(!error.empty());
     return;
   }
-  check(test::same_bits(origin, expanded_origin));
-  check(entries.size() == grid.size());
-
-  // Written again, the grid entries read back the same.
   std::vector<uint8_t> encoded;
-  encode_spatial(origin, grid, encoded);
-  glm::dvec3 origin_again;
-  std::vector<GridEntry> again;
-  check(decode_spatial(encoded.data(), encoded.size(), origin_again, again, error));
-  check(test::same_bits(origin, origin_again) && again.size() == grid.size());
-  for (size_t k = 0; k < grid.size(); ++k) check(test::same_bits(again[k], grid[k]));
-
-  // Every leaf's entries contain their grid boxes (in float metres, rounded outward); every
-  // inner node contains its children. Entries sit in tree order, so leaf ranges name them.
-  for (const SpatialNode& node : nodes) {
+  encode_block(entries.data(), uint32_t(entries.size()), encoded);
+  check(encoded.size() == size && std::memcmp(encoded.data(), data, size) == 0);
+  SpatialBlock expanded;
+  expand_block(entries, expanded);
+  check(expanded.entries.size() == entries.size());
+  for (const SpatialNode& node : expanded.nodes) {
     if (node.count == 0) {
       for (uint32_t c = node.first; c < node.first + 2; ++c) {
-        check(c < nodes.size());
+        check(c < expanded.nodes.size());
         for (int a = 0; a < 3; ++a) {
-          check(node.min[a] <= nodes[c].min[a] && nodes[c].max[a] <= node.max[a]);
+          check(node.min[a] <= expanded.nodes[c].min[a] && expanded.nodes[c].max[a] <= node.max[a]);
         }
       }
       continue;
     }
     check(uint64_t(node.first) + node.count <= entries.size());
     for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-      check(entries[k].slot == grid[k].slot);
+      check(expanded.entries[k].slot == entries[k].grid.slot);
       float lo[3], hi[3];
-      entry_bounds(node, entries[k], lo, hi);
+      entry_bounds(node, expanded.entries[k], lo, hi);
       for (int a = 0; a < 3; ++a) {
-        check(double(lo[a]) <= double(grid[k].min[a]) * kSpatialCellM);
-        check(double(hi[a]) >= double(grid[k].max[a]) * kSpatialCellM);
+        check(double(lo[a]) <= double(entries[k].grid.min[a]) * kSpatialCellM);
+        check(double(hi[a]) >= double(entries[k].grid.max[a]) * kSpatialCellM);
+      }
+    }
+  }
+}
+
+// The spatial top: decoded (proxies checked against their nodes by the decoder); whatever it
+// accepts has proxies inside their nodes, one box at least per node.
+void spatial_top(const uint8_t* data, size_t size) {
+  DecodedTop top;
+  std::string error;
+  if (!decode_top(data, size, top, error)) {
+    check(!error.empty());
+    return;
+  }
+  check(top.proxy_first.size() == top.nodes.size() + 1 || top.nodes.empty());
+  for (size_t i = 0; i < top.nodes.size(); ++i) {
+    check(top.proxy_first[i] < top.proxy_first[i + 1]);
+    for (uint32_t p = top.proxy_first[i]; p < top.proxy_first[i + 1]; ++p) {
+      for (int a = 0; a < 3; ++a) {
+        check(top.nodes[i].min[a] <= top.proxies[p].min[a]);
+        check(top.proxies[p].max[a] <= top.nodes[i].max[a]);
       }
     }
   }
@@ -262,7 +269,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   const uint8_t* bytes = data + 1;
   const size_t n = size - 1;
-  switch (data[0] % 10) {
+  switch (data[0] % 11) {
     case 0: object_record(bytes, n); break;
     case 1: attribute_record(bytes, n); break;
     case 2: block(kObjectShape, bytes, n); break;
@@ -272,7 +279,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case 6: frame(bytes, n); break;
     case 7: key_slot_table(bytes, n); break;
     case 8: slot_runs(bytes, n); break;
-    case 9: spatial_index(bytes, n); break;
+    case 9: spatial_block(bytes, n); break;
+    case 10: spatial_top(bytes, n); break;
   }
   return 0;
 }

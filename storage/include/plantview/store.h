@@ -1,61 +1,83 @@
 // plantview/store.h: the plant store. A plant model kept as parameters only, in one LMDB
 // environment (a directory), read by renderers and services while imports write.
 //
-// Schema (LMDB named databases; integers in keys are big-endian so that keys sort numerically):
+// Schema, format 3 (LMDB named databases; integers in keys are big-endian so that keys sort
+// numerically):
 //   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
-//                                else, and a store of another version is refused
+//                                else, and a store of another version is refused (a format 2
+//                                store: "import or generate it again")
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
 //               "next_slot"   -> u32, the slot the next object gets
+//               "spatial_top" -> zstd: the top of the spatial hierarchy (spatial.h): the spatial
+//                                origin, the entry and block counts, each block's count and grid
+//                                bounds, and the far-field proxy of every top node
 //   objects     block (u32)   -> the object records of slots [block * 2048, block * 2048 + 2048),
-//                                in chunks of 64 slots, each chunk one zstd frame: class, colour,
-//                                origin, name, source, primitives, piping topology (layouts in
-//                                chunks.h and record.h)
+//                                in chunks of 64 slots, each chunk one zstd frame: id, class,
+//                                colour, origin, name, source, primitives, piping topology
+//                                (layouts in chunks.h and record.h)
 //   attributes  block (u32)   -> the same for the objects' key/value attributes: blocks of 4096
 //                                slots, chunks of 256
-//   indexes     "ids"         -> zstd: every (id, slot), sorted by id (tables.h)
-//               "names"       -> zstd: every (32-bit hash of the name, slot), sorted by hash
-//               "spatial"     -> zstd: the spatial origin and the objects' bounds on a grid of
-//                                1/1024 m, in the order of the bounding volume hierarchy, whose
-//                                shape follows from their count (spatial.h)
+//   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
+//                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
+//                                an object on disk)
+//   names       u16 (the top 16 bits of the 32-bit name hash) -> sorted duplicates: u16 rest of
+//                                the hash, u32 slot (about 7 bytes an object)
+//   spatial_a / spatial_b     -> u32 block -> zstd: the grid entries (bounds on a grid of
+//                                1/1024 m, slot, colour) of kSpatialBlockObjects objects or fewer,
+//                                consecutive in the Morton order of their centres; the top says
+//                                which of the two databases holds the committed blocks
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
-// the chunk it is in; every import rewrites the indexes whole.
+// the chunk it is in; every import writes the spatial blocks and the top again (the ids and
+// names are updated key by key).
 //
 // Transactions and lifetimes
 //   - An Import is one LMDB write transaction: until commit() nothing is visible, and a failed,
 //     abandoned or killed import leaves the store exactly as it was. One import at a time per
-//     store (LMDB serialises writers, across processes too).
+//     store (LMDB serialises writers, across processes too). This holds however big the import,
+//     because everything it writes (records, ids, names, blocks, top) goes through that one
+//     transaction: LMDB keeps its dirty pages in memory up to a limit (about 512 MB) and spills
+//     the older ones into free pages of the data file beyond it, never over a page a committed
+//     state uses, and the meta page that makes them the store's state is written only by the
+//     commit. A killed process's pages are unreachable, and the next writer reuses them. (No
+//     MDB_WRITEMAP: it would need no more guarantee, and it writes dirty pages in place through
+//     the map, counted in the process's memory.)
+//   - An import's memory is bounded whatever the plant's size: per object it appends to three
+//     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
+//     full buffer (kImportRunBytes) is sorted and written to a run file in the store directory
+//     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
+//     have been killed). commit() merges the runs into the ids and names databases and, with the
+//     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
+//     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
+//     source's slots as runs, 600 bytes of block summary per 2048 objects at commit, and
+//     LMDB's dirty pages: under 1.5 GB at 40 million objects.
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
-//   - What views need of the indexes is decoded into memory once per committed state of the
-//     store and shared by every view of that state; a view keeps its state's memory alive.
-//     * The first view of a state (read()) decodes the id of every slot (8 bytes a slot, up to
-//       the highest slot in use: for object() and for_each_object()) and the spatial hierarchy
-//       (16 bytes an object with geometry and a 32-byte node per 4 or so): about 32 MB per
-//       million objects, in about 0.4 s per million. It checks the id table on the way.
-//     * The lookup tables wait for their first use, on whichever view of the state asks first
-//       (another asking meanwhile waits for it): slot_of() builds the slots by id (4 bytes an
-//       object), slots_named() the name hashes (8 bytes an object); about 80 ms per million
-//       objects each. A renderer that never asks never pays.
-//     * Decoding holds one index's inflated bytes at a time, besides what it keeps (10 to 12
-//       bytes an object), and frees them before going on.
-//     Spans a view returns point into that memory and are valid until the view is destroyed.
+//   - Store::open(), Store::read() and info() read metadata only. The first view of a committed
+//     state decodes that state's spatial top (a few MB at 40 million objects: 2 top nodes, and
+//     up to 8 proxy boxes of 28 bytes each, per 2048 objects), shared by every view of the state;
+//     a view keeps its state's memory alive. Spans a view returns are valid until the view is
+//     destroyed.
+//   - Spatial blocks are decoded on demand (spatial_block()) into a cache shared by the views of
+//     one committed state: at most kSpatialCacheBytes of blocks that nobody holds (least recently
+//     used go first); a block somebody holds stays until released. About 50 KB a block.
+//   - slot_of() and slots_named() look up the ids and names databases (an LMDB B-tree lookup,
+//     a few microseconds): no table per object is ever built in memory.
 //   - Values are read in place from LMDB's mapping of the data file, and every page read counts
 //     in the process's resident memory until the kernel reclaims it. So the environment reads
-//     no more than is asked for (no readahead), index values are dropped from the resident set
-//     once decoded, and a view drops the pages of the chunks it has decompressed every 256
-//     chunks and when destroyed (the kernel's page cache keeps them all: reading them again
-//     costs a minor fault). A view that has read the whole store holds about a twentieth of
-//     the file (pages the kernel maps around those read), not all of it.
+//     no more than is asked for (no readahead), block and top values are dropped from the
+//     resident set once decoded, and a view drops the pages of the chunks it has decompressed
+//     every 256 chunks and when destroyed (the kernel's page cache keeps them all: reading them
+//     again costs a minor fault).
 //   - object() decompresses the 64-slot chunk holding the slot and keeps the view's 32 most
 //     recently used chunks: fetching neighbouring slots costs one decompression per chunk.
 //
-// Errors: every fallible call returns false (or an empty optional) and sets a message that
-// names the store directory and the operation or slot (and the LMDB or zstd reason). slot_of()
-// and slots_named() also have short forms without a message, for callers that treat "cannot
-// tell" as "none".
+// Errors: every fallible call returns false (or an empty optional, or a null pointer) and sets a
+// message that names the store directory and the operation, slot or block (and the LMDB or zstd
+// reason). slot_of() and slots_named() also have short forms without a message, for callers that
+// treat "cannot tell" as "none".
 //
 // Read-only copies (several service replicas, or several hosts, reading one store): a store
 // opened read_only never writes data.mdb. LMDB keeps its reader table in lock.mdb beside it; where
@@ -73,9 +95,12 @@
 // version, and meta/"statistics" that is not JSON of the form statistics_json() writes (the
 // message names the key). read() checks the file's length again, so a file cut short while the
 // store is open fails the next view instead of faulting; a cut during a view's life is not
-// caught (the view's pages past the new end fault, as any mapped file's would).
+// caught (the view's pages past the new end fault, as any mapped file's would). A damaged
+// spatial top fails read() (naming it); a damaged block fails spatial_block() (naming it) and
+// nothing else.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -89,7 +114,13 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 2;
+inline constexpr uint32_t kStoreFormatVersion = 3;
+// Objects in a spatial block (the last block of a store may hold fewer).
+inline constexpr uint32_t kSpatialBlockObjects = 2048;
+// Boxes in a top node's far-field proxy, at most.
+inline constexpr uint32_t kProxyBoxes = 8;
+// Decoded spatial blocks a committed state keeps that no view holds, at most (bytes).
+inline constexpr size_t kSpatialCacheBytes = size_t(64) << 20;
 
 // A node of the spatial hierarchy. Bounds (metres) are relative to the spatial origin, rounded
 // outward: the union of what the node holds.
@@ -109,6 +140,22 @@ struct SpatialEntry {
   uint32_t slot;
 };
 static_assert(sizeof(SpatialNode) == 32 && sizeof(SpatialEntry) == 16);
+
+// A block of the spatial hierarchy: kSpatialBlockObjects objects or fewer, consecutive in tree
+// order, with its own subtree: nodes[0] is its root; count == 0 inner (children first, first + 1,
+// block-local), count > 0 leaf over entries [first, first + count) of this block. Immutable.
+struct SpatialBlock {
+  std::vector<SpatialNode> nodes;
+  std::vector<SpatialEntry> entries;
+};
+
+// A box of a far-field proxy: the bounds (metres, relative to the spatial origin, rounded
+// outward) of a group of a top node's objects, with the colour of the largest (by volume) of
+// them.
+struct ProxyBox {
+  float min[3], max[3];
+  Colour colour;
+};
 
 // The bounds of `entry`, held by `leaf` (metres, relative to the spatial origin). Each end is
 // measured from the leaf's nearer side, so 0 and 65535 give the leaf's bounds exactly.
@@ -148,7 +195,8 @@ class Import {
   // Adds an object (its `source` field says where it came from). An object whose id is already
   // in the store replaces it.
   bool put(const Object& object, std::string& error);
-  // Rebuilds the indexes and statistics and commits. Afterwards the Import is spent, whether
+  // Merges this import's runs into the ids, names and spatial blocks, writes the top and the
+  // statistics, and commits. Afterwards the Import is spent, whether
   // the commit succeeded or not (a failed commit leaves the store as it was).
   bool commit(std::string& error);
 
@@ -168,12 +216,44 @@ class ReadView {
   ReadView(const ReadView&) = delete;
   ReadView& operator=(const ReadView&) = delete;
 
+  // Metadata only (meta/"format" and "statistics", the file's size): nothing spatial is read.
   StoreInfo info() const;
-  // The spatial hierarchy (empty for an empty store); valid while this view lives. No work per
-  // call: the arrays are decoded once per committed state.
-  std::span<const SpatialNode> spatial_nodes() const;
-  std::span<const SpatialEntry> spatial_entries() const;
+
+  // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
+  // decoded on demand. Spans are valid while this view lives; no work per call.
+  //
+  // The top: a binary tree whose leaves are blocks. count == 0: inner node, children `first`
+  // and `first + 1` (top indices); count > 0: a block leaf: block index `first`, whose root
+  // bounds equal this node's. Node 0 is the root. Empty for a store without geometry. A node is
+  // identified across frames and views of one state by its index; a block's node by (block,
+  // block-local index).
+  std::span<const SpatialNode> spatial_top() const;
+  // Objects (with geometry) beneath each top node, parallel to spatial_top().
+  std::span<const uint32_t> spatial_top_objects() const;
+  uint64_t spatial_objects() const;  // entries in the whole hierarchy
+  uint32_t spatial_block_count() const;
+  // What spatial bounds are relative to (whole metres, fixed by the first objects with geometry
+  // ever imported; it never moves).
   glm::dvec3 spatial_origin() const;
+  // The block, decoded on demand and kept in the cache of this committed state (see
+  // "Transactions and lifetimes"). The pointer keeps the block alive: hold the blocks of a frame
+  // for the frame. Thread-safe across the views of a state (each view on its own thread). Null
+  // with a message naming the store and block on a read or decode error (and for a block past
+  // spatial_block_count(), a caller bug that also asserts).
+  std::shared_ptr<const SpatialBlock> spatial_block(uint32_t block, std::string& error) const;
+  // Far-field proxy of a top node: 1 to kProxyBoxes boxes, generated at import and stored, whose
+  // union has exactly the node's bounds (each box the bounds of a group of the node's objects;
+  // together they cover every object beneath it). Empty only for an empty store (or a node past
+  // the top, a caller bug that also asserts).
+  std::span<const ProxyBox> spatial_proxy(uint32_t top_node) const;
+  // Every entry in tree order, block after block (each dropped after its turn unless cached):
+  // for whole-plant passes (views, benches). fn returns false to stop. False with a message on
+  // a read error.
+  bool for_each_spatial_entry(
+      const std::function<bool(const SpatialNode& leaf, const SpatialEntry& entry)>& fn,
+      std::string& error) const;
+  // Bytes of decoded blocks the cache of this view's state holds now (held ones included).
+  size_t spatial_cache_bytes() const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
   // its record is corrupt (error says which). Cost: decompressing the slot's chunk of 64 slots
@@ -183,22 +263,20 @@ class ReadView {
   // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
 
-  // The slot of the object with this id: `slot` empty if there is none. Binary search (1 to 2
-  // microseconds at 4 million objects). The first call on any view of a committed state builds
-  // the lookup table (see "Transactions and lifetimes"); false with a message naming the store
-  // if the stored id table cannot be read then (and on every later call on views of that state).
+  // The slot of the object with this id: `slot` empty if there is none. One lookup in the ids
+  // database; false with a message naming the store on an LMDB error or a malformed value.
   bool slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& error) const;
-  // The same, empty also when the id table cannot be read.
+  // The same, empty also when the lookup fails.
   std::optional<uint32_t> slot_of(uint64_t id) const;
-  // Slots of the objects with this exact name (usually one), in slot order. Binary search, then
-  // each candidate is confirmed by its record. The first call on any view of a committed state
-  // builds the lookup table; false with a message naming the store if the stored name table,
-  // or a candidate's record, cannot be read.
+  // Slots of the objects with this exact name (usually one), in slot order. A range of the names
+  // database (by hash), then each candidate is confirmed by its record. False with a message
+  // naming the store if the names database, or a candidate's record, cannot be read.
   bool slots_named(std::string_view name, std::vector<uint32_t>& slots, std::string& error) const;
-  // The same, empty when the name table cannot be read; a candidate whose record cannot be read
-  // is left out.
+  // The same, empty when the names cannot be read; a candidate whose record cannot be read is
+  // left out.
   std::vector<uint32_t> slots_named(std::string_view name) const;
-  // Calls fn for every object in slot order until it returns false.
+  // Calls fn for every object in slot order until it returns false (slots of removed objects are
+  // skipped: each chunk is decompressed once).
   bool for_each_object(const std::function<bool(uint32_t slot, Object&&)>& fn, bool with_attributes,
                        std::string& error) const;
 
@@ -223,8 +301,8 @@ class Store {
   // Starts the (only) write transaction. Fails on a read-only store.
   std::unique_ptr<Import> begin_import(std::string& error);
   // Starts a read snapshot. May be called from any thread; the view stays on that thread. The
-  // first view of a newly committed state decodes its indexes (see "Transactions and
-  // lifetimes"); a failure there (a corrupt id table or spatial index) fails read().
+  // first view of a newly committed state decodes its spatial top (see "Transactions and
+  // lifetimes"); a failure there (a damaged top) fails read() with a message naming it.
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;
