@@ -170,7 +170,8 @@ struct FrameStats {
   uint64_t objects_resident = 0, objects_tessellated = 0, objects_evicted = 0;
   // Out-of-core memory after the frame: what the renderer keeps per object and per node
   // follows what the frames touched, never the plant. Blocks of the spatial index cull walked
-  // this frame, and held (this frame's and the last's); decoded objects kept; bytes of the
+  // this frame, and held (those of this frame's visible objects; the store's block cache is
+  // apart); decoded objects kept; bytes of the
   // residency bookkeeping. (Not in to_json: for tests and benches.)
   uint64_t spatial_blocks_walked = 0, spatial_blocks_held = 0;
   uint64_t objects_known = 0;
