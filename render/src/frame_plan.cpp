@@ -86,7 +86,7 @@ bool FramePlan::cull(const ReadView& view, const FrameView& frame_view,
 bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
                              const RenderOptions& options, FrameStats& stats, std::string& error) {
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
-  blocks_.begin_frame();
+  blocks_.begin_cull();
   // The frame's work is bounded: when more than kMaxDrawnItems objects and boxes are in view,
   // nodes are boxed at ever larger sizes until they fit (huge plants seen whole).
   double node_proxy_px = kNodeProxyPixels * options.pixel_error;
@@ -94,6 +94,7 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
     if (!cull_pass(view, frame_view, options, node_proxy_px, stats, done, error)) return false;
     if (done) break;
   }
+  blocks_.end_cull();
   stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
   stats.objects_visible = visible_.size();
   stats.objects_culled = view.spatial_objects() - visible_.size() - stats.objects_subpixel -
@@ -160,6 +161,7 @@ bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
   visible_.clear();
   node_boxes_.clear();
   top_stack_.clear();
+  blocks_.begin_pass();
   done = false;
   if (!top.empty()) top_stack_.push_back(0);
   while (!top_stack_.empty()) {
@@ -233,7 +235,7 @@ bool FramePlan::cull_block(const ReadView& view, uint32_t block_index, const Fra
       visible_.push_back(v);
     }
   }
-  if (visible_.size() == visible_before) blocks_.release(block_index);
+  blocks_.walked(block_index, visible_.size() > visible_before);
   return true;
 }
 
