@@ -54,9 +54,9 @@ class DecodedObjects;
 
 // Objects drawn one by one plus node boxes in a frame, at most, unless nodes of
 // kMaxNodeProxyPixels would have to be boxes. Measured on preset c at 1280x720 and the default
-// pixel error: one unit's overview and walkthrough views need at most 31,700 (so they draw
+// pixel error: one unit's overview and walkthrough views need at most 31,800 (so they draw
 // every object they did before), and larger plants' overviews stop boxing where boxes and
-// objects fit: x100 at 24-pixel nodes, 0.70 M triangles (60,000 objects alone drew 3.3 M).
+// objects fit: x100 at 24-pixel nodes, 0.83 M triangles (60,000 objects alone drew 3.3 M).
 inline constexpr size_t kMaxDrawnItems = 32768;
 inline constexpr double kMaxNodeProxyPixels = 256;
 inline constexpr Colour kNodeBoxColour{150, 150, 150, 255};  // nodes inside blocks drawn whole
