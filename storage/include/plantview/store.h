@@ -55,11 +55,12 @@
 //     LMDB's dirty pages: under 1.5 GB at 40 million objects.
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
-//   - Store::open(), Store::read() and info() read metadata only. The first view of a committed
-//     state decodes that state's spatial top (a few MB at 40 million objects: 2 top nodes, and
-//     up to 8 proxy boxes of 28 bytes each, per 2048 objects), shared by every view of the state;
-//     a view keeps its state's memory alive. Spans a view returns are valid until the view is
-//     destroyed.
+//   - Store::open(), Store::read() and info() read metadata only (a millisecond or so whatever
+//     the store's size). The first spatial call on any view of a committed state decodes that
+//     state's spatial top (about 10 MB at 40 million objects: 2 top nodes and up to 8 proxy
+//     boxes of 28 bytes each per 2048 objects; tens of milliseconds), shared by every view of the
+//     state; another view asking meanwhile waits for it. A view keeps its state's memory alive.
+//     Spans a view returns are valid until the view is destroyed.
 //   - Spatial blocks are decoded on demand (spatial_block()) into a cache shared by the views of
 //     one committed state: at most kSpatialCacheBytes of blocks that nobody holds (least recently
 //     used go first); a block somebody holds stays until released. About 50 KB a block.
@@ -96,8 +97,9 @@
 // message names the key). read() checks the file's length again, so a file cut short while the
 // store is open fails the next view instead of faulting; a cut during a view's life is not
 // caught (the view's pages past the new end fault, as any mapped file's would). A damaged
-// spatial top fails read() (naming it); a damaged block fails spatial_block() (naming it) and
-// nothing else.
+// spatial top fails spatial_ready(), spatial_block() and for_each_spatial_entry() (naming it;
+// the other spatial calls answer as for an empty store); a damaged block fails spatial_block()
+// (naming it) and nothing else. info(), objects and lookups read on.
 #pragma once
 
 #include <cstddef>
@@ -220,7 +222,13 @@ class ReadView {
   StoreInfo info() const;
 
   // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
-  // decoded on demand. Spans are valid while this view lives; no work per call.
+  // decoded on demand. Spans are valid while this view lives; no work per call once the top is
+  // decoded (the first spatial call on any view of the state decodes it).
+  //
+  // Whether the top could be decoded: false with a message naming the store when it is damaged
+  // (then the calls below answer as for an empty store, and spatial_block() fails). Call it
+  // once after read() where an empty answer would hide the damage (a renderer).
+  bool spatial_ready(std::string& error) const;
   //
   // The top: a binary tree whose leaves are blocks. count == 0: inner node, children `first`
   // and `first + 1` (top indices); count > 0: a block leaf: block index `first`, whose root
@@ -300,9 +308,8 @@ class Store {
 
   // Starts the (only) write transaction. Fails on a read-only store.
   std::unique_ptr<Import> begin_import(std::string& error);
-  // Starts a read snapshot. May be called from any thread; the view stays on that thread. The
-  // first view of a newly committed state decodes its spatial top (see "Transactions and
-  // lifetimes"); a failure there (a damaged top) fails read() with a message naming it.
+  // Starts a read snapshot. May be called from any thread; the view stays on that thread. Reads
+  // metadata only (see "Transactions and lifetimes").
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;
