@@ -42,16 +42,16 @@
 //     the older ones into free pages of the data file beyond it, never over a page a committed
 //     state uses, and the meta page that makes them the store's state is written only by the
 //     commit. A killed process's pages are unreachable, and the next writer reuses them. (No
-//     MDB_WRITEMAP: it would need no more guarantee, and it writes dirty pages in place through
-//     the map, counted in the process's memory.)
+//     MDB_WRITEMAP: the guarantee does not need it, and it would write dirty pages in place
+//     through the map, where they count in the process's memory until written back.)
 //   - An import's memory is bounded whatever the plant's size: per object it appends to three
 //     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
-//     full buffer (kImportRunBytes) is sorted and written to a run file in the store directory
+//     full buffer (64 MB) is sorted and written to a run file in the store directory
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
 //     have been killed). commit() merges the runs into the ids and names databases and, with the
 //     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
-//     source's slots as runs, 600 bytes of block summary per 2048 objects at commit, and
+//     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages: under 1.5 GB at 40 million objects.
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
@@ -195,7 +195,10 @@ class Import {
   // Removes every object that `source` brought before (importing a file again replaces them).
   bool remove_source(std::string_view source, std::string& error);
   // Adds an object (its `source` field says where it came from). An object whose id is already
-  // in the store replaces it.
+  // in the store replaces it; one put twice in this import is resolved at commit (the later
+  // wins). Fails, naming the slot, for bounds that are not finite or lie beyond the spatial
+  // grid (about 2000 km from the spatial origin, which the first object with geometry ever
+  // put fixes: whole metres at its centre; it never moves).
   bool put(const Object& object, std::string& error);
   // Merges this import's runs into the ids, names and spatial blocks, writes the top and the
   // statistics, and commits. Afterwards the Import is spent, whether
