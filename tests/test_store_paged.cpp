@@ -321,9 +321,9 @@ std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
   return frame;
 }
 
-// info() reads metadata only: with a block damaged it still answers, and so do the view and the
-// other blocks; the damaged block fails with a message naming the store and the block. A damaged
-// top fails read(), naming it.
+// read() and info() read metadata only: with a block damaged they still answer, and so do the
+// other blocks; the damaged block fails with a message naming the store and the block. With the
+// top damaged, read(), info() and objects still answer; the spatial calls that can fail name it.
 TEST(StorePaged, InfoDoesNotDecodeTheSpatialIndex) {
   TempDir dir;
   {
@@ -353,9 +353,22 @@ TEST(StorePaged, InfoDoesNotDecodeTheSpatialIndex) {
   put_raw(dir.str(), "meta", MDB_val{11, const_cast<char*>("spatial_top")}, not_a_top);
   std::string error;
   auto store = Store::open(dir.str(), Store::Mode::read_only, error);
-  ASSERT_TRUE(store) << error;  // opening reads metadata only
-  EXPECT_FALSE(store->read(error));
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;  // metadata only
+  EXPECT_EQ(view->info().objects, 5000u);
+  Object o;
+  EXPECT_TRUE(view->object(7, o, true, error)) << error;
+  EXPECT_FALSE(view->spatial_ready(error));
   EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+  EXPECT_NE(error.find("spatial top"), std::string::npos) << error;
+  EXPECT_TRUE(view->spatial_top().empty());
+  EXPECT_EQ(view->spatial_block_count(), 0u);
+  error.clear();
+  EXPECT_FALSE(view->spatial_block(0, error));
+  EXPECT_NE(error.find("spatial top"), std::string::npos) << error;
+  error.clear();
+  EXPECT_FALSE(view->for_each_spatial_entry([](const SpatialNode&, const SpatialEntry&) { return true; }, error));
   EXPECT_NE(error.find("spatial top"), std::string::npos) << error;
 }
 

@@ -380,7 +380,12 @@ std::atomic<size_t> g_spatial_cache_bytes{kSpatialCacheBytes};
 struct Snapshot {
   size_t txn_id = 0;
   uint32_t next_slot = 0;
+  // The spatial top, decoded by the first view of the state that asks for anything spatial (in
+  // its own read transaction, which sees the same committed state as every other view of it);
+  // read-only afterwards. On failure the top stays empty and top_error says why.
+  std::once_flag top_once;
   detail::DecodedTop top;
+  std::string top_error;
   BlockCache blocks{g_spatial_cache_bytes.load()};
 };
 
@@ -463,22 +468,14 @@ struct Store::State {
 
   std::string fail(std::string_view what, int rc) const { return lmdb_message(directory, what, rc); }
 
-  // The snapshot a read transaction sees: its spatial top decoded, unless the latest is that
-  // state already.
-  std::shared_ptr<Snapshot> snapshot_for(MDB_txn* txn, std::string& error) {
+  // The snapshot a read transaction sees (metadata only: the top waits for its first use).
+  std::shared_ptr<Snapshot> snapshot_for(MDB_txn* txn) {
     const size_t txn_id = mdb_txn_id(txn);
     std::lock_guard lock(snapshot_mutex);
     if (latest && latest->txn_id == txn_id) return latest;
     auto s = std::make_shared<Snapshot>();
     s->txn_id = txn_id;
     s->next_slot = read_next_slot(txn, dbs.meta);
-    detail::ZstdDCtx dctx(ZSTD_createDCtx());
-    std::string why;
-    bool found;
-    if (!read_top(txn, dbs.meta, true, dctx.get(), s->top, found, why)) {
-      error = "store " + directory + ": spatial top (meta/\"spatial_top\"): " + why;
-      return nullptr;
-    }
     if (!latest || latest->txn_id < txn_id) latest = s;
     return s;
   }
@@ -1044,9 +1041,30 @@ struct ReadView::State {
         attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
                    kChunkCacheBytes) {}
 
+  // The snapshot's spatial top, decoded on first use (by this or another view of the state).
+  const detail::DecodedTop& top() {
+    std::call_once(snapshot->top_once, [&] {
+      detail::ZstdDCtx top_dctx(ZSTD_createDCtx());
+      bool found;
+      std::string why;
+      if (!read_top(txn.get(), store->dbs.meta, true, top_dctx.get(), snapshot->top, found, why)) {
+        snapshot->top = detail::DecodedTop{};
+        snapshot->top_error =
+            "store " + store->directory + ": spatial top (meta/\"spatial_top\"): " + why;
+      }
+    });
+    return snapshot->top;
+  }
+  bool top_ready(std::string& error) {
+    top();
+    if (snapshot->top_error.empty()) return true;
+    error = snapshot->top_error;
+    return false;
+  }
+
   // Block `b` read from LMDB and expanded, checked against the top.
   std::shared_ptr<const SpatialBlock> decode_block(uint32_t b, std::string& error) {
-    const detail::DecodedTop& top = snapshot->top;
+    const detail::DecodedTop& top = this->top();
     const detail::Key32 key(b);
     MDB_val k = key.val(), v;
     const int rc = mdb_get(txn.get(), store->dbs.spatial[top.database], &k, &v);
@@ -1118,18 +1136,19 @@ StoreInfo ReadView::info() const {
   return info;
 }
 
-std::span<const SpatialNode> ReadView::spatial_top() const { return state_->snapshot->top.nodes; }
+bool ReadView::spatial_ready(std::string& error) const { return state_->top_ready(error); }
+std::span<const SpatialNode> ReadView::spatial_top() const { return state_->top().nodes; }
 std::span<const uint32_t> ReadView::spatial_top_objects() const {
-  return state_->snapshot->top.objects;
+  return state_->top().objects;
 }
-uint64_t ReadView::spatial_objects() const { return state_->snapshot->top.entries; }
+uint64_t ReadView::spatial_objects() const { return state_->top().entries; }
 uint32_t ReadView::spatial_block_count() const {
-  return uint32_t(state_->snapshot->top.block_entries.size());
+  return uint32_t(state_->top().block_entries.size());
 }
-glm::dvec3 ReadView::spatial_origin() const { return state_->snapshot->top.origin; }
+glm::dvec3 ReadView::spatial_origin() const { return state_->top().origin; }
 
 std::span<const ProxyBox> ReadView::spatial_proxy(uint32_t top_node) const {
-  const detail::DecodedTop& top = state_->snapshot->top;
+  const detail::DecodedTop& top = state_->top();
   assert(top_node < top.nodes.size() && "spatial_proxy() of a node past the top");
   if (top_node >= top.nodes.size()) return {};
   return std::span<const ProxyBox>(top.proxies)
@@ -1139,6 +1158,7 @@ std::span<const ProxyBox> ReadView::spatial_proxy(uint32_t top_node) const {
 std::shared_ptr<const SpatialBlock> ReadView::spatial_block(uint32_t block,
                                                             std::string& error) const {
   State& s = *state_;
+  if (!s.top_ready(error)) return nullptr;
   assert(block < spatial_block_count() && "spatial_block() past the last block");
   if (block >= spatial_block_count()) {
     error = "store " + s.store->directory + ": no spatial block " + std::to_string(block) +
@@ -1155,6 +1175,7 @@ bool ReadView::for_each_spatial_entry(
     const std::function<bool(const SpatialNode& leaf, const SpatialEntry& entry)>& fn,
     std::string& error) const {
   State& s = *state_;
+  if (!s.top_ready(error)) return false;
   std::vector<uint32_t> stack;
   for (uint32_t b = 0; b < spatial_block_count(); ++b) {
     // A whole-plant pass leaves the cache to the views that page: a block not cached is decoded
@@ -1438,8 +1459,7 @@ std::unique_ptr<ReadView> Store::read(std::string& error) const {
   // The data file may have been cut short since the store was opened (another process, a copy
   // over it): refuse the view rather than fault on its first page.
   if (!data_file_complete(state_->env.get(), state_->directory, error)) return nullptr;
-  s->snapshot = state_->snapshot_for(s->txn.get(), error);
-  if (!s->snapshot) return nullptr;
+  s->snapshot = state_->snapshot_for(s->txn.get());
   return std::unique_ptr<ReadView>(new ReadView(std::move(s)));
 }
 

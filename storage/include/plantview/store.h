@@ -42,24 +42,25 @@
 //     the older ones into free pages of the data file beyond it, never over a page a committed
 //     state uses, and the meta page that makes them the store's state is written only by the
 //     commit. A killed process's pages are unreachable, and the next writer reuses them. (No
-//     MDB_WRITEMAP: it would need no more guarantee, and it writes dirty pages in place through
-//     the map, counted in the process's memory.)
+//     MDB_WRITEMAP: the guarantee does not need it, and it would write dirty pages in place
+//     through the map, where they count in the process's memory until written back.)
 //   - An import's memory is bounded whatever the plant's size: per object it appends to three
 //     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
-//     full buffer (kImportRunBytes) is sorted and written to a run file in the store directory
+//     full buffer (64 MB) is sorted and written to a run file in the store directory
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
 //     have been killed). commit() merges the runs into the ids and names databases and, with the
 //     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
-//     source's slots as runs, 600 bytes of block summary per 2048 objects at commit, and
+//     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages: under 1.5 GB at 40 million objects.
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
-//   - Store::open(), Store::read() and info() read metadata only. The first view of a committed
-//     state decodes that state's spatial top (a few MB at 40 million objects: 2 top nodes, and
-//     up to 8 proxy boxes of 28 bytes each, per 2048 objects), shared by every view of the state;
-//     a view keeps its state's memory alive. Spans a view returns are valid until the view is
-//     destroyed.
+//   - Store::open(), Store::read() and info() read metadata only (a millisecond or so whatever
+//     the store's size). The first spatial call on any view of a committed state decodes that
+//     state's spatial top (about 10 MB at 40 million objects: 2 top nodes and up to 8 proxy
+//     boxes of 28 bytes each per 2048 objects; tens of milliseconds), shared by every view of the
+//     state; another view asking meanwhile waits for it. A view keeps its state's memory alive.
+//     Spans a view returns are valid until the view is destroyed.
 //   - Spatial blocks are decoded on demand (spatial_block()) into a cache shared by the views of
 //     one committed state: at most kSpatialCacheBytes of blocks that nobody holds (least recently
 //     used go first); a block somebody holds stays until released. About 50 KB a block.
@@ -96,8 +97,9 @@
 // message names the key). read() checks the file's length again, so a file cut short while the
 // store is open fails the next view instead of faulting; a cut during a view's life is not
 // caught (the view's pages past the new end fault, as any mapped file's would). A damaged
-// spatial top fails read() (naming it); a damaged block fails spatial_block() (naming it) and
-// nothing else.
+// spatial top fails spatial_ready(), spatial_block() and for_each_spatial_entry() (naming it;
+// the other spatial calls answer as for an empty store); a damaged block fails spatial_block()
+// (naming it) and nothing else. info(), objects and lookups read on.
 #pragma once
 
 #include <cstddef>
@@ -193,7 +195,10 @@ class Import {
   // Removes every object that `source` brought before (importing a file again replaces them).
   bool remove_source(std::string_view source, std::string& error);
   // Adds an object (its `source` field says where it came from). An object whose id is already
-  // in the store replaces it.
+  // in the store replaces it; one put twice in this import is resolved at commit (the later
+  // wins). Fails, naming the slot, for bounds that are not finite or lie beyond the spatial
+  // grid (about 2000 km from the spatial origin, which the first object with geometry ever
+  // put fixes: whole metres at its centre; it never moves).
   bool put(const Object& object, std::string& error);
   // Merges this import's runs into the ids, names and spatial blocks, writes the top and the
   // statistics, and commits. Afterwards the Import is spent, whether
@@ -220,7 +225,13 @@ class ReadView {
   StoreInfo info() const;
 
   // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
-  // decoded on demand. Spans are valid while this view lives; no work per call.
+  // decoded on demand. Spans are valid while this view lives; no work per call once the top is
+  // decoded (the first spatial call on any view of the state decodes it).
+  //
+  // Whether the top could be decoded: false with a message naming the store when it is damaged
+  // (then the calls below answer as for an empty store, and spatial_block() fails). Call it
+  // once after read() where an empty answer would hide the damage (a renderer).
+  bool spatial_ready(std::string& error) const;
   //
   // The top: a binary tree whose leaves are blocks. count == 0: inner node, children `first`
   // and `first + 1` (top indices); count > 0: a block leaf: block index `first`, whose root
@@ -300,9 +311,8 @@ class Store {
 
   // Starts the (only) write transaction. Fails on a read-only store.
   std::unique_ptr<Import> begin_import(std::string& error);
-  // Starts a read snapshot. May be called from any thread; the view stays on that thread. The
-  // first view of a newly committed state decodes its spatial top (see "Transactions and
-  // lifetimes"); a failure there (a damaged top) fails read() with a message naming it.
+  // Starts a read snapshot. May be called from any thread; the view stays on that thread. Reads
+  // metadata only (see "Transactions and lifetimes").
   std::unique_ptr<ReadView> read(std::string& error) const;
 
   const std::string& directory() const;
