@@ -37,7 +37,8 @@ struct Renderer::State {
 // cannot be read, the current snapshot (if any) stays.
 bool Renderer::State::open_view(std::string& error) {
   std::unique_ptr<ReadView> next = store->read(error);
-  if (!next) return false;
+  // A damaged spatial top would read as an empty plant: refuse it instead.
+  if (!next || !next->spatial_ready(error)) return false;
   view = std::move(next);
   const ModelStatistics statistics = view->info().statistics;
   bounds = statistics.bounds;
