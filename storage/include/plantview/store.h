@@ -134,6 +134,13 @@ struct StoreInfo {
 // meta/"statistics" and printed by `plantview info --json`.
 std::string statistics_json(const ModelStatistics& statistics);
 
+// Threads that imports in this process use besides the importing one (0, the default: the
+// machine's hardware threads; 1: none, all work on the importing thread): records are compressed
+// on them, and ingest (ingest.h) generates on one. Speed only: the store written is the same,
+// byte for byte, whatever the count. Any thread may call; imports begun afterwards follow it.
+void set_import_threads(unsigned threads);
+unsigned import_threads();  // the count in effect (0 resolved)
+
 class Store;
 
 // Adds and replaces objects in one transaction. Not thread-safe; one per store at a time.
