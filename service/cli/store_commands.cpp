@@ -92,6 +92,8 @@ int run_gen(const GenOptions& o) {
   IngestControl control;
   control.progress = [&](const IngestProgress& p) {
     if (p.stage == IngestStage::generating) progress.update(double(p.done) / double(p.total));
+    // The commit (indexes, spatial tree) takes a while on a big plant: say so.
+    if (p.stage == IngestStage::committing && p.done == 0) progress.update(1.0, "committing");
   };
   const IngestResult result = ingest_generated(*store, g, control);
   if (!result) {

@@ -237,7 +237,11 @@ bool ColumnWriter::put(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>&& recor
   if (!chunk.decoded && chunk.frame.empty() && index >= chunk.next) {
     // Appending: the record goes straight into the chunk's layout.
     const size_t header = size_t(shape_.chunk_slots) * 4;
-    if (chunk.packed.empty()) chunk.packed.assign(header, 0);
+    if (chunk.packed.empty()) {
+      // Room for as much as the last chunk laid out held: one allocation a chunk, mostly.
+      chunk.packed.reserve(std::max(packed_bytes_, header + record.size()));
+      chunk.packed.assign(header, 0);
+    }
     const auto size = uint32_t(record.size());
     std::memcpy(chunk.packed.data() + 4 * size_t(index), &size, 4);
     chunk.packed.insert(chunk.packed.end(), record.begin(), record.end());
@@ -294,6 +298,7 @@ bool ColumnWriter::write_block(MDB_txn* txn, uint32_t number, Block& block, std:
     } else if (!chunk.frame.empty()) {
       p->frames[i] = std::move(chunk.frame);
     } else if (!chunk.packed.empty()) {
+      packed_bytes_ = chunk.packed.size();
       p->frames[i] = std::move(chunk.packed);
       p->to_compress[i] = 1;
     }

@@ -91,6 +91,7 @@ class ColumnWriter {
   ColumnShape shape_;
   unsigned threads_;
   int64_t last_stored_ = -1;  // the highest block number in the database (-1: none)
+  size_t packed_bytes_ = 0;   // the size of the last chunk laid out by put()
   std::map<uint32_t, Block> blocks_;
   std::deque<std::shared_ptr<Pending>> in_flight_;  // in the order they were completed
   ZstdCCtx cctx_ = make_compressor();
