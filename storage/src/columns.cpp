@@ -101,9 +101,11 @@ struct ColumnWriter::Pending {
   std::condition_variable finished;
   bool done = false;
 
+  int level = 3;
   void compress(ZSTD_CCtx* cctx) {
     std::vector<uint8_t> out;
     std::string why;
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level);
     for (size_t i = 0; i < frames.size() && why.empty(); ++i) {
       if (!to_compress[i]) continue;
       if (compress_frame(cctx, frames[i], out, why)) frames[i].swap(out);
@@ -284,6 +286,7 @@ bool ColumnWriter::write_block(MDB_txn* txn, uint32_t number, Block& block, std:
   auto p = std::make_shared<Pending>();
   p->number = number;
   p->stored = block.stored;
+  p->level = shape_.zstd_level;
   p->frames.resize(block.chunks.size());
   p->to_compress.assign(block.chunks.size(), 0);
   for (size_t i = 0; i < block.chunks.size(); ++i) {
