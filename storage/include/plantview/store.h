@@ -134,10 +134,11 @@ struct StoreInfo {
 // meta/"statistics" and printed by `plantview info --json`.
 std::string statistics_json(const ModelStatistics& statistics);
 
-// Threads that imports in this process use besides the importing one (0, the default: the
-// machine's hardware threads; 1: none, all work on the importing thread): records are compressed
-// on them, and ingest (ingest.h) generates on one. Speed only: the store written is the same,
-// byte for byte, whatever the count. Any thread may call; imports begun afterwards follow it.
+// Threads for the imports of this process (0, the default: the machine's hardware threads): an
+// import compresses its records on that many threads beside the importing one, and ingest
+// (ingest.h) generates a plant on a thread of its own; 1 does everything on the importing
+// thread. Speed only: the store written is the same, byte for byte, whatever the count. Any
+// thread may call; imports begun afterwards follow it.
 void set_import_threads(unsigned threads);
 unsigned import_threads();  // the count in effect (0 resolved)
 
