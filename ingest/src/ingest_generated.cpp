@@ -41,10 +41,12 @@ void add_statistics(ModelStatistics& total, const ModelStatistics& part) {
 }
 
 // Objects from the generator thread to the calling thread, in batches, at most kMaxBatches
-// waiting: what is generated ahead of the store is a few thousand objects whatever the scale.
+// waiting (and one being filled): what is generated ahead of the store is a few thousand
+// objects whatever the scale.
 class BatchQueue {
  public:
-  static constexpr size_t kBatchObjects = 256, kMaxBatches = 8;
+  // Big enough that handing a batch over (a wake-up on each side) is rare.
+  static constexpr size_t kBatchObjects = 1024, kMaxBatches = 4;
   struct Batch {
     std::vector<Object> objects;
     uint64_t done = 0;  // generating progress after these objects, thousandths of a unit

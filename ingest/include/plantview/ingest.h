@@ -55,8 +55,9 @@
 //     parse and the attributes are dropped before the objects are stored, and each object once
 //     it is stored.
 //   - XML is read in 1 MB blocks and stored object by object.
-//   - A generated plant holds one plant unit's layout at a time (generate.h) and at most 8
-//     batches of 256 objects between the generator and the store.
+//   - A generated plant holds one plant unit's layout at a time (generate.h) and batches of
+//     1024 objects between the generator and the store: 4 waiting at most, one being filled,
+//     one being stored (a few MB).
 //   Nothing is kept per object of the plant: the summary holds counts.
 //
 // Threads: any thread may call; the progress and file_done callbacks run on the calling thread.
