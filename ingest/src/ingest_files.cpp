@@ -86,11 +86,15 @@ bool ingest_rvm(Transaction& t, const ImportPlan::Model& model, IngestedFile& fi
   const uint64_t groups = rvm_statistics(rvm.value()).groups;
   t.report(IngestStage::classifying, 0, groups, path);
   RvmImportSummary summary;
-  const std::vector<Object> objects = rvm_to_objects(rvm.value(), attributes.get(), file.source, summary);
+  std::vector<Object> objects = rvm_to_objects(rvm.value(), attributes.get(), file.source, summary);
   t.report(IngestStage::classifying, groups, groups, path);
+  // The objects own copies of what they need: the parse and the attributes go before storing.
+  rvm.value() = RvmFile{};
+  attributes.reset();
 
   for (size_t k = 0; k < objects.size(); ++k) {
     if (!t.put(objects[k])) return false;
+    objects[k] = Object{};  // stored: its memory goes back while the transaction grows
     t.report(IngestStage::storing, k + 1, objects.size(), path);
   }
   file.groups = summary.groups;

@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
 #include <set>
+#include <thread>
 
 #include "plantview/ingest.h"
 #include "transaction.h"
@@ -13,16 +18,92 @@ namespace plantview {
 using ingest_detail::Abandon;
 using ingest_detail::Transaction;
 
-IngestResult ingest_generated(Store& store, const GenerateOptions& options, const IngestControl& control) {
-  assert(preset_info(options.preset) && "unknown preset: check it with parse_preset()");
-  assert(options.scale >= 1 && options.scale <= kMaxGenerateScale && "scale out of range");
-  Transaction t(store, control);
-  const std::string source = "gen:" + std::string(1, options.preset);
-  if (!t.begin() || !t.remove_source(source)) return t.failure();
+namespace {
 
+// Adds `part`'s counts to `total`.
+void add_statistics(ModelStatistics& total, const ModelStatistics& part) {
+  total.objects += part.objects;
+  total.primitives += part.primitives;
+  total.triangles += part.triangles;
+  for (size_t c = 0; c < kObjectClassCount; ++c) {
+    total.objects_by_class[c] += part.objects_by_class[c];
+    total.primitives_by_class[c] += part.primitives_by_class[c];
+    total.triangles_by_class[c] += part.triangles_by_class[c];
+  }
+  for (size_t k = 0; k < kPrimitiveKindCount; ++k) {
+    total.primitives_by_kind[k] += part.primitives_by_kind[k];
+    total.triangles_by_kind[k] += part.triangles_by_kind[k];
+  }
+  if (!part.bounds.empty()) {
+    total.bounds.extend(part.bounds.min);
+    total.bounds.extend(part.bounds.max);
+  }
+}
+
+// Objects from the generator thread to the calling thread, in batches, at most kMaxBatches
+// waiting (and one being filled): what is generated ahead of the store is a few thousand
+// objects whatever the scale.
+class BatchQueue {
+ public:
+  // Big enough that handing a batch over (a wake-up on each side) is rare.
+  static constexpr size_t kBatchObjects = 1024, kMaxBatches = 4;
+  struct Batch {
+    std::vector<Object> objects;
+    uint64_t done = 0;  // generating progress after these objects, thousandths of a unit
+  };
+  // Generator side. False once the consumer has given up (the batch is dropped).
+  bool push(Batch&& batch) {
+    std::unique_lock lock(mutex_);
+    space_.wait(lock, [&] { return abandoned_ || batches_.size() < kMaxBatches; });
+    if (abandoned_) return false;
+    batches_.push_back(std::move(batch));
+    ready_.notify_one();
+    return true;
+  }
+  // Generator side, last: no more batches.
+  void close() {
+    const std::lock_guard lock(mutex_);
+    closed_ = true;
+    ready_.notify_one();
+  }
+  bool abandoned() {
+    const std::lock_guard lock(mutex_);
+    return abandoned_;
+  }
+  // Calling thread. False when the generator has closed the queue and everything was taken.
+  bool pop(Batch& batch) {
+    std::unique_lock lock(mutex_);
+    ready_.wait(lock, [&] { return closed_ || !batches_.empty(); });
+    if (batches_.empty()) return false;
+    batch = std::move(batches_.front());
+    batches_.pop_front();
+    space_.notify_one();
+    return true;
+  }
+  // Calling thread: the generator stops at its next object or progress step.
+  void abandon() {
+    const std::lock_guard lock(mutex_);
+    abandoned_ = true;
+    batches_.clear();
+    space_.notify_one();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_, space_;
+  std::deque<Batch> batches_;
+  bool closed_ = false, abandoned_ = false;
+};
+
+// Thousandths of a unit done, from the generator's fraction (never above `total`).
+uint64_t thousandths(double fraction, uint64_t total) {
+  return std::min(total, uint64_t(std::floor(fraction * double(total))));
+}
+
+// The generator on the calling thread, each object put as it comes.
+bool generate_inline(Transaction& t, const GenerateOptions& options, const std::string& source) {
   const uint64_t total = 1000 * uint64_t(options.scale);
   uint64_t reported = 0;
-  t.report(IngestStage::generating, 0, total);
   try {
     t.summary().generated = generate_plant(
         options,
@@ -32,13 +113,99 @@ IngestResult ingest_generated(Store& store, const GenerateOptions& options, cons
         },
         [&](double fraction) {
           // Thousandths of a unit, never backwards, and a report only when the figure moves.
-          const auto done = std::min(total, uint64_t(std::floor(fraction * double(total))));
+          const uint64_t done = thousandths(fraction, total);
           if (done > reported) t.report(IngestStage::generating, reported = done, total);
           if (!t.check_stop()) throw Abandon{};
         });
   } catch (const Abandon&) {
-    return t.failure();
+    return false;
   }
+  return true;
+}
+
+// The generator on a thread of its own, one batch of objects ahead of the calling thread, which
+// puts them (the store's transaction belongs to it) and reports progress. The objects are put in
+// the order generated, so the store is the same as generate_inline's. The generator thread also
+// counts the objects' statistics, which the calling thread would otherwise compute.
+bool generate_pipelined(Transaction& t, const GenerateOptions& options, const std::string& source,
+                        const std::stop_token& stop) {
+  const uint64_t total = 1000 * uint64_t(options.scale);
+  BatchQueue queue;
+  GenerateSummary generated;
+  ModelStatistics counted;
+  std::exception_ptr failure;  // an exception other than Abandon, rethrown on the calling thread
+  std::thread generator([&] {
+    BatchQueue::Batch batch;
+    try {
+      generated = generate_plant(
+          options,
+          [&](Object&& object) {
+            object.source = source;
+            counted.add(object);
+            batch.objects.push_back(std::move(object));
+            if (batch.objects.size() == BatchQueue::kBatchObjects) {
+              if (!queue.push(std::move(batch))) throw Abandon{};
+              batch = {};
+              batch.objects.reserve(BatchQueue::kBatchObjects);
+            }
+          },
+          [&](double fraction) {
+            batch.done = std::max(batch.done, thousandths(fraction, total));
+            // A stop ends generating here; the calling thread finds it before it commits.
+            if (queue.abandoned() || stop.stop_requested()) throw Abandon{};
+          });
+      if (!batch.objects.empty() || batch.done > 0) queue.push(std::move(batch));
+    } catch (const Abandon&) {
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    queue.close();
+  });
+  // However the calling thread leaves (an error, a progress callback that throws), the
+  // generator stops and is joined first.
+  struct Joiner {
+    BatchQueue& queue;
+    std::thread& thread;
+    ~Joiner() {
+      queue.abandon();
+      thread.join();
+    }
+  };
+  bool ok = true;
+  {
+    const Joiner joiner{queue, generator};
+    // Put, report, check the stop token between objects (Transaction::put_counted).
+    uint64_t reported = 0;
+    BatchQueue::Batch batch;
+    while (ok && queue.pop(batch)) {
+      for (const Object& object : batch.objects) {
+        if (!t.put_counted(object)) {
+          ok = false;
+          break;
+        }
+      }
+      if (ok && batch.done > reported) t.report(IngestStage::generating, reported = batch.done, total);
+    }
+  }
+  if (failure) std::rethrow_exception(failure);
+  if (!ok || !t.check_stop()) return false;
+  t.summary().generated = generated;
+  add_statistics(t.summary().added, counted);
+  return true;
+}
+
+}  // namespace
+
+IngestResult ingest_generated(Store& store, const GenerateOptions& options, const IngestControl& control) {
+  assert(preset_info(options.preset) && "unknown preset: check it with parse_preset()");
+  assert(options.scale >= 1 && options.scale <= kMaxGenerateScale && "scale out of range");
+  Transaction t(store, control);
+  const std::string source = "gen:" + std::string(1, options.preset);
+  if (!t.begin() || !t.remove_source(source)) return t.failure();
+  t.report(IngestStage::generating, 0, 1000 * uint64_t(options.scale));
+  const bool ok = import_threads() > 1 ? generate_pipelined(t, options, source, control.stop)
+                                       : generate_inline(t, options, source);
+  if (!ok) return t.failure();
   return t.commit();
 }
 

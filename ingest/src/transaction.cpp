@@ -27,12 +27,17 @@ bool Transaction::remove_source(std::string_view source) {
 }
 
 bool Transaction::put(const Object& object) {
+  if (!put_counted(object)) return false;
+  summary_.added.add(object);
+  return true;
+}
+
+bool Transaction::put_counted(const Object& object) {
   if (!check_stop()) return false;
   if (!import_->put(object, store_error_)) {
     fail_store();
     return false;
   }
-  summary_.added.add(object);
   return true;
 }
 

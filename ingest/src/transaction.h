@@ -31,6 +31,8 @@ class Transaction {
   bool remove_source(std::string_view source);
   // Checks the stop token, then puts the object and counts it.
   bool put(const Object& object);
+  // The same, for a caller that counts the objects' statistics itself (into summary().added).
+  bool put_counted(const Object& object);
   // Reports the committing stage and commits; the result is the summary or the error.
   IngestResult commit();
 

@@ -408,22 +408,34 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& bou
 }
 
 bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
-                      std::string& error) {
+                      std::string& error, const std::function<void(double)>& progress) {
   auto view = store.read(error);
   if (!view) return false;
-  const DAabb bounds = view->info().statistics.bounds;
+  const StoreInfo info = view->info();
+  const DAabb bounds = info.statistics.bounds;
   if (bounds.empty()) {
     error = store.directory() + ": the store holds no geometry";
     return false;
   }
+  // An orbit needs only the plant's bounds.
   std::vector<DAabb> equipment;
-  const bool ok = view->for_each_object(
-      [&](uint32_t, Object&& o) {
-        if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
-        return true;
-      },
-      false, error);
-  if (!ok) return false;
+  if (kind == PathKind::walkthrough) {
+    // Progress by objects read, reported every kProgressObjects of them.
+    constexpr uint64_t kProgressObjects = 16384;
+    const uint64_t total = std::max<uint64_t>(1, info.objects);
+    uint64_t seen = 0;
+    const bool ok = view->for_each_object(
+        [&](uint32_t, Object&& o) {
+          if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
+          if (progress && ++seen % kProgressObjects == 0) {
+            progress(double(std::min(seen, total)) / double(total));
+          }
+          return true;
+        },
+        false, error);
+    if (!ok) return false;
+  }
+  if (progress) progress(1.0);
   out = make_camera_path(kind, frames, bounds, equipment);
   return true;
 }

@@ -511,7 +511,11 @@ int run_path(const std::string& store_dir, const std::string& kind_name, int fra
   auto store = Store::open(store_dir, Store::Mode::read_only, error);
   if (!store) return fail(error);
   std::vector<Camera> cameras;
-  if (!make_camera_path(kind, frames, *store, cameras, error)) return fail(error);
+  {
+    Progress progress("path: reading the equipment");
+    const auto shown = [&](double fraction) { progress.update(fraction); };
+    if (!make_camera_path(kind, frames, *store, cameras, error, shown)) return fail(error);
+  }
   if (!farm::write_file_atomically(out, camera_path_json(cameras), error)) return fail(error);
   return 0;
 }

@@ -32,10 +32,13 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 
 // ---- gen
 
+constexpr unsigned kMaxImportThreads = 256;
+
 struct GenOptions {
   std::string preset = "c";
   uint32_t scale = 1;
   uint64_t seed = 1;
+  unsigned threads = 0;  // 0: the machine's hardware threads
   std::string store, xml;
 };
 
@@ -53,6 +56,11 @@ int run_gen(const GenOptions& o) {
     std::cerr << "plantview gen: give exactly one of --store DIR or --xml FILE\n";
     return 2;
   }
+  if (o.threads > kMaxImportThreads) {
+    std::cerr << "plantview gen: --threads must be 0.." << kMaxImportThreads << ", got " << o.threads << "\n";
+    return 2;
+  }
+  set_import_threads(o.threads);
   g.scale = o.scale;
   g.seed = o.seed;
   const auto start = std::chrono::steady_clock::now();
@@ -92,6 +100,8 @@ int run_gen(const GenOptions& o) {
   IngestControl control;
   control.progress = [&](const IngestProgress& p) {
     if (p.stage == IngestStage::generating) progress.update(double(p.done) / double(p.total));
+    // The commit (indexes, spatial tree) takes a while on a big plant: say so.
+    if (p.stage == IngestStage::committing && p.done == 0) progress.update(1.0, "committing");
   };
   const IngestResult result = ingest_generated(*store, g, control);
   if (!result) {
@@ -322,6 +332,9 @@ Action add_store_commands(CLI::App& app) {
   gen_cmd->add_option("--preset", gen->preset, "a, b or c: the plants of Su et al. Fig. 1 (default c)");
   gen_cmd->add_option("--scale", gen->scale, "Plant units laid out side by side (default 1)");
   gen_cmd->add_option("--seed", gen->seed, "Random seed (default 1)");
+  gen_cmd->add_option("--threads", gen->threads,
+                      "Threads that generate and compress (default 0: every core; 1: one thread). "
+                      "The store is the same whatever the count");
   gen_cmd->add_option("--store", gen->store, "Store directory to add the plant to");
   gen_cmd->add_option("--xml", gen->xml, "plantview XML file to write instead");
 

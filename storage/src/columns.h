@@ -6,7 +6,9 @@
 #include <lmdb.h>
 
 #include <cstdint>
+#include <deque>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -15,27 +17,57 @@
 
 namespace plantview::detail {
 
+// How many threads compress the blocks of every ColumnWriter (process-wide): 0, the default,
+// means the machine's hardware threads; 1 compresses on the writer's own thread. Speed only: the
+// bytes written are the same whatever the count. Any thread may call; writers created afterwards
+// use the new count.
+void set_compression_threads(unsigned threads);
+unsigned compression_threads();
+
 // Puts and erases records of one column in a write transaction. Blocks that are touched are
 // held decoded in memory (at most kMaxOpenBlocks, then all are written out) and written by
 // flush(); a block is written as soon as its last slot is put, as imports fill slots in order.
-// Single-threaded, like the transaction. Messages name the store and the slot or block.
+//
+// Writing a block means compressing its chunks, which a pool of threads does
+// (compression_threads()) while the writer goes on: blocks are handed to LMDB on the writer's
+// thread, in the order they were completed, kMaxBlocksInFlight behind (a fixed count, so that
+// the data file is the same whatever the thread count). So the memory of
+// an import that appends is a few blocks per column whatever its size.
+//
+// Records put in slot order into a block that the database does not hold yet are appended to
+// their chunk's layout as they come (no allocation per record); any other access decodes the
+// chunk into one buffer per record. put() copies the record's bytes and leaves the vector as it
+// was, so that a caller can reuse its capacity.
+//
+// Single-threaded, like the transaction: every call on the transaction's thread. Messages name
+// the store and the slot or block.
 class ColumnWriter {
  public:
   // `name`: what the column holds, for messages ("object", "attributes").
   ColumnWriter(std::string directory, std::string name, MDB_dbi dbi, ColumnShape shape);
+  // Waits for the writer's blocks still being compressed (their results are dropped).
+  ~ColumnWriter();
+  ColumnWriter(const ColumnWriter&) = delete;
+  ColumnWriter& operator=(const ColumnWriter&) = delete;
   // Must come first: finds where appending starts.
   bool begin(MDB_txn* txn, std::string& error);
   bool put(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>&& record, std::string& error);
   bool erase(MDB_txn* txn, uint32_t slot, std::string& error);
   // The record in `slot` (empty: none). Valid until the next call on this writer.
   bool get(MDB_txn* txn, uint32_t slot, std::span<const uint8_t>& record, std::string& error);
-  // Writes every block held in memory.
+  // Writes every block held in memory or being compressed.
   bool flush(MDB_txn* txn, std::string& error);
 
  private:
   static constexpr size_t kMaxOpenBlocks = 32;
+  // Blocks handed over and not yet in LMDB; the same for every thread count (determinism).
+  static constexpr size_t kMaxBlocksInFlight = 8;
   struct Chunk {
-    std::vector<uint8_t> frame;                 // as stored, until decoded
+    std::vector<uint8_t> frame;  // as stored (compressed), until decoded
+    // Neither decoded nor stored: the chunk's layout (chunks.h), filled in slot order; empty
+    // until its first record. `next` is the first slot (in the chunk) that may be appended.
+    std::vector<uint8_t> packed;
+    uint32_t next = 0;
     std::vector<std::vector<uint8_t>> records;  // once decoded: chunk_slots entries, empty: none
     bool decoded = false;
   };
@@ -44,21 +76,28 @@ class ColumnWriter {
     bool stored = false;  // the database holds a version of this block
     bool changed = false;
   };
+  struct Pending;  // a block handed to the compression threads
   bool open_block(MDB_txn* txn, uint32_t number, Block*& block, std::string& error);
   bool open_record(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>*& record, std::string& error);
+  void decode(Chunk& chunk);
   bool write_block(MDB_txn* txn, uint32_t number, Block& block, std::string& error);
+  // Puts handed-over blocks into LMDB, oldest first (waiting for their compression): every one
+  // (`all`), else while more than kMaxBlocksInFlight are in flight.
+  bool store_compressed(MDB_txn* txn, bool all, std::string& error);
   std::string fail(std::string_view what, int rc) const;
 
   std::string directory_, name_;
   MDB_dbi dbi_;
   ColumnShape shape_;
+  unsigned threads_;
   int64_t last_stored_ = -1;  // the highest block number in the database (-1: none)
+  size_t packed_bytes_ = 0;   // the size of the last chunk laid out by put()
   std::map<uint32_t, Block> blocks_;
+  std::deque<std::shared_ptr<Pending>> in_flight_;  // in the order they were completed
   ZstdCCtx cctx_ = make_compressor();
   ZstdDCtx dctx_{ZSTD_createDCtx()};
-  std::vector<uint8_t> chunk_, value_;
+  std::vector<uint8_t> value_;
   std::vector<uint32_t> ends_;
-  std::vector<std::vector<uint8_t>> frames_;
 };
 
 // Reads records of one column in a read transaction, keeping the `capacity` most recently used

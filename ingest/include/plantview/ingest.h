@@ -46,11 +46,25 @@
 //   Arguments that break a rule stated here (a scale out of range, an unknown preset) are caller
 //   bugs and assert; check them with parse_preset() and kMaxGenerateScale.
 //
-// Memory: an RVM file is held whole, with its attribute file, its parse and its objects, while it
-// is stored (a few times the files' size: Huldra's 3.6 MB take 15 MB at peak); XML is read in 1 MB blocks and stored object by object; a generated
-// plant holds one plant unit at a time (generate.h). The transaction's own memory is the store's.
+// Memory, besides the transaction's own (the store's):
+//   - An RVM file is held whole while it is converted: its bytes until parsed, then its parse,
+//     its attribute file (parsed and indexed by name) and the objects made of them (a few times
+//     the files' size: Huldra's 3.6 MB take 15 MB at peak). The conversion needs the whole
+//     parse (an object is a group's subtree, its attributes are looked up by name, a pipeline is
+//     its PIPE group's subtree), so this grows with the largest file, not with the plant. The
+//     parse and the attributes are dropped before the objects are stored, and each object once
+//     it is stored.
+//   - XML is read in 1 MB blocks and stored object by object.
+//   - A generated plant holds one plant unit's layout at a time (generate.h) and batches of
+//     1024 objects between the generator and the store: 4 waiting at most, one being filled,
+//     one being stored (a few MB).
+//   Nothing is kept per object of the plant: the summary holds counts.
 //
 // Threads: any thread may call; the progress and file_done callbacks run on the calling thread.
+// A generated plant is generated on a thread of its own, one batch ahead of the calling thread,
+// which stores it (unless import_threads() is 1, store.h); the store's compression threads work
+// beside them. The objects are stored in the order generated: the store is the same, byte for
+// byte, whatever the thread count.
 #pragma once
 
 #include <cstdint>

@@ -183,6 +183,14 @@ struct StoreInfo {
 // meta/"statistics" and printed by `plantview info --json`.
 std::string statistics_json(const ModelStatistics& statistics);
 
+// Threads for the imports of this process (0, the default: the machine's hardware threads): an
+// import compresses its records on that many threads beside the importing one, and ingest
+// (ingest.h) generates a plant on a thread of its own; 1 does everything on the importing
+// thread. Speed only: the store written is the same, byte for byte, whatever the count. Any
+// thread may call; imports begun afterwards follow it.
+void set_import_threads(unsigned threads);
+unsigned import_threads();  // the count in effect (0 resolved)
+
 class Store;
 
 // Adds and replaces objects in one transaction. Not thread-safe; one per store at a time.
