@@ -384,10 +384,13 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   draw_order_.clear();
   for (uint32_t i = 0; i < draws.size(); ++i)
     if (draws[i].drawn) draw_order_.push_back(i);
-  // Ties broken by key, so that the order of two objects does not depend on what else is drawn
-  // (coincident surfaces then resolve the same way with occlusion on or off).
+  // Ties broken by a key of the object's own (Known::order_key), so that the order of two
+  // objects depends neither on what else is drawn nor on the frames before (coincident surfaces
+  // then resolve the same way with occlusion on or off, fresh or after a path).
   std::sort(draw_order_.begin(), draw_order_.end(), [&](uint32_t a, uint32_t b) {
     if (draws[a].distance_m != draws[b].distance_m) return draws[a].distance_m < draws[b].distance_m;
+    if (draws[a].known->order_key != draws[b].known->order_key)
+      return draws[a].known->order_key < draws[b].known->order_key;
     return draws[a].key < draws[b].key;
   });
   for (const uint32_t i : draw_order_) {

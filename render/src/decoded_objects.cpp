@@ -55,6 +55,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
 Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   Known& k = known_[key];
   k.id = o.id;
+  k.order_key = key & kRunKeyBit ? runs_[key & ~kRunKeyBit].members.front() : key;
   k.object_class = o.object_class;
   k.colour = o.colour;
   k.origin_m = o.origin_m;
@@ -136,7 +137,10 @@ void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) 
     const size_t first = runs_.size();
     branch_runs_.clear();
     find_runs(branch, branch_runs_);
-    for (auto& run : branch_runs_) runs_.push_back(std::move(run));
+    for (auto& run : branch_runs_) {
+      run.pipeline_id = pipeline_id;
+      runs_.push_back(std::move(run));
+    }
     for (size_t r = first; r < runs_.size(); ++r) {
       for (const uint32_t m : runs_[r].members) {
         if (const auto it = known_.find(m); it != known_.end()) it->second.run = int32_t(r);
@@ -152,10 +156,9 @@ Known& DecodedObjects::know_run(uint32_t run) {
   if (const auto it = known_.find(key); it != known_.end()) return it->second;
   const PipelineRun& r = runs_[run];
   Object o;
-  o.id = 0;
-  if (!r.members.empty()) {
-    if (const auto it = known_.find(r.members.front()); it != known_.end()) o.id = it->second.pipeline_id;
-  }
+  // The pipeline's id, known from the run itself: not from whichever member happens to be
+  // decoded (that depends on the frames before, and the picture must not).
+  o.id = r.pipeline_id;
   o.object_class = ObjectClass::pipe;
   o.colour = r.colour;
   o.origin_m = r.start_m;

@@ -82,6 +82,9 @@ struct Known {
   uint8_t base = 0;
   uint32_t resident_centreline_first = 0;
   uint64_t last_seen = 0;           // frame
+  // Breaks ties in the draw order the same way whatever was decoded before: the slot, or for a
+  // merged run its first member's slot (run indices depend on the order pipelines were met).
+  uint32_t order_key = 0;
   OccluderShape occluder;           // once built: empty unless it may occlude
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
 };
