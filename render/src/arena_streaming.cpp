@@ -105,6 +105,8 @@ const ArenaStreaming::Compaction& ArenaStreaming::compaction(const MeshPlan& pla
   return c;
 }
 
+bool ArenaStreaming::resident(const Known& k) { return k.table != UINT32_MAX; }
+
 uint64_t ArenaStreaming::resident_vertices(const Known& k, uint8_t base) {
   base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
   if (base == 0) return k.vertex_count;
@@ -185,9 +187,13 @@ bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, Decoded
   }
   fits = offset.has_value();
   if (!fits) return true;
-  if (!backend_.grow_arena(*offset + count, error)) return false;
+  if (!backend_.grow_arena(*offset + count, error)) {
+    residency_.drop(key);  // resident exactly while it holds a table entry
+    return false;
+  }
   k.base = base;
   k.table = table_.acquire();
+  k.arena_offset = uint32_t(*offset);
   vertex_objects_.assign(count, k.table);
   backend_.upload(*offset, *upload, vertex_objects_);
   stats.objects_tessellated += 1;
@@ -226,7 +232,7 @@ bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std
   uint64_t needed = 0;
   for (const Draw& d : draws) {
     const Known& k = *d.known;
-    if (residency_.resident(d.key) && d.level >= k.base) continue;
+    if (resident(k) && d.level >= k.base) continue;
     needed += resident_vertices(k, resident_base(d.level, policy, roomy));
   }
   return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
@@ -241,8 +247,7 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
   for (size_t i = 0; i < draws.size(); ++i) {
     Draw& d = draws[i];
     Known& k = *d.known;
-    const bool resident = residency_.resident(d.key);
-    if (resident && d.level >= k.base) continue;
+    if (resident(k) && d.level >= k.base) continue;
     if (k.primitives.empty() && !k.parts.empty()) continue;  // decoded again on this thread
     const uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
     resident_vertices(k, base);
@@ -313,11 +318,11 @@ bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy
                                      FrameStats& stats, std::string& error, bool& resident,
                                      const Job* job) {
   Known& k = *d.known;
-  if (residency_.resident(d.key) && d.level < k.base) {
+  if (ArenaStreaming::resident(k) && d.level < k.base) {
     release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
     stats.objects_refined += 1;
   }
-  resident = residency_.resident(d.key);
+  resident = ArenaStreaming::resident(k);
   if (resident) return true;
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
   const uint8_t base = resident_base(d.level, policy, roomy);
@@ -340,7 +345,7 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   const uint32_t level = std::max<uint32_t>(d.level, k.base);
   d.level = uint8_t(level);
   d.drawn = true;
-  d.arena_first = uint32_t(*residency_.offset(d.key));
+  d.arena_first = k.arena_offset;
   table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id);
   if (d.centreline) {
     stats.centreline_pipes += 1;
@@ -380,19 +385,20 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   if (!indices) return false;
   std::array<uint32_t*, kIndexListCount> cursor;
   for (int list = 0; list < kIndexListCount; ++list) cursor[list] = indices + first[list];
-  // Nearest first: hidden fragments then fail the depth test before they are shaded.
+  // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
+  // broken by a key of the object's own (Known::order_key), so that the order of two objects
+  // depends neither on what else is drawn nor on the frames before (coincident surfaces then
+  // resolve the same way with occlusion on or off, fresh or after a path). Sorted as packed
+  // keys: the distance's float bits (non-negative floats order as their bits), the order key.
+  sort_keys_.clear();
+  for (uint32_t i = 0; i < draws.size(); ++i) {
+    if (!draws[i].drawn) continue;
+    const uint64_t distance_bits = std::bit_cast<uint32_t>(float(std::max(draws[i].distance_m, 0.0)));
+    sort_keys_.push_back({distance_bits << 32 | draws[i].known->order_key, i});
+  }
+  std::sort(sort_keys_.begin(), sort_keys_.end());
   draw_order_.clear();
-  for (uint32_t i = 0; i < draws.size(); ++i)
-    if (draws[i].drawn) draw_order_.push_back(i);
-  // Ties broken by a key of the object's own (Known::order_key), so that the order of two
-  // objects depends neither on what else is drawn nor on the frames before (coincident surfaces
-  // then resolve the same way with occlusion on or off, fresh or after a path).
-  std::sort(draw_order_.begin(), draw_order_.end(), [&](uint32_t a, uint32_t b) {
-    if (draws[a].distance_m != draws[b].distance_m) return draws[a].distance_m < draws[b].distance_m;
-    if (draws[a].known->order_key != draws[b].known->order_key)
-      return draws[a].known->order_key < draws[b].known->order_key;
-    return draws[a].key < draws[b].key;
-  });
+  for (const auto& [key, i] : sort_keys_) draw_order_.push_back(i);
   for (const uint32_t i : draw_order_) {
     const Draw& d = draws[i];
     const Known& k = *d.known;

@@ -13,6 +13,7 @@ namespace plantview::detail {
 void DecodedObjects::reset(const ReadView& view) {
   view_ = &view;
   known_.clear();
+  decoded_.clear();
   runs_.clear();
   decisions_.clear();
   pipeline_runs_.clear();
@@ -26,8 +27,12 @@ Known* DecodedObjects::find(uint32_t key) {
 bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
                             std::string& error) {
   new_slots_.clear();
-  for (const VisibleObject& v : visible)
-    if (!known_.count(v.slot)) new_slots_.push_back(v.slot);
+  decoded_.resize(visible.size());
+  for (size_t i = 0; i < visible.size(); ++i) {
+    const auto it = known_.find(visible[i].slot);
+    decoded_[i] = it == known_.end() ? nullptr : &it->second;
+    if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
+  }
   std::sort(new_slots_.begin(), new_slots_.end());
   for (const uint32_t slot : new_slots_) {
     if (!view_->object(slot, object_, false, error)) return false;
@@ -47,6 +52,10 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       if (std::find(members.begin(), members.end(), slot) != members.end()) k.run = int32_t(r);
     }
   }
+  // The new ones' Known (node addresses survive the map's growth).
+  if (!new_slots_.empty())
+    for (size_t i = 0; i < visible.size(); ++i)
+      if (!decoded_[i]) decoded_[i] = &known_.at(visible[i].slot);
   return true;
 }
 
@@ -189,6 +198,7 @@ const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Kno
 
 void DecodedObjects::forget_old(uint64_t frame, const Residency& residency) {
   if (known_.size() <= kKnownObjectsKept + residency.resident_count()) return;
+  decoded_.clear();
   for (int pass = 0; pass < 2 && known_.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {
     for (auto it = known_.begin(); it != known_.end();) {
       const bool old = pass == 1 || it->second.last_seen < frame;

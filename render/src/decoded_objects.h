@@ -75,7 +75,8 @@ struct Known {
   std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
   float pipe_diameter_m = 0;
   int32_t run = -1;                 // the pipeline run it belongs to, if any
-  uint32_t table = UINT32_MAX;      // object-table entry while resident
+  uint32_t table = UINT32_MAX;      // object-table entry while resident (UINT32_MAX: not)
+  uint32_t arena_offset = 0;        // while resident: its first vertex in the arena
   // While resident: the finest level whose vertices are in the arena. At base 0 every vertex
   // is there and the templates' indices serve every level; above 0 only the vertices of levels
   // >= base are, compacted part by part (see Part::resident_plan).
@@ -102,7 +103,11 @@ class DecodedObjects {
 
   // Decodes the visible objects not known yet, in slot order. hlod: also find the runs of the
   // pipelines their pipes and components belong to. False if an object cannot be decoded.
+  // Afterwards decoded()[i] is the Known of visible[i] (one lookup per object and frame).
   bool decode(std::span<const VisibleObject> visible, bool hlod, std::string& error);
+  // The Known of each object of the last decode() call's span, in its order; valid until the
+  // next decode(), forget_old() or reset().
+  std::span<Known* const> decoded() const { return decoded_; }
   // A known object or run (null if not known).
   Known* find(uint32_t key);
   // A known object; it must be known (decoded this frame or before).
@@ -157,6 +162,7 @@ class DecodedObjects {
   // Scratch, reused.
   std::vector<PipelineRun> branch_runs_;
   std::vector<uint32_t> new_slots_;
+  std::vector<Known*> decoded_;
   Object object_;  // decode target
   std::vector<PackedVertex> occluder_scratch_;
 };

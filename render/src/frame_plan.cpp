@@ -2,6 +2,7 @@
 #include "frame_plan.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -227,8 +228,11 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
                        const RenderOptions& options, uint64_t frame, FrameStats& stats) {
   draws_.clear();
   const bool merging = options.hlod && options.lod_policy != LodPolicy::none;
-  for (const VisibleObject& v : visible_) {
-    Known* k = &objects.at(v.slot);
+  const std::span<Known* const> known = objects.decoded();
+  assert(known.size() == visible_.size());
+  for (size_t i = 0; i < visible_.size(); ++i) {
+    const VisibleObject& v = visible_[i];
+    Known* k = known[i];
     k->last_seen = frame;
     if (k->vertex_count == 0) continue;
     if (k->run >= 0 && merging) {

@@ -140,8 +140,9 @@ class FramePlan {
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
-  //    hlod_members counted). Every visible object must be decoded in `objects`; those seen
-  //    get last_seen = frame. Merged runs are decoded (made) here.
+  //    hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
+  //    read from objects.decoded(), no lookup per object); those seen get last_seen = frame.
+  //    Merged runs are decoded (made) here.
   void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
               uint64_t frame, FrameStats& stats);
 
