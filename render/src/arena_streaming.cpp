@@ -222,6 +222,7 @@ void ArenaStreaming::begin_frame(const FramePlan& plan) {
   for (const Draw& d : plan.draws())
     if (d.key & kRunKeyBit) residency_.mark_visible(d.key);
   counts_.fill(0);
+  segments_.clear();
   for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
   proxy_tables_.clear();
   table_.begin_frame();
@@ -346,17 +347,25 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   d.level = uint8_t(level);
   d.drawn = true;
   d.arena_first = k.arena_offset;
+  d.segment_first = uint32_t(segments_.size());
   table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id);
   if (d.centreline) {
     stats.centreline_pipes += 1;
     stats.lines += k.centreline.size();
-    counts_[kLines] += 2 * k.centreline.size();
+    const uint32_t n = uint32_t(2 * k.centreline.size());
+    counts_[kLines] += n;
+    segments_.push_back({nullptr, d.arena_first + k.resident_centreline_first, n, 0, uint8_t(kLines)});
+    d.segment_count = 1;
     return;
   }
   for (const Known::Part& part : k.parts) {
     const uint32_t l = part.plan->clamp_level(level);
     const uint32_t n = part.plan->index_count(l);
-    counts_[list_of(k, part)] += n;
+    const IndexList list = list_of(k, part);
+    counts_[list] += n;
+    const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
+    segments_.push_back({&plan, d.arena_first + part.resident_first, plan.index_count(level),
+                         uint8_t(level), uint8_t(list)});
     if (part.plan->topology == Topology::lines) {
       stats.lines += n / 2;
     } else {
@@ -364,6 +373,7 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
       stats.triangles_by_level[l] += n / 3;
     }
   }
+  d.segment_count = uint32_t(k.parts.size());
 }
 
 void ArenaStreaming::add_box(const glm::dvec3& offset_m, const glm::vec3& size_m, Colour colour,
@@ -394,24 +404,21 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   for (uint32_t i = 0; i < draws.size(); ++i) {
     if (!draws[i].drawn) continue;
     const uint64_t distance_bits = std::bit_cast<uint32_t>(float(std::max(draws[i].distance_m, 0.0)));
-    sort_keys_.push_back({distance_bits << 32 | draws[i].known->order_key, i});
+    sort_keys_.push_back({distance_bits << 32 | draws[i].order_key, i});
   }
   std::sort(sort_keys_.begin(), sort_keys_.end());
   draw_order_.clear();
   for (const auto& [key, i] : sort_keys_) draw_order_.push_back(i);
   for (const uint32_t i : draw_order_) {
     const Draw& d = draws[i];
-    const Known& k = *d.known;
-    if (d.centreline) {
-      const uint32_t at = d.arena_first + k.resident_centreline_first;
-      for (uint32_t c = 0; c < 2 * k.centreline.size(); ++c) *cursor[kLines]++ = at + c;
-      continue;
-    }
-    for (const Known::Part& part : k.parts) {
-      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
-      uint32_t*& at = cursor[list_of(k, part)];
-      at += write_indices(plan, d.level, d.arena_first + part.resident_first,
-                          std::span<uint32_t>(at, plan.index_count(d.level)));
+    for (uint32_t g = d.segment_first; g < d.segment_first + d.segment_count; ++g) {
+      const Segment& seg = segments_[g];
+      uint32_t*& at = cursor[seg.list];
+      if (!seg.plan) {
+        for (uint32_t c = 0; c < seg.count; ++c) *at++ = seg.base_vertex + c;
+        continue;
+      }
+      at += write_indices(*seg.plan, seg.level, seg.base_vertex, std::span<uint32_t>(at, seg.count));
     }
   }
   backend_.unmap_indices();

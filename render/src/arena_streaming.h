@@ -170,6 +170,16 @@ class ArenaStreaming {
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
   std::vector<std::pair<uint64_t, uint32_t>> sort_keys_;  // (distance, order key), draw
+  // This frame's index ranges to write, drawn objects' parts in draw order (Draw::segment_*):
+  // a plan's level at a base vertex, into a list; lines: `plan` null, `count` line vertices.
+  struct Segment {
+    const MeshPlan* plan;
+    uint32_t base_vertex;
+    uint32_t count;  // indices
+    uint8_t level;
+    uint8_t list;
+  };
+  std::vector<Segment> segments_;
   std::vector<std::pair<uint32_t, uint64_t>> evicted_;
   std::vector<Job> jobs_;
   std::vector<uint32_t> job_of_draw_;

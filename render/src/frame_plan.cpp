@@ -248,7 +248,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         if (decision.merged) {
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;
-          Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d});
+          Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);
           stats.hlod_merges += 1;
@@ -259,7 +259,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         continue;
       }
     }
-    Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m});
+    Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m, k->order_key});
     choose_level(*k, options, v.distance_m, v.px_per_m, v.extent_m(), draw.level, draw.centreline);
   }
 }
