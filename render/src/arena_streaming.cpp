@@ -105,6 +105,8 @@ const ArenaStreaming::Compaction& ArenaStreaming::compaction(const MeshPlan& pla
   return c;
 }
 
+bool ArenaStreaming::resident(const Known& k) { return k.table != UINT32_MAX; }
+
 uint64_t ArenaStreaming::resident_vertices(const Known& k, uint8_t base) {
   base = uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
   if (base == 0) return k.vertex_count;
@@ -185,9 +187,13 @@ bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, Decoded
   }
   fits = offset.has_value();
   if (!fits) return true;
-  if (!backend_.grow_arena(*offset + count, error)) return false;
+  if (!backend_.grow_arena(*offset + count, error)) {
+    residency_.drop(key);  // resident exactly while it holds a table entry
+    return false;
+  }
   k.base = base;
   k.table = table_.acquire();
+  k.arena_offset = uint32_t(*offset);
   vertex_objects_.assign(count, k.table);
   backend_.upload(*offset, *upload, vertex_objects_);
   stats.objects_tessellated += 1;
@@ -216,6 +222,7 @@ void ArenaStreaming::begin_frame(const FramePlan& plan) {
   for (const Draw& d : plan.draws())
     if (d.key & kRunKeyBit) residency_.mark_visible(d.key);
   counts_.fill(0);
+  segments_.clear();
   for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
   proxy_tables_.clear();
   table_.begin_frame();
@@ -226,7 +233,7 @@ bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std
   uint64_t needed = 0;
   for (const Draw& d : draws) {
     const Known& k = *d.known;
-    if (residency_.resident(d.key) && d.level >= k.base) continue;
+    if (resident(k) && d.level >= k.base) continue;
     needed += resident_vertices(k, resident_base(d.level, policy, roomy));
   }
   return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
@@ -241,8 +248,7 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
   for (size_t i = 0; i < draws.size(); ++i) {
     Draw& d = draws[i];
     Known& k = *d.known;
-    const bool resident = residency_.resident(d.key);
-    if (resident && d.level >= k.base) continue;
+    if (resident(k) && d.level >= k.base) continue;
     if (k.primitives.empty() && !k.parts.empty()) continue;  // decoded again on this thread
     const uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
     resident_vertices(k, base);
@@ -314,11 +320,11 @@ bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy
                                      FrameStats& stats, std::string& error, bool& resident,
                                      const Job* job) {
   Known& k = *d.known;
-  if (residency_.resident(d.key) && d.level < k.base) {
+  if (ArenaStreaming::resident(k) && d.level < k.base) {
     release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
     stats.objects_refined += 1;
   }
-  resident = residency_.resident(d.key);
+  resident = ArenaStreaming::resident(k);
   if (resident) return true;
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
   const uint8_t base = resident_base(d.level, policy, roomy);
@@ -341,18 +347,26 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   const uint32_t level = std::max<uint32_t>(d.level, k.base);
   d.level = uint8_t(level);
   d.drawn = true;
-  d.arena_first = uint32_t(*residency_.offset(d.key));
+  d.arena_first = k.arena_offset;
+  d.segment_first = uint32_t(segments_.size());
   table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id);
   if (d.centreline) {
     stats.centreline_pipes += 1;
     stats.lines += k.centreline.size();
-    counts_[kLines] += 2 * k.centreline.size();
+    const uint32_t n = uint32_t(2 * k.centreline.size());
+    counts_[kLines] += n;
+    segments_.push_back({nullptr, d.arena_first + k.resident_centreline_first, n, 0, uint8_t(kLines)});
+    d.segment_count = 1;
     return;
   }
   for (const Known::Part& part : k.parts) {
     const uint32_t l = part.plan->clamp_level(level);
     const uint32_t n = part.plan->index_count(l);
-    counts_[list_of(k, part)] += n;
+    const IndexList list = list_of(k, part);
+    counts_[list] += n;
+    const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
+    segments_.push_back({&plan, d.arena_first + part.resident_first, plan.index_count(level),
+                         uint8_t(level), uint8_t(list)});
     if (part.plan->topology == Topology::lines) {
       stats.lines += n / 2;
     } else {
@@ -360,6 +374,7 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
       stats.triangles_by_level[l] += n / 3;
     }
   }
+  d.segment_count = uint32_t(k.parts.size());
 }
 
 void ArenaStreaming::add_box(const glm::dvec3& offset_m, const glm::vec3& size_m, Colour colour,
@@ -381,29 +396,30 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   if (!indices) return false;
   std::array<uint32_t*, kIndexListCount> cursor;
   for (int list = 0; list < kIndexListCount; ++list) cursor[list] = indices + first[list];
-  // Nearest first: hidden fragments then fail the depth test before they are shaded.
+  // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
+  // broken by a key of the object's own (Known::order_key), so that the order of two objects
+  // depends neither on what else is drawn nor on the frames before (coincident surfaces then
+  // resolve the same way with occlusion on or off, fresh or after a path). Sorted as packed
+  // keys: the distance's float bits (non-negative floats order as their bits), the order key.
+  sort_keys_.clear();
+  for (uint32_t i = 0; i < draws.size(); ++i) {
+    if (!draws[i].drawn) continue;
+    const uint64_t distance_bits = std::bit_cast<uint32_t>(float(std::max(draws[i].distance_m, 0.0)));
+    sort_keys_.push_back({distance_bits << 32 | draws[i].order_key, i});
+  }
+  std::sort(sort_keys_.begin(), sort_keys_.end());
   draw_order_.clear();
-  for (uint32_t i = 0; i < draws.size(); ++i)
-    if (draws[i].drawn) draw_order_.push_back(i);
-  // Ties broken by key, so that the order of two objects does not depend on what else is drawn
-  // (coincident surfaces then resolve the same way with occlusion on or off).
-  std::sort(draw_order_.begin(), draw_order_.end(), [&](uint32_t a, uint32_t b) {
-    if (draws[a].distance_m != draws[b].distance_m) return draws[a].distance_m < draws[b].distance_m;
-    return draws[a].key < draws[b].key;
-  });
+  for (const auto& [key, i] : sort_keys_) draw_order_.push_back(i);
   for (const uint32_t i : draw_order_) {
     const Draw& d = draws[i];
-    const Known& k = *d.known;
-    if (d.centreline) {
-      const uint32_t at = d.arena_first + k.resident_centreline_first;
-      for (uint32_t c = 0; c < 2 * k.centreline.size(); ++c) *cursor[kLines]++ = at + c;
-      continue;
-    }
-    for (const Known::Part& part : k.parts) {
-      const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
-      uint32_t*& at = cursor[list_of(k, part)];
-      at += write_indices(plan, d.level, d.arena_first + part.resident_first,
-                          std::span<uint32_t>(at, plan.index_count(d.level)));
+    for (uint32_t g = d.segment_first; g < d.segment_first + d.segment_count; ++g) {
+      const Segment& seg = segments_[g];
+      uint32_t*& at = cursor[seg.list];
+      if (!seg.plan) {
+        for (uint32_t c = 0; c < seg.count; ++c) *at++ = seg.base_vertex + c;
+        continue;
+      }
+      at += write_indices(*seg.plan, seg.level, seg.base_vertex, std::span<uint32_t>(at, seg.count));
     }
   }
   backend_.unmap_indices();

@@ -116,6 +116,10 @@ class ArenaStreaming {
   };
 
   const Compaction& compaction(const MeshPlan& plan, uint8_t base);
+  // Whether `k` is resident, without a residency lookup: a known object or run holds an
+  // object-table entry exactly while it is resident (make_resident, release and eviction keep
+  // the two together; forget_old() never drops a resident Known).
+  static bool resident(const Known& k);
   // Vertices an object takes in the arena when resident from level `base` on.
   uint64_t resident_vertices(const Known& k, uint8_t base);
   // A draw's vertices tessellated ahead of streaming, at the base it will most likely get.
@@ -165,6 +169,17 @@ class ArenaStreaming {
   std::vector<uint32_t> proxy_tables_;
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
+  std::vector<std::pair<uint64_t, uint32_t>> sort_keys_;  // (distance, order key), draw
+  // This frame's index ranges to write, drawn objects' parts in draw order (Draw::segment_*):
+  // a plan's level at a base vertex, into a list; lines: `plan` null, `count` line vertices.
+  struct Segment {
+    const MeshPlan* plan;
+    uint32_t base_vertex;
+    uint32_t count;  // indices
+    uint8_t level;
+    uint8_t list;
+  };
+  std::vector<Segment> segments_;
   std::vector<std::pair<uint32_t, uint64_t>> evicted_;
   std::vector<Job> jobs_;
   std::vector<uint32_t> job_of_draw_;

@@ -13,6 +13,7 @@ namespace plantview::detail {
 void DecodedObjects::reset(const ReadView& view) {
   view_ = &view;
   known_.clear();
+  decoded_.clear();
   runs_.clear();
   decisions_.clear();
   pipeline_runs_.clear();
@@ -26,8 +27,12 @@ Known* DecodedObjects::find(uint32_t key) {
 bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
                             std::string& error) {
   new_slots_.clear();
-  for (const VisibleObject& v : visible)
-    if (!known_.count(v.slot)) new_slots_.push_back(v.slot);
+  decoded_.resize(visible.size());
+  for (size_t i = 0; i < visible.size(); ++i) {
+    const auto it = known_.find(visible[i].slot);
+    decoded_[i] = it == known_.end() ? nullptr : &it->second;
+    if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
+  }
   std::sort(new_slots_.begin(), new_slots_.end());
   for (const uint32_t slot : new_slots_) {
     if (!view_->object(slot, object_, false, error)) return false;
@@ -47,6 +52,10 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       if (std::find(members.begin(), members.end(), slot) != members.end()) k.run = int32_t(r);
     }
   }
+  // The new ones' Known (node addresses survive the map's growth).
+  if (!new_slots_.empty())
+    for (size_t i = 0; i < visible.size(); ++i)
+      if (!decoded_[i]) decoded_[i] = &known_.at(visible[i].slot);
   return true;
 }
 
@@ -55,6 +64,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
 Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   Known& k = known_[key];
   k.id = o.id;
+  k.order_key = key & kRunKeyBit ? runs_[key & ~kRunKeyBit].members.front() : key;
   k.object_class = o.object_class;
   k.colour = o.colour;
   k.origin_m = o.origin_m;
@@ -136,7 +146,10 @@ void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) 
     const size_t first = runs_.size();
     branch_runs_.clear();
     find_runs(branch, branch_runs_);
-    for (auto& run : branch_runs_) runs_.push_back(std::move(run));
+    for (auto& run : branch_runs_) {
+      run.pipeline_id = pipeline_id;
+      runs_.push_back(std::move(run));
+    }
     for (size_t r = first; r < runs_.size(); ++r) {
       for (const uint32_t m : runs_[r].members) {
         if (const auto it = known_.find(m); it != known_.end()) it->second.run = int32_t(r);
@@ -152,10 +165,9 @@ Known& DecodedObjects::know_run(uint32_t run) {
   if (const auto it = known_.find(key); it != known_.end()) return it->second;
   const PipelineRun& r = runs_[run];
   Object o;
-  o.id = 0;
-  if (!r.members.empty()) {
-    if (const auto it = known_.find(r.members.front()); it != known_.end()) o.id = it->second.pipeline_id;
-  }
+  // The pipeline's id, known from the run itself: not from whichever member happens to be
+  // decoded (that depends on the frames before, and the picture must not).
+  o.id = r.pipeline_id;
   o.object_class = ObjectClass::pipe;
   o.colour = r.colour;
   o.origin_m = r.start_m;
@@ -186,6 +198,7 @@ const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Kno
 
 void DecodedObjects::forget_old(uint64_t frame, const Residency& residency) {
   if (known_.size() <= kKnownObjectsKept + residency.resident_count()) return;
+  decoded_.clear();
   for (int pass = 0; pass < 2 && known_.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {
     for (auto it = known_.begin(); it != known_.end();) {
       const bool old = pass == 1 || it->second.last_seen < frame;

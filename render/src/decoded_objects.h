@@ -47,15 +47,6 @@ inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept bey
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
 struct Known {
-  uint64_t id = 0;
-  ObjectClass object_class = ObjectClass::other;
-  Colour colour;
-  glm::dvec3 origin_m{0.0};
-  uint64_t pipeline_id = 0;
-  // The primitives, while needed (see the rules above).
-  std::vector<Primitive> primitives;
-  std::vector<MeshPlan> own_plans;  // facet groups' plans (others share the cache's)
-  bool keeps_primitives = false;
   struct Part {
     const MeshPlan* plan;   // shared per template (errors zeroed: see error_m), or own_plans
     uint32_t first_vertex;  // within the object's vertices
@@ -66,22 +57,38 @@ struct Known {
     uint32_t resident_first = 0;
     const MeshPlan* resident_plan = nullptr;
   };
-  std::vector<Part> parts;
-  std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
+  // What every frame reads (choose, streaming), first: a frame touches two or three cache
+  // lines of each visible object, not the whole of it.
+  uint64_t last_seen = 0;           // frame
+  uint64_t id = 0;
+  glm::dvec3 origin_m{0.0};
+  uint32_t table = UINT32_MAX;      // object-table entry while resident (UINT32_MAX: not)
+  uint32_t arena_offset = 0;        // while resident: its first vertex in the arena
   uint32_t vertex_count = 0;
-  uint32_t centreline_first = 0;
-  uint8_t level_count = 1;
-  bool has_lines = false, has_triangles = false;
-  std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
-  float pipe_diameter_m = 0;
   int32_t run = -1;                 // the pipeline run it belongs to, if any
-  uint32_t table = UINT32_MAX;      // object-table entry while resident
+  // Breaks ties in the draw order the same way whatever was decoded before: the slot, or for a
+  // merged run its first member's slot (run indices depend on the order pipelines were met).
+  uint32_t order_key = 0;
+  uint32_t resident_centreline_first = 0;
+  float pipe_diameter_m = 0;
+  Colour colour;
+  uint8_t level_count = 1;
   // While resident: the finest level whose vertices are in the arena. At base 0 every vertex
   // is there and the templates' indices serve every level; above 0 only the vertices of levels
   // >= base are, compacted part by part (see Part::resident_plan).
   uint8_t base = 0;
-  uint32_t resident_centreline_first = 0;
-  uint64_t last_seen = 0;           // frame
+  std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
+  std::vector<Part> parts;
+  std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
+
+  ObjectClass object_class = ObjectClass::other;
+  uint64_t pipeline_id = 0;
+  // The primitives, while needed (see the rules above).
+  std::vector<Primitive> primitives;
+  std::vector<MeshPlan> own_plans;  // facet groups' plans (others share the cache's)
+  bool keeps_primitives = false;
+  uint32_t centreline_first = 0;
+  bool has_lines = false, has_triangles = false;
   OccluderShape occluder;           // once built: empty unless it may occlude
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
 };
@@ -99,7 +106,11 @@ class DecodedObjects {
 
   // Decodes the visible objects not known yet, in slot order. hlod: also find the runs of the
   // pipelines their pipes and components belong to. False if an object cannot be decoded.
+  // Afterwards decoded()[i] is the Known of visible[i] (one lookup per object and frame).
   bool decode(std::span<const VisibleObject> visible, bool hlod, std::string& error);
+  // The Known of each object of the last decode() call's span, in its order; valid until the
+  // next decode(), forget_old() or reset().
+  std::span<Known* const> decoded() const { return decoded_; }
   // A known object or run (null if not known).
   Known* find(uint32_t key);
   // Objects and runs known now.
@@ -156,6 +167,7 @@ class DecodedObjects {
   // Scratch, reused.
   std::vector<PipelineRun> branch_runs_;
   std::vector<uint32_t> new_slots_;
+  std::vector<Known*> decoded_;
   Object object_;  // decode target
   std::vector<PackedVertex> occluder_scratch_;
 };

@@ -2,6 +2,7 @@
 #include "frame_plan.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -292,8 +293,11 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
                        const RenderOptions& options, uint64_t frame, FrameStats& stats) {
   draws_.clear();
   const bool merging = options.hlod && options.lod_policy != LodPolicy::none;
-  for (const VisibleObject& v : visible_) {
-    Known* k = &objects.at(v.slot);
+  const std::span<Known* const> known = objects.decoded();
+  assert(known.size() == visible_.size());
+  for (size_t i = 0; i < visible_.size(); ++i) {
+    const VisibleObject& v = visible_[i];
+    Known* k = known[i];
     k->last_seen = frame;
     if (k->vertex_count == 0) continue;
     if (k->run >= 0 && merging) {
@@ -309,7 +313,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         if (decision.merged) {
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;
-          Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d});
+          Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);
           stats.hlod_merges += 1;
@@ -320,7 +324,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         continue;
       }
     }
-    Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m});
+    Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m, k->order_key});
     choose_level(*k, options, v.distance_m, v.px_per_m, v.extent_m(), draw.level, draw.centreline);
   }
 }

@@ -113,8 +113,12 @@ struct Draw {
   bool centreline;                 // drawn as its centreline
   const VisibleObject* visible;    // null for merged runs
   double distance_m = 0;           // from the eye to the nearest point of its bounds
+  uint32_t order_key = 0;          // Known::order_key: breaks draw-order ties
   bool drawn = false;              // resident this frame (else a proxy box or nothing)
   uint32_t arena_first = 0;        // the object's first vertex in the arena, once drawn
+  // Filled by streaming for drawn ones: its index ranges, [segment_first, + segment_count) of
+  // the frame's segment list (arena_streaming.h), so that writing the indices reads no Known.
+  uint32_t segment_first = 0, segment_count = 0;
 };
 
 // The level an object is made resident from when `level` is chosen: one level of slack below
@@ -162,8 +166,9 @@ class FramePlan {
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
-  //    hlod_members counted). Every visible object must be decoded in `objects`; those seen
-  //    get last_seen = frame. Merged runs are decoded (made) here.
+  //    hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
+  //    read from objects.decoded(), no lookup per object); those seen get last_seen = frame.
+  //    Merged runs are decoded (made) here.
   void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
               uint64_t frame, FrameStats& stats);
 

@@ -33,6 +33,7 @@ struct PipelineRun {
   DAabb bounds;                          // of the members
   Colour colour;                         // of the first pipe
   std::vector<uint32_t> members;         // slots, in flow order
+  uint64_t pipeline_id = 0;              // the pipeline it belongs to: the merged draw's id
 };
 
 // One branch's members in flow order with their slots. Appends the branch's runs to `out`.

@@ -7,6 +7,9 @@
 // to float as the projection matrix holds it, and the frame's view (frame_plan.h), culling,
 // level choice and the tests all take it from here: what is chosen is what is drawn.
 //
+// The default pixel errors of stills (0.5 px) and interactive frames (1 px) are in render.h
+// (kStillPixelError, kInteractivePixelError) with the measurements they come from.
+//
 // Distance (the papers' rules): Zhou et al. pick a LOD node by the distance to its bounds over
 // its size; here level 0 holds up to 8 sizes away and each doubling of the distance beyond
 // that coarsens one level. Su et al. draw a pipe as its centreline beyond d2, proportional to

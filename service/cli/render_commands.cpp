@@ -110,7 +110,7 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 struct RenderArgs {
   std::string store, camera, path, views, out, size = "1280x720", lod_policy = "screen-space",
                                                shard = "0/1", format = "png", occlusion = "on";
-  double pixel_error = 1.0;
+  double pixel_error = kStillPixelError;  // render.h: stills are read closely
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
   uint32_t samples = 0;
