@@ -102,8 +102,9 @@ std::string xml_text(const std::vector<Object>& objects) {
 
 // ---- what a store holds
 
-// Every object with its slot, source and full content (as XML), and the statistics: equal
-// snapshots mean the store holds the same model.
+// Every object with its slot, source and full content (as XML), the statistics and the spatial
+// index entries: equal
+// snapshots mean the store holds the same model (records, ids, statistics, spatial index).
 struct Snapshot {
   std::vector<uint64_t> ids;  // in slot order
   uint64_t content_hash = 0;  // FNV-1a over slot, source and XML of every object
@@ -131,6 +132,18 @@ Snapshot snapshot(const Store& store) {
         return true;
       },
       true, error))
+      << error;
+  // The spatial index too: every entry's slot and bounds, in tree order.
+  EXPECT_TRUE(view->for_each_spatial_entry(
+      [&](const SpatialNode& leaf, const SpatialEntry& e) {
+        float mn[3], mx[3];
+        entry_bounds(leaf, e, mn, mx);
+        mix(std::string_view(reinterpret_cast<const char*>(&e.slot), sizeof e.slot));
+        mix(std::string_view(reinterpret_cast<const char*>(mn), sizeof mn));
+        mix(std::string_view(reinterpret_cast<const char*>(mx), sizeof mx));
+        return true;
+      },
+      error))
       << error;
   s.statistics = statistics_json(view->info().statistics);
   return s;
@@ -279,13 +292,16 @@ std::string file_bytes(const fs::path& p) {
 }
 
 // The generator on its own thread, the blocks compressed on a pool, or everything on the calling
-// thread: the same store, down to the bytes of its data file, also after the plant is replaced
-// (which reads back, erases and rewrites stored blocks).
+// thread: the same store, down to the bytes of its data file when generated afresh, and the same
+// content after the plant is replaced (which reads back, erases and rewrites stored blocks). The
+// bytes of a replaced store are not compared: pages LMDB reuses within a transaction keep stale
+// bytes in their unused gaps (even heap addresses, which differ from run to run of the same
+// command), outside any key or value.
 TEST_F(Ingest, AGeneratedStoreIsTheSameByteForByteWhateverTheThreadCount) {
   struct Restore {
     ~Restore() { set_import_threads(0); }
   } restore;
-  std::vector<std::string> first, second;
+  std::vector<std::string> first;
   std::vector<Snapshot> snapshots;
   for (const unsigned threads : {1u, 4u}) {
     set_import_threads(threads);
@@ -300,12 +316,10 @@ TEST_F(Ingest, AGeneratedStoreIsTheSameByteForByteWhateverTheThreadCount) {
     first.push_back(file_bytes(dir_ / name / "data.mdb"));
     options.seed = 5;
     ASSERT_TRUE(ingest_generated(*store, options));
-    second.push_back(file_bytes(dir_ / name / "data.mdb"));
     snapshots.push_back(snapshot(*store));
   }
   for (size_t i = 1; i < first.size(); ++i) {
     EXPECT_TRUE(first[i] == first[0]) << "run " << i << " wrote another data file";
-    EXPECT_TRUE(second[i] == second[0]) << "run " << i << " replaced the plant differently";
     EXPECT_TRUE(snapshots[i] == snapshots[0]);
   }
   EXPECT_GT(first[0].size(), 1000000u);

@@ -9,6 +9,8 @@
 #include <mutex>
 #include <thread>
 
+#include <pthread.h>
+
 #include "lmdb_guard.h"
 #include "plantview/store.h"
 
@@ -19,26 +21,32 @@ namespace {
 std::atomic<unsigned> g_compression_threads{0};
 
 // The threads that compress blocks for every ColumnWriter of the process: started on first use,
-// grown to the largest count asked for, stopped at exit (jobs still queued then are dropped:
-// their writers are gone). Each thread has its own compression context.
+// grown to the largest count asked for. Each thread has its own compression context.
+// Lifetime: created once per process and never destroyed (its threads end with the process; no
+// job outlives its writer, which waits for its blocks). A child made by fork() has none of its
+// parent's threads and may have copied the pool's mutex locked: it forgets the parent's pool
+// (left allocated, untouched) and makes its own on first use.
 class CompressionPool {
  public:
   using Job = std::function<void(ZSTD_CCtx*)>;
   static CompressionPool& shared() {
-    static CompressionPool pool;
-    return pool;
-  }
-  ~CompressionPool() {
-    {
-      const std::lock_guard lock(mutex_);
-      stopping_ = true;
+    static const int registered = pthread_atfork(nullptr, nullptr, [] {
+      g_pool.store(nullptr);
+      g_pool_mutex = new std::mutex;  // the parent's may have been held by another thread
+    });
+    (void)registered;
+    if (CompressionPool* p = g_pool.load(std::memory_order_acquire)) return *p;
+    const std::lock_guard lock(*g_pool_mutex);
+    CompressionPool* p = g_pool.load(std::memory_order_acquire);
+    if (!p) {
+      p = new CompressionPool;
+      g_pool.store(p, std::memory_order_release);
     }
-    wake_.notify_all();
-    for (std::thread& t : threads_) t.join();
+    return *p;
   }
   void ensure(unsigned threads) {
     const std::lock_guard lock(mutex_);
-    while (threads_.size() < threads) threads_.emplace_back([this] { work(); });
+    while (threads_.size() < threads) threads_.emplace_back([this] { work(); }).detach();
   }
   void submit(Job job) {
     {
@@ -49,14 +57,15 @@ class CompressionPool {
   }
 
  private:
+  static inline std::atomic<CompressionPool*> g_pool{nullptr};
+  static inline std::mutex* g_pool_mutex = new std::mutex;
   void work() {
     const ZstdCCtx cctx = make_compressor();
     for (;;) {
       Job job;
       {
         std::unique_lock lock(mutex_);
-        wake_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
-        if (stopping_) return;
+        wake_.wait(lock, [&] { return !jobs_.empty(); });
         job = std::move(jobs_.front());
         jobs_.pop_front();
       }
@@ -66,8 +75,7 @@ class CompressionPool {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Job> jobs_;
-  std::vector<std::thread> threads_;
-  bool stopping_ = false;
+  std::vector<std::thread> threads_;  // detached: they wait for jobs until the process ends
 };
 
 }  // namespace
