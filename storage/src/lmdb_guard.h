@@ -94,11 +94,14 @@ inline void prefetch_map_pages(const void* data, size_t size) {
 // Takes the pages under [data, data + size) out of this process's resident set (a value read
 // once: an index decoded, a chunk inflated into a cache). The page cache keeps them: reading
 // them again maps them back in (a minor fault), for this or any other view.
+// The range is widened to whole 64 KB windows: on a read fault the kernel also maps the pages
+// around the one read that it has cached (fault-around, 64 KB by default), and those stayed
+// counted in the resident set too (hundreds of MB over a walk of a 40 M-object store).
 inline void release_map_pages(const void* data, size_t size) {
-  static const uintptr_t page = uintptr_t(sysconf(_SC_PAGESIZE));
+  constexpr uintptr_t kWindow = 64 * 1024;
   if (size == 0) return;
-  const uintptr_t begin = uintptr_t(data) & ~(page - 1);
-  const uintptr_t end = (uintptr_t(data) + size + page - 1) & ~(page - 1);
+  const uintptr_t begin = uintptr_t(data) & ~(kWindow - 1);
+  const uintptr_t end = (uintptr_t(data) + size + kWindow - 1) & ~(kWindow - 1);
   madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
 }
 

@@ -285,7 +285,7 @@ using NameEntry = IndexEntry<32>;
 // error code, or MDB_BAD_VALSIZE for a value of the wrong size.
 template <int KeyBits>
 int index_slots(MDB_txn* txn, MDB_dbi dbi, uint64_t k, std::vector<uint32_t>& slots,
-                size_t at_most = SIZE_MAX) {
+                size_t at_most = SIZE_MAX, const void** last_value = nullptr) {
   using Entry = IndexEntry<KeyBits>;
   slots.clear();
   detail::LmdbCursor cursor;
@@ -297,6 +297,7 @@ int index_slots(MDB_txn* txn, MDB_dbi dbi, uint64_t k, std::vector<uint32_t>& sl
     if (value.mv_size != size_t(Entry::kValueBytes)) return MDB_BAD_VALSIZE;
     if (std::memcmp(value.mv_data, first.value, Entry::kRestBytes) != 0) break;
     slots.push_back(uint32_t(get_be(static_cast<const unsigned char*>(value.mv_data) + Entry::kRestBytes, 4)));
+    if (last_value) *last_value = value.mv_data;
     rc = mdb_cursor_get(cursor.get(), &key, &value, MDB_NEXT_DUP);
   }
   return rc == MDB_NOTFOUND ? MDB_SUCCESS : rc;
@@ -1034,6 +1035,10 @@ struct ReadView::State {
   std::vector<detail::BlockEntry> block_entries;
   // Decompressed chunks of this view: object() on neighbouring slots decompresses once.
   detail::ChunkCache objects, attributes;
+  // slot_of()'s pages: the span of the file its lookups touched, given back every so many.
+  uint32_t lookups_since_release = 0;
+  const uint8_t* looked_up_begin = nullptr;
+  const uint8_t* looked_up_end = nullptr;
 
   explicit State(const std::shared_ptr<Store::State>& s)
       : store(s),
@@ -1114,7 +1119,12 @@ struct ReadView::State {
 };
 
 ReadView::ReadView(std::unique_ptr<State> state) : state_(std::move(state)) {}
-ReadView::~ReadView() = default;
+ReadView::~ReadView() {
+  if (state_ && state_->looked_up_begin) {
+    detail::release_map_pages(state_->looked_up_begin,
+                              size_t(state_->looked_up_end - state_->looked_up_begin));
+  }
+}
 
 StoreInfo ReadView::info() const {
   StoreInfo info;
@@ -1227,14 +1237,34 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
   return true;
 }
 
+namespace {
+constexpr uint32_t kLookupsPerRelease = 256;
+}
+
 bool ReadView::slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& error) const {
   State& s = *state_;
   slot.reset();
   std::vector<uint32_t> slots;
-  const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, id, slots, 1);
+  const void* value = nullptr;
+  const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, id, slots, 1, &value);
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(s.store->directory, "looking up id " + std::to_string(id), rc);
     return false;
+  }
+  // Ids are looked up in random order across the whole table (a pipeline's members, picks), and
+  // each lookup maps its pages and the kernel's fault-around windows beside them: at 40 M objects
+  // a walkthrough kept over 100 MB of the table resident. Every kLookupsPerRelease lookups the
+  // view gives back the span of the file they touched (the page cache keeps it; nothing the view
+  // holds points into it).
+  if (value) {
+    const auto* p = static_cast<const uint8_t*>(value);
+    s.looked_up_begin = s.looked_up_begin ? std::min(s.looked_up_begin, p) : p;
+    s.looked_up_end = std::max(s.looked_up_end, p + 1);
+  }
+  if (++s.lookups_since_release == kLookupsPerRelease && s.looked_up_begin) {
+    detail::release_map_pages(s.looked_up_begin, size_t(s.looked_up_end - s.looked_up_begin));
+    s.looked_up_begin = s.looked_up_end = nullptr;
+    s.lookups_since_release = 0;
   }
   if (!slots.empty()) slot = slots[0];
   return true;
