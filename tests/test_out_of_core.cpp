@@ -12,6 +12,8 @@
 #include <unordered_map>
 
 #include "decoded_objects.h"
+#include "frame_plan.h"
+#include "lod.h"
 #include "plantview/camera.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
@@ -214,6 +216,47 @@ TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
   EXPECT_LE(thirty, 2 * one);
   // Far nodes were drawn as proxies: the thirty units are there, as boxes where far.
   EXPECT_GT(thirty_stats.objects_in_node_proxies, 0u);
+}
+
+// Nodes are opened largest on screen first, and opening stops where the next would exceed the
+// frame's items: so a view that cannot show every object reads only the blocks whose nodes span
+// more than the size left boxed, once each, and the boxes are the finest that fit.
+TEST(OutOfCore, CullOpensTheLargestNodesFirstAndReadsOnlyTheBlocksItOpens) {
+  context();
+  const Store& store = preset_c(30);
+  std::string error;
+  const auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  RenderOptions options;
+  options.occlusion = false;  // the items counted are then exactly what cull kept
+  auto renderer = Renderer::create(store, options, error);
+  ASSERT_TRUE(renderer) << error;
+  const auto top = view->spatial_top();
+  std::vector<Camera> cameras{default_camera(overview_boxes(*view), 16.0 / 9.0)};
+  for (const Camera& c : walk(bounds_of(store), 4)) cameras.push_back(c);
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    FrameStats stats;
+    ASSERT_TRUE(renderer->statistics(cameras[i], 1280, 720, stats, error)) << error;
+    SCOPED_TRACE("view " + std::to_string(i));
+    EXPECT_LE(stats.objects_visible + stats.node_proxies, detail::kMaxDrawnItems);
+    EXPECT_GE(stats.node_proxy_pixels, detail::kNodeProxyPixels * renderer->options().pixel_error);
+    // The blocks under top leaves that span at least the boxed size, in the frustum.
+    const detail::FrameView fv = detail::make_frame_view(cameras[i], 1280, 720, view->spatial_origin());
+    uint64_t openable = 0;
+    for (const SpatialNode& node : top) {
+      if (node.count == 0 || fv.outside(node.min, node.max)) continue;
+      const double extent_m = std::max({node.max[0] - node.min[0], node.max[1] - node.min[1], node.max[2] - node.min[2]});
+      const double px = extent_m * fv.focal_px / std::max(fv.nearest_distance_m(node.min, node.max), detail::kNearPlaneM);
+      openable += px >= stats.node_proxy_pixels;
+    }
+    EXPECT_LE(stats.spatial_blocks_walked, openable + 1);
+    if (i == 0) {
+      std::printf("overview of x30: %llu blocks read of %u, boxes under %.1f px\n",
+                  (unsigned long long)stats.spatial_blocks_walked, unsigned(view->spatial_block_count()),
+                  stats.node_proxy_pixels);
+      EXPECT_GT(stats.objects_in_node_proxies, 0u);
+    }
+  }
 }
 
 }  // namespace

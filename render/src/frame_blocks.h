@@ -2,17 +2,18 @@
 // cull and occlusion walk, held for the frame.
 //
 // Rules
-//   - While cull runs (its passes, begin_cull() to end_cull()), the blocks it walks are held,
-//     so that a pass with larger node boxes does not read them again, up to
-//     kMaxFrameBlocksHeld; beyond that a block is dropped after its walk unless the pass took
-//     visible objects from it.
-//   - end_cull() keeps only the blocks the last pass took visible objects from (occlusion tests
-//     their leaves), until the next begin_cull(): what is held after cull follows the frame's
-//     visible objects, never the plant (a block is about 48 KB: 2048 entries of 16 bytes and
-//     its nodes).
+//   - While cull runs (begin_cull() to end_cull()) the blocks it reads are held: cull refines
+//     the nodes inside a block in the order of their size on screen, so a block stays needed
+//     until the cull ends. Cull reads at most kMaxFrameBlocksHeld blocks a frame (~48 MB; it
+//     boxes the rest of the view instead), and drops a block at once (release()) where it walks
+//     the whole block in one go and takes nothing from it.
+//   - end_cull() keeps only the blocks cull took visible objects from (occlusion tests their
+//     leaves), until the next begin_cull(): what is held after cull follows the frame's visible
+//     objects, never the plant (a block is about 48 KB: 2048 entries of 16 bytes and its nodes).
 //   - Across frames the store's own cache of decoded blocks (kSpatialCacheBytes, shared by the
 //     views of a state) spares reading them again; this only keeps the frame's alive.
-// Ownership: at() references stay valid until the next begin_cull().
+// Ownership: get() and at() references stay valid until the next begin_cull(), or release() of
+//   that block.
 // Threads: the renderer's thread.
 #pragma once
 
@@ -27,7 +28,7 @@
 
 namespace plantview::detail {
 
-// Blocks held during a frame's cull besides those with visible objects, at most (~48 MB).
+// Blocks a frame's cull reads, at most (~48 MB).
 inline constexpr size_t kMaxFrameBlocksHeld = 1024;
 
 class FrameBlocks {
@@ -39,10 +40,8 @@ class FrameBlocks {
     needed_.clear();
     walked_ = 0;
   }
-  // Starts a pass of the cull: no block is needed yet.
-  void begin_pass() { needed_.clear(); }
-  // Block `block` of `view`, held at least until walked() says otherwise. Null with a message
-  // on a read error.
+  // Block `block` of `view`, held until release() or the end of the cull (longer if needed()).
+  // Null with a message on a read error.
   const SpatialBlock* get(const ReadView& view, uint32_t block, std::string& error) {
     ++walked_;
     if (const auto it = blocks_.find(block); it != blocks_.end()) return it->second.get();
@@ -50,25 +49,25 @@ class FrameBlocks {
     if (!b) return nullptr;
     return blocks_.emplace(block, std::move(b)).first->second.get();
   }
-  // After a pass walked `block`: whether it took visible objects from it.
-  void walked(uint32_t block, bool needed) {
-    if (needed) needed_.insert(block);
-    else if (blocks_.size() > kMaxFrameBlocksHeld) blocks_.erase(block);
+  // Cull took visible objects from `block`: it stays held after the cull.
+  void needed(uint32_t block) { needed_.insert(block); }
+  // Cull is done with `block` and took nothing from it.
+  void release(uint32_t block) {
+    if (needed_.count(block) == 0) blocks_.erase(block);
   }
-  // Ends the cull: only the blocks the last pass needed stay.
+  // Ends the cull: only the blocks cull needed stay.
   void end_cull() {
     std::erase_if(blocks_, [&](const auto& b) { return needed_.count(b.first) == 0; });
   }
   // Drops every block (a new snapshot of the store).
   void reset() { begin_cull(); }
-  // A block the last pass needed.
+  // A block held now.
   const SpatialBlock& at(uint32_t block) const {
     const auto it = blocks_.find(block);
     assert(it != blocks_.end());
     return *it->second;
   }
-  // Block walks this frame's cull made (a block walked again in another pass counts again),
-  // and blocks held now.
+  // Blocks this frame's cull read (get() calls), and blocks held now.
   size_t walked() const { return walked_; }
   size_t held() const { return blocks_.size(); }
 

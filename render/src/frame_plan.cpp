@@ -87,16 +87,41 @@ bool FramePlan::cull(const ReadView& view, const FrameView& frame_view,
 bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
                              const RenderOptions& options, FrameStats& stats, std::string& error) {
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
+  const double base_px = kNodeProxyPixels * options.pixel_error;
   blocks_.begin_cull();
-  // The frame's work is bounded: when more than kMaxDrawnItems objects and boxes are in view,
-  // nodes are boxed at ever larger sizes until they fit (huge plants seen whole).
-  double node_proxy_px = kNodeProxyPixels * options.pixel_error;
-  for (bool done = false; !done; node_proxy_px *= 2) {
-    if (!cull_pass(view, frame_view, options, node_proxy_px, stats, done, error)) return false;
-    if (done) break;
+  visible_.clear();
+  node_boxes_.clear();
+  candidates_.clear();
+  pending_items_ = 0;
+  stats.objects_subpixel = stats.objects_in_node_proxies = 0;
+  // Nodes are opened largest on screen first; the first that does not fit stops the opening,
+  // and it and all the rest (no larger than it) are drawn whole.
+  double whole_below_px = base_px;
+  bool stopped = false;
+  fresh_.clear();
+  if (!view.spatial_top().empty()) consider_top(view, 0, frame_view, subpixel_culling);
+  push_fresh();
+  while (!candidates_.empty()) {
+    std::pop_heap(candidates_.begin(), candidates_.end());
+    const Candidate c = candidates_.back();
+    candidates_.pop_back();
+    pending_items_ -= c.items;
+    if (c.boxable && (stopped || c.px < base_px)) {
+      draw_whole(view, c, frame_view, stats);
+      continue;
+    }
+    const bool bounded = !stopped && c.boxable && c.px < kMaxNodeProxyPixels;
+    bool fits = true;
+    if (!open(view, c, frame_view, options, subpixel_culling, bounded, fits, stats, error))
+      return false;
+    if (!fits) {
+      stopped = true;
+      whole_below_px = c.px;
+      draw_whole(view, c, frame_view, stats);
+    }
   }
   blocks_.end_cull();
-  stats.node_proxy_pixels = subpixel_culling ? node_proxy_px : 0;
+  stats.node_proxy_pixels = subpixel_culling ? whole_below_px : 0;
   stats.objects_visible = visible_.size();
   stats.objects_culled = view.spatial_objects() - visible_.size() - stats.objects_subpixel -
                          stats.objects_in_node_proxies;
@@ -120,7 +145,8 @@ bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const Fra
 
 void FramePlan::order() {
   std::sort(visible_.begin(), visible_.end(), [](const VisibleObject& a, const VisibleObject& b) {
-    return a.px_per_m * a.extent_m() > b.px_per_m * b.extent_m();
+    const double pa = a.px_per_m * a.extent_m(), pb = b.px_per_m * b.extent_m();
+    return pa != pb ? pa > pb : a.slot < b.slot;  // the order does not depend on the walk's
   });
 }
 
@@ -148,95 +174,150 @@ uint64_t objects_beneath(const SpatialBlock& block, uint32_t node, std::vector<u
 
 }  // namespace
 
+void FramePlan::consider_top(const ReadView& view, uint32_t t, const FrameView& frame_view,
+                             bool subpixel_culling) {
+  const SpatialNode& node = view.spatial_top()[t];
+  if (frame_view.outside(node.min, node.max)) return;
+  Candidate c{node_pixels(node, frame_view), kTopNode, t, 1, false};
+  c.boxable = subpixel_culling && view.spatial_top_objects()[t] > 1;
+  if (c.boxable) {
+    c.items = 0;
+    for (const ProxyBox& b : view.spatial_proxy(t)) c.items += !frame_view.outside(b.min, b.max);
+  }
+  fresh_.push_back(c);
+}
+
+void FramePlan::consider_block_node(const SpatialBlock& block, uint32_t block_index, uint32_t n,
+                                    const FrameView& frame_view, bool subpixel_culling) {
+  const SpatialNode& node = block.nodes[n];
+  if (frame_view.outside(node.min, node.max)) return;
+  fresh_.push_back({node_pixels(node, frame_view), block_index, n, 1,
+                    subpixel_culling && node.count != 1});
+}
+
+void FramePlan::push_fresh() {
+  for (const Candidate& c : fresh_) {
+    candidates_.push_back(c);
+    std::push_heap(candidates_.begin(), candidates_.end());
+    pending_items_ += c.items;
+  }
+  fresh_.clear();
+}
+
 // Tree-level HLOD: a whole node that spans only a few pixels is drawn as boxes instead of its
 // objects (which are then not even decoded, nor their block read for a top node), so that the
 // cost of a far view of a huge plant is bounded by the image, not by the plant.
-bool FramePlan::cull_pass(const ReadView& view, const FrameView& frame_view,
-                          const RenderOptions& options, double node_proxy_px, FrameStats& stats,
-                          bool& done, std::string& error) {
-  const auto top = view.spatial_top();
-  const auto top_objects = view.spatial_top_objects();
-  const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
-  const bool bounded = subpixel_culling && node_proxy_px < kMaxNodeProxyPixels;
-  stats.objects_subpixel = stats.objects_in_node_proxies = 0;
-  visible_.clear();
-  node_boxes_.clear();
-  top_stack_.clear();
-  blocks_.begin_pass();
-  done = false;
-  if (!top.empty()) top_stack_.push_back(0);
-  while (!top_stack_.empty()) {
-    const uint32_t t = top_stack_.back();
-    top_stack_.pop_back();
-    const SpatialNode& node = top[t];
-    if (frame_view.outside(node.min, node.max)) continue;
-    if (subpixel_culling && top_objects[t] > 1 && node_pixels(node, frame_view) < node_proxy_px) {
-      // The far-field proxy: boxes whose union is the node's bounds, in its objects' colours.
-      for (const ProxyBox& b : view.spatial_proxy(t)) {
-        if (frame_view.outside(b.min, b.max)) continue;
-        node_boxes_.push_back({{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}, b.colour});
-      }
-      stats.objects_in_node_proxies += top_objects[t];
-      continue;
+void FramePlan::draw_whole(const ReadView& view, const Candidate& c, const FrameView& frame_view,
+                           FrameStats& stats) {
+  if (c.block == kTopNode) {
+    // The far-field proxy: boxes whose union is the node's bounds, in its objects' colours.
+    for (const ProxyBox& b : view.spatial_proxy(c.node)) {
+      if (frame_view.outside(b.min, b.max)) continue;
+      node_boxes_.push_back({{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}, b.colour});
     }
-    if (node.count == 0) {
-      top_stack_.push_back(node.first);
-      top_stack_.push_back(node.first + 1);
-      continue;
-    }
-    if (!cull_block(view, node.first, frame_view, options, node_proxy_px, subpixel_culling, stats,
-                    error))
-      return false;
-    if (bounded && visible_.size() + node_boxes_.size() > kMaxDrawnItems) return true;
+    stats.objects_in_node_proxies += view.spatial_top_objects()[c.node];
+    return;
   }
-  done = true;
-  return true;
+  const SpatialBlock& block = blocks_.at(c.block);
+  const SpatialNode& node = block.nodes[c.node];
+  node_boxes_.push_back({{node.min[0], node.min[1], node.min[2]},
+                         {node.max[0], node.max[1], node.max[2]},
+                         kNodeBoxColour});
+  stats.objects_in_node_proxies += objects_beneath(block, c.node, count_stack_);
 }
 
-bool FramePlan::cull_block(const ReadView& view, uint32_t block_index, const FrameView& frame_view,
-                           const RenderOptions& options, double node_proxy_px,
-                           bool subpixel_culling, FrameStats& stats, std::string& error) {
+bool FramePlan::open(const ReadView& view, const Candidate& c, const FrameView& frame_view,
+                     const RenderOptions& options, bool subpixel_culling, bool bounded,
+                     bool& fits, FrameStats& stats, std::string& error) {
+  fresh_.clear();
+  const size_t visible_before = visible_.size(), subpixel_before = stats.objects_subpixel;
+  const SpatialBlock* block = nullptr;
+  uint32_t block_index = c.block, n = c.node;
+  if (c.block == kTopNode) {
+    const SpatialNode& node = view.spatial_top()[c.node];
+    if (node.count == 0) {
+      consider_top(view, node.first, frame_view, subpixel_culling);
+      consider_top(view, node.first + 1, frame_view, subpixel_culling);
+    } else {
+      // A leaf of the top is a block, whose root has the leaf's bounds.
+      block_index = node.first;
+      n = 0;
+      if (!subpixel_culling) return walk_block(view, block_index, frame_view, options, stats, error);
+      if (bounded && blocks_.held() >= kMaxFrameBlocksHeld) {
+        fits = false;
+        return true;
+      }
+      if (!(block = blocks_.get(view, block_index, error))) return false;
+    }
+  } else {
+    block = &blocks_.at(c.block);
+  }
+  if (block) {
+    const SpatialNode& node = block->nodes[n];
+    if (node.count == 0) {
+      consider_block_node(*block, block_index, node.first, frame_view, subpixel_culling);
+      consider_block_node(*block, block_index, node.first + 1, frame_view, subpixel_culling);
+    } else {
+      take_leaf(*block, block_index, n, frame_view, options, subpixel_culling, stats);
+    }
+  }
+  size_t fresh_items = 0;
+  for (const Candidate& f : fresh_) fresh_items += f.items;
+  if (bounded && items() + fresh_items > kMaxDrawnItems) {
+    fresh_.clear();
+    visible_.resize(visible_before);
+    stats.objects_subpixel = subpixel_before;
+    fits = false;
+    return true;
+  }
+  push_fresh();
+  if (block && visible_.size() > visible_before) blocks_.needed(block_index);
+  return true;
+}
+size_t FramePlan::take_leaf(const SpatialBlock& block, uint32_t block_index, uint32_t n,
+                            const FrameView& frame_view, const RenderOptions& options,
+                            bool subpixel_culling, FrameStats& stats) {
+  const SpatialNode& node = block.nodes[n];
+  const size_t before = visible_.size();
+  for (uint32_t e = node.first; e < node.first + node.count; ++e) {
+    VisibleObject v{block.entries[e].slot, {}, {}, 0.0, 0.0, block_index, n};
+    entry_bounds(node, block.entries[e], v.min, v.max);
+    if (frame_view.outside(v.min, v.max)) continue;
+    v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
+    v.px_per_m = pixels_per_metre(v.distance_m, frame_view.focal_px);
+    // Screen-space policy: an object whose whole extent is under the pixel error is left out
+    // (it is not even decoded); that is what keeps far views of huge plants cheap.
+    if (subpixel_culling && v.px_per_m * v.extent_m() < options.pixel_error) {
+      stats.objects_subpixel += 1;
+      continue;
+    }
+    visible_.push_back(v);
+  }
+  return visible_.size() - before;
+}
+
+bool FramePlan::walk_block(const ReadView& view, uint32_t block_index,
+                           const FrameView& frame_view, const RenderOptions& options,
+                           FrameStats& stats, std::string& error) {
   const SpatialBlock* block = blocks_.get(view, block_index, error);
   if (!block) return false;
-  const size_t visible_before = visible_.size();
-  const auto& nodes = block->nodes;
-  const auto& entries = block->entries;
+  size_t taken = 0;
   stack_.assign(1, 0);
   while (!stack_.empty()) {
     const uint32_t n = stack_.back();
     stack_.pop_back();
-    const SpatialNode& node = nodes[n];
+    const SpatialNode& node = block->nodes[n];
     // The block's root was tested as its top node.
     if (n != 0 && frame_view.outside(node.min, node.max)) continue;
-    if (n != 0 && subpixel_culling && (node.count == 0 || node.count > 1) &&
-        node_pixels(node, frame_view) < node_proxy_px) {
-      node_boxes_.push_back({{node.min[0], node.min[1], node.min[2]},
-                             {node.max[0], node.max[1], node.max[2]},
-                             kNodeBoxColour});
-      stats.objects_in_node_proxies += objects_beneath(*block, n, count_stack_);
-      continue;
-    }
     if (node.count == 0) {
       stack_.push_back(node.first);
       stack_.push_back(node.first + 1);
       continue;
     }
-    for (uint32_t e = node.first; e < node.first + node.count; ++e) {
-      VisibleObject v{entries[e].slot, {}, {}, 0.0, 0.0, block_index, n};
-      entry_bounds(node, entries[e], v.min, v.max);
-      if (frame_view.outside(v.min, v.max)) continue;
-      v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
-      v.px_per_m = pixels_per_metre(v.distance_m, frame_view.focal_px);
-      // Screen-space policy: an object whose whole extent is under the pixel error is left out
-      // (it is not even decoded); that is what keeps far views of huge plants cheap.
-      if (subpixel_culling && v.px_per_m * v.extent_m() < options.pixel_error) {
-        stats.objects_subpixel += 1;
-        continue;
-      }
-      visible_.push_back(v);
-    }
+    taken += take_leaf(*block, block_index, n, frame_view, options, false, stats);
   }
-  blocks_.walked(block_index, visible_.size() > visible_before);
+  if (taken) blocks_.needed(block_index);
+  else blocks_.release(block_index);
   return true;
 }
 

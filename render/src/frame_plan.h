@@ -14,11 +14,17 @@
 //     with subpixel culling: an object whose extent spans under the pixel error is left out,
 //     and a node spanning under kNodeProxyPixels x the pixel error is drawn whole: a top node
 //     as its far-field proxy (up to kProxyBoxes boxes in its objects' colours, stored with the
-//     top, so a far node reads no block), a node inside a block as one grey box. That size
-//     doubles until at most kMaxDrawnItems objects and boxes remain. The visible objects are ordered
-//     largest on screen first, so that the arena's budget goes where it shows most.
+//     top, so a far node reads no block), a node inside a block as one grey box.
+//   - The frame's work is bounded: nodes are opened largest on screen first (a node spans no
+//     fewer pixels than its children), and when opening the next one would make more than
+//     kMaxDrawnItems objects and boxes, or need more than kMaxFrameBlocksHeld blocks, it and
+//     every node not yet opened are drawn whole. That is the one node size above which all is
+//     opened (node_proxy_pixels), found in one walk that reads no block it does not open: the
+//     overview of a huge plant reads none. Nodes of kMaxNodeProxyPixels and more are always
+//     opened. The visible objects are then ordered largest on screen first, so that the arena's
+//     budget goes where it shows most.
 //   - Memory: nothing here is sized by the plant. What cull keeps follows the frame: its
-//     visible objects and node boxes (kMaxDrawnItems), and the blocks it walked.
+//     visible objects and node boxes (kMaxDrawnItems), and the blocks it read.
 //   - choose: LodPolicy; merged runs replace their visible members (one draw per run).
 //   - resident_base: one level of slack (see there).
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
@@ -184,19 +190,48 @@ class FramePlan {
   std::span<const Draw> draws() const { return draws_; }
 
  private:
-  // One walk with nodes under node_proxy_px drawn whole. `done` false: it stopped early, more
-  // than kMaxDrawnItems objects and boxes being found while larger boxes could make them fewer.
-  bool cull_pass(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
-                 double node_proxy_px, FrameStats& stats, bool& done, std::string& error);
-  // Walks block `block` (under top node `top`) as cull_pass does; false on a read error.
-  bool cull_block(const ReadView& view, uint32_t block, const FrameView& frame_view,
-                  const RenderOptions& options, double node_proxy_px, bool subpixel_culling,
-                  FrameStats& stats, std::string& error);
+  // A node not opened yet: a top node (block == kTopNode) or a node of a held block, the pixels
+  // its largest side spans, and the objects and boxes it makes if drawn as it stands
+  // (`items`: its proxy boxes in the frustum, or one box, or one object).
+  static constexpr uint32_t kTopNode = UINT32_MAX;
+  struct Candidate {
+    double px;
+    uint32_t block, node, items;
+    bool boxable;  // drawn whole when not opened (else it is one object, always opened)
+    bool operator<(const Candidate& o) const { return px < o.px; }
+  };
+  // Adds a node to fresh_ unless it is outside the frustum; push_fresh() makes fresh_
+  // candidates.
+  void consider_top(const ReadView& view, uint32_t node, const FrameView& frame_view,
+                    bool subpixel_culling);
+  void consider_block_node(const SpatialBlock& block, uint32_t block_index, uint32_t node,
+                           const FrameView& frame_view, bool subpixel_culling);
+  void push_fresh();
+  // Opens a candidate: its children become candidates, or a leaf's objects visible. With
+  // `bounded`, leaves `fits` false and changes nothing when that would make more than
+  // kMaxDrawnItems items or read a block beyond kMaxFrameBlocksHeld. False on a read error.
+  bool open(const ReadView& view, const Candidate& c, const FrameView& frame_view,
+            const RenderOptions& options, bool subpixel_culling, bool bounded, bool& fits,
+            FrameStats& stats, std::string& error);
+  // Draws a candidate whole (its proxy boxes or its box), or, for one object, opens it.
+  void draw_whole(const ReadView& view, const Candidate& c, const FrameView& frame_view,
+                  FrameStats& stats);
+  // Walks a whole block with nothing drawn whole (no subpixel culling); false on a read error.
+  bool walk_block(const ReadView& view, uint32_t block, const FrameView& frame_view,
+                  const RenderOptions& options, FrameStats& stats, std::string& error);
+  // Appends the visible objects of leaf `node` of `block`; returns how many were added.
+  size_t take_leaf(const SpatialBlock& block, uint32_t block_index, uint32_t node,
+                   const FrameView& frame_view, const RenderOptions& options,
+                   bool subpixel_culling, FrameStats& stats);
+  size_t items() const { return visible_.size() + node_boxes_.size() + pending_items_; }
   std::vector<VisibleObject> visible_;
   std::vector<NodeBox> node_boxes_;
   FrameBlocks blocks_;
   std::vector<Draw> draws_;
-  std::vector<uint32_t> top_stack_, stack_, count_stack_;
+  std::vector<Candidate> candidates_;  // a max-heap on px
+  std::vector<Candidate> fresh_;       // an opened node's children, before they fit
+  size_t pending_items_ = 0;           // items of candidates_
+  std::vector<uint32_t> stack_, count_stack_;
   OcclusionCulling occlusion_;
 };
 
