@@ -218,6 +218,40 @@ TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
   EXPECT_GT(thirty_stats.objects_in_node_proxies, 0u);
 }
 
+// Pipeline runs are kept for the pipelines the known objects belong to, not for every pipeline
+// a renderer has met: a service walking a whole site must not grow with it. Decodes the objects
+// of twenty units in frames of 2,000 (as a walk would meet them), forgetting as a renderer does.
+TEST(OutOfCore, PipelineRunsFollowTheObjectsKnownNotEveryPipelineMet) {
+  const Store& store = preset_c(30);
+  std::string error;
+  const auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  detail::DecodedObjects objects;
+  objects.reset(*view);
+  const detail::Residency residency(1u << 20);  // nothing resident
+  std::vector<detail::VisibleObject> frame;
+  std::unordered_map<uint64_t, bool> pipelines_met;
+  uint64_t frame_number = 0;
+  size_t most_pipelines = 0, most_runs = 0;
+  const uint32_t slots = uint32_t(view->spatial_objects() * 2 / 3);
+  for (uint32_t slot = 0; slot < slots; ++slot) {
+    frame.push_back(detail::VisibleObject{slot, {}, {}, 0.0, 0.0, 0, 0});
+    if (frame.size() < 2000 && slot + 1 < slots) continue;
+    ASSERT_TRUE(objects.decode(frame, true, error)) << error;
+    for (detail::Known* k : objects.decoded())
+      if (k->run >= 0) pipelines_met[k->pipeline_id] = true;
+    objects.forget_old(++frame_number, residency);
+    most_pipelines = std::max(most_pipelines, objects.pipelines_count());
+    most_runs = std::max(most_runs, objects.runs_count());
+    frame.clear();
+  }
+  const size_t bound = 2 * std::max(detail::kPipelinesKept, detail::kKnownObjectsKept + 2000);
+  std::printf("pipelines met %zu, held at most %zu (%zu runs); bound %zu\n", pipelines_met.size(),
+              most_pipelines, most_runs, bound);
+  ASSERT_GT(pipelines_met.size(), bound) << "the walk must meet more pipelines than the bound";
+  EXPECT_LE(most_pipelines, bound);
+}
+
 // Nodes are opened largest on screen first, and opening stops where the next would exceed the
 // frame's items: so a view that cannot show every object reads only the blocks whose nodes span
 // more than the size left boxed, once each, and the boxes are the finest that fit.

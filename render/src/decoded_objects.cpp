@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <unordered_set>
 
 #include "frame_plan.h"
 #include "plantview/store.h"
@@ -16,7 +17,9 @@ void DecodedObjects::reset(const ReadView& view) {
   decoded_.clear();
   runs_.clear();
   decisions_.clear();
+  free_runs_.clear();
   pipeline_runs_.clear();
+  pipelines_referenced_ = 0;
 }
 
 Known* DecodedObjects::find(uint32_t key) {
@@ -46,10 +49,12 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       analyse_pipeline(k.pipeline_id, ignored);
       it = pipeline_runs_.find(k.pipeline_id);
     }
-    const auto [first, count] = it->second;
-    for (uint32_t r = first; r < first + count && k.run < 0; ++r) {
+    for (const uint32_t r : it->second) {
       const auto& members = runs_[r].members;
-      if (std::find(members.begin(), members.end(), slot) != members.end()) k.run = int32_t(r);
+      if (std::find(members.begin(), members.end(), slot) != members.end()) {
+        k.run = int32_t(r);
+        break;
+      }
     }
   }
   // The new ones' Known (node addresses survive the map's growth).
@@ -119,14 +124,13 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
 void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
   // Analysed from now on, with no runs unless some are found below (a pipeline that cannot be
   // read keeps none).
-  auto& [pipeline_first, pipeline_count] = pipeline_runs_[pipeline_id];
-  pipeline_first = uint32_t(runs_.size());
-  pipeline_count = 0;
+  pipeline_runs_[pipeline_id].clear();
   const auto slot = view_->slot_of(pipeline_id);
   Object pipeline;
   if (!slot || !view_->object(*slot, pipeline, false, error)) return;
   std::vector<Object> members;
   std::vector<std::pair<uint32_t, const Object*>> branch;
+  std::vector<uint32_t> run_indices;
   for (const Branch& b : pipeline.branches) {
     members.clear();
     members.reserve(b.members.size());
@@ -143,21 +147,53 @@ void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) 
     }
     branch.clear();
     for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
-    const size_t first = runs_.size();
     branch_runs_.clear();
     find_runs(branch, branch_runs_);
     for (auto& run : branch_runs_) {
       run.pipeline_id = pipeline_id;
-      runs_.push_back(std::move(run));
-    }
-    for (size_t r = first; r < runs_.size(); ++r) {
+      const uint32_t r = new_run(std::move(run));
+      run_indices.push_back(r);
       for (const uint32_t m : runs_[r].members) {
         if (const auto it = known_.find(m); it != known_.end()) it->second.run = int32_t(r);
       }
     }
   }
-  pipeline_count = uint32_t(runs_.size()) - pipeline_first;
-  decisions_.resize(runs_.size());
+  pipeline_runs_[pipeline_id] = std::move(run_indices);
+}
+
+uint32_t DecodedObjects::new_run(PipelineRun&& run) {
+  if (free_runs_.empty()) {
+    runs_.push_back(std::move(run));
+    decisions_.emplace_back();
+    return uint32_t(runs_.size() - 1);
+  }
+  const uint32_t r = free_runs_.back();
+  free_runs_.pop_back();
+  runs_[r] = std::move(run);
+  decisions_[r] = {};
+  return r;
+}
+
+void DecodedObjects::forget_pipelines() {
+  if (pipeline_runs_.size() <= std::max(kPipelinesKept, 2 * pipelines_referenced_)) return;
+  // What the known objects and runs refer to (their keys and runs survive only with it).
+  std::unordered_set<uint64_t> referenced;
+  for (const auto& [key, k] : known_) {
+    if (key & kRunKeyBit) referenced.insert(runs_[key & ~kRunKeyBit].pipeline_id);
+    else if (k.run >= 0) referenced.insert(k.pipeline_id);
+  }
+  for (auto it = pipeline_runs_.begin(); it != pipeline_runs_.end();) {
+    if (referenced.count(it->first)) {
+      ++it;
+      continue;
+    }
+    for (const uint32_t r : it->second) {
+      runs_[r] = PipelineRun{};
+      free_runs_.push_back(r);
+    }
+    it = pipeline_runs_.erase(it);
+  }
+  pipelines_referenced_ = pipeline_runs_.size();
 }
 
 Known& DecodedObjects::know_run(uint32_t run) {
@@ -197,6 +233,11 @@ const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Kno
 }
 
 void DecodedObjects::forget_old(uint64_t frame, const Residency& residency) {
+  forget_known(frame, residency);
+  forget_pipelines();
+}
+
+void DecodedObjects::forget_known(uint64_t frame, const Residency& residency) {
   if (known_.size() <= kKnownObjectsKept + residency.resident_count()) return;
   decoded_.clear();
   for (int pass = 0; pass < 2 && known_.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {

@@ -12,6 +12,10 @@
 //   - The cache is bounded: forget_old() keeps the resident objects and kKnownObjectsKept more.
 //   - A pipeline is analysed for runs the first time one of its pipes or components is decoded
 //     (with HLOD on); a pipeline that cannot be read simply has no runs.
+//   - The runs are bounded too: a pipeline none of whose members or runs is known any more is
+//     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
+//     as many as the last time, are known. So a service that walks a whole site keeps the runs
+//     of what it shows, not of all it has shown.
 // Ownership: Known objects live in an unordered_map: a Known* stays valid until forget_old()
 //   or reset() (a frame's draws hold them for the frame). Part::plan points into this cache's
 //   template plans (kept for the renderer's life) or into the Known's own_plans.
@@ -43,6 +47,7 @@ struct VisibleObject;
 
 inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
+inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines kept unreferenced, at most
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
@@ -113,8 +118,10 @@ class DecodedObjects {
   std::span<Known* const> decoded() const { return decoded_; }
   // A known object or run (null if not known).
   Known* find(uint32_t key);
-  // Objects and runs known now.
+  // Objects and runs known now; pipelines analysed and their runs held now.
   size_t known_count() const { return known_.size(); }
+  size_t pipelines_count() const { return pipeline_runs_.size(); }
+  size_t runs_count() const { return runs_.size() - free_runs_.size(); }
   // A known object; it must be known (decoded this frame or before).
   Known& at(uint32_t slot) { return known_.at(slot); }
   // The merged cylinder of run `run`, made the first time it is asked for.
@@ -140,6 +147,11 @@ class DecodedObjects {
  private:
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
   void analyse_pipeline(uint64_t pipeline_id, std::string& error);
+  // A run index for a new run: a freed one, or a new one at the end.
+  uint32_t new_run(PipelineRun&& run);
+  // forget_old()'s parts: the objects, then the pipelines that no known object or run refers to.
+  void forget_known(uint64_t frame, const Residency& residency);
+  void forget_pipelines();
 
   // Template plans are shared by every primitive of the template and winding; their errors are
   // zeroed (they differ with the placement's scale: Known::error_m holds the object's).
@@ -157,13 +169,15 @@ class DecodedObjects {
   const ReadView* view_ = nullptr;
   std::unordered_map<uint32_t, Known> known_;
   std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans_;  // few: per template and winding
-  // Pipeline HLOD: runs found so far (a deque: growing it copies nothing), this frame's
-  // decision per run, and the pipelines analysed with their runs: [first, first + count) of
-  // runs_ (a member finds its run there: a pipeline has few runs, and a map by member would
-  // cost 40 bytes a member).
+  // Pipeline HLOD: the runs (a deque: growing it copies nothing; a forgotten pipeline's run
+  // indices go to free_runs_ and are reused), this frame's decision per run, and the pipelines
+  // analysed with their runs' indices (a member finds its run there: a pipeline has few runs,
+  // and a map by member would cost 40 bytes a member).
   std::deque<PipelineRun> runs_;
   std::vector<RunDecision> decisions_;
-  std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> pipeline_runs_;
+  std::vector<uint32_t> free_runs_;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> pipeline_runs_;
+  size_t pipelines_referenced_ = 0;  // at the last forget_pipelines()
   // Scratch, reused.
   std::vector<PipelineRun> branch_runs_;
   std::vector<uint32_t> new_slots_;

@@ -34,6 +34,8 @@ std::string FrameStats::to_json() const {
          ",\"node_proxies\":" + std::to_string(node_proxies) +
          ",\"node_proxy_pixels\":" + std::to_string(node_proxy_pixels) +
          ",\"objects_in_node_proxies\":" + std::to_string(objects_in_node_proxies) +
+         ",\"spatial_blocks_walked\":" + std::to_string(spatial_blocks_walked) +
+         ",\"spatial_blocks_held\":" + std::to_string(spatial_blocks_held) +
          ",\"draw_commands\":" + std::to_string(draw_commands) +
          ",\"arena_bytes_budget\":" + std::to_string(arena_bytes_budget) +
          ",\"arena_bytes_resident\":" + std::to_string(arena_bytes_resident) +
