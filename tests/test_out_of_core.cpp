@@ -218,6 +218,33 @@ TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
   EXPECT_GT(thirty_stats.objects_in_node_proxies, 0u);
 }
 
+// Policy none draws every object, but not a million: beyond kMaxObjectsAnyPolicy the rest of the
+// view is drawn as far-field proxies, so that its memory stays bounded on a plant seen whole.
+TEST(OutOfCore, PolicyNoneOnAPlantOfMillionsStopsAtTheObjectCap) {
+  context();
+  const Store& store = preset_c(30);
+  std::string error;
+  const auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  RenderOptions options;
+  options.lod_policy = LodPolicy::none;
+  options.occlusion = false;
+  options.vertex_budget_bytes = 16u << 20;  // what does not fit is boxed: the cull is tested
+  auto renderer = Renderer::create(store, options, error);
+  ASSERT_TRUE(renderer) << error;
+  FrameStats stats;
+  ASSERT_TRUE(renderer->statistics(default_camera(overview_boxes(*view), 16.0 / 9.0), 1280, 720,
+                                   stats, error)) << error;
+  ASSERT_GT(view->spatial_objects(), 4 * detail::kMaxObjectsAnyPolicy);
+  // The cap is checked before each block (at most kSpatialBlockObjects more).
+  EXPECT_GE(stats.objects_visible, detail::kMaxObjectsAnyPolicy);
+  EXPECT_LE(stats.objects_visible, detail::kMaxObjectsAnyPolicy + 2048);
+  EXPECT_GT(stats.objects_in_node_proxies, 0u);
+  EXPECT_GT(stats.node_proxies, 0u);
+  EXPECT_EQ(stats.objects_visible + stats.objects_in_node_proxies + stats.objects_culled,
+            view->spatial_objects());
+}
+
 // Pipeline runs are kept for the pipelines the known objects belong to, not for every pipeline
 // a renderer has met: a service walking a whole site must not grow with it. Decodes the objects
 // of twenty units in frames of 2,000 (as a walk would meet them), forgetting as a renderer does.

@@ -110,6 +110,13 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
       draw_whole(view, c, frame_view, stats);
       continue;
     }
+    if (!subpixel_culling && c.block == kTopNode && visible_.size() >= kMaxObjectsAnyPolicy) {
+      // Policy none or distance on a plant of millions: the rest of the view as proxies.
+      if (!stopped) whole_below_px = c.px;
+      stopped = true;
+      draw_whole(view, c, frame_view, stats);
+      continue;
+    }
     const bool bounded = !stopped && c.boxable && c.px < kMaxNodeProxyPixels;
     bool fits = true;
     if (!open(view, c, frame_view, options, subpixel_culling, bounded, fits, stats, error))
@@ -121,7 +128,7 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
     }
   }
   blocks_.end_cull();
-  stats.node_proxy_pixels = subpixel_culling ? whole_below_px : 0;
+  stats.node_proxy_pixels = subpixel_culling || stopped ? whole_below_px : 0;
   stats.objects_visible = visible_.size();
   stats.objects_culled = view.spatial_objects() - visible_.size() - stats.objects_subpixel -
                          stats.objects_in_node_proxies;

@@ -21,7 +21,8 @@
 //     every node not yet opened are drawn whole. That is the one node size above which all is
 //     opened (node_proxy_pixels), found in one walk that reads no block it does not open: the
 //     overview of a huge plant reads none. Nodes of kMaxNodeProxyPixels and more are always
-//     opened. The visible objects are then ordered largest on screen first, so that the arena's
+//     opened. The other policies draw no node whole but stop at kMaxObjectsAnyPolicy objects.
+//     The visible objects are then ordered largest on screen first, so that the arena's
 //     budget goes where it shows most.
 //   - Memory: nothing here is sized by the plant. What cull keeps follows the frame: its
 //     visible objects and node boxes (kMaxDrawnItems), and the blocks it read.
@@ -65,6 +66,11 @@ class DecodedObjects;
 // objects fit: x100 at 24-pixel nodes, 0.83 M triangles (60,000 objects alone drew 3.3 M).
 inline constexpr size_t kMaxDrawnItems = 32768;
 inline constexpr double kMaxNodeProxyPixels = 256;
+// Objects drawn one by one in a frame by the policies that draw no node whole (none, distance,
+// or no subpixel culling), at most (their decoded records take about 250 MB): beyond, the top
+// nodes not walked yet, the smallest on screen, are drawn as their far-field proxies. Only
+// plants of millions of objects seen whole reach it.
+inline constexpr size_t kMaxObjectsAnyPolicy = size_t(1) << 17;
 inline constexpr Colour kNodeBoxColour{150, 150, 150, 255};  // nodes inside blocks drawn whole
 
 // A camera's view of the store for one frame.
