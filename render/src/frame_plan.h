@@ -60,10 +60,10 @@ struct PipelineRun;
 class DecodedObjects;
 
 // Objects drawn one by one plus node boxes in a frame, at most, unless nodes of
-// kMaxNodeProxyPixels would have to be boxes. Measured on preset c at 1280x720 and the default
-// pixel error: one unit's overview and walkthrough views need at most 31,800 (so they draw
-// every object they did before), and larger plants' overviews stop boxing where boxes and
-// objects fit: x100 at 24-pixel nodes, 0.83 M triangles (60,000 objects alone drew 3.3 M).
+// kMaxNodeProxyPixels would have to be boxes. Measured on preset c at 1280x720 and the still
+// pixel error (0.5 px): one unit's walkthrough views need up to about 35,000 (its overview boxes
+// nodes under 6.3 px, its nearer views none), x1000's overview boxes nodes under 35 px (0.4 M
+// triangles) and its walkthrough views under 35-90 px.
 inline constexpr size_t kMaxDrawnItems = 32768;
 inline constexpr double kMaxNodeProxyPixels = 256;
 // Objects drawn one by one in a frame by the policies that draw no node whole (none, distance,
