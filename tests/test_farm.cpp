@@ -247,6 +247,15 @@ TEST_F(Farm, BadInputIsRefusedBeforeAnyImage) {
   // A scheduler that refuses the job: its message, exit status 1.
   const fs::path sbatch = scratch_.path() / "sbatch";
   std::ofstream(sbatch) << "#!/bin/sh\necho 'sbatch: error: Batch job submission failed: Invalid account' >&2\nexit 1\n";
+  const auto listing = [](const fs::path& dir) {
+    std::vector<std::string> names;
+    std::error_code ec;
+    if (fs::exists(dir, ec))
+      for (const auto& e : fs::recursive_directory_iterator(dir)) names.push_back(e.path().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  const std::vector<std::string> before = listing(out);
   fs::permissions(sbatch, fs::perms::owner_all);
   r = run_shell("PLANTVIEW_SBATCH=" + sbatch.string() + " " + PLANTVIEW_BIN +
                     " farm submit --tasks 4 --views " + views_.string() + " --store " + store_.string() +
@@ -255,6 +264,8 @@ TEST_F(Farm, BadInputIsRefusedBeforeAnyImage) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("Invalid account"), std::string::npos) << r.err;
   EXPECT_TRUE(images_in(out).empty());
+  // ... and leaves no script, views copy or logs behind: the directory is as it was.
+  EXPECT_EQ(listing(out), before) << "a refused submit changed " << out;
   // Usage errors exit 2.
   EXPECT_EQ(run("farm submit --scheduler pbs --tasks 2 --views " + views_.string() + " --store " +
                 store_.string() + " --out " + out.string()).status, 2);

@@ -84,6 +84,21 @@ int run_submit(const SubmitArgs& a) {
     }
     return 0;
   }
+  // What this submit adds to the output directory, taken back if the scheduler refuses the job
+  // (a refused submit leaves the directory as it was).
+  const bool out_existed = fs::exists(job.out, ec);
+  const bool logs_existed = fs::exists(job.out / "logs", ec);
+  const bool views_copy_existed = fs::exists(job.out / farm::kViewsCopyName, ec);
+  const auto take_back = [&](const fs::path& script) {
+    std::error_code ignored;
+    fs::remove(script, ignored);
+    if (!out_existed) {
+      fs::remove_all(job.out, ignored);
+      return;
+    }
+    if (!views_copy_existed) fs::remove(job.out / farm::kViewsCopyName, ignored);
+    if (!logs_existed) fs::remove(job.out / "logs", ignored);  // only if still empty
+  };
   if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
     return fail(error);
   if (!fs::equivalent(a.views, job.out / farm::kViewsCopyName, ec) &&
@@ -92,10 +107,14 @@ int run_submit(const SubmitArgs& a) {
 
   if (a.scheduler == "slurm") {
     const fs::path script = job.out / "farm.sbatch";
+    const bool script_existed = fs::exists(script, ec);
     if (!farm::write_file_atomically(script, farm::sbatch_script(job), error)) return fail(error);
     ::chmod(script.c_str(), 0755);
     std::string job_id;
-    if (!farm::submit_to_slurm(script, job_id, error)) return fail(error);
+    if (!farm::submit_to_slurm(script, job_id, error)) {
+      take_back(script_existed ? fs::path() : script);
+      return fail(error);
+    }
     std::cerr << "plantview: submitted job " << job_id << " (" << job.tasks << " tasks, "
               << views.size() << " views; script " << script.string()
               << "); `plantview farm status " << job.out.string() << "` tells how far it got\n";
