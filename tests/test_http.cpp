@@ -252,7 +252,7 @@ RenderJob job_of(const Routed& r) {
   return job ? *job : RenderJob{};
 }
 
-TEST(Routes, TheTokenIsCheckedBeforeAnythingElseButShutdown) {
+TEST(Routes, TheTokenIsCheckedBeforeAnythingButShutdownAndTheViewerPage) {
   RouteConfig c = config();
   c.token = "s3cret";
   const Reply none = reply_of(route(get("/api/model"), c, false, 1));
@@ -262,6 +262,13 @@ TEST(Routes, TheTokenIsCheckedBeforeAnythingElseButShutdown) {
   EXPECT_EQ(reply_of(route(get("/api/model", "Bearer s3cret2"), c, false, 1)).status, 401);
   EXPECT_EQ(reply_of(route(get("/api/model", "Bearer s3cre"), c, false, 1)).status, 401);
   EXPECT_EQ(reply_of(route(get("/nope?%zz"), c, false, 1)).status, 401);  // before the query
+  // The viewer page's files need none (a browser cannot send it on navigation); the API does.
+  for (const auto& [file, content] : c.files) {
+    const Reply page = reply_of(route(get(file), c, false, 1));
+    EXPECT_EQ(page.status, 200) << file;
+    EXPECT_EQ(page.body, content.bytes) << file;
+  }
+  EXPECT_FALSE(c.files.empty());
   const Reply good = reply_of(route(get("/api/model", "Bearer s3cret"), c, false, 1));
   EXPECT_EQ(good.status, 200);
   EXPECT_EQ(good.body, c.model_json);

@@ -421,6 +421,11 @@ TEST(Service, TheTokenIsRequiredWhenGivenAndOffLoopback) {
     EXPECT_EQ(none.headers["www-authenticate"], "Bearer");
     EXPECT_EQ(c.request("/api/model", "Authorization: Bearer wrong\r\n").status, 401);
     EXPECT_EQ(c.request("/api/model", "Authorization: Bearer s3cret\r\n").status, 200);
+    // The viewer page opens without it (it sends the token with its API requests).
+    Response page = c.request("/");
+    EXPECT_EQ(page.status, 200);
+    EXPECT_NE(page.body.find("<html"), std::string::npos);
+    EXPECT_EQ(c.request("/viewer.js").status, 200);
   }
   // Binding beyond loopback without a token does not start.
   const std::string command = std::string(PLANTVIEW_BIN) + " serve --store " + small_store() +

@@ -12,6 +12,11 @@
 // X-Plantview-* response headers, which the readout shows; a server without them is shown what
 // was asked for.
 //
+// A server started with --token needs it on every API request: open the page as
+// http://host:port/#token=TOKEN. The page (index.html, viewer.js, viewer.css) is served without
+// it; the token stays in this tab (sessionStorage), is sent as `Authorization: Bearer`, and is
+// taken out of the address bar so that it is not shared with a copied link.
+//
 // Test hooks (tests/browser/test_viewer.py reads them): window.plantview = {
 //   camera,       the current camera {eye, target, up, fov} (replaced, never mutated, on a change)
 //   home,         the home camera (the model's), which Home flies back to
@@ -30,6 +35,21 @@
 'use strict';
 
 (() => {
+  const TOKEN_KEY = 'plantview.token';
+  {
+    const given = /(?:^#|&)token=([^&]*)/.exec(location.hash);
+    if (given) {
+      sessionStorage.setItem(TOKEN_KEY, decodeURIComponent(given[1]));
+      history.replaceState(null, '', location.pathname + location.search);
+    }
+  }
+  // fetch() for the API, with the token where the page was given one.
+  function api(url, options = {}) {
+    const token = sessionStorage.getItem(TOKEN_KEY);
+    if (!token) return fetch(url, options);
+    return fetch(url, { ...options, headers: { ...(options.headers || {}), Authorization: `Bearer ${token}` } });
+  }
+
   const MOVING = { quality: 60, px: 3 };   // while the camera moves: cheap, coarse frames
   const STILL = { quality: 90, px: 1 };    // once it has rested REST_MS: one full-quality still
   const REST_MS = 250;
@@ -372,7 +392,7 @@
 
   async function fetchFrame(url, request) {
     try {
-      const response = await fetch(url, { cache: 'no-store' });
+      const response = await api(url, { cache: 'no-store' });
       adoptClientId(response.headers);
       if (response.status === 409) return;  // superseded by a newer request of ours: ignore
       if (response.status === 503) {
@@ -422,6 +442,8 @@
   }
 
   async function errorText(response) {
+    if (response.status === 401)
+      return `401: this server needs its token: open the page as ${location.origin}${location.pathname}#token=TOKEN`;
     try {
       const body = await response.json();
       if (body && body.error) return `${response.status}: ${body.error}`;
@@ -583,7 +605,7 @@
     const y = clamp(Math.floor((clientY - rect.top) * shown.h / rect.height), 0, shown.h - 1);
     const seq = ++pickSeq;
     try {
-      const response = await fetch(`api/pick?${shown.params}&x=${x}&y=${y}&client=${encodeURIComponent(clientId)}`,
+      const response = await api(`api/pick?${shown.params}&x=${x}&y=${y}&client=${encodeURIComponent(clientId)}`,
                                    { cache: 'no-store' });
       adoptClientId(response.headers);
       if (!response.ok) {
@@ -615,7 +637,7 @@
         // Each segment escaped, the '/' between them kept: a server that does not decode the path
         // still sees the name as stored.
         const path = name.split('/').map(encodeURIComponent).join('/');
-        const response = await fetch(`api/objects/${path}`, { cache: 'no-store' });
+        const response = await api(`api/objects/${path}`, { cache: 'no-store' });
         if (seq !== pickSeq) return;
         if (response.ok) {
           const object = await response.json();
@@ -673,7 +695,7 @@
   // south-west, above). Retries while the server is not answering.
   async function start() {
     try {
-      const response = await fetch('api/model', { cache: 'no-store' });
+      const response = await api('api/model', { cache: 'no-store' });
       if (!response.ok) throw new Error(await errorText(response));
       model = await response.json();
     } catch (e) {

@@ -376,16 +376,20 @@ Routed route(const Request& request, const RouteConfig& config, bool shutting_do
   auto& decision = out.decision;
   const std::string& path = request.path;
   const bool no_parameters = request.query.empty();
+  // The viewer page's own files hold no plant data: a browser opens them without the token
+  // (it cannot send one on navigation) and sends it with every API request (web/viewer.js).
+  const auto page_file = config.files.find(path);
+  const bool page = page_file != config.files.end() && request.method == "GET";
   if (shutting_down) {
     decision = error_reply(503, "the server is shutting down", {}, true);
-  } else if (!config.token.empty() && !token_matches(request.authorization, config.token)) {
+  } else if (!page && !config.token.empty() && !token_matches(request.authorization, config.token)) {
     decision = error_reply(401, "a valid 'Authorization: Bearer' token is required", {{"WWW-Authenticate", "Bearer"}});
   } else if (request.method != "GET") {
     decision = error_reply(405, "only GET is served", {{"Allow", "GET"}});
   } else if (!request.query_error.empty()) {
     decision = error_reply(400, request.query_error);
-  } else if (const auto f = config.files.find(path); f != config.files.end()) {
-    decision = no_parameters ? ok(f->second.content_type, f->second.bytes)
+  } else if (page) {
+    decision = no_parameters ? ok(page_file->second.content_type, page_file->second.bytes)
                              : error_reply(400, "the page takes no parameters");
   } else if (path == "/api/model") {
     decision = no_parameters ? ok("application/json", config.model_json)

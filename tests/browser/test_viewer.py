@@ -43,6 +43,7 @@ PICK_S = 30              # one /api/pick answer
 SEARCH_S = 30            # a search's /api/objects answer and the fly-to (0.8 s) after it
 ENTER_KEY = "\ue007"     # WebDriver's Enter
 ELEMENT_KEY = "element-6066-11e4-a52e-4f735466cecf"  # W3C WebDriver's element reference key
+TOKEN = "browser-test-token"  # the server runs with --token: the page must send it
 
 
 class Failure(Exception):
@@ -55,11 +56,13 @@ def free_port():
         return s.getsockname()[1]
 
 
-def http_json(url, method="GET", body=None, timeout=30):
+def http_json(url, method="GET", body=None, timeout=30, token=None):
     """Returns (status, decoded JSON body or None). Raises OSError when nothing answers."""
     data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(url, data=data, method=method,
-                                     headers={"Content-Type": "application/json"} if data else {})
+    headers = {"Content-Type": "application/json"} if data else {}
+    if token:
+        headers["Authorization"] = f"Bearer {token}"
+    request = urllib.request.Request(url, data=data, method=method, headers=headers)
     try:
         with urllib.request.urlopen(request, timeout=timeout) as response:
             status, raw = response.status, response.read()
@@ -235,7 +238,7 @@ def find_object(server, state):
         x = min(w - 1, int((css_x - left) * w / width))
         y = min(h - 1, int((css_y - top) * h / height))
         url = f"{server}/api/pick?{camera_query(state['camera'], w, h)}&x={x}&y={y}"
-        status, reply = http_json(url, timeout=PICK_S)
+        status, reply = http_json(url, timeout=PICK_S, token=TOKEN)
         if status != 200 or not isinstance(reply, dict) or "object" not in reply:
             raise Failure(f"GET /api/pick answered {status}: {reply}")
         if reply["object"] and reply["object"].get("name") and reply["object"].get("bounds"):
@@ -264,7 +267,9 @@ def server_reports_quality(server):
     """Whether the server's frames say what quality they have (X-Plantview-Mode): a small still
     asked for with mode=still (a server from before that refuses the parameter: 400)."""
     try:
-        with urllib.request.urlopen(f"{server}/api/frame?w=64&h=36&mode=still", timeout=FRAME_S) as response:
+        request = urllib.request.Request(f"{server}/api/frame?w=64&h=36&mode=still",
+                                         headers={"Authorization": f"Bearer {TOKEN}"})
+        with urllib.request.urlopen(request, timeout=FRAME_S) as response:
             return response.headers.get("X-Plantview-Mode") == "still"
     except urllib.error.HTTPError as e:
         if e.code == 400:
@@ -277,7 +282,7 @@ def search_name(server, obj):
     by tag (an unknown tag is a 404 there), the first of obj's Tag attribute, its name without the
     leading '/' that plant names carry, and its name, that the server finds as obj. A server that
     finds objects by id only (an unknown tag is a 400) gets the id, and the test says so."""
-    status, reply = http_json(f"{server}/api/objects/NO-SUCH-TAG-0000", timeout=PICK_S)
+    status, reply = http_json(f"{server}/api/objects/NO-SUCH-TAG-0000", timeout=PICK_S, token=TOKEN)
     if status == 400:
         print(f"NOTE: this server finds objects by id only ({reply}); searching by id", flush=True)
         return obj["id"], False
@@ -287,7 +292,7 @@ def search_name(server, obj):
     candidates = tags + [obj["name"].lstrip("/"), obj["name"]]
     for text in candidates:
         path = "/".join(urllib.parse.quote(part, safe="") for part in text.split("/"))
-        status, found = http_json(f"{server}/api/objects/{path}", timeout=PICK_S)
+        status, found = http_json(f"{server}/api/objects/{path}", timeout=PICK_S, token=TOKEN)
         if status == 200 and isinstance(found, dict) and found.get("id") == obj["id"]:
             return text, True
     raise Failure(f"the server finds objects by tag, but object {obj['id']} by none of {candidates}")
@@ -375,7 +380,8 @@ def run(args, tmp):
         server = f"http://127.0.0.1:{port}"
         server_log = os.path.join(tmp, "server.log")
         processes["server"] = start_process(
-            [plantview, "serve", "--store", store, "--listen", f"127.0.0.1:{port}"], server_log,
+            [plantview, "serve", "--store", store, "--listen", f"127.0.0.1:{port}", "--token", TOKEN],
+            server_log,
             cwd=REPO_ROOT)
 
         def server_up():
@@ -383,7 +389,7 @@ def run(args, tmp):
                 raise Failure(f"plantview serve exited ({processes['server'].returncode}):\n"
                               f"{log_tail(server_log)}")
             try:
-                return http_json(f"{server}/api/model", timeout=5)[0] == 200
+                return http_json(f"{server}/api/model", timeout=5, token=TOKEN)[0] == 200
             except OSError:
                 return False
         wait_for("GET /api/model to answer 200", SERVER_START_S, server_up)
@@ -423,10 +429,15 @@ def run(args, tmp):
                 raise Failure(f"{e}; page overlay: {seen.get('stats')!r}") from None
 
         # 3. The page, until it shows a frame.
-        driver.command("POST", "/url", {"url": f"{server}/"})
+        # The server wants its token: the page is given it once, in the fragment.
+        if http_json(f"{server}/api/model", timeout=5)[0] != 401:
+            raise Failure("the API answered without the token")
+        driver.command("POST", "/url", {"url": f"{server}/#token={TOKEN}"})
         first = wait_state("the first frame", FIRST_FRAME_S,
                            lambda s: s["framesShown"] >= 1 and s["natural"][0] > 0 and s["natural"][1] > 0)
         print(f"first frame {first['natural'][0]}x{first['natural'][1]} shown", flush=True)
+        if driver.js("return location.hash"):
+            raise Failure("the page left its token in the address bar")
 
         # 4. A drag orbits: the eye moves and a new frame is shown.
         before = wait_state("the still frame", FRAME_S, lambda s: s["still"])
