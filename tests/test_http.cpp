@@ -16,6 +16,8 @@
 #include <thread>
 #include <variant>
 
+#include <nlohmann/json.hpp>
+
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
@@ -966,6 +968,49 @@ TEST(Objects, ATagOfSeveralObjectsIsAConflictListingTheirIds) {
   EXPECT_NE(a.body.find("names 2 objects"), std::string::npos) << a.body;
   for (const char* source : {"a.rvm", "b.rvm"})
     EXPECT_NE(a.body.find("\"" + std::to_string(object_id(source, "/TWIN")) + "\""), std::string::npos) << a.body;
+}
+
+TEST(Objects, APipelineHasTheBoundsOfItsMembers) {
+  const test::TempDir dir;
+  std::string error;
+  {
+    auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+    ASSERT_TRUE(store) << error;
+    std::vector<Object> objects;
+    Object pipeline;
+    pipeline.name = "/LINE-1";
+    pipeline.source = "a.rvm";
+    pipeline.id = object_id(pipeline.source, pipeline.name);
+    pipeline.object_class = ObjectClass::pipeline;
+    pipeline.branches.push_back({"/LINE-1/B1", {}});
+    for (int i = 0; i < 2; ++i) {
+      Object pipe;
+      pipe.name = "/LINE-1/PIPE-" + std::to_string(i);
+      pipe.source = "a.rvm";
+      pipe.id = object_id(pipe.source, pipe.name);
+      pipe.object_class = ObjectClass::pipe;
+      pipe.pipeline_id = pipeline.id;
+      pipe.origin_m = {100.0 + 10.0 * i, 200.0, 5.0};
+      pipe.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
+      pipeline.branches[0].members.push_back(pipe.id);
+      objects.push_back(std::move(pipe));
+    }
+    objects.push_back(std::move(pipeline));
+    const IngestResult result = ingest_objects(*store, objects);
+    ASSERT_TRUE(result) << result.error().message;
+  }
+  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  const ObjectAnswer a = object_answer(*view, 0, "LINE-1");
+  ASSERT_EQ(a.status, 200) << a.body;
+  const auto j = nlohmann::json::parse(a.body);
+  EXPECT_EQ(j["class"], "pipeline");
+  ASSERT_TRUE(j.contains("bounds")) << a.body;
+  EXPECT_NEAR(j["bounds"]["min"][0].get<double>(), 99.0, 1e-3);
+  EXPECT_NEAR(j["bounds"]["max"][0].get<double>(), 111.0, 1e-3);
+  EXPECT_NEAR(j["bounds"]["min"][2].get<double>(), 4.0, 1e-3);
 }
 
 TEST(RenderWorker, AStoppedWorkerThatNeverStartedStopsCleanly) {

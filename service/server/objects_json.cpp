@@ -10,6 +10,9 @@ namespace plantview::service {
 
 namespace {
 
+// Members a pipeline's bounds are gathered from, at most (a lookup and a decode each).
+constexpr size_t kMaxPipelineMembersBounded = 100000;
+
 // The object in `slot` as JSON; false with the store's message if it cannot be read.
 bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::string& error) {
   Object o;
@@ -21,7 +24,22 @@ bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::stri
                       {"class", std::string(class_name(o.object_class))},
                       {"colour", {o.colour.r, o.colour.g, o.colour.b, o.colour.a}},
                       {"attributes", attributes}};
-  const DAabb b = object_bounds(o);
+  DAabb b = object_bounds(o);
+  if (b.empty() && o.object_class == ObjectClass::pipeline) {
+    // A pipeline has no geometry of its own: its bounds are its members' (a client flies to it).
+    Object member;
+    size_t looked_up = 0;
+    for (const Branch& branch : o.branches) {
+      for (const uint64_t id : branch.members) {
+        if (++looked_up > kMaxPipelineMembersBounded) break;
+        std::optional<uint32_t> member_slot;
+        if (!view.slot_of(id, member_slot, error)) return false;
+        if (!member_slot) continue;
+        if (!view.object(*member_slot, member, false, error)) return false;
+        b.extend(object_bounds(member));
+      }
+    }
+  }
   if (!b.empty()) j["bounds"] = {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
   if (o.pipeline_id) j["pipeline_id"] = std::to_string(o.pipeline_id);
   // Attribute values are bytes as the source gave them: invalid UTF-8 is replaced, not refused.

@@ -1,6 +1,6 @@
 // Objects as the service's JSON: {"id": "<decimal>", "name", "class", "colour", "attributes":
 // [{"key", "value"}], "bounds": {"min", "max"}, "pipeline_id"?}. Ids are strings because they are
-// 64-bit and JavaScript numbers are not.
+// 64-bit and JavaScript numbers are not. A pipeline's bounds are its members' (the first 100,000).
 // Threads: a ReadView's (the calls read through it); nothing else is shared.
 #pragma once
 
