@@ -59,9 +59,11 @@ class ColumnWriter {
   bool flush(MDB_txn* txn, std::string& error);
 
  private:
-  static constexpr size_t kMaxOpenBlocks = 32;
-  // Blocks handed over and not yet in LMDB; the same for every thread count (determinism).
-  static constexpr size_t kMaxBlocksInFlight = 8;
+  // About 64 K object slots (a few MB decoded).
+  static constexpr size_t kMaxOpenBlocks = 1024;
+  // Blocks handed over and not yet in LMDB; the same for every thread count (determinism). Enough
+  // chunks (about 1 MB of records) that the compression threads seldom wait for the writer.
+  static constexpr size_t kMaxBlocksInFlight = 256;
   struct Chunk {
     std::vector<uint8_t> frame;  // as stored (compressed), until decoded
     // Neither decoded nor stored: the chunk's layout (chunks.h), filled in slot order; empty

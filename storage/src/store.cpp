@@ -1320,6 +1320,32 @@ bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn
   return true;
 }
 
+bool ReadView::for_each_object_of_class(ObjectClass object_class,
+                                        const std::function<bool(uint32_t, Object&&)>& fn,
+                                        bool with_attributes, std::string& error) const {
+  State& s = *state_;
+  for (uint32_t slot = 0; slot < s.snapshot->next_slot; ++slot) {
+    std::span<const uint8_t> record;
+    std::string why;
+    if (!s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why)) {
+      error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+      return false;
+    }
+    if (record.empty()) continue;
+    // The class is the record's second byte (record.h); a record that is not passed over is
+    // decoded, which checks everything (an unknown class included).
+    if (record.size() >= 2 && record[1] < kObjectClassCount && record[1] != uint8_t(object_class)) {
+      continue;
+    }
+    Object o;
+    if (!object(slot, o, with_attributes, error)) return false;
+    if (!fn(slot, std::move(o))) return true;
+  }
+  return true;
+}
+
+uint32_t ReadView::slot_count() const { return state_->snapshot->next_slot; }
+
 size_t ReadView::spatial_cache_bytes() const { return state_->snapshot->blocks.bytes(); }
 // ---------------------------------------------------------------------------------------------
 
