@@ -837,6 +837,49 @@ TEST(Store, AStoreOfAnotherFormatVersionIsRefusedNotMisread) {
   }
 }
 
+// Format 4 keeps each chunk of records in an LMDB value of its own, keyed by the chunk's number,
+// so that every value an import writes is a page or two: LMDB's dirty list counts values, and
+// this is what bounds an import's memory (chunks.h).
+TEST(Store, EachChunkOfRecordsIsAnLmdbValueOfAPageOrTwo) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 4100; ++i) objects.push_back(box_object("a", i, {i * 3.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  MDB_env* env = nullptr;
+  ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 12);
+  ASSERT_EQ(mdb_env_open(env, dir.str().c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  ASSERT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
+  const size_t page_bytes = size_t(sysconf(_SC_PAGESIZE));
+  for (const auto& [database, chunk_slots] :
+       {std::pair<const char*, uint32_t>{"objects", 64}, {"attributes", 256}}) {
+    MDB_dbi dbi;
+    ASSERT_EQ(mdb_dbi_open(txn, database, 0, &dbi), MDB_SUCCESS);
+    MDB_cursor* cursor = nullptr;
+    ASSERT_EQ(mdb_cursor_open(txn, dbi, &cursor), MDB_SUCCESS);
+    MDB_val k, v;
+    uint32_t expected_key = 0;
+    for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == MDB_SUCCESS;
+         rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+      ASSERT_EQ(k.mv_size, 4u);
+      EXPECT_EQ(detail::read_be32(k.mv_data), expected_key++) << database;
+      std::vector<std::span<const uint8_t>> frames;
+      std::string error;
+      EXPECT_TRUE(detail::split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, 1, frames,
+                                      error)) << error;
+      EXPECT_LE(v.mv_size, 2 * page_bytes) << database;
+    }
+    mdb_cursor_close(cursor);
+    EXPECT_EQ(expected_key, (4100 + chunk_slots - 1) / chunk_slots) << database;
+  }
+  mdb_txn_abort(txn);
+  mdb_env_close(env);
+}
+
 // A format 3 store (32 chunks an LMDB value) is refused with what to do about it.
 TEST(Store, AFormat3StoreIsRefusedWithAnInstructionToImportAgain) {
   TempDir dir;
