@@ -943,8 +943,11 @@ bool Import::put(const Object& object, std::string& error) {
     if (!s.slots.empty() && !s.remove_slot(s.slots[0], error)) return false;
   }
   const uint32_t slot = s.next_slot;
-  // Bounds first: an object the grid cannot hold is refused before anything of it is written.
-  const DAabb bounds = object_bounds(object);
+  // The object's statistics, whose bounds are its object_bounds() (computed once). Bounds first:
+  // an object the grid cannot hold is refused before anything of it is written.
+  ModelStatistics part;
+  part.add(object);
+  const DAabb& bounds = part.bounds;
   SpatialItem item{};
   if (!bounds.empty()) {
     if (!s.has_origin) {
@@ -979,8 +982,6 @@ bool Import::put(const Object& object, std::string& error) {
     error = s.message(why);
     return false;
   }
-  ModelStatistics part;
-  part.add(object);
   add(s.totals, part);
   ++s.put_count;
   return true;
