@@ -542,6 +542,7 @@ struct Import::State {
   std::vector<uint8_t> raw;
   std::vector<uint32_t> slots;  // scratch
   uint64_t put_count = 0;
+  ModelStatistics put_statistics;  // of the objects put (Import::put_statistics())
   detail::ZstdCCtx compressor = detail::make_compressor();
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
 
@@ -905,6 +906,7 @@ bool Import::State::write_spatial(std::string& error) {
 Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
 Import::~Import() = default;
 uint64_t Import::objects_put() const { return state_->put_count; }
+const ModelStatistics& Import::put_statistics() const { return state_->put_statistics; }
 
 bool Import::remove_source(std::string_view source, std::string& error) {
   State& s = *state_;
@@ -983,6 +985,8 @@ bool Import::put(const Object& object, std::string& error) {
     return false;
   }
   add(s.totals, part);
+  add(s.put_statistics, part);
+  s.put_statistics.bounds.extend(part.bounds);
   ++s.put_count;
   return true;
 }

@@ -219,6 +219,9 @@ class Import {
   bool commit(std::string& error);
 
   uint64_t objects_put() const;
+  // The statistics of the objects put so far, bounds included (what they replaced or removed is
+  // not subtracted): what the caller would count from them, counted once.
+  const ModelStatistics& put_statistics() const;
 
  private:
   friend class Store;
