@@ -59,10 +59,10 @@ class ColumnWriter {
   bool flush(MDB_txn* txn, std::string& error);
 
  private:
-  // About 64 K object slots (a few MB decoded).
+  // 64 K object slots or 256 K attribute slots (tens of MB decoded at most).
   static constexpr size_t kMaxOpenBlocks = 1024;
   // Blocks handed over and not yet in LMDB; the same for every thread count (determinism). Enough
-  // chunks (about 1 MB of records) that the compression threads seldom wait for the writer.
+  // chunks (a few MB of records) that the compression threads seldom wait for the writer.
   static constexpr size_t kMaxBlocksInFlight = 256;
   struct Chunk {
     std::vector<uint8_t> frame;  // as stored (compressed), until decoded
