@@ -357,8 +357,8 @@ TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
 TEST(Store, ObjectsOnEitherSideOfChunkAndBlockBoundariesComeBack) {
   TempDir dir;
   auto store = open_store(dir.str());
-  // 4100 objects fill object chunks (64 slots), attribute chunks (256) and blocks (2048, 4096)
-  // and spill into the next; imports of odd sizes then append to partly filled ones.
+  // 4100 objects fill object chunks (64 slots) and attribute chunks (256) and spill into the
+  // next; imports of odd sizes then append to partly filled ones.
   std::vector<Object> first;
   for (int i = 0; i < 4100; ++i) first.push_back(box_object("a", i, {i * 3.0, 0, 0}));
   import_objects(*store, first, "a");
@@ -478,7 +478,7 @@ TEST(Store, ReplacingASourceKeepsAnotherSourcesObjectsInTheSameChunks) {
 TEST(Store, AnImportTouchingMoreBlocksThanItHoldsInMemoryReplacesASource) {
   TempDir dir;
   auto store = open_store(dir.str());
-  // 70000 objects span 35 object blocks, more than an import keeps decoded at once.
+  // 70000 objects span 1094 object chunks, more than an import keeps decoded at once.
   std::vector<Object> objects;
   for (int i = 0; i < 70000; ++i) {
     Object o = box_object("big", i, {i % 400, i / 400, 0});
@@ -610,6 +610,81 @@ TEST(Store, ForEachObjectVisitsLiveSlotsInOrderAndSkipsEmptiedOnes) {
   ASSERT_TRUE(view->for_each_object([&](uint32_t, Object&&) { return ++visited < 5; }, false, error));
   EXPECT_EQ(visited, 5u);
   expect_indexes_agree(*store);
+}
+
+// A pass over one class yields exactly that class's objects, in slot order, as they are
+// (removed ones skipped), and their attributes when asked; the other records are not decoded.
+TEST(Store, APassOverOneClassYieldsExactlyItsObjectsInSlotOrder) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> objects;
+  for (int i = 0; i < 300; ++i) {
+    Object o = box_object("a", i, {i * 1.0, 0, 0});
+    o.object_class = ObjectClass(i % kObjectClassCount);
+    objects.push_back(std::move(o));
+  }
+  import_objects(*store, objects, "a");
+  // Replacing some equipment leaves their old slots empty.
+  std::vector<Object> again;
+  for (int i = 0; i < 30; i += kObjectClassCount) again.push_back(objects[size_t(i)]);
+  for (Object& o : again) o.colour.r = 200;
+  {
+    std::string error;
+    auto import = store->begin_import(error);
+    ASSERT_TRUE(import) << error;
+    for (const Object& o : again) ASSERT_TRUE(import->put(o, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_EQ(view->slot_count(), 300u + again.size());
+  for (int c = 0; c < kObjectClassCount; ++c) {
+    std::vector<std::pair<uint32_t, Object>> all, of_class;
+    ASSERT_TRUE(view->for_each_object(
+        [&](uint32_t slot, Object&& o) {
+          if (o.object_class == ObjectClass(c)) all.emplace_back(slot, std::move(o));
+          return true;
+        },
+        true, error)) << error;
+    ASSERT_TRUE(view->for_each_object_of_class(
+        ObjectClass(c),
+        [&](uint32_t slot, Object&& o) {
+          of_class.emplace_back(slot, std::move(o));
+          return true;
+        },
+        true, error)) << error;
+    ASSERT_EQ(of_class.size(), 50u) << c;
+    ASSERT_EQ(of_class.size(), all.size());
+    for (size_t k = 0; k < all.size(); ++k) {
+      EXPECT_EQ(of_class[k].first, all[k].first);
+      EXPECT_EQ(of_class[k].second.id, all[k].second.id);
+      EXPECT_EQ(of_class[k].second.object_class, ObjectClass(c));
+      EXPECT_EQ(of_class[k].second.colour.r, all[k].second.colour.r);
+      EXPECT_EQ(of_class[k].second.attributes, all[k].second.attributes);
+      if (k > 0) {
+        EXPECT_LT(of_class[k - 1].first, of_class[k].first);
+      }
+    }
+  }
+  // The replaced equipment comes once, from its new slot.
+  size_t recoloured = 0;
+  ASSERT_TRUE(view->for_each_object_of_class(
+      ObjectClass::equipment,
+      [&](uint32_t slot, Object&& o) {
+        if (o.colour.r == 200) {
+          ++recoloured;
+          EXPECT_GE(slot, 300u);
+        }
+        return true;
+      },
+      false, error)) << error;
+  EXPECT_EQ(recoloured, again.size());
+  // It stops when asked to.
+  size_t visited = 0;
+  ASSERT_TRUE(view->for_each_object_of_class(
+      ObjectClass::pipe, [&](uint32_t, Object&&) { return ++visited < 3; }, false, error));
+  EXPECT_EQ(visited, 3u);
 }
 
 // Views of one committed state share its lookups, which the first caller builds: two threads
@@ -762,22 +837,70 @@ TEST(Store, AStoreOfAnotherFormatVersionIsRefusedNotMisread) {
   }
 }
 
-// A format 2 store (whole-index tables read into memory) is refused with what to do about it.
-TEST(Store, AFormat2StoreIsRefusedWithAnInstructionToImportAgain) {
+// Format 4 keeps each chunk of records in an LMDB value of its own, keyed by the chunk's number,
+// so that every value an import writes is a page or two: LMDB's dirty list counts values, and
+// this is what bounds an import's memory (chunks.h).
+TEST(Store, EachChunkOfRecordsIsAnLmdbValueOfAPageOrTwo) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 4100; ++i) objects.push_back(box_object("a", i, {i * 3.0, 0, 0}));
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, objects, "a");
+  }
+  MDB_env* env = nullptr;
+  ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 12);
+  ASSERT_EQ(mdb_env_open(env, dir.str().c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  ASSERT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
+  const size_t page_bytes = size_t(sysconf(_SC_PAGESIZE));
+  for (const auto& [database, chunk_slots] :
+       {std::pair<const char*, uint32_t>{"objects", 64}, {"attributes", 256}}) {
+    MDB_dbi dbi;
+    ASSERT_EQ(mdb_dbi_open(txn, database, 0, &dbi), MDB_SUCCESS);
+    MDB_cursor* cursor = nullptr;
+    ASSERT_EQ(mdb_cursor_open(txn, dbi, &cursor), MDB_SUCCESS);
+    MDB_val k, v;
+    uint32_t expected_key = 0;
+    for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == MDB_SUCCESS;
+         rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+      ASSERT_EQ(k.mv_size, 4u);
+      EXPECT_EQ(detail::read_be32(k.mv_data), expected_key++) << database;
+      std::vector<std::span<const uint8_t>> frames;
+      std::string error;
+      EXPECT_TRUE(detail::split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, 1, frames,
+                                      error)) << error;
+      EXPECT_LE(v.mv_size, 2 * page_bytes) << database;
+    }
+    mdb_cursor_close(cursor);
+    EXPECT_EQ(expected_key, (4100 + chunk_slots - 1) / chunk_slots) << database;
+  }
+  mdb_txn_abort(txn);
+  mdb_env_close(env);
+}
+
+// A format 3 store (32 chunks an LMDB value) is refused with what to do about it.
+TEST(Store, AFormat3StoreIsRefusedWithAnInstructionToImportAgain) {
   TempDir dir;
   {
     auto store = open_store(dir.str());
     import_objects(*store, {sample_object("a", "/A", {})}, "a");
   }
-  std::string current("format\0\0\0\0", 10), old("format\x02\0\0\0", 10);
+  std::string current("format\0\0\0\0", 10), old("format\x03\0\0\0", 10);
   const uint32_t version = kStoreFormatVersion;
   std::memcpy(current.data() + 6, &version, 4);
   ASSERT_GE(patch_file(fs::path(dir.str()) / "data.mdb", current, old), 1);
-  std::string error;
-  EXPECT_FALSE(Store::open(dir.str(), Store::Mode::read_only, error));
-  EXPECT_NE(error.find("store " + dir.str() + " has format 2; this build reads format 3: import or "
-                       "generate it again"), std::string::npos) << error;
+  for (auto mode : {Store::Mode::read_only, Store::Mode::read_write}) {
+    std::string error;
+    EXPECT_FALSE(Store::open(dir.str(), mode, error));
+    EXPECT_NE(error.find("store " + dir.str() + " has format 3; this build reads format 4: import "
+                         "or generate it again"), std::string::npos) << error;
+  }
 }
+
+void put_raw(const std::string& dir, const char* database, std::string_view key,
+             std::span<const uint8_t> bytes);
 
 TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
   TempDir dir;
@@ -787,18 +910,11 @@ TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
     auto store = open_store(dir.str());
     import_objects(*store, objects, "a");
   }
-  // A fresh store's first zstd frame is the first object chunk (slots 0-63): written first, on
-  // the first pages. Break its magic number.
-  const std::string magic("\x28\xb5\x2f\xfd", 4);
-  std::string bytes;
-  {
-    std::ifstream in(fs::path(dir.str()) / "data.mdb", std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), {});
-  }
-  const size_t at = bytes.find(magic);
-  ASSERT_NE(at, std::string::npos);
-  bytes.replace(at, 4, "XXXX");
-  std::ofstream(fs::path(dir.str()) / "data.mdb", std::ios::binary | std::ios::trunc) << bytes;
+  // The value of object chunk 0 (slots 0-63) holds a frame that is not zstd (chunks.h: u32
+  // frame end, frame).
+  const char key[4] = {0, 0, 0, 0};
+  const uint8_t value[8] = {4, 0, 0, 0, 'X', 'X', 'X', 'X'};
+  ASSERT_NO_FATAL_FAILURE(put_raw(dir.str(), "objects", std::string_view(key, 4), value));
 
   auto store = open_store(dir.str(), Store::Mode::read_only);
   std::string error;

@@ -20,26 +20,6 @@ using ingest_detail::Transaction;
 
 namespace {
 
-// Adds `part`'s counts to `total`.
-void add_statistics(ModelStatistics& total, const ModelStatistics& part) {
-  total.objects += part.objects;
-  total.primitives += part.primitives;
-  total.triangles += part.triangles;
-  for (size_t c = 0; c < kObjectClassCount; ++c) {
-    total.objects_by_class[c] += part.objects_by_class[c];
-    total.primitives_by_class[c] += part.primitives_by_class[c];
-    total.triangles_by_class[c] += part.triangles_by_class[c];
-  }
-  for (size_t k = 0; k < kPrimitiveKindCount; ++k) {
-    total.primitives_by_kind[k] += part.primitives_by_kind[k];
-    total.triangles_by_kind[k] += part.triangles_by_kind[k];
-  }
-  if (!part.bounds.empty()) {
-    total.bounds.extend(part.bounds.min);
-    total.bounds.extend(part.bounds.max);
-  }
-}
-
 // Objects from the generator thread to the calling thread, in batches, at most kMaxBatches
 // waiting (and one being filled): what is generated ahead of the store is a few thousand
 // objects whatever the scale.
@@ -125,14 +105,12 @@ bool generate_inline(Transaction& t, const GenerateOptions& options, const std::
 
 // The generator on a thread of its own, one batch of objects ahead of the calling thread, which
 // puts them (the store's transaction belongs to it) and reports progress. The objects are put in
-// the order generated, so the store is the same as generate_inline's. The generator thread also
-// counts the objects' statistics, which the calling thread would otherwise compute.
+// the order generated, so the store is the same as generate_inline's.
 bool generate_pipelined(Transaction& t, const GenerateOptions& options, const std::string& source,
                         const std::stop_token& stop) {
   const uint64_t total = 1000 * uint64_t(options.scale);
   BatchQueue queue;
   GenerateSummary generated;
-  ModelStatistics counted;
   std::exception_ptr failure;  // an exception other than Abandon, rethrown on the calling thread
   std::thread generator([&] {
     BatchQueue::Batch batch;
@@ -141,7 +119,6 @@ bool generate_pipelined(Transaction& t, const GenerateOptions& options, const st
           options,
           [&](Object&& object) {
             object.source = source;
-            counted.add(object);
             batch.objects.push_back(std::move(object));
             if (batch.objects.size() == BatchQueue::kBatchObjects) {
               if (!queue.push(std::move(batch))) throw Abandon{};
@@ -174,12 +151,12 @@ bool generate_pipelined(Transaction& t, const GenerateOptions& options, const st
   bool ok = true;
   {
     const Joiner joiner{queue, generator};
-    // Put, report, check the stop token between objects (Transaction::put_counted).
+    // Put, report, check the stop token between objects (Transaction::put).
     uint64_t reported = 0;
     BatchQueue::Batch batch;
     while (ok && queue.pop(batch)) {
       for (const Object& object : batch.objects) {
-        if (!t.put_counted(object)) {
+        if (!t.put(object)) {
           ok = false;
           break;
         }
@@ -190,7 +167,6 @@ bool generate_pipelined(Transaction& t, const GenerateOptions& options, const st
   if (failure) std::rethrow_exception(failure);
   if (!ok || !t.check_stop()) return false;
   t.summary().generated = generated;
-  add_statistics(t.summary().added, counted);
   return true;
 }
 

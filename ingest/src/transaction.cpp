@@ -4,6 +4,30 @@
 
 namespace plantview::ingest_detail {
 
+namespace {
+
+// Adds `part`'s counts to `total`.
+void add(ModelStatistics& total, const ModelStatistics& part) {
+  total.objects += part.objects;
+  total.primitives += part.primitives;
+  total.triangles += part.triangles;
+  for (size_t c = 0; c < kObjectClassCount; ++c) {
+    total.objects_by_class[c] += part.objects_by_class[c];
+    total.primitives_by_class[c] += part.primitives_by_class[c];
+    total.triangles_by_class[c] += part.triangles_by_class[c];
+  }
+  for (size_t k = 0; k < kPrimitiveKindCount; ++k) {
+    total.primitives_by_kind[k] += part.primitives_by_kind[k];
+    total.triangles_by_kind[k] += part.triangles_by_kind[k];
+  }
+  if (!part.bounds.empty()) {
+    total.bounds.extend(part.bounds.min);
+    total.bounds.extend(part.bounds.max);
+  }
+}
+
+}  // namespace
+
 Transaction::Transaction(Store& store, const IngestControl& control) : store_(store), control_(control) {}
 
 bool Transaction::begin() {
@@ -27,12 +51,6 @@ bool Transaction::remove_source(std::string_view source) {
 }
 
 bool Transaction::put(const Object& object) {
-  if (!put_counted(object)) return false;
-  summary_.added.add(object);
-  return true;
-}
-
-bool Transaction::put_counted(const Object& object) {
   if (!check_stop()) return false;
   if (!import_->put(object, store_error_)) {
     fail_store();
@@ -45,6 +63,7 @@ IngestResult Transaction::commit() {
   if (!check_stop()) return failure();
   file_index_ = file_count_;
   report(IngestStage::committing, 0, 1);
+  add(summary_.added, import_->put_statistics());
   if (!import_->commit(store_error_)) {
     fail_store();
     return failure();

@@ -29,11 +29,11 @@ class Transaction {
   // False with the error "cancelled" set when a stop was requested.
   bool check_stop();
   bool remove_source(std::string_view source);
-  // Checks the stop token, then puts the object and counts it.
+  // Checks the stop token, then puts the object (the store counts its statistics: see commit()).
   bool put(const Object& object);
-  // The same, for a caller that counts the objects' statistics itself (into summary().added).
-  bool put_counted(const Object& object);
-  // Reports the committing stage and commits; the result is the summary or the error.
+  // Reports the committing stage and commits; the result is the summary or the error, whose
+  // `added` adds the statistics of the objects put (Import::put_statistics()) to what the caller
+  // counted there itself.
   IngestResult commit();
 
   void report(IngestStage stage, uint64_t done, uint64_t total, std::string_view path = {});

@@ -420,15 +420,18 @@ bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector
   // An orbit needs only the plant's bounds.
   std::vector<DAabb> equipment;
   if (kind == PathKind::walkthrough) {
-    // Progress by objects read, reported every kProgressObjects of them.
-    constexpr uint64_t kProgressObjects = 16384;
-    const uint64_t total = std::max<uint64_t>(1, info.objects);
-    uint64_t seen = 0;
-    const bool ok = view->for_each_object(
-        [&](uint32_t, Object&& o) {
-          if (o.object_class == ObjectClass::equipment) equipment.push_back(object_bounds(o));
-          if (progress && ++seen % kProgressObjects == 0) {
-            progress(double(std::min(seen, total)) / double(total));
+    // Only the equipment is decoded (the other records are passed over by their class byte).
+    // Progress by slots passed, reported every kProgressSlots of them.
+    constexpr uint32_t kProgressSlots = 16384;
+    const uint32_t total = std::max<uint32_t>(1, view->slot_count());
+    uint32_t reported = 0;
+    const bool ok = view->for_each_object_of_class(
+        ObjectClass::equipment,
+        [&](uint32_t slot, Object&& o) {
+          equipment.push_back(object_bounds(o));
+          if (progress && slot - reported >= kProgressSlots) {
+            reported = slot;
+            progress(double(std::min(slot, total)) / double(total));
           }
           return true;
         },

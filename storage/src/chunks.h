@@ -3,9 +3,17 @@
 // The records of consecutive slots are compressed together: a chunk is the records of
 // `chunk_slots` consecutive slots (64 for objects, 256 for attributes) as one zstd frame, so that
 // frames are big enough to compress well without a dictionary; a block is the frames of
-// `block_slots` consecutive slots (2048 for objects, 4096 for attributes) as one LMDB value, so
-// that values are big enough (tens of kilobytes) that LMDB's rounding to whole pages wastes
-// little. A reader decompresses only the chunk it needs.
+// `block_slots` consecutive slots as one LMDB value. A reader decompresses only the chunk it
+// needs.
+//
+// Format 4 stores one chunk a block (block_slots == chunk_slots): a value of about 3.5 KB (one
+// page of the data file, seldom two). Format 3 grouped 32 chunks a block (2048 and 4096 slots,
+// values of about 100 KB), which made an import's memory grow with the plant: LMDB keeps a
+// write transaction's dirty pages in memory and spills them to the data file only when its dirty
+// list is full, and that list counts entries (131071 at most), not bytes; a value bigger than
+// half a page is one entry whatever its pages. With values of one or two pages the dirty pages
+// stay under about 1 GB however big the import (preset c x1000 held 2.5 GB of values dirty).
+// The price is LMDB's rounding of each value to whole pages: about 10% more bytes than format 3.
 //
 // Block (the value under key slot / block_slots, u32 big-endian, in objects/ and attributes/):
 //   u32 frame_end[chunks per block] | frames
@@ -42,8 +50,8 @@ struct ColumnShape {
     return (slot % block_slots) / chunk_slots;
   }
 };
-inline constexpr ColumnShape kObjectShape{64, 2048, 3};
-inline constexpr ColumnShape kAttributeShape{256, 4096, 1};
+inline constexpr ColumnShape kObjectShape{64, 64, 3};
+inline constexpr ColumnShape kAttributeShape{256, 256, 1};
 
 // Splits a block into its frames (spans into `data`). False if the header is malformed.
 bool split_block(const uint8_t* data, size_t size, uint32_t chunks,

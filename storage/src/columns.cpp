@@ -374,16 +374,19 @@ ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t b
 
 ChunkCache::~ChunkCache() { release_touched(); }
 
-void ChunkCache::touched(const uint8_t* begin, const uint8_t* end) {
+void ChunkCache::touched(const uint8_t* begin, const uint8_t* end, const uint8_t* leaf) {
   touched_begin_ = touched_begin_ ? std::min(touched_begin_, begin) : begin;
   touched_end_ = std::max(touched_end_, end);
+  leaves_begin_ = leaves_begin_ ? std::min(leaves_begin_, leaf) : leaf;
+  leaves_end_ = std::max(leaves_end_, leaf + 1);
   if (++reads_since_release_ == kReadsPerRelease) release_touched();
 }
 
 void ChunkCache::release_touched() {
   if (!touched_begin_) return;
   release_map_pages(touched_begin_, size_t(touched_end_ - touched_begin_));
-  touched_begin_ = touched_end_ = nullptr;
+  release_map_pages(leaves_begin_, size_t(leaves_end_ - leaves_begin_));
+  touched_begin_ = touched_end_ = leaves_begin_ = leaves_end_ = nullptr;
   reads_since_release_ = 0;
 }
 
@@ -398,9 +401,13 @@ bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<
     entry = &*std::min_element(entries_.begin(), entries_.end(),
                                [](const Entry& a, const Entry& b) { return a.used < b.used; });
     entry->valid = false;
+    // Through a cursor, which returns the key in place: in the leaf page that points to the
+    // value (a page of its own, for a value of more than half a page), released with it.
     const Key32 key(shape_.block_of(slot));
     MDB_val k = key.val(), v;
-    const int rc = mdb_get(txn, dbi_, &k, &v);
+    LmdbCursor cursor;
+    int rc = cursor.open(txn, dbi_);
+    if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
     entry->present = false;
     if (rc == MDB_SUCCESS) {
       if (!split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, shape_.chunks_per_block(),
@@ -411,8 +418,9 @@ bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<
       const bool inflated = frame.empty() || inflate_frame(dctx, frame, entry->bytes, why);
       // After inflating, so that the pages it brought in count.
       const auto* value = static_cast<const uint8_t*>(v.mv_data);
-      touched(value, frame.empty() ? value + shape_.chunks_per_block() * 4
-                                   : frame.data() + frame.size());
+      touched(value,
+              frame.empty() ? value + shape_.chunks_per_block() * 4 : frame.data() + frame.size(),
+              static_cast<const uint8_t*>(k.mv_data));
       if (!inflated) return false;
       if (!frame.empty()) {
         if (!check_chunk(entry->bytes, shape_.chunk_slots, entry->ends, why)) return false;

@@ -59,9 +59,11 @@ class ColumnWriter {
   bool flush(MDB_txn* txn, std::string& error);
 
  private:
-  static constexpr size_t kMaxOpenBlocks = 32;
-  // Blocks handed over and not yet in LMDB; the same for every thread count (determinism).
-  static constexpr size_t kMaxBlocksInFlight = 8;
+  // 64 K object slots or 256 K attribute slots (tens of MB decoded at most).
+  static constexpr size_t kMaxOpenBlocks = 1024;
+  // Blocks handed over and not yet in LMDB; the same for every thread count (determinism). Enough
+  // chunks (a few MB of records) that the compression threads seldom wait for the writer.
+  static constexpr size_t kMaxBlocksInFlight = 256;
   struct Chunk {
     std::vector<uint8_t> frame;  // as stored (compressed), until decoded
     // Neither decoded nor stored: the chunk's layout (chunks.h), filled in slot order; empty
@@ -128,9 +130,10 @@ class ChunkCache {
     std::vector<uint32_t> ends;  // check_chunk()
   };
   static constexpr uint32_t kReadsPerRelease = 256;
-  // Notes mapped bytes [begin, end) as read (after reading them), releasing what was read when
-  // it is time.
-  void touched(const uint8_t* begin, const uint8_t* end);
+  // Notes mapped bytes [begin, end) as read (after reading them), and the page at `leaf` (the
+  // B-tree leaf that led to them: elsewhere in the file when the value has pages of its own),
+  // releasing what was read when it is time.
+  void touched(const uint8_t* begin, const uint8_t* end, const uint8_t* leaf);
   void release_touched();
 
   MDB_dbi dbi_;
@@ -140,6 +143,9 @@ class ChunkCache {
   // The span of the mapping read since the last release (null: none).
   const uint8_t* touched_begin_ = nullptr;
   const uint8_t* touched_end_ = nullptr;
+  // The same for the leaf pages read (kept apart: they may lie far from the values).
+  const uint8_t* leaves_begin_ = nullptr;
+  const uint8_t* leaves_end_ = nullptr;
   uint32_t reads_since_release_ = 0;
   uint64_t clock_ = 0;
   std::vector<std::span<const uint8_t>> frames_;

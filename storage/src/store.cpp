@@ -542,6 +542,7 @@ struct Import::State {
   std::vector<uint8_t> raw;
   std::vector<uint32_t> slots;  // scratch
   uint64_t put_count = 0;
+  ModelStatistics put_statistics;  // of the objects put (Import::put_statistics())
   detail::ZstdCCtx compressor = detail::make_compressor();
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
 
@@ -905,6 +906,7 @@ bool Import::State::write_spatial(std::string& error) {
 Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
 Import::~Import() = default;
 uint64_t Import::objects_put() const { return state_->put_count; }
+const ModelStatistics& Import::put_statistics() const { return state_->put_statistics; }
 
 bool Import::remove_source(std::string_view source, std::string& error) {
   State& s = *state_;
@@ -943,8 +945,11 @@ bool Import::put(const Object& object, std::string& error) {
     if (!s.slots.empty() && !s.remove_slot(s.slots[0], error)) return false;
   }
   const uint32_t slot = s.next_slot;
-  // Bounds first: an object the grid cannot hold is refused before anything of it is written.
-  const DAabb bounds = object_bounds(object);
+  // The object's statistics, whose bounds are its object_bounds() (computed once). Bounds first:
+  // an object the grid cannot hold is refused before anything of it is written.
+  ModelStatistics part;
+  part.add(object);
+  const DAabb& bounds = part.bounds;
   SpatialItem item{};
   if (!bounds.empty()) {
     if (!s.has_origin) {
@@ -979,9 +984,9 @@ bool Import::put(const Object& object, std::string& error) {
     error = s.message(why);
     return false;
   }
-  ModelStatistics part;
-  part.add(object);
   add(s.totals, part);
+  add(s.put_statistics, part);
+  s.put_statistics.bounds.extend(part.bounds);
   ++s.put_count;
   return true;
 }
@@ -1319,6 +1324,32 @@ bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn
   }
   return true;
 }
+
+bool ReadView::for_each_object_of_class(ObjectClass object_class,
+                                        const std::function<bool(uint32_t, Object&&)>& fn,
+                                        bool with_attributes, std::string& error) const {
+  State& s = *state_;
+  for (uint32_t slot = 0; slot < s.snapshot->next_slot; ++slot) {
+    std::span<const uint8_t> record;
+    std::string why;
+    if (!s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why)) {
+      error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+      return false;
+    }
+    if (record.empty()) continue;
+    // The class is the record's second byte (record.h); a record that is not passed over is
+    // decoded, which checks everything (an unknown class included).
+    if (record.size() >= 2 && record[1] < kObjectClassCount && record[1] != uint8_t(object_class)) {
+      continue;
+    }
+    Object o;
+    if (!object(slot, o, with_attributes, error)) return false;
+    if (!fn(slot, std::move(o))) return true;
+  }
+  return true;
+}
+
+uint32_t ReadView::slot_count() const { return state_->snapshot->next_slot; }
 
 size_t ReadView::spatial_cache_bytes() const { return state_->snapshot->blocks.bytes(); }
 // ---------------------------------------------------------------------------------------------

@@ -97,10 +97,11 @@ bool parse_path_kind(std::string_view name, PathKind& kind);
 // so that every view sees some of the plant.
 std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& plant_bounds,
                                      const std::vector<DAabb>& equipment_bounds);
-// The same for a store's plant: its bounds, and the bounds of its equipment (every object is
-// read once, in slot order: time linear in the plant; memory: the equipment's bounds, 48 bytes
-// an equipment item). `progress`, if given, is called on the calling thread with the fraction of
-// the objects read (0..1], non-decreasing, last with 1; an exception it throws propagates. False
+// The same for a store's plant: its bounds, and the bounds of its equipment (every chunk of
+// records is decompressed once, in slot order, and only the equipment is decoded: time linear
+// in the plant, mostly decompression; memory: the equipment's bounds, 48 bytes an equipment
+// item). `progress`, if given, is called on the calling thread with the fraction of
+// the slots passed (0..1], non-decreasing, last with 1; an exception it throws propagates. False
 // with a message if the store cannot be read or holds no geometry.
 bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
                       std::string& error, const std::function<void(double fraction)>& progress = {});

@@ -1,10 +1,10 @@
 // plantview/store.h: the plant store. A plant model kept as parameters only, in one LMDB
 // environment (a directory), read by renderers and services while imports write.
 //
-// Schema, format 3 (LMDB named databases; integers in keys are big-endian so that keys sort
+// Schema, format 4 (LMDB named databases; integers in keys are big-endian so that keys sort
 // numerically):
 //   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
-//                                else, and a store of another version is refused (a format 2
+//                                else, and a store of another version is refused (a format 3
 //                                store: "import or generate it again")
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
@@ -12,12 +12,13 @@
 //               "spatial_top" -> zstd: the top of the spatial hierarchy (spatial.h): the spatial
 //                                origin, the entry and block counts, each block's count and grid
 //                                bounds, and the far-field proxy of every top node
-//   objects     block (u32)   -> the object records of slots [block * 2048, block * 2048 + 2048),
-//                                in chunks of 64 slots, each chunk one zstd frame: id, class,
-//                                colour, origin, name, source, primitives, piping topology
-//                                (layouts in chunks.h and record.h)
-//   attributes  block (u32)   -> the same for the objects' key/value attributes: blocks of 4096
-//                                slots, chunks of 256
+//   objects     chunk (u32)   -> the object records of slots [chunk * 64, chunk * 64 + 64), one
+//                                zstd frame: id, class, colour, origin, name, source,
+//                                primitives, piping topology (layouts in chunks.h and record.h).
+//                                Format 3 kept 32 chunks a value; format 4 keeps values to a
+//                                page or two, which bounds an import's memory (below)
+//   attributes  chunk (u32)   -> the same for the objects' key/value attributes: chunks of 256
+//                                slots
 //   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
 //                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
 //                                an object on disk)
@@ -38,10 +39,12 @@
 //     abandoned or killed import leaves the store exactly as it was. One import at a time per
 //     store (LMDB serialises writers, across processes too). This holds however big the import,
 //     because everything it writes (records, ids, names, blocks, top) goes through that one
-//     transaction: LMDB keeps its dirty pages in memory up to a limit (about 512 MB) and spills
-//     the older ones into free pages of the data file beyond it, never over a page a committed
-//     state uses, and the meta page that makes them the store's state is written only by the
-//     commit. A killed process's pages are unreachable, and the next writer reuses them. (No
+//     transaction: LMDB keeps its dirty pages in memory up to a limit and spills some of them
+//     into free pages of the data file beyond it, never over a page a committed state uses, and
+//     the meta page that makes them the store's state is written only by the commit. The limit
+//     counts values, not bytes (131071 dirty entries: a page, or one value of several pages):
+//     so every value an import writes is a page or a few (a chunk of records, an index page, a
+//     spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed process's pages are unreachable, and the next writer reuses them. (No
 //     MDB_WRITEMAP: the guarantee does not need it, and it would write dirty pages in place
 //     through the map, where they count in the process's memory until written back.)
 //   - An import's memory is bounded whatever the plant's size: per object it appends to three
@@ -52,7 +55,9 @@
 //     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
-//     LMDB's dirty pages: under 1.5 GB at 40 million objects.
+//     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
+//     --scale 1000` (40.75 million objects) peaked at 0.87 GB while putting objects and 1.15 GB
+//     while committing (format 3: 3.7 GB).
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view belongs to the thread that made it.
 //   - Store::open(), Store::read() and info() read metadata only (a millisecond or so whatever
@@ -116,7 +121,7 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 3;
+inline constexpr uint32_t kStoreFormatVersion = 4;
 // Objects in a spatial block (the last block of a store may hold fewer).
 inline constexpr uint32_t kSpatialBlockObjects = 2048;
 // Boxes in a top node's far-field proxy, at most.
@@ -214,6 +219,9 @@ class Import {
   bool commit(std::string& error);
 
   uint64_t objects_put() const;
+  // The statistics of the objects put so far, bounds included (what they replaced or removed is
+  // not subtracted): what the caller would count from them, counted once.
+  const ModelStatistics& put_statistics() const;
 
  private:
   friend class Store;
@@ -298,6 +306,16 @@ class ReadView {
   // skipped: each chunk is decompressed once).
   bool for_each_object(const std::function<bool(uint32_t slot, Object&&)>& fn, bool with_attributes,
                        std::string& error) const;
+  // The same for the objects of one class only: a record of another class is passed over by its
+  // class byte, without decoding it (each chunk is still decompressed once), so a pass for a
+  // rare class costs little more than decompressing the store. A record too short to hold a
+  // class fails as a corrupt record would.
+  bool for_each_object_of_class(ObjectClass object_class,
+                                const std::function<bool(uint32_t slot, Object&&)>& fn,
+                                bool with_attributes, std::string& error) const;
+  // One past the highest slot any object of this snapshot has had (removed ones included): the
+  // slots a pass in slot order goes through, for its progress.
+  uint32_t slot_count() const;
 
  private:
   friend class Store;
