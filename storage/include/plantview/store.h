@@ -44,9 +44,10 @@
 //     the meta page that makes them the store's state is written only by the commit. The limit
 //     counts values, not bytes (131071 dirty entries: a page, or one value of several pages):
 //     so every value an import writes is a page or a few (a chunk of records, an index page, a
-//     spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed process's pages are unreachable, and the next writer reuses them. (No
-//     MDB_WRITEMAP: the guarantee does not need it, and it would write dirty pages in place
-//     through the map, where they count in the process's memory until written back.)
+//     spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed
+//     process's pages are unreachable, and the next writer reuses them. (No MDB_WRITEMAP: the
+//     guarantee does not need it, and it would write dirty pages in place through the map,
+//     where they count in the process's memory until written back.)
 //   - An import's memory is bounded whatever the plant's size: per object it appends to three
 //     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
 //     full buffer (64 MB) is sorted and written to a run file in the store directory
