@@ -47,7 +47,7 @@ struct VisibleObject;
 
 inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
-inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines kept unreferenced, at most
+inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held before forgetting
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
