@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "decoded_objects.h"
@@ -101,7 +102,53 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
   }
   if (!any) return true;
 
-  // 3. Test leaves (once each: a leaf's objects are consecutive), then objects; then node boxes.
+  // 3. Test leaves, objects and node boxes.
+  drop_hidden(blocks, frame_view, visible, node_boxes, stats);
+  return true;
+}
+
+void OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_view, uint64_t frame,
+                             std::vector<VisibleObject>& visible, std::vector<VisibleObject>& rest,
+                             FrameStats& stats) {
+  buffer_.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
+                float(kNearPlaneM));
+  // The largest on screen: at least kOccluderMinPixels, and no smaller than the
+  // kMaxOccluders-th largest (ties at that size may take a few more: harmless).
+  const auto pixels = [](const VisibleObject& v) { return v.px_per_m * v.extent_m(); };
+  sizes_px_.clear();
+  for (const VisibleObject& v : visible)
+    if (pixels(v) >= kOccluderMinPixels) sizes_px_.push_back(pixels(v));
+  double threshold_px = kOccluderMinPixels;
+  if (sizes_px_.size() > kMaxOccluders) {
+    std::nth_element(sizes_px_.begin(), sizes_px_.begin() + (kMaxOccluders - 1), sizes_px_.end(),
+                     std::greater<>());
+    threshold_px = sizes_px_[kMaxOccluders - 1];
+  }
+  rest.clear();
+  size_t kept = 0;
+  for (size_t i = 0; i < visible.size(); ++i) {
+    const VisibleObject& v = visible[i];
+    const Known* k = objects.find(v.slot);
+    const bool drawn_last = k && k->last_seen + 1 == frame;
+    if (drawn_last || pixels(v) >= threshold_px) visible[kept++] = v;
+    else rest.push_back(v);
+  }
+  visible.resize(kept);
+  stats.occluders = kept;
+}
+
+void OcclusionCulling::test_rest(const FrameBlocks& blocks, const FrameView& frame_view,
+                                 std::span<const float> reversed_depth,
+                                 std::vector<VisibleObject>& rest, std::vector<NodeBox>& node_boxes,
+                                 FrameStats& stats) {
+  buffer_.load_device_depth(reversed_depth);
+  drop_hidden(blocks, frame_view, rest, node_boxes, stats);
+}
+
+void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
+                                   std::vector<VisibleObject>& visible,
+                                   std::vector<NodeBox>& node_boxes, FrameStats& stats) const {
+  // Leaves once each (a leaf's objects are consecutive), then objects; then node boxes.
   size_t kept = 0;
   bool leaf_hidden = false;
   uint32_t leaf_block = UINT32_MAX, leaf_node = UINT32_MAX;
@@ -131,7 +178,6 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
     node_boxes[kept++] = b;
   }
   node_boxes.resize(kept);
-  return true;
 }
 
 }  // namespace plantview::detail
