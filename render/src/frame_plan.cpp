@@ -118,17 +118,21 @@ bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const Fra
   return true;
 }
 
-void FramePlan::first_phase(DecodedObjects& objects, const FrameView& frame_view, uint64_t frame,
-                            FrameStats& stats) {
-  occlusion_.split(objects, frame_view, frame, visible_, second_visible_, stats);
+bool FramePlan::first_phase(DecodedObjects& objects, const FrameView& frame_view,
+                            const RenderOptions& options, uint64_t frame, FrameStats& stats,
+                            std::string& error) {
+  if (!occlusion_.split(objects, frame_view, options, frame, visible_, second_visible_, stats, error))
+    return false;
   second_boxes_.swap(node_boxes_);
   node_boxes_.clear();
+  return true;
 }
 
-void FramePlan::second_phase(const FrameView& frame_view, std::span<const float> reversed_depth,
-                             FrameStats& stats) {
+void FramePlan::second_phase(const FrameView& frame_view, uint64_t frame,
+                             std::span<const float> reversed_depth, FrameStats& stats) {
   const size_t first_objects = visible_.size();
-  occlusion_.test_rest(blocks_, frame_view, reversed_depth, second_visible_, second_boxes_, stats);
+  occlusion_.test_rest(blocks_, frame_view, frame, visible_, reversed_depth, second_visible_,
+                       second_boxes_, stats);
   visible_.swap(second_visible_);
   node_boxes_.swap(second_boxes_);
   stats.objects_visible = first_objects + visible_.size();

@@ -167,7 +167,8 @@ class FramePlan {
                const RenderOptions& options, FrameStats& stats, std::string& error);
   // 1b, in two phases (occlusion.h), for a drawn frame when two_phase(options):
   //   first_phase(): visible() keeps the first phase's objects (those drawn in frame - 1 and
-  //     the largest on screen; stats.occluders), node_boxes() none; the rest is set aside.
+  //     the largest on screen, but what the largest hide on the CPU; stats.occluders),
+  //     node_boxes() none; the rest is set aside. False if an occluder cannot be decoded.
   //   second_phase(): once the first phase is drawn, with its depth reduced to
   //     occlusion_cells() cells (GlBackend::reduce_depth): visible() and node_boxes() become
   //     what was set aside and is not hidden (objects_occluded, nodes_occluded; objects_visible
@@ -175,13 +176,14 @@ class FramePlan {
   static bool two_phase(const RenderOptions& options) {
     return options.occlusion && options.highlight_ids.empty();
   }
-  void first_phase(DecodedObjects& objects, const FrameView& frame_view, uint64_t frame,
-                   FrameStats& stats);
+  bool first_phase(DecodedObjects& objects, const FrameView& frame_view,
+                   const RenderOptions& options, uint64_t frame, FrameStats& stats,
+                   std::string& error);
   std::pair<uint32_t, uint32_t> occlusion_cells() const {
     return {occlusion_.buffer().width(), occlusion_.buffer().height()};
   }
-  void second_phase(const FrameView& frame_view, std::span<const float> reversed_depth,
-                    FrameStats& stats);
+  void second_phase(const FrameView& frame_view, uint64_t frame,
+                    std::span<const float> reversed_depth, FrameStats& stats);
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and

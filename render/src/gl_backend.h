@@ -183,6 +183,8 @@ class GlBackend {
   // The depth reduction's grid (R32F).
   GlName reduce_framebuffer_ = 0, reduce_texture_ = 0;
   uint32_t reduce_width_ = 0, reduce_height_ = 0;
+  // Reduction programs for whole pixels per cell, by (pixels across, pixels up, samples).
+  std::vector<std::pair<std::array<uint32_t, 3>, GlName>> reduce_fixed_;
   Plan frame_plan_;  // the frame's, from begin_frame()
   const Target* final_ = nullptr;
   size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes

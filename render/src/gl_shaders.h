@@ -316,7 +316,8 @@ void main() {
 )";
 
 // From the drawn frame (u_scale x the output's size) to the output image.
-// The depth reduction (after the version line and, for a multisampled depth, kMultisampled). Cell c
+// The depth reduction (after the version line; for a multisampled depth, kMultisampled; where
+// every cell holds whole pixels, STEP_X, STEP_Y and SAMPLES defined). Cell c
 // covers framebuffer pixels [c * source / cells, ceil((c + 1) * source / cells)): every pixel
 // it overlaps, whole.
 inline constexpr const char* kMultisampled = "#define MULTISAMPLED 1\n";
@@ -334,12 +335,20 @@ float depth_at(ivec2 p, int s) { return texelFetch(u_depth, p, 0).r; }
 #endif
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
+  float farthest = 1.0;
+#ifdef STEP_X
+  // Whole pixels per cell, known when compiled: loops of constant length (unrolled).
+  ivec2 lo = c * ivec2(STEP_X, STEP_Y);
+  for (int y = 0; y < STEP_Y; ++y)
+    for (int x = 0; x < STEP_X; ++x)
+      for (int s = 0; s < SAMPLES; ++s) farthest = min(farthest, depth_at(lo + ivec2(x, y), s));
+#else
   ivec2 lo = (c * u_source) / u_cells;
   ivec2 hi = min(((c + 1) * u_source + u_cells - 1) / u_cells, u_source);
-  float farthest = 1.0;
   for (int y = lo.y; y < hi.y; ++y)
     for (int x = lo.x; x < hi.x; ++x)
       for (int s = 0; s < u_samples; ++s) farthest = min(farthest, depth_at(ivec2(x, y), s));
+#endif
   o_depth = farthest;
 }
 )";

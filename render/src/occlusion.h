@@ -4,8 +4,12 @@
 //
 //   - Two phases on the GPU (frames drawn: Renderer::render). Phase 1 draws for real a set
 //     that will mostly be visible: the objects drawn in the previous frame that are still in
-//     the frustum (temporal coherence), and this frame's largest on screen (up to
-//     kMaxOccluders spanning kOccluderMinPixels; for a first frame that is all there is). The
+//     the frustum (temporal coherence; less those its own first phase's depth hid), and this
+//     frame's largest on screen (up to kMaxOccluders spanning kOccluderMinPixels; for a first
+//     frame that is all there is); less what the largest, rasterised on the CPU as below,
+//     hide; and only objects drawn as opaque triangles: see-through objects and centrelines
+//     blend, and are drawn after the opaque surfaces behind them, as in a frame drawn at once
+//     (so the image equals the one without occlusion). The
 //     GL backend reduces the depth drawn to a coarse grid (each cell's farthest depth), read
 //     back into the buffer; phase 2 tests every other object, leaf and node box the cull found
 //     against it and draws those not hidden into the same framebuffer, without clearing.
@@ -65,21 +69,31 @@ class OcclusionCulling {
 
   // Two phases, 1: moves out of `visible` (cull's, tree order) into `rest` (order kept) every
   // object that is neither drawn in the previous frame (`frame` - 1, Known::last_seen) nor
-  // among this frame's largest on screen; counts the others in stats.occluders. Sizes the
-  // buffer for the view (buffer().width() x height() cells).
-  void split(DecodedObjects& objects, const FrameView& frame_view, uint64_t frame,
-             std::vector<VisibleObject>& visible, std::vector<VisibleObject>& rest,
-             FrameStats& stats);
+  // among this frame's largest on screen, or that the largest, rasterised on the CPU, hide
+  // (the CPU form's occluders choose the first phase); counts the others in
+  // stats.occluders. Sizes the buffer for the view (buffer().width() x height() cells).
+  // False if an occluder cannot be decoded.
+  bool split(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
+             uint64_t frame, std::vector<VisibleObject>& visible,
+             std::vector<VisibleObject>& rest, FrameStats& stats, std::string& error);
   // Two phases, 2: loads the depth phase 1 drew (`reversed_depth`: GlBackend::reduce_depth's
   // grid of buffer().width() x height() cells) and drops the hidden of `rest` and `node_boxes`
   // (objects_occluded, nodes_occluded counted). `blocks` holds the blocks of rest's leaves.
-  void test_rest(const FrameBlocks& blocks, const FrameView& frame_view,
-                 std::span<const float> reversed_depth, std::vector<VisibleObject>& rest,
-                 std::vector<NodeBox>& node_boxes, FrameStats& stats);
+  // `first`: the first phase's objects; those the buffer hides are remembered (a frame's
+  // worth of slots) and not drawn first next frame.
+  void test_rest(const FrameBlocks& blocks, const FrameView& frame_view, uint64_t frame,
+                 std::span<const VisibleObject> first, std::span<const float> reversed_depth,
+                 std::vector<VisibleObject>& rest, std::vector<NodeBox>& node_boxes,
+                 FrameStats& stats);
 
   const OcclusionBuffer& buffer() const { return buffer_; }
 
  private:
+  // Steps 1 and 2 of the CPU form: the largest of `visible` decoded and rasterised into a
+  // cleared buffer (any: something covered); stats.occluders counted.
+  bool rasterise_occluders(DecodedObjects& objects, const FrameView& frame_view,
+                           const RenderOptions& options, std::span<const VisibleObject> visible,
+                           bool& any, FrameStats& stats, std::string& error);
   // Drops the objects of `visible` (tree order) and the `node_boxes` the buffer hides.
   void drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
                    std::vector<VisibleObject>& visible, std::vector<NodeBox>& node_boxes,
@@ -90,7 +104,10 @@ class OcclusionCulling {
   OcclusionBuffer buffer_;
   // Scratch, reused.
   std::vector<VisibleObject> candidates_;
-  std::vector<double> sizes_px_;
+  double smallest_candidate_px_ = 0;  // of the last rasterise_occluders()
+  // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).
+  std::vector<uint32_t> hidden_drawn_;
+  uint64_t hidden_drawn_frame_ = 0;
   std::vector<glm::vec3> piece_;
 };
 

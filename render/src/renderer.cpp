@@ -89,12 +89,12 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   if (draw && FramePlan::two_phase(options)) {
     // What will mostly be visible drawn first; its depth reduced and read back; the rest
     // tested against it and drawn into the same image.
-    plan.first_phase(objects, frame_view, frame_number, stats);
+    if (!plan.first_phase(objects, frame_view, options, frame_number, stats, error)) return false;
     times.occlusion = clock.lap();
     if (!phase(frame_view, drawn, with_ids, false, true, stats, times, clock, error)) return false;
     const auto [cells_width, cells_height] = plan.occlusion_cells();
     if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
-    plan.second_phase(frame_view, reduced_depth, stats);
+    plan.second_phase(frame_view, frame_number, reduced_depth, stats);
     times.occlusion += clock.lap();
     if (!phase(frame_view, drawn, with_ids, true, false, stats, times, clock, error)) return false;
   } else {
