@@ -409,16 +409,6 @@ std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> t
   return highlight_table_;
 }
 
-bool GlBackend::draw(const FrameView& view, const IndexCounts& counts,
-                     std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
-                     std::span<const uint64_t> pick_ids, const Look& look, bool with_ids,
-                     std::string& error) {
-  if (!begin_frame(view, look, with_ids, error)) return false;
-  draw_phase(view, counts, table, proxy_tables, pick_ids, look, with_ids, false);
-  finish_frame(view, look, with_ids);
-  return true;
-}
-
 bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_ids,
                             std::string& error) {
   frame_plan_ = plan_for(look);

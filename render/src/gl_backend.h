@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "plantview/image.h"
@@ -100,18 +101,14 @@ class GlBackend {
   uint32_t* map_indices(size_t count, std::string& error);
   void unmap_indices();
 
-  // Draws the lists (counts per list, as written) and the proxy boxes, one per entry of
+  // A frame, drawn in one phase or more (occlusion culling's two phases, occlusion.h):
+  // begin_frame() makes the targets for the view's size and clears them; each draw_phase()
+  // draws its lists (counts per list, as written) and its proxy boxes, one per entry of
   // `proxy_tables`, with the object table `table` (its pick values index `pick_ids`), as `look`
-  // says, into the output image's framebuffer of the view's size; waits for the GPU to finish.
-  bool draw(const FrameView& view, const IndexCounts& counts, std::span<const TableEntry> table,
-            std::span<const uint32_t> proxy_tables, std::span<const uint64_t> pick_ids,
-            const Look& look, bool with_ids, std::string& error);
-  // The same frame drawn in phases (occlusion culling's two phases, occlusion.h):
-  // begin_frame() makes the targets and clears them; each draw_phase() draws its lists into
-  // the same framebuffer without clearing (its table and proxy boxes as draw() takes them;
-  // `wait`: returns once the GPU has drawn them); reduce_depth() reads what has been drawn
-  // back as a coarse depth grid; finish_frame() draws the ground, finishes the image and waits.
-  // draw() is begin_frame, one draw_phase and finish_frame.
+  // says, into the same framebuffer without clearing (`wait`: returns once the GPU has drawn
+  // them); reduce_depth() reads what has been drawn back as a coarse depth grid;
+  // finish_frame() draws the ground, finishes the image into the output's size and waits for
+  // the GPU.
   bool begin_frame(const FrameView& view, const Look& look, bool with_ids, std::string& error);
   void draw_phase(const FrameView& view, const IndexCounts& counts,
                   std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
