@@ -404,7 +404,8 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
   // broken by a key of the object's own (Known::order_key), so that the order of two objects
   // depends neither on what else is drawn nor on the frames before (coincident surfaces then
-  // resolve the same way with occlusion on or off, fresh or after a path). Sorted as packed
+  // resolve the same way fresh or after a path; within a phase, occlusion.h: an object drawn
+  // in the first phase wins ties against the second's). Sorted as packed
   // keys: the distance's float bits (non-negative floats order as their bits), the order key.
   sort_keys_.clear();
   for (uint32_t i = 0; i < draws.size(); ++i) {

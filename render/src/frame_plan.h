@@ -25,7 +25,8 @@
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
 //   the eye (so that plants kilometres from the origin keep float precision).
 // Ownership: a FramePlan owns its lists and reuses them frame after frame (no allocation once
-//   warm); visible() and node_boxes() are valid until the next cull(), draws() until the next
+//   warm); visible() and node_boxes() are valid until the next cull() (or first_phase(),
+//   second_phase()), draws() until the next
 //   choose(). The blocks of visible objects are held until the next cull (frame_blocks.h). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
 // Threads: the renderer's thread.
 #pragma once
