@@ -10,7 +10,8 @@
 //                  screen-space at each --extra-pixel-error with it on), render every view in
 //                  turn, each with its own renderer (and arena) in this one process. Per run:
 //                  triangles (walkthrough, interior), mean and 95th-percentile frame and CPU
-//                  time, vertex data uploaded per frame, PSNR against none without occlusion, and occlusion's id-buffer check
+//                  time, occlusion culling time, vertex data uploaded per frame, PSNR against
+//                  none without occlusion, and occlusion's id-buffer check
 //                  against the same policy without it.
 //   --out-of-core  a --store DIR (or a generated --scale K plant, default 100), as `plantview
 //                  render` would show it: the time from Store::open to the overview's PNG
@@ -141,8 +142,12 @@ struct PolicyRun {
   RenderOptions options;
   size_t reference = 0;  // the run with occlusion off at the same policy (itself if off)
   std::unique_ptr<Renderer> renderer;
-  std::vector<double> frame_ms, cpu_ms, walk_triangles, interior_triangles, psnr, id_match, uploaded;
-  uint64_t missing = 0, occluded = 0;
+  std::vector<double> frame_ms, cpu_ms, occlusion_ms, walk_triangles, interior_triangles, psnr,
+      id_match, uploaded;
+  uint64_t missing = 0, occluded = 0, occluders = 0;
+  // Interior views: objects drawn, and objects seen (with a pixel in the same policy's id
+  // buffer without occlusion): what exact visibility would draw.
+  std::vector<double> interior_drawn, interior_seen;
   Image image;
 };
 
@@ -219,9 +224,12 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
       }
       r.frame_ms.push_back(stats.ms.total);
       r.cpu_ms.push_back(stats.ms.cpu);
+      r.occlusion_ms.push_back(stats.ms.occlusion);
+      r.occluders += stats.occluders;
       r.uploaded.push_back(double(stats.arena_bytes_uploaded));
       r.occluded += stats.objects_occluded;
       (is_interior ? r.interior_triangles : r.walk_triangles).push_back(double(stats.triangles));
+      if (is_interior) r.interior_drawn.push_back(double(stats.objects_visible));
       if (i != 0) {
         ImageComparison c;
         if (!compare_images(runs[0].image, r.image, c, error)) return 1;
@@ -242,6 +250,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
         ib.erase(std::unique(ib.begin(), ib.end()), ib.end());
         std::vector<uint64_t> lost;
         std::set_difference(ia.begin(), ia.end(), ib.begin(), ib.end(), std::back_inserter(lost));
+        if (is_interior) r.interior_seen.push_back(double(ia.size() - (!ia.empty() && ia[0] == 0)));
         r.missing += lost.size();
       }
     }
@@ -252,9 +261,9 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   std::printf("\nPolicies along a %zu-view walkthrough and %d interior views at %ux%u, %u samples "
               "(full resolution: %.2f M triangles)\n",
               walk.size(), interior, w, h, samples, double(full_triangles) / 1e6);
-  std::printf("%-26s %9s %9s %7s %8s %8s %7s %7s %7s %7s %7s %8s %7s %7s\n", "policy", "walk tri",
-              "inside tri", "in off/on", "frame ms", "p95 ms", "cpu ms", "cpu p95", "up MB/f",
-              "PSNR", "PSNR min", "id match", "missing", "speedup");
+  std::printf("%-26s %9s %9s %7s %8s %8s %7s %7s %7s %7s %7s %7s %8s %7s %7s\n", "policy",
+              "walk tri", "inside tri", "in off/on", "frame ms", "p95 ms", "cpu ms", "cpu p95",
+              "occl ms", "up MB/f", "PSNR", "PSNR min", "id match", "missing", "speedup");
   // Frame times without the first view (which streams the whole start).
   const auto steady = [](const std::vector<double>& v) {
     return std::vector<double>(v.begin() + (v.size() > 1 ? 1 : 0), v.end());
@@ -262,15 +271,15 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   const double none_mean = mean(steady(runs[0].frame_ms));
   for (size_t i = 0; i < runs.size(); ++i) {
     PolicyRun& r = runs[i];
-    const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms);
+    const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms), occlusion = steady(r.occlusion_ms);
     const double psnr_mean = r.psnr.empty() ? 99 : mean(r.psnr);
     const double psnr_min = r.psnr.empty() ? 99 : *std::min_element(r.psnr.begin(), r.psnr.end());
     const double id_min = r.id_match.empty() ? 100 : *std::min_element(r.id_match.begin(), r.id_match.end());
     const double inside_ratio = mean(runs[r.reference].interior_triangles) / std::max(mean(r.interior_triangles), 1.0);
     const double uploaded_mb = mean(steady(r.uploaded)) / 1048576.0;
-    std::printf("%-26s %9.0f %9.0f %6.2fx %8.1f %8.1f %7.2f %7.2f %7.2f %7.1f %7.1f %7.3f%% %7llu %6.1fx\n",
+    std::printf("%-26s %9.0f %9.0f %6.2fx %8.1f %8.1f %7.2f %7.2f %7.2f %7.2f %7.1f %7.1f %7.3f%% %7llu %6.1fx\n",
                 r.name.c_str(), mean(r.walk_triangles), mean(r.interior_triangles), inside_ratio,
-                mean(ms), percentile(ms, 0.95), mean(cpu), percentile(cpu, 0.95), uploaded_mb,
+                mean(ms), percentile(ms, 0.95), mean(cpu), percentile(cpu, 0.95), mean(occlusion), uploaded_mb,
                 psnr_mean, psnr_min,
                 id_min, (unsigned long long)r.missing, none_mean / std::max(mean(ms), 1e-9));
     nlohmann::json j = {{"bench", "render_policies"}, {"policy", lod_policy_name(r.options.lod_policy)},
@@ -284,8 +293,11 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
                         {"interior_mean_triangles", mean(r.interior_triangles)},
                         {"interior_triangles_off_over_on", inside_ratio},
                         {"full_triangles", full_triangles}, {"objects_occluded", r.occluded},
+                        {"occluders", r.occluders}, {"occlusion_mean_ms", mean(occlusion)},
+                        {"interior_mean_objects_drawn", mean(r.interior_drawn)},
                         {"id_match_min_percent", id_min}, {"objects_missing", r.missing},
                         {"speedup_vs_none", none_mean / std::max(mean(ms), 1e-9)}};
+    if (!r.interior_seen.empty()) j["interior_mean_objects_seen"] = mean(r.interior_seen);
     if (!r.psnr.empty()) {
       j["psnr_mean_db"] = psnr_mean;
       j["psnr_min_db"] = psnr_min;
@@ -295,7 +307,9 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   std::printf("(PSNR against none with occlusion off, 99 dB standing for identical images; id match: the\n"
               " worst view's share of pixels whose object id equals the same policy's without occlusion;\n"
               " missing: objects shown without occlusion and not with it, summed over views; in off/on:\n"
-              " interior views' triangles without occlusion over with it; up MB/f: vertex data uploaded\n"
+              " interior views' triangles without occlusion over with it; occl ms: occlusion culling's\n"
+              " part of the frame (two phases: choosing phase 1, the depth reduction and read-back,\n"
+              " the tests); up MB/f: vertex data uploaded\n"
               " per frame; times and uploads exclude view 0.)\n");
   return 0;
 }

@@ -1,7 +1,8 @@
 // Occlusion culling: the software depth buffer against an independent ray-cast oracle, and the
 // renderer with occlusion on against itself with it off (on whatever EGL offers: llvmpipe in
 // CI): a wall hides a row of pumps (not drawn, not uploaded) and they appear the frame the wall
-// is out of the way; along a random path the object-id buffers agree and no visible object is
+// is out of the way; what was drawn last frame hides what comes into view behind it (the two
+// phases), until it is uncovered; along a random path the object-id buffers agree and no visible object is
 // missing; the CPU time is the sum of its parts.
 #include <gtest/gtest.h>
 
@@ -278,6 +279,68 @@ TEST(Occlusion, AWallHidesARowOfPumpsUntilItIsOutOfTheWay) {
   ASSERT_TRUE(r->render(look({0, -15, 30}, {0, 4, 0}), 320, 180, true, image, stats, error)) << error;
   const auto from_above = ids_in(image);
   for (const uint64_t id : pumps) EXPECT_TRUE(from_above.count(id)) << "pump " << id << " missing";
+}
+
+TEST(Occlusion, WhatWasDrawnLastFrameHidesWhatComesIntoViewBehindItUntilItIsUncovered) {
+  // A column 6 m tall, and a pump 9 m behind it (policy none: nothing boxed or left out as
+  // small; 320x180, so the column is under kOccluderMinPixels from 70 m).
+  const std::vector<Object> objects = {
+      make_object("column", ObjectClass::structure, {0, 0, 2}, {Primitive{Placement{}, Box{3, 1, 6}}},
+                  {120, 120, 120, 255}),
+      make_object("P-201", ObjectClass::equipment, {0, 9, 0.6}, {Primitive{Placement{}, Box{1.2f, 1.2f, 1.2f}}})};
+  const uint64_t column = objects[0].id, pump = objects[1].id;
+  TempDir dir;
+  auto store = make_store(dir, objects);
+  context();
+  RenderOptions options;
+  options.vertex_budget_bytes = 16u << 20;
+  options.lod_policy = LodPolicy::none;
+  std::string error;
+  auto r = Renderer::create(*store, options, error);
+  ASSERT_TRUE(r) << error;
+  Image image;
+  FrameStats stats;
+  const Camera near_view = look({0, -20, 2}, {0, 0, 2}), far_view = look({0, -70, 2}, {0, 0, 2}),
+               above = look({0, -70, 80}, {0, 0, 0});
+
+  // Near: the column is among the largest on screen (phase 1) and hides the pump, which is
+  // neither tessellated nor drawn.
+  ASSERT_TRUE(r->render(near_view, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(ids_in(image), std::set<uint64_t>{column});
+  EXPECT_EQ(stats.objects_occluded, 1u);
+  EXPECT_EQ(stats.objects_tessellated, 1u);
+
+  // Far: the column spans a few pixels, but it was drawn last frame, so phase 1 draws it and
+  // the pump, still behind it, is dropped again.
+  ASSERT_TRUE(r->render(far_view, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(ids_in(image), std::set<uint64_t>{column});
+  EXPECT_EQ(stats.occluders, 1u);
+  EXPECT_EQ(stats.objects_occluded, 1u);
+  EXPECT_EQ(stats.objects_tessellated, 0u);
+  EXPECT_EQ(stats.objects_resident, 1u);
+  {
+    // A first frame from there has nothing drawn before and no large object: the pump is
+    // drawn (behind the column: the same image).
+    auto fresh = Renderer::create(*store, options, error);
+    ASSERT_TRUE(fresh) << error;
+    Image fresh_image;
+    FrameStats fresh_stats;
+    ASSERT_TRUE(fresh->render(far_view, 320, 180, true, fresh_image, fresh_stats, error)) << error;
+    EXPECT_EQ(fresh_stats.objects_occluded, 0u);
+    EXPECT_EQ(fresh_stats.objects_tessellated, 2u);
+    EXPECT_EQ(fresh_image.object_ids, image.object_ids);
+  }
+
+  // From above, the pump is uncovered: drawn in that very frame, as without occlusion.
+  ASSERT_TRUE(r->render(above, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(stats.objects_occluded, 0u);
+  EXPECT_EQ(ids_in(image), (std::set<uint64_t>{column, pump}));
+  options.occlusion = false;
+  auto off = Renderer::create(*store, options, error);
+  ASSERT_TRUE(off) << error;
+  Image off_image;
+  ASSERT_TRUE(off->render(above, 320, 180, true, off_image, stats, error)) << error;
+  EXPECT_EQ(off_image.object_ids, image.object_ids);
 }
 
 TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {

@@ -802,6 +802,11 @@ TEST(RenderStatistics, CountWhatRenderingTheSameViewDraws) {
     std::string error;
     ASSERT_TRUE(counting->statistics(camera, 320, 240, counted, error)) << error;
     f.stats.ms = counted.ms = {};
+    // statistics() finds what is hidden on the CPU, render() in two phases on the GPU
+    // (render/src/occlusion.h): their occluders and draw commands are not alike (nothing here
+    // is hidden by either).
+    f.stats.occluders = counted.occluders = 0;
+    f.stats.draw_commands = counted.draw_commands = 0;
     EXPECT_EQ(counted.to_json(), f.stats.to_json()) << "at " << d << " m";
     EXPECT_GT(counted.triangles, 0u);
   }

@@ -213,9 +213,15 @@ void ArenaStreaming::release(uint32_t key, Known& k) {
 
 // --- a frame ------------------------------------------------------------------------------------
 
-void ArenaStreaming::begin_frame(const FramePlan& plan) {
-  residency_.begin_frame();
-  residency_.mark_visible(kProxyKey);
+void ArenaStreaming::begin_frame(const FramePlan& plan, bool second_phase) {
+  if (!second_phase) {
+    residency_.begin_frame();
+    residency_.mark_visible(kProxyKey);
+    for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
+    proxy_tables_.clear();
+    table_.begin_frame();
+  }
+  phase_proxies_ = proxy_tables_.size();
   // Every visible object (merged runs' members and objects without geometry too), and the
   // merged runs.
   for (const VisibleObject& v : plan.visible()) residency_.mark_visible(v.slot);
@@ -223,9 +229,6 @@ void ArenaStreaming::begin_frame(const FramePlan& plan) {
     if (d.key & kRunKeyBit) residency_.mark_visible(d.key);
   counts_.fill(0);
   segments_.clear();
-  for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
-  proxy_tables_.clear();
-  table_.begin_frame();
 }
 
 bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std::string& error) {
@@ -279,8 +282,9 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
 }
 
 bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
-                            const RenderOptions& options, FrameStats& stats, std::string& error) {
-  begin_frame(plan);
+                            const RenderOptions& options, FrameStats& stats, std::string& error,
+                            bool second_phase) {
+  begin_frame(plan, second_phase);
   if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
   const std::span<Draw> draws = plan.draws();
   for (size_t i = 0; i < draws.size(); ++i) {
@@ -311,7 +315,8 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
   residency_.end_frame();
   stats.objects_resident = residency_.resident_count() - 1;  // not the proxy cube
   stats.arena_bytes_resident = residency_.used_units() * kBytesPerVertex;
-  stats.draw_commands = proxy_tables_.empty() ? 0 : 1;
+  if (!second_phase) stats.draw_commands = 0;
+  stats.draw_commands += proxy_tables().empty() ? 0 : 1;
   for (const size_t n : counts_) stats.draw_commands += n ? 1 : 0;
   return true;
 }
@@ -399,7 +404,8 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
   // broken by a key of the object's own (Known::order_key), so that the order of two objects
   // depends neither on what else is drawn nor on the frames before (coincident surfaces then
-  // resolve the same way with occlusion on or off, fresh or after a path). Sorted as packed
+  // resolve the same way fresh or after a path; within a phase, occlusion.h: an object drawn
+  // in the first phase wins ties against the second's). Sorted as packed
   // keys: the distance's float bits (non-negative floats order as their bits), the order key.
   sort_keys_.clear();
   for (uint32_t i = 0; i < draws.size(); ++i) {

@@ -83,16 +83,23 @@ class ArenaStreaming {
   // Makes the plan's draws resident (or boxes), fills each drawn one's arena_first and level,
   // the object table, the proxy boxes (over-budget objects and the plan's node boxes) and the
   // index counts; counts triangles, lines and the arena statistics. False on a GL or store
-  // error.
+  // error. second_phase: the plan is the second phase of the frame streamed last (occlusion.h):
+  // what the first made visible stays visible (not evicted), its boxes and pick ids stay (its
+  // pixels are drawn), and index_counts() and proxy_tables() are this phase's alone; the
+  // counts add to the first phase's.
   bool stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
-              const RenderOptions& options, FrameStats& stats, std::string& error);
+              const RenderOptions& options, FrameStats& stats, std::string& error,
+              bool second_phase = false);
   // Writes the index lists of the draws streamed into the backend's index buffer.
   bool write_index_lists(std::span<const Draw> draws, std::string& error);
 
   const Residency& residency() const { return residency_; }
   const IndexCounts& index_counts() const { return counts_; }
   const ObjectTable& table() const { return table_; }
-  std::span<const uint32_t> proxy_tables() const { return proxy_tables_; }
+  // This phase's proxy boxes (the frame's, drawn in one phase).
+  std::span<const uint32_t> proxy_tables() const {
+    return std::span<const uint32_t>(proxy_tables_).subspan(phase_proxies_);
+  }
 
  private:
   // A template's levels from `base` on, over only the vertices they use: what an object
@@ -153,8 +160,9 @@ class ArenaStreaming {
   // A proxy box for this frame: `offset_m` (its min corner, eye-relative) and `size_m`.
   void add_box(const glm::dvec3& offset_m, const glm::vec3& size_m, Colour colour, uint64_t id,
                FrameStats& stats);
-  // Marks what the frame shows visible, so that nothing it shows is evicted.
-  void begin_frame(const FramePlan& plan);
+  // Marks what the frame shows visible, so that nothing it shows is evicted; a second phase
+  // adds to the first (see stream()).
+  void begin_frame(const FramePlan& plan, bool second_phase);
   // Grows the GPU buffers once for what the frame may stream (with the level slack), rather
   // than object by object: every new buffer is zeroed and the old one copied into it.
   bool grow_for(std::span<const Draw> draws, LodPolicy policy, std::string& error);
@@ -166,7 +174,8 @@ class ArenaStreaming {
   std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions_;  // few
   IndexCounts counts_{};
   // Scratch, reused.
-  std::vector<uint32_t> proxy_tables_;
+  std::vector<uint32_t> proxy_tables_;  // the frame's boxes, both phases
+  size_t phase_proxies_ = 0;            // where this phase's begin
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
   std::vector<std::pair<uint64_t, uint32_t>> sort_keys_;  // (distance, order key), draw

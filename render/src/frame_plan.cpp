@@ -150,6 +150,27 @@ bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const Fra
   return true;
 }
 
+bool FramePlan::first_phase(DecodedObjects& objects, const FrameView& frame_view,
+                            const RenderOptions& options, uint64_t frame, FrameStats& stats,
+                            std::string& error) {
+  if (!occlusion_.split(objects, frame_view, options, frame, visible_, second_visible_, stats, error))
+    return false;
+  second_boxes_.swap(node_boxes_);
+  node_boxes_.clear();
+  return true;
+}
+
+void FramePlan::second_phase(const FrameView& frame_view, uint64_t frame,
+                             std::span<const float> reversed_depth, FrameStats& stats) {
+  const size_t first_objects = visible_.size();
+  occlusion_.test_rest(blocks_, frame_view, frame, visible_, reversed_depth, second_visible_,
+                       second_boxes_, stats);
+  visible_.swap(second_visible_);
+  node_boxes_.swap(second_boxes_);
+  stats.objects_visible = first_objects + visible_.size();
+  stats.node_proxies = node_boxes_.size();
+}
+
 void FramePlan::order() {
   std::sort(visible_.begin(), visible_.end(), [](const VisibleObject& a, const VisibleObject& b) {
     const double pa = a.px_per_m * a.extent_m(), pb = b.px_per_m * b.extent_m();

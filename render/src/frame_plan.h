@@ -1,7 +1,8 @@
 // Frame plan: the renderer's frontend, no GL. From a camera the frame's view; from the store's
 // spatial tree what is visible (cull); from the decoded objects a level per visible object and
 // the pipeline runs drawn merged (choose); and the rule for which level an object is made
-// resident from. Occlusion culling (occlusion.h) is a stage here, between cull and choose.
+// resident from. Occlusion culling (occlusion.h) is a stage here, between cull and choose: on
+// the CPU (occlude), or in two phases around drawing (first_phase, second_phase).
 //
 // Rules
 //   - One derivation of the view: the focal length comes from lod.h (focal_length), rounded to
@@ -31,7 +32,8 @@
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
 //   the eye (so that plants kilometres from the origin keep float precision).
 // Ownership: a FramePlan owns its lists and reuses them frame after frame (no allocation once
-//   warm); visible() and node_boxes() are valid until the next cull(), draws() until the next
+//   warm); visible() and node_boxes() are valid until the next cull() (or first_phase(),
+//   second_phase()), draws() until the next
 //   choose(). The blocks of visible objects are held until the next cull (frame_blocks.h). A Draw points to its Known in DecodedObjects and to its VisibleObject here.
 // Threads: the renderer's thread.
 #pragma once
@@ -41,6 +43,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -175,6 +178,25 @@ class FramePlan {
   //     node_proxies updated). Occluders are decoded into `objects`. False on a read error.
   bool occlude(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
                const RenderOptions& options, FrameStats& stats, std::string& error);
+  // 1b, in two phases (occlusion.h), for a drawn frame when two_phase(options):
+  //   first_phase(): visible() keeps the first phase's objects (those drawn in frame - 1 and
+  //     the largest on screen, but what the largest hide on the CPU; stats.occluders),
+  //     node_boxes() none; the rest is set aside. False if an occluder cannot be decoded.
+  //   second_phase(): once the first phase is drawn, with its depth reduced to
+  //     occlusion_cells() cells (GlBackend::reduce_depth): visible() and node_boxes() become
+  //     what was set aside and is not hidden (objects_occluded, nodes_occluded; objects_visible
+  //     and node_proxies count both phases).
+  static bool two_phase(const RenderOptions& options) {
+    return options.occlusion && options.highlight_ids.empty();
+  }
+  bool first_phase(DecodedObjects& objects, const FrameView& frame_view,
+                   const RenderOptions& options, uint64_t frame, FrameStats& stats,
+                   std::string& error);
+  std::pair<uint32_t, uint32_t> occlusion_cells() const {
+    return {occlusion_.buffer().width(), occlusion_.buffer().height()};
+  }
+  void second_phase(const FrameView& frame_view, uint64_t frame,
+                    std::span<const float> reversed_depth, FrameStats& stats);
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
@@ -232,6 +254,8 @@ class FramePlan {
   size_t items() const { return visible_.size() + node_boxes_.size() + pending_items_; }
   std::vector<VisibleObject> visible_;
   std::vector<NodeBox> node_boxes_;
+  std::vector<VisibleObject> second_visible_;  // set aside for the second phase (tree order)
+  std::vector<NodeBox> second_boxes_;
   FrameBlocks blocks_;
   std::vector<Draw> draws_;
   std::vector<Candidate> candidates_;  // a max-heap on px

@@ -138,10 +138,14 @@ Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
 
 GlBackend::~GlBackend() {
   for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
-                               occlusion_program_, finish_program_})
+                               occlusion_program_, finish_program_, reduce_program_,
+                               reduce_multisampled_program_})
     if (program) glDeleteProgram(program);
+  for (const auto& [key, program] : reduce_fixed_) glDeleteProgram(program);
   if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
   if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
+  if (reduce_framebuffer_) glDeleteFramebuffers(1, &reduce_framebuffer_);
+  if (reduce_texture_) glDeleteTextures(1, &reduce_texture_);
   GLuint buffers[] = {arena_, arena_objects_, index_buffer_, table_buffer_, proxy_buffer_, cube_indices_};
   glDeleteBuffers(6, buffers);
   GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
@@ -189,7 +193,17 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
   if (occlusion_program_)
     finish_program_ = link("finishing", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
                                          {GL_FRAGMENT_SHADER, {kFinishFragment}}}, error);
-  if (!finish_program_) return false;
+  if (finish_program_)
+    reduce_program_ = link("depth reduction", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+                                               {GL_FRAGMENT_SHADER, {kVersion, kDepthReduceFragment}}},
+                           error);
+  if (reduce_program_)
+    reduce_multisampled_program_ =
+        link("multisampled depth reduction",
+             {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+              {GL_FRAGMENT_SHADER, {kVersion, kMultisampled, kDepthReduceFragment}}},
+             error);
+  if (!reduce_multisampled_program_) return false;
 
   glCreateBuffers(1, &index_buffer_);
   glCreateBuffers(1, &table_buffer_);
@@ -301,9 +315,10 @@ void GlBackend::unmap_indices() { glUnmapNamedBuffer(index_buffer_); }
 
 void GlBackend::release_target(Target& t) {
   if (t.framebuffer) glDeleteFramebuffers(1, &t.framebuffer);
-  GLuint names[] = {t.colour, t.pick, t.depth};
-  if (t.samples > 1) glDeleteRenderbuffers(3, names);
-  else glDeleteTextures(3, names);
+  GLuint names[] = {t.colour, t.pick};
+  if (t.samples > 1) glDeleteRenderbuffers(2, names);
+  else glDeleteTextures(2, names);
+  if (t.depth) glDeleteTextures(1, &t.depth);
   t = Target{};
 }
 
@@ -330,7 +345,15 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
   };
   attach(t.colour, GL_RGBA8, GL_COLOR_ATTACHMENT0);
   attach(t.pick, GL_R32UI, GL_COLOR_ATTACHMENT1);
-  if (depth) attach(t.depth, GL_DEPTH32F_STENCIL8, GL_DEPTH_STENCIL_ATTACHMENT);
+  if (depth && samples > 1) {
+    // A texture, not a renderbuffer: the depth reduction reads every sample.
+    glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t.depth);
+    glTextureStorage2DMultisample(t.depth, GLsizei(samples), GL_DEPTH32F_STENCIL8, GLsizei(w),
+                                  GLsizei(h), GL_TRUE);
+    glNamedFramebufferTexture(t.framebuffer, GL_DEPTH_STENCIL_ATTACHMENT, t.depth, 0);
+  } else if (depth) {
+    attach(t.depth, GL_DEPTH32F_STENCIL8, GL_DEPTH_STENCIL_ATTACHMENT);
+  }
   const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
   glNamedFramebufferDrawBuffers(t.framebuffer, 2, buffers);
   if (glCheckNamedFramebufferStatus(t.framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
@@ -386,24 +409,37 @@ std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> t
   return highlight_table_;
 }
 
-bool GlBackend::draw(const FrameView& view, const IndexCounts& counts,
-                     std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
-                     std::span<const uint64_t> pick_ids, const Look& look, bool with_ids,
-                     std::string& error) {
-  const Plan plan = plan_for(look);
+bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_ids,
+                            std::string& error) {
+  frame_plan_ = plan_for(look);
+  const Plan& plan = frame_plan_;
   const uint32_t w = view.width, h = view.height;
   if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, error)) return false;
   if (plan.samples > 1 &&
       !ensure_target(resolved_, w, h, 1, plan.occlusion, error))
     return false;
   if (plan.finish() && !ensure_target(output_, w, h, 1, false, error)) return false;
+  begin_pass(view, plan, with_ids);
+  const GLuint no_pick[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(scene_.framebuffer, GL_COLOR, 0, kBackground);
+  glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
+  glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
+  final_ = nullptr;
+  return true;
+}
+
+void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
+                           std::span<const TableEntry> table,
+                           std::span<const uint32_t> proxy_tables,
+                           std::span<const uint64_t> pick_ids, const Look& look, bool with_ids,
+                           bool wait) {
   const bool highlight = !look.highlight_ids.empty();
   if (highlight) table = highlighted(table, pick_ids, look.highlight_ids);
   upload_stream(table_buffer_, table_capacity_, table.size_bytes(), {{table.data(), table.size_bytes()}});
   upload_stream(proxy_buffer_, proxy_capacity_, proxy_tables.size_bytes(),
                 {{proxy_tables.data(), proxy_tables.size_bytes()}});
   glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
-  begin_pass(view, plan, with_ids);
+  begin_pass(view, frame_plan_, with_ids);
   if (!highlight) {
     draw_lists(counts, proxy_tables.size(), 0, 1.0f, with_ids);
   } else {
@@ -420,9 +456,81 @@ bool GlBackend::draw(const FrameView& view, const IndexCounts& counts,
     draw_lists(counts, proxy_tables.size(), 2, kSeeThroughAlpha, with_ids);
     glDisable(GL_STENCIL_TEST);
   }
+  if (wait) glFinish();
+}
+
+void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_ids) {
   if (look.ground) draw_ground(view, look.model_bounds, with_ids);
-  finish(view, plan, with_ids);
+  finish(view, frame_plan_, with_ids);
   glFinish();
+}
+
+bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,
+                             std::vector<float>& depth, std::string& error) {
+  if (reduce_width_ != cells_width || reduce_height_ != cells_height) {
+    if (reduce_framebuffer_) glDeleteFramebuffers(1, &reduce_framebuffer_);
+    if (reduce_texture_) glDeleteTextures(1, &reduce_texture_);
+    glCreateTextures(GL_TEXTURE_2D, 1, &reduce_texture_);
+    glTextureStorage2D(reduce_texture_, 1, GL_R32F, GLsizei(cells_width), GLsizei(cells_height));
+    glCreateFramebuffers(1, &reduce_framebuffer_);
+    glNamedFramebufferTexture(reduce_framebuffer_, GL_COLOR_ATTACHMENT0, reduce_texture_, 0);
+    reduce_width_ = cells_width;
+    reduce_height_ = cells_height;
+  }
+  const bool multisampled = scene_.samples > 1;
+  GLuint p = multisampled ? reduce_multisampled_program_ : reduce_program_;
+  if (scene_.width % cells_width == 0 && scene_.height % cells_height == 0) {
+    // Whole pixels per cell (1280x720 into 320x180, say): a program with those numbers
+    // compiled in, which runs several times faster on llvmpipe.
+    const std::array<uint32_t, 3> key{scene_.width / cells_width, scene_.height / cells_height,
+                                      std::max(scene_.samples, 1u)};
+    auto it = std::find_if(reduce_fixed_.begin(), reduce_fixed_.end(),
+                           [&](const auto& e) { return e.first == key; });
+    if (it == reduce_fixed_.end()) {
+      const std::string defines = "#define STEP_X " + std::to_string(key[0]) + "\n#define STEP_Y " +
+                                  std::to_string(key[1]) + "\n#define SAMPLES " +
+                                  std::to_string(key[2]) + "\n";
+      const GLuint fixed = link("depth reduction",
+                                {{GL_VERTEX_SHADER, {shaders::kFullScreenVertex}},
+                                 {GL_FRAGMENT_SHADER, {"#version 450 core\n",
+                                                       multisampled ? shaders::kMultisampled : "",
+                                                       defines.c_str(),
+                                                       shaders::kDepthReduceFragment}}},
+                                error);
+      if (!fixed) return false;
+      it = reduce_fixed_.insert(reduce_fixed_.end(), {key, fixed});
+    }
+    p = it->second;
+  }
+  glProgramUniform1i(p, at(p, "u_depth"), 1);
+  glProgramUniform2i(p, at(p, "u_source"), GLint(scene_.width), GLint(scene_.height));
+  glProgramUniform2i(p, at(p, "u_cells"), GLint(cells_width), GLint(cells_height));
+  glProgramUniform1i(p, at(p, "u_samples"), GLint(std::max(scene_.samples, 1u)));
+  glDisable(GL_DEPTH_TEST);
+  glDisablei(GL_BLEND, 0);
+  glBindTextureUnit(1, scene_.depth);
+  glBindSampler(1, nearest_sampler_);
+  glBindFramebuffer(GL_FRAMEBUFFER, reduce_framebuffer_);
+  glViewport(0, 0, GLsizei(cells_width), GLsizei(cells_height));
+  glUseProgram(p);
+  glBindVertexArray(empty_vao_);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
+  glBindTextureUnit(1, 0);
+  glBindSampler(1, 0);
+  depth.resize(size_t(cells_width) * cells_height);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glNamedFramebufferReadBuffer(reduce_framebuffer_, GL_COLOR_ATTACHMENT0);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, reduce_framebuffer_);
+  glReadPixels(0, 0, GLsizei(cells_width), GLsizei(cells_height), GL_RED, GL_FLOAT, depth.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glEnable(GL_DEPTH_TEST);
+  if (const GLenum gl_error = glGetError(); gl_error != GL_NO_ERROR) {
+    char buf[80];
+    std::snprintf(buf, sizeof buf, "renderer: OpenGL error 0x%x in the depth reduction", gl_error);
+    error = buf;
+    return false;
+  }
   return true;
 }
 
@@ -438,10 +546,6 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
   glDepthFunc(GL_GREATER);
   glDepthMask(GL_TRUE);
   glDisable(GL_CULL_FACE);  // two-sided: facet groups and open meshes are seen from both sides
-  const GLuint no_pick[4] = {0, 0, 0, 0};
-  glClearNamedFramebufferfv(scene_.framebuffer, GL_COLOR, 0, kBackground);
-  glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
-  glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
 
   // The key light: 50 degrees up, from behind the eye's left shoulder (turned with the view
   // about the vertical, so every view is lit alike).

@@ -21,7 +21,8 @@
 //     then where the subject is not, and once more, blended faintly and without depth, where it
 //     lies in front of the subject: occluders are see-through.
 //   - Framebuffers: the frame is drawn at `scale` x the output's size (2 when supersampled) with
-//     `samples` per pixel (multisampled: resolved into textures by a blit), then finished into
+//     `samples` per pixel (multisampled: resolved into textures by a blit; the depth is a
+//     multisampled texture, which the depth reduction reads sample by sample), then finished into
 //     the output size by one full-screen pass when anything needs it (supersampling, the edge
 //     filter, ambient occlusion); object ids follow one sample per output pixel.
 //   - Object ids are written only when read back (with_ids).
@@ -35,6 +36,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "plantview/image.h"
@@ -99,12 +101,25 @@ class GlBackend {
   uint32_t* map_indices(size_t count, std::string& error);
   void unmap_indices();
 
-  // Draws the lists (counts per list, as written) and the proxy boxes, one per entry of
+  // A frame, drawn in one phase or more (occlusion culling's two phases, occlusion.h):
+  // begin_frame() makes the targets for the view's size and clears them; each draw_phase()
+  // draws its lists (counts per list, as written) and its proxy boxes, one per entry of
   // `proxy_tables`, with the object table `table` (its pick values index `pick_ids`), as `look`
-  // says, into the output image's framebuffer of the view's size; waits for the GPU to finish.
-  bool draw(const FrameView& view, const IndexCounts& counts, std::span<const TableEntry> table,
-            std::span<const uint32_t> proxy_tables, std::span<const uint64_t> pick_ids,
-            const Look& look, bool with_ids, std::string& error);
+  // says, into the same framebuffer without clearing (`wait`: returns once the GPU has drawn
+  // them); reduce_depth() reads what has been drawn back as a coarse depth grid;
+  // finish_frame() draws the ground, finishes the image into the output's size and waits for
+  // the GPU.
+  bool begin_frame(const FrameView& view, const Look& look, bool with_ids, std::string& error);
+  void draw_phase(const FrameView& view, const IndexCounts& counts,
+                  std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
+                  std::span<const uint64_t> pick_ids, const Look& look, bool with_ids, bool wait);
+  void finish_frame(const FrameView& view, const Look& look, bool with_ids);
+  // The depth drawn so far in the frame, reduced to cells_width x cells_height cells over the
+  // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
+  // was drawn) over every sample of every framebuffer pixel it overlaps. Between
+  // begin_frame() and finish_frame(); waits for the GPU. `depth` is resized to the cells.
+  bool reduce_depth(uint32_t cells_width, uint32_t cells_height, std::vector<float>& depth,
+                    std::string& error);
   // Reads the frame drawn back into `out` (top row first). with_ids: also the object ids, each
   // pixel's pick value p mapped to pick_ids[p - 1] (0 where nothing was drawn).
   bool read_back(uint32_t width, uint32_t height, bool with_ids,
@@ -129,7 +144,8 @@ class GlBackend {
                      std::string& error);
   static void release_target(Target& t);
   void bind_arena();
-  // Binds and clears the drawing framebuffer and sets the programs' uniforms for the view.
+  // Binds the drawing framebuffer and sets the depth state and the programs' uniforms for the
+  // view.
   void begin_pass(const FrameView& view, const Plan& plan, bool with_ids);
   // One draw call per non-empty list, and the proxy boxes (instanced), in the order of the
   // rules, in highlight mode `mode` (gl_shaders.h). see_through: every list blended at
@@ -148,7 +164,8 @@ class GlBackend {
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
   GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
-         occlusion_program_ = 0, finish_program_ = 0;
+         occlusion_program_ = 0, finish_program_ = 0, reduce_program_ = 0,
+         reduce_multisampled_program_ = 0;
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
@@ -160,6 +177,12 @@ class GlBackend {
   // blurs it.
   GlName occlusion_framebuffer_ = 0, occlusion_texture_ = 0;
   uint32_t occlusion_width_ = 0, occlusion_height_ = 0;
+  // The depth reduction's grid (R32F).
+  GlName reduce_framebuffer_ = 0, reduce_texture_ = 0;
+  uint32_t reduce_width_ = 0, reduce_height_ = 0;
+  // Reduction programs for whole pixels per cell, by (pixels across, pixels up, samples).
+  std::vector<std::pair<std::array<uint32_t, 3>, GlName>> reduce_fixed_;
+  Plan frame_plan_;  // the frame's, from begin_frame()
   const Target* final_ = nullptr;
   size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch

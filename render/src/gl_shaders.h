@@ -8,6 +8,9 @@
 //     side that faces the eye; a centreline vertex's normal word holds the diameter (float bits);
 //   - ground: a full-screen triangle that intersects each pixel's ray with the ground plane;
 //   - occlusion: a full-screen triangle computing ambient occlusion per output pixel;
+//   - depth reduction: a full-screen triangle over a coarse grid of cells, each the farthest
+//     depth (reversed: the least) drawn over every sample of the pixels it overlaps, for
+//     occlusion culling's second phase (occlusion.h);
 //   - finish: a full-screen triangle from the drawn frame to the output image: supersampled
 //     frames averaged down, the edge filter, the ambient occlusion blurred and applied, the
 //     object ids copied.
@@ -313,6 +316,43 @@ void main() {
 )";
 
 // From the drawn frame (u_scale x the output's size) to the output image.
+// The depth reduction (after the version line; for a multisampled depth, kMultisampled; where
+// every cell holds whole pixels, STEP_X, STEP_Y and SAMPLES defined). Cell c
+// covers framebuffer pixels [c * source / cells, ceil((c + 1) * source / cells)): every pixel
+// it overlaps, whole.
+inline constexpr const char* kMultisampled = "#define MULTISAMPLED 1\n";
+inline constexpr const char* kDepthReduceFragment = R"(
+layout(location = 0) out float o_depth;
+uniform ivec2 u_source;  // framebuffer pixels
+uniform ivec2 u_cells;   // the grid
+uniform int u_samples;   // samples per pixel
+#ifdef MULTISAMPLED
+uniform sampler2DMS u_depth;
+float depth_at(ivec2 p, int s) { return texelFetch(u_depth, p, s).r; }
+#else
+uniform sampler2D u_depth;
+float depth_at(ivec2 p, int s) { return texelFetch(u_depth, p, 0).r; }
+#endif
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  float farthest = 1.0;
+#ifdef STEP_X
+  // Whole pixels per cell, known when compiled: loops of constant length (unrolled).
+  ivec2 lo = c * ivec2(STEP_X, STEP_Y);
+  for (int y = 0; y < STEP_Y; ++y)
+    for (int x = 0; x < STEP_X; ++x)
+      for (int s = 0; s < SAMPLES; ++s) farthest = min(farthest, depth_at(lo + ivec2(x, y), s));
+#else
+  ivec2 lo = (c * u_source) / u_cells;
+  ivec2 hi = min(((c + 1) * u_source + u_cells - 1) / u_cells, u_source);
+  for (int y = lo.y; y < hi.y; ++y)
+    for (int x = lo.x; x < hi.x; ++x)
+      for (int s = 0; s < u_samples; ++s) farthest = min(farthest, depth_at(ivec2(x, y), s));
+#endif
+  o_depth = farthest;
+}
+)";
+
 inline constexpr const char* kFinishFragment = R"(#version 450 core
 layout(location = 0) out vec4 o_colour;
 layout(location = 1) out uint o_pick;

@@ -33,6 +33,18 @@ bool drawn_as_solid(DecodedObjects& objects, const Known& k, const VisibleObject
   return k.run < 0 || !decide_run(objects.run(uint32_t(k.run)), frame_view, options).merged;
 }
 
+// Whether `k` (seen as `v`) is drawn as opaque triangles of its own this frame: not
+// see-through, no lines, not a pipe drawn as its centreline, nor a member of a run drawn
+// merged. Only such objects are drawn in the first phase: what is blended (see-through
+// objects, centrelines, which blend their coverage) is drawn after every opaque surface behind
+// it, as in a frame drawn at once.
+bool drawn_opaque(DecodedObjects& objects, const Known& k, const VisibleObject& v,
+                  const FrameView& frame_view, const RenderOptions& options) {
+  if (k.colour.a < 255 || k.has_lines) return false;
+  if (drawn_as_centreline(k, options, v.distance_m, v.px_per_m)) return false;
+  return k.run < 0 || !decide_run(objects.run(uint32_t(k.run)), frame_view, options).merged;
+}
+
 }  // namespace
 
 bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
@@ -51,13 +63,14 @@ bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], co
   return buffer_.hidden(c - e, c + e);
 }
 
-bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks,
-                             DecodedObjects& objects, const FrameView& frame_view,
-                             const RenderOptions& options, std::vector<VisibleObject>& visible,
-                             std::vector<NodeBox>& node_boxes, FrameStats& stats,
-                             std::string& error) {
+bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameView& frame_view,
+                                           const RenderOptions& options,
+                                           std::span<const VisibleObject> visible, bool& any,
+                                           FrameStats& stats, std::string& error) {
   buffer_.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
                 float(kNearPlaneM));
+  any = false;
+  smallest_candidate_px_ = kOccluderMinPixels;
 
   // 1. Occluders: the largest on screen, decoded (new ones) to know their shapes.
   candidates_.clear();
@@ -67,15 +80,16 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
     return a.px_per_m * a.extent_m() > b.px_per_m * b.extent_m();
   };
   if (candidates_.size() > kMaxOccluders) {
-    std::nth_element(candidates_.begin(), candidates_.begin() + kMaxOccluders, candidates_.end(), larger);
+    std::nth_element(candidates_.begin(), candidates_.begin() + (kMaxOccluders - 1), candidates_.end(), larger);
     candidates_.resize(kMaxOccluders);
+    const VisibleObject& last = candidates_.back();
+    smallest_candidate_px_ = last.px_per_m * last.extent_m();
   }
   if (candidates_.empty()) return true;
   if (!objects.decode(candidates_, options.hlod, error)) return false;
 
   // 2. Rasterise them.
   const glm::mat3 rotation(frame_view.rotation);
-  bool any = false;
   stats.occluders = 0;
   for (const VisibleObject& v : candidates_) {
     Known& k = objects.at(v.slot);
@@ -99,9 +113,71 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
       any |= buffer_.add_convex(piece_);
     }
   }
+  return true;
+}
+
+bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks,
+                             DecodedObjects& objects, const FrameView& frame_view,
+                             const RenderOptions& options, std::vector<VisibleObject>& visible,
+                             std::vector<NodeBox>& node_boxes, FrameStats& stats,
+                             std::string& error) {
+  bool any = false;
+  if (!rasterise_occluders(objects, frame_view, options, visible, any, stats, error)) return false;
   if (!any) return true;
 
-  // 3. Test leaves (once each: a leaf's objects are consecutive), then objects; then node boxes.
+  // 3. Test leaves, objects and node boxes.
+  drop_hidden(blocks, frame_view, visible, node_boxes, stats);
+  return true;
+}
+
+bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_view,
+                             const RenderOptions& options, uint64_t frame,
+                             std::vector<VisibleObject>& visible, std::vector<VisibleObject>& rest,
+                             FrameStats& stats, std::string& error) {
+  // The CPU occluders choose: what they hide is left to the second phase's test, where the
+  // depth actually drawn most likely hides it too.
+  bool any = false;
+  if (!rasterise_occluders(objects, frame_view, options, visible, any, stats, error)) return false;
+  rest.clear();
+  size_t kept = 0;
+  for (size_t i = 0; i < visible.size(); ++i) {
+    const VisibleObject& v = visible[i];
+    const Known* k = objects.find(v.slot);
+    // Drawn last frame, and not found hidden behind what that frame drew first.
+    const bool drawn_last = k && k->last_seen + 1 == frame &&
+                            !(hidden_drawn_frame_ + 1 == frame &&
+                              std::binary_search(hidden_drawn_.begin(), hidden_drawn_.end(), v.slot));
+    const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_;
+    if ((drawn_last || largest) && k && drawn_opaque(objects, *k, v, frame_view, options) &&
+        !(any && hidden(frame_view, v.min, v.max)))
+      visible[kept++] = v;
+    else rest.push_back(v);
+  }
+  visible.resize(kept);
+  stats.occluders = kept;
+  return true;
+}
+
+void OcclusionCulling::test_rest(const FrameBlocks& blocks, const FrameView& frame_view,
+                                 uint64_t frame, std::span<const VisibleObject> first,
+                                 std::span<const float> reversed_depth,
+                                 std::vector<VisibleObject>& rest, std::vector<NodeBox>& node_boxes,
+                                 FrameStats& stats) {
+  buffer_.load_device_depth(reversed_depth);
+  // The first phase's objects that the others of it hide (never itself: an object's own depth
+  // is no nearer than its bounds): drawn in vain, and not to be drawn first next frame.
+  hidden_drawn_.clear();
+  for (const VisibleObject& v : first)
+    if (hidden(frame_view, v.min, v.max)) hidden_drawn_.push_back(v.slot);
+  std::sort(hidden_drawn_.begin(), hidden_drawn_.end());
+  hidden_drawn_frame_ = frame;
+  drop_hidden(blocks, frame_view, rest, node_boxes, stats);
+}
+
+void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
+                                   std::vector<VisibleObject>& visible,
+                                   std::vector<NodeBox>& node_boxes, FrameStats& stats) const {
+  // Leaves once each (a leaf's objects are consecutive), then objects; then node boxes.
   size_t kept = 0;
   bool leaf_hidden = false;
   uint32_t leaf_block = UINT32_MAX, leaf_node = UINT32_MAX;
@@ -131,7 +207,6 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
     node_boxes[kept++] = b;
   }
   node_boxes.resize(kept);
-  return true;
 }
 
 }  // namespace plantview::detail

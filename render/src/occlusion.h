@@ -1,29 +1,40 @@
-// Occlusion culling: the frame plan's stage between cull and choose. Of the objects in the
-// frustum, the largest on screen that can occlude (occlusion_occluders.h) are rasterised into
-// a small software depth buffer (occlusion_buffer.h); then every leaf of the spatial tree that
-// holds visible objects, every visible object and every node box is tested against it, and what
-// is hidden is dropped: it is neither decoded, tessellated, uploaded nor drawn, and its
-// visibility counter ages like a culled object's.
+// Occlusion culling: the frame plan's stage between cull and choose. What is hidden is dropped:
+// it is neither decoded, tessellated, uploaded nor drawn, and its visibility counter ages like
+// a culled object's. Two forms, one buffer of tests (occlusion_buffer.h):
+//
+//   - Two phases on the GPU (frames drawn: Renderer::render). Phase 1 draws for real a set
+//     that will mostly be visible: the objects drawn in the previous frame that are still in
+//     the frustum (temporal coherence; less those its own first phase's depth hid), and this
+//     frame's largest on screen (up to kMaxOccluders spanning kOccluderMinPixels; for a first
+//     frame that is all there is); less what the largest, rasterised on the CPU as below,
+//     hide; and only objects drawn as opaque triangles: see-through objects and centrelines
+//     blend, and are drawn after the opaque surfaces behind them, as in a frame drawn at once
+//     (so the image equals the one without occlusion). The
+//     GL backend reduces the depth drawn to a coarse grid (each cell's farthest depth), read
+//     back into the buffer; phase 2 tests every other object, leaf and node box the cull found
+//     against it and draws those not hidden into the same framebuffer, without clearing.
+//     Correct by construction: what phase 1 drew is in the image, so whatever it hides is
+//     hidden at every sample; an object seen for the first time is drawn in the frame it
+//     appears (phase 2 draws it).
+//   - Occluders rasterised on the CPU (frames not drawn: Renderer::statistics). Of the objects
+//     in the frustum, the largest on screen that can occlude (occlusion_occluders.h) are
+//     rasterised at their farthest depth (up to kMaxOccluders objects spanning at least
+//     kOccluderMinPixels, decoded here if new; not pipes drawn as centrelines, members of
+//     merged runs, see-through objects). A hidden occluder may still hide others: whatever it
+//     covers, what hides it covers too.
 //
 // Rules
-//   - Never drops what is visible: occluders are inside what is drawn of them, and the buffer is
-//     conservative (occlusion_buffer.h). One phase suffices: the occluders are chosen from this
-//     frame's frustum, so an object seen for the first time is tested against this frame's
-//     occluders only.
-//   - Occluders: up to kMaxOccluders objects spanning at least kOccluderMinPixels on screen,
-//     largest first, decoded here if new. Objects that may be drawn otherwise than as their
-//     solids are not occluders: pipes drawn as centrelines, members of merged runs, see-through
-//     objects (occlusion_occluders.h).
-//   - A hidden occluder may still hide others: whatever it covers, what hides it covers too.
+//   - Never drops what is visible: the buffer is conservative either way.
 //   - Memory follows the frame, not the plant: leaves are tested as the cull visited them (a
 //     leaf's visible objects are consecutive), through the frame's blocks; nothing is kept per
-//     node or per object between frames.
+//     node or per object between frames but what DecodedObjects keeps (Known::last_seen).
 // Units: metres, pixels. Ownership: owns its buffer and scratch (reused).
 // Threads: the renderer's thread.
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -47,7 +58,7 @@ inline constexpr double kOccluderMinPixels = 24;
 
 class OcclusionCulling {
  public:
-  // Drops the hidden objects of `visible` (in cull's tree order: a leaf's objects consecutive;
+  // CPU form. Drops the hidden objects of `visible` (in cull's tree order: a leaf's objects consecutive;
   // order kept) and the hidden `node_boxes`; counts objects_occluded and nodes_occluded
   // (leaves whose visible objects were all hidden at once, and node boxes). `blocks` holds the
   // blocks of the visible objects' leaves. False if an occluder cannot be decoded.
@@ -56,15 +67,47 @@ class OcclusionCulling {
              std::vector<VisibleObject>& visible, std::vector<NodeBox>& node_boxes,
              FrameStats& stats, std::string& error);
 
+  // Two phases, 1: moves out of `visible` (cull's, tree order) into `rest` (order kept) every
+  // object that is neither drawn in the previous frame (`frame` - 1, Known::last_seen) nor
+  // among this frame's largest on screen, or that the largest, rasterised on the CPU, hide
+  // (the CPU form's occluders choose the first phase); counts the others in
+  // stats.occluders. Sizes the buffer for the view (buffer().width() x height() cells).
+  // False if an occluder cannot be decoded.
+  bool split(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
+             uint64_t frame, std::vector<VisibleObject>& visible,
+             std::vector<VisibleObject>& rest, FrameStats& stats, std::string& error);
+  // Two phases, 2: loads the depth phase 1 drew (`reversed_depth`: GlBackend::reduce_depth's
+  // grid of buffer().width() x height() cells) and drops the hidden of `rest` and `node_boxes`
+  // (objects_occluded, nodes_occluded counted). `blocks` holds the blocks of rest's leaves.
+  // `first`: the first phase's objects; those the buffer hides are remembered (a frame's
+  // worth of slots) and not drawn first next frame.
+  void test_rest(const FrameBlocks& blocks, const FrameView& frame_view, uint64_t frame,
+                 std::span<const VisibleObject> first, std::span<const float> reversed_depth,
+                 std::vector<VisibleObject>& rest, std::vector<NodeBox>& node_boxes,
+                 FrameStats& stats);
+
   const OcclusionBuffer& buffer() const { return buffer_; }
 
  private:
+  // Steps 1 and 2 of the CPU form: the largest of `visible` decoded and rasterised into a
+  // cleared buffer (any: something covered); stats.occluders counted.
+  bool rasterise_occluders(DecodedObjects& objects, const FrameView& frame_view,
+                           const RenderOptions& options, std::span<const VisibleObject> visible,
+                           bool& any, FrameStats& stats, std::string& error);
+  // Drops the objects of `visible` (tree order) and the `node_boxes` the buffer hides.
+  void drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
+                   std::vector<VisibleObject>& visible, std::vector<NodeBox>& node_boxes,
+                   FrameStats& stats) const;
   // Whether the box (relative to the spatial origin) is hidden.
   bool hidden(const FrameView& frame_view, const float min[3], const float max[3]) const;
 
   OcclusionBuffer buffer_;
   // Scratch, reused.
   std::vector<VisibleObject> candidates_;
+  double smallest_candidate_px_ = 0;  // of the last rasterise_occluders()
+  // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).
+  std::vector<uint32_t> hidden_drawn_;
+  uint64_t hidden_drawn_frame_ = 0;
   std::vector<glm::vec3> piece_;
 };
 

@@ -3,6 +3,7 @@
 #include "occlusion_buffer.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
@@ -49,6 +50,7 @@ void OcclusionBuffer::begin(uint32_t image_width, uint32_t image_height, float f
   sx_ = 0.5f * float(width_) * focal / aspect;
   sy_ = 0.5f * float(height_) * focal;
   near_m_ = near_m;
+  spill_cells_ = float(kSpillPixels * double(width_) / double(image_width));
   cells_.assign(size_t(width_) * height_, kFar);
 }
 
@@ -99,6 +101,17 @@ bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
   return covered;
 }
 
+void OcclusionBuffer::load_device_depth(std::span<const float> reversed_depth) {
+  assert(reversed_depth.size() == cells_.size());
+  // distance = near / depth; the float division and the depth buffer's own rounding are a few
+  // ulps: the cell is taken 1e-5 nearer (1 mm at 100 m).
+  constexpr float kNearer = 1.0f - 1e-5f;
+  for (size_t i = 0; i < cells_.size(); ++i) {
+    const float d = reversed_depth[i];
+    cells_[i] = d > 0 ? near_m_ / d * kNearer : kFar;
+  }
+}
+
 bool OcclusionBuffer::hidden(const glm::vec3& mn, const glm::vec3& mx) const {
   const float near_d = -mx.z, far_d = -mn.z;
   if (near_d <= near_m_ || cells_.empty()) return false;
@@ -106,8 +119,10 @@ bool OcclusionBuffer::hidden(const glm::vec3& mn, const glm::vec3& mx) const {
   // makes it extreme.
   const float x0 = mn.x / (mn.x <= 0 ? near_d : far_d), x1 = mx.x / (mx.x >= 0 ? near_d : far_d);
   const float y0 = mn.y / (mn.y <= 0 ? near_d : far_d), y1 = mx.y / (mx.y >= 0 ? near_d : far_d);
-  const float cx0 = x0 * sx_ + 0.5f * float(width_), cx1 = x1 * sx_ + 0.5f * float(width_);
-  const float cy0 = y0 * sy_ + 0.5f * float(height_), cy1 = y1 * sy_ + 0.5f * float(height_);
+  const float cx0 = x0 * sx_ + 0.5f * float(width_) - spill_cells_;
+  const float cx1 = x1 * sx_ + 0.5f * float(width_) + spill_cells_;
+  const float cy0 = y0 * sy_ + 0.5f * float(height_) - spill_cells_;
+  const float cy1 = y1 * sy_ + 0.5f * float(height_) + spill_cells_;
   if (!(cx1 >= 0 && cy1 >= 0 && cx0 <= float(width_) && cy0 <= float(height_))) return false;
   const int i0 = std::max(0, int(std::floor(cx0))), i1 = std::min(int(width_) - 1, int(std::floor(cx1)));
   const int j0 = std::max(0, int(std::floor(cy0))), j1 = std::min(int(height_) - 1, int(std::floor(cy1)));

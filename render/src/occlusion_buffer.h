@@ -1,6 +1,6 @@
-// Occlusion buffer: a small software depth buffer over the frame's image, filled with
-// occluders' silhouettes and queried with bounds. No GL: it works the same whatever draws the
-// frame (llvmpipe or a GPU).
+// Occlusion buffer: a small depth buffer over the frame's image, filled either with occluders'
+// silhouettes rasterised here (no GL) or with the farthest depth per cell of what a first phase
+// drew (load_device_depth: the GL backend's depth reduction), and queried with bounds.
 //
 // Rules (what makes it conservative: nothing it calls hidden is visible in the drawn image)
 //   - The buffer covers the image's normalised device square [-1, 1]^2 with width x height
@@ -11,8 +11,13 @@
 //     only if the whole cell lies inside that hull (inner conservative rasterisation), and the
 //     depth written is the occluder's farthest point: every covered cell holds a depth no
 //     nearer than the occluder's surface there, and nearer ones win (min).
-//   - Bounds are hidden when every cell their projected rectangle touches holds a depth
-//     strictly nearer than the bounds' nearest point. Bounds reaching in front of the near
+//   - Loaded from drawn depth: each cell holds the farthest depth drawn over every sample of
+//     every pixel the cell overlaps (so that whatever lies behind it fails the depth test at
+//     every sample it could reach), turned into a view distance a hair nearer (rounding).
+//   - Bounds are hidden when every cell their projected rectangle, grown by kSpillPixels,
+//     touches holds a depth strictly nearer than the bounds' nearest point. (What is drawn of
+//     an object may reach past its bounds' projection: a centreline is a quad at least a pixel
+//     wide with a pixel of feather on each side, up to 1.5 pixels beyond its axis.) Bounds reaching in front of the near
 //     plane, and occluders that do, are never used (always visible / skipped).
 // Units: metres (view space: x right, y up, looking down -z) and buffer cells.
 // Ownership: owns its cells, reused frame after frame (no allocation once sized).
@@ -39,6 +44,11 @@ class OcclusionBuffer {
   // plane.
   bool add_convex(std::span<const glm::vec3> view_points);
 
+  // Replaces the cells (after begin()) with drawn depth: `reversed_depth` holds width() x
+  // height() values, rows bottom-up, each the farthest reversed depth (near_m / distance, 0
+  // where nothing was drawn) over the pixels the cell overlaps.
+  void load_device_depth(std::span<const float> reversed_depth);
+
   // Whether the view-space box [min, max] is hidden behind what was rasterised.
   bool hidden(const glm::vec3& min, const glm::vec3& max) const;
 
@@ -47,6 +57,7 @@ class OcclusionBuffer {
   float depth(uint32_t x, uint32_t y) const { return cells_[size_t(y) * width_ + x]; }
 
   static constexpr uint32_t kMaxCells = 320;
+  static constexpr double kSpillPixels = 1.5;  // image pixels (framebuffer ones when supersampled)
 
  private:
   // Buffer coordinates of a view-space point (d = -z > 0).
@@ -55,6 +66,7 @@ class OcclusionBuffer {
   uint32_t width_ = 0, height_ = 0;
   float sx_ = 1, sy_ = 1;  // cells per unit of x / d and y / d
   float near_m_ = 0.05f;
+  float spill_cells_ = 0;  // kSpillPixels in cells
   std::vector<float> cells_;
   // Scratch, reused.
   std::vector<glm::vec2> projected_, hull_;

@@ -1,6 +1,7 @@
 // Renderer: one frame as the data flows (render.h has the rules). The frontend (frame_plan.h:
-// view, cull, choose) and the decoded objects need no GL; arena streaming and the GL backend
-// put what was chosen on the GPU, draw it and read it back.
+// view, cull, occlusion, choose) and the decoded objects need no GL; arena streaming and the GL
+// backend put what was chosen on the GPU, draw it and read it back. A drawn frame with
+// occlusion runs choose, stream and draw twice (occlusion.h: two phases).
 #include <cmath>
 
 #include "arena_streaming.h"
@@ -28,9 +29,18 @@ struct Renderer::State {
   FramePlan plan;
   ArenaStreaming streaming{backend};
 
+  std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
+
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
              FrameStats& stats, std::string& error);
+  // One phase of a frame (the whole frame without two-phase occlusion): the plan's visible
+  // objects decoded where new, a level chosen for each, made resident; with a look (drawing),
+  // their index lists written and drawn (the first phase begins the frame's image; `wait`:
+  // until the GPU has drawn them).
+  bool phase(const FrameView& frame_view, const Look* look, bool with_ids, bool second_phase,
+             bool wait, FrameStats& stats, StageTimes& times, Stopwatch& clock,
+             std::string& error);
 };
 
 // Starts a new snapshot of the store and forgets everything decoded and resident. If the store
@@ -68,44 +78,70 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   }
   ++frame_number;
   const FrameView frame_view = make_frame_view(camera, w, h, view->spatial_origin());
+  const Look look = look_of(options, bounds);
+  const Look* drawn = draw ? &look : nullptr;
   clock.lap();
 
-  // Frontend: what is visible, decoded where new, and at which level.
+  // Frontend: what is in the frustum, then what of it is hidden (occlusion.h), decoded where
+  // new, at which level; streamed; drawn.
   if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
   times.cull = clock.lap();
-  if (!plan.occlude(*view, objects, frame_view, options, stats, error)) return false;
-  times.occlusion = clock.lap();
-  plan.order();
-  times.cull += clock.lap();
-  if (!objects.decode(plan.visible(), options.hlod, error)) return false;
-  times.decode = clock.lap();
-  plan.choose(objects, frame_view, options, frame_number, stats);
-  times.choose = clock.lap();
-
-  // Streaming: the chosen levels resident in the arena (or boxes), the object table filled,
-  // then the index lists written (only when drawing).
-  if (!streaming.stream(plan, objects, frame_view, options, stats, error)) return false;
-  times.stream = clock.lap();
-  if (draw) {
-    if (!streaming.write_index_lists(plan.draws(), error)) return false;
-    times.index_lists = clock.lap();
+  if (draw && FramePlan::two_phase(options)) {
+    // What will mostly be visible drawn first; its depth reduced and read back; the rest
+    // tested against it and drawn into the same image.
+    if (!plan.first_phase(objects, frame_view, options, frame_number, stats, error)) return false;
+    times.occlusion = clock.lap();
+    if (!phase(frame_view, drawn, with_ids, false, true, stats, times, clock, error)) return false;
+    const auto [cells_width, cells_height] = plan.occlusion_cells();
+    if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
+    plan.second_phase(frame_view, frame_number, reduced_depth, stats);
+    times.occlusion += clock.lap();
+    if (!phase(frame_view, drawn, with_ids, true, false, stats, times, clock, error)) return false;
+  } else {
+    // Statistics alone: occluders rasterised on the CPU. (A highlight hides nothing: its
+    // occluders are drawn see-through; FramePlan::occlude knows.)
+    if (!draw && !plan.occlude(*view, objects, frame_view, options, stats, error)) return false;
+    times.occlusion = clock.lap();
+    if (!phase(frame_view, drawn, with_ids, false, false, stats, times, clock, error)) return false;
   }
   objects.forget_old(frame_number, streaming.residency());
   stats.objects_known = objects.known_count();
   stats.residency_bytes = streaming.residency().bookkeeping_bytes();
   times.stream += clock.lap();
 
-  // Backend: draw and read back (render() only).
+  // Backend: the ground, finishing and read back (render() only).
   if (draw) {
-    if (!backend.draw(frame_view, streaming.index_counts(), streaming.table().entries(),
-                      streaming.proxy_tables(), streaming.table().pick_ids(),
-                      look_of(options, bounds), with_ids, error))
-      return false;
-    times.draw = clock.lap();
+    backend.finish_frame(frame_view, look, with_ids);
+    times.draw += clock.lap();
     if (!backend.read_back(w, h, with_ids, streaming.table().pick_ids(), *out, error)) return false;
     times.read_back = clock.lap();
   }
   report_times(times, clock.total(), stats.ms);
+  return true;
+}
+
+bool Renderer::State::phase(const FrameView& frame_view, const Look* look, bool with_ids,
+                            bool second_phase, bool wait, FrameStats& stats, StageTimes& times,
+                            Stopwatch& clock, std::string& error) {
+  plan.order();
+  times.cull += clock.lap();
+  if (!objects.decode(plan.visible(), options.hlod, error)) return false;
+  times.decode += clock.lap();
+  plan.choose(objects, frame_view, options, frame_number, stats);
+  times.choose += clock.lap();
+  // Streaming: the chosen levels resident in the arena (or boxes), the object table filled,
+  // then the index lists written (only when drawing).
+  if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
+    return false;
+  times.stream += clock.lap();
+  if (!look) return true;
+  if (!streaming.write_index_lists(plan.draws(), error)) return false;
+  times.index_lists += clock.lap();
+  if (!second_phase && !backend.begin_frame(frame_view, *look, with_ids, error)) return false;
+  backend.draw_phase(frame_view, streaming.index_counts(), streaming.table().entries(),
+                     streaming.proxy_tables(), streaming.table().pick_ids(), *look, with_ids,
+                     wait);
+  times.draw += clock.lap();
   return true;
 }
 

@@ -10,10 +10,14 @@
 //               block as one box (that size doubles until at most 32,768 objects and boxes
 //               remain in view), so a far view of a huge plant costs what the image holds,
 //               not what the plant holds, and reads none of the far blocks;
-//   1b. occlude (on by default) the largest objects on screen are rasterised on the CPU into a
-//               small conservative depth buffer; tree leaves, objects and node boxes hidden
-//               behind them are left out: neither decoded, tessellated, uploaded nor drawn, and
-//               their visibility counters age like culled objects'. Nothing visible is dropped;
+//   1b. occlude (on by default) in two phases when the frame is drawn: first the objects
+//               drawn in the previous frame that are still in view and the largest on screen
+//               go through steps 2-4; the depth they drew is reduced on the GPU to a coarse
+//               grid (each cell's farthest depth) and read back; tree leaves, objects and node
+//               boxes hidden behind it are left out, the rest go through steps 2-4 into the
+//               same image. statistics() rasterises the largest objects on the CPU instead.
+//               What is left out is neither decoded, tessellated, uploaded nor drawn, and its
+//               visibility counter ages like a culled object's. Nothing visible is dropped;
 //   2. choose   a level per visible object by LodPolicy (screen-space error by default); pipes
 //               whose diameter projects under about a pixel are drawn as their centreline.
 //               Pipeline HLOD: a straight run of pipes and inline components is drawn as one
@@ -150,16 +154,18 @@ struct RenderOptions {
   // lighter, id 0 in the id buffer); whatever lies between the eye and them is drawn
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
-  bool occlusion = true;                           // leave out objects hidden behind large
-                                                   // equipment and structures (conservative:
-                                                   // nothing visible is ever left out)
+  bool occlusion = true;                           // leave out objects hidden behind what
+                                                   // is drawn first (conservative: nothing
+                                                   // visible is ever left out; step 1b)
 };
 
 struct FrameStats {
   uint64_t objects_visible = 0, objects_culled = 0;  // culled: outside the frustum
   uint64_t objects_occluded = 0;  // in the frustum but hidden behind occluders (not drawn)
   uint64_t nodes_occluded = 0;    // tree leaves and node boxes found hidden as a whole
-  uint64_t occluders = 0;         // objects rasterised as occluders
+  uint64_t occluders = 0;         // drawn frames: objects drawn in occlusion's first phase
+                                  // (last frame's and the largest); statistics(): objects
+                                  // rasterised as occluders on the CPU
   uint64_t triangles = 0, lines = 0;
   std::array<uint64_t, 8> triangles_by_level{};
   uint64_t centreline_pipes = 0;  // pipes (and merged runs) drawn as their centreline
@@ -186,8 +192,10 @@ struct FrameStats {
   uint64_t spatial_blocks_walked = 0, spatial_blocks_held = 0;
   uint64_t objects_known = 0;
   uint64_t residency_bytes = 0;
-  // cpu: the frame's CPU work before drawing, cull + occlusion + choose + stream (each part
-  // as measured; choose includes writing the index lists, stream decoding new objects).
+  // cpu: the frame's CPU work, cull + occlusion + choose + stream (each part as measured, both
+  // phases together; choose includes writing the index lists, stream decoding new objects;
+  // occlusion in two phases includes the depth reduction and its read-back, which wait for
+  // the GPU; draw includes the first phase's drawing).
   struct Times {
     double cull = 0, occlusion = 0, choose = 0, stream = 0, cpu = 0, draw = 0, read_back = 0,
            encode = 0, total = 0;
