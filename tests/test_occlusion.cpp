@@ -400,8 +400,10 @@ TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {
   ASSERT_TRUE(r->render(look({0, -15, 2}, {0, 4, 1}), 160, 90, false, image, s, error)) << error;
   EXPECT_GT(s.ms.cpu, 0.0);
   EXPECT_NEAR(s.ms.cpu, s.ms.cull + s.ms.occlusion + s.ms.choose + s.ms.stream, 1e-9);
-  EXPECT_LE(s.ms.cpu, s.ms.total);
+  EXPECT_LE(s.ms.cpu + s.ms.depth_reduction, s.ms.total);
+  EXPECT_GT(s.ms.depth_reduction, 0.0) << "a drawn frame with occlusion reduces its depth";
   EXPECT_NE(s.to_json().find("\"cpu\":"), std::string::npos);
+  EXPECT_NE(s.to_json().find("\"depth_reduction\":"), std::string::npos);
   EXPECT_NE(s.to_json().find("\"objects_occluded\":1"), std::string::npos);
 }
 

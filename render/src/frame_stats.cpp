@@ -13,10 +13,11 @@ std::string FrameStats::to_json() const {
     levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
   char times[400];
   std::snprintf(times, sizeof times,
-                "{\"cull\":%.3f,\"occlusion\":%.3f,\"choose\":%.3f,\"stream\":%.3f,"
-                "\"cpu\":%.3f,\"draw\":%.3f,\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
-                ms.cull, ms.occlusion, ms.choose, ms.stream, ms.cpu, ms.draw, ms.read_back,
-                ms.encode, ms.total);
+                "{\"cull\":%.3f,\"occlusion\":%.3f,\"depth_reduction\":%.3f,\"choose\":%.3f,"
+                "\"stream\":%.3f,\"cpu\":%.3f,\"draw\":%.3f,\"read_back\":%.3f,\"encode\":%.3f,"
+                "\"total\":%.3f}",
+                ms.cull, ms.occlusion, ms.depth_reduction, ms.choose, ms.stream, ms.cpu, ms.draw,
+                ms.read_back, ms.encode, ms.total);
   return "{\"objects_visible\":" + std::to_string(objects_visible) +
          ",\"objects_culled\":" + std::to_string(objects_culled) +
          ",\"objects_occluded\":" + std::to_string(objects_occluded) +
@@ -51,6 +52,7 @@ namespace detail {
 void report_times(const StageTimes& stages, double total_ms, FrameStats::Times& ms) {
   ms.cull = stages.cull;
   ms.occlusion = stages.occlusion;
+  ms.depth_reduction = stages.depth_reduction;
   ms.choose = stages.choose + stages.index_lists;
   ms.stream = stages.stream + stages.decode;
   ms.cpu = ms.cull + ms.occlusion + ms.choose + ms.stream;

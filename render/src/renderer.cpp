@@ -94,6 +94,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     if (!phase(frame_view, drawn, with_ids, false, true, stats, times, clock, error)) return false;
     const auto [cells_width, cells_height] = plan.occlusion_cells();
     if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
+    times.depth_reduction = clock.lap();
     plan.second_phase(frame_view, frame_number, reduced_depth, stats);
     times.occlusion += clock.lap();
     if (!phase(frame_view, drawn, with_ids, true, false, stats, times, clock, error)) return false;

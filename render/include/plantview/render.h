@@ -194,10 +194,12 @@ struct FrameStats {
   uint64_t residency_bytes = 0;
   // cpu: the frame's CPU work, cull + occlusion + choose + stream (each part as measured, both
   // phases together; choose includes writing the index lists, stream decoding new objects;
-  // occlusion in two phases includes the depth reduction and its read-back, which wait for
-  // the GPU; draw includes the first phase's drawing).
+  // occlusion is choosing the first phase and testing the rest). depth_reduction: occlusion's
+  // GPU part, the first phase's depth reduced and read back (the CPU waits for the GPU there,
+  // so it is not in cpu); draw includes the first phase's drawing.
   struct Times {
-    double cull = 0, occlusion = 0, choose = 0, stream = 0, cpu = 0, draw = 0, read_back = 0,
+    double cull = 0, occlusion = 0, depth_reduction = 0, choose = 0, stream = 0, cpu = 0,
+           draw = 0, read_back = 0,
            encode = 0, total = 0;
   } ms;
   // One JSON object (one line): the fields above, times under "ms".
