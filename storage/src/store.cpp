@@ -1309,6 +1309,18 @@ std::vector<uint32_t> ReadView::slots_named(std::string_view name) const {
 
 bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn,
                                bool with_attributes, std::string& error) const {
+  return visit_objects(nullptr, fn, with_attributes, error);
+}
+
+bool ReadView::for_each_object_of_class(ObjectClass object_class,
+                                        const std::function<bool(uint32_t, Object&&)>& fn,
+                                        bool with_attributes, std::string& error) const {
+  return visit_objects(&object_class, fn, with_attributes, error);
+}
+
+bool ReadView::visit_objects(const ObjectClass* only,
+                             const std::function<bool(uint32_t, Object&&)>& fn,
+                             bool with_attributes, std::string& error) const {
   State& s = *state_;
   for (uint32_t slot = 0; slot < s.snapshot->next_slot; ++slot) {
     std::span<const uint8_t> record;
@@ -1318,30 +1330,10 @@ bool ReadView::for_each_object(const std::function<bool(uint32_t, Object&&)>& fn
       return false;
     }
     if (record.empty()) continue;  // removed (or replaced) objects leave their slot empty
-    Object o;
-    if (!object(slot, o, with_attributes, error)) return false;
-    if (!fn(slot, std::move(o))) return true;
-  }
-  return true;
-}
-
-bool ReadView::for_each_object_of_class(ObjectClass object_class,
-                                        const std::function<bool(uint32_t, Object&&)>& fn,
-                                        bool with_attributes, std::string& error) const {
-  State& s = *state_;
-  for (uint32_t slot = 0; slot < s.snapshot->next_slot; ++slot) {
-    std::span<const uint8_t> record;
-    std::string why;
-    if (!s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why)) {
-      error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
-      return false;
-    }
-    if (record.empty()) continue;
     // The class is the record's second byte (record.h); a record that is not passed over is
     // decoded, which checks everything (an unknown class included).
-    if (record.size() >= 2 && record[1] < kObjectClassCount && record[1] != uint8_t(object_class)) {
+    if (only && record.size() >= 2 && record[1] < kObjectClassCount && record[1] != uint8_t(*only))
       continue;
-    }
     Object o;
     if (!object(slot, o, with_attributes, error)) return false;
     if (!fn(slot, std::move(o))) return true;

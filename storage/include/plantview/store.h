@@ -322,6 +322,10 @@ class ReadView {
   friend class Store;
   struct State;
   explicit ReadView(std::unique_ptr<State> state);
+  // The pass of both for_each_object forms: every object, or (only != null) those of one class.
+  bool visit_objects(const ObjectClass* only,
+                     const std::function<bool(uint32_t slot, Object&&)>& fn,
+                     bool with_attributes, std::string& error) const;
   std::unique_ptr<State> state_;
 };
 
