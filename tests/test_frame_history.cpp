@@ -11,6 +11,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/gl_context.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -18,19 +19,8 @@ namespace {
 
 using test::TempDir;
 
-GpuContext& context() {
-  static std::unique_ptr<GpuContext> ctx = [] {
-    std::string error;
-    auto c = GpuContext::create(-1, error);
-    if (!c) ADD_FAILURE() << error;
-    return c;
-  }();
-  if (!ctx) std::abort();
-  return *ctx;
-}
-
 std::unique_ptr<Renderer> make_renderer(const Store& store, LodPolicy policy, bool occlusion) {
-  context();
+  test::gl_context();
   RenderOptions options;
   options.lod_policy = policy;
   options.occlusion = occlusion;

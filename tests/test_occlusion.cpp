@@ -20,6 +20,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/gl_context.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -179,17 +180,6 @@ TEST(OccluderShape, EveryPointLiesInsideEveryLevelOfTheDrawnMesh) {
 
 // --- the renderer ------------------------------------------------------------------------------
 
-GpuContext& context() {
-  static std::unique_ptr<GpuContext> ctx = [] {
-    std::string error;
-    auto c = GpuContext::create(-1, error);
-    if (!c) ADD_FAILURE() << error;
-    return c;
-  }();
-  if (!ctx) std::abort();
-  return *ctx;
-}
-
 Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin,
                    std::vector<Primitive> primitives, Colour colour = {200, 120, 40, 255}) {
   Object o;
@@ -213,7 +203,7 @@ std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>&
 }
 
 std::unique_ptr<Renderer> make_renderer(const Store& store, bool occlusion) {
-  context();
+  test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 16u << 20;
   options.occlusion = occlusion;
@@ -291,7 +281,7 @@ TEST(Occlusion, WhatWasDrawnLastFrameHidesWhatComesIntoViewBehindItUntilItIsUnco
   const uint64_t column = objects[0].id, pump = objects[1].id;
   TempDir dir;
   auto store = make_store(dir, objects);
-  context();
+  test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 16u << 20;
   options.lod_policy = LodPolicy::none;

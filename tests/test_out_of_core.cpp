@@ -20,6 +20,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "residency.h"
+#include "support/gl_context.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -85,17 +86,6 @@ TEST(ResidencyKeyMap, AgreesWithAStandardMapUnderRandomInsertsAndErases) {
 
 // --- the renderer on a preset c of thirty units ----------------------------------------------
 
-GpuContext& context() {
-  static std::unique_ptr<GpuContext> ctx = [] {
-    std::string error;
-    auto c = GpuContext::create(-1, error);
-    if (!c) ADD_FAILURE() << error;
-    return c;
-  }();
-  if (!ctx) std::abort();
-  return *ctx;
-}
-
 // A generated preset c, shared by the tests of this file (generating is most of their time).
 const Store& preset_c(uint32_t scale) {
   static std::map<uint32_t, std::pair<std::unique_ptr<TempDir>, std::unique_ptr<Store>>> stores;
@@ -150,7 +140,7 @@ TEST(OutOfCore, RendererMemoryFollowsWhatThePathSawNotThePlant) {
   const DAabb plant = view->info().statistics.bounds;
   ASSERT_GT(plant_objects, 1'000'000u);
 
-  context();
+  test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 64ull << 20;
   auto renderer = Renderer::create(store, options, error);
@@ -193,7 +183,7 @@ TEST(OutOfCore, RendererMemoryFollowsWhatThePathSawNotThePlant) {
 }
 
 TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
-  context();
+  test::gl_context();
   const auto overview_triangles = [](const Store& store, FrameStats& stats) {
     std::string error;
     const auto view = store.read(error);
@@ -221,7 +211,7 @@ TEST(OutOfCore, OverviewOfThirtyUnitsDrawsAtMostTwiceOneUnitsTriangles) {
 // Policy none draws every object, but not a million: beyond kMaxObjectsAnyPolicy the rest of the
 // view is drawn as far-field proxies, so that its memory stays bounded on a plant seen whole.
 TEST(OutOfCore, PolicyNoneOnAPlantOfMillionsStopsAtTheObjectCap) {
-  context();
+  test::gl_context();
   const Store& store = preset_c(30);
   std::string error;
   const auto view = store.read(error);
@@ -283,7 +273,7 @@ TEST(OutOfCore, PipelineRunsFollowTheObjectsKnownNotEveryPipelineMet) {
 // frame's items: so a view that cannot show every object reads only the blocks whose nodes span
 // more than the size left boxed, once each, and the boxes are the finest that fit.
 TEST(OutOfCore, CullOpensTheLargestNodesFirstAndReadsOnlyTheBlocksItOpens) {
-  context();
+  test::gl_context();
   const Store& store = preset_c(30);
   std::string error;
   const auto view = store.read(error);

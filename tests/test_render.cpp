@@ -14,6 +14,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "residency.h"
+#include "support/gl_context.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -22,19 +23,6 @@ namespace {
 namespace fs = std::filesystem;
 
 using test::TempDir;
-
-// One GL context for the whole test program (contexts are per thread; tests run on one).
-GpuContext& context() {
-  static std::unique_ptr<GpuContext> ctx = [] {
-    std::string error;
-    auto c = GpuContext::create(-1, error);
-    if (!c) ADD_FAILURE() << error;
-    else std::fprintf(stderr, "render tests on: %s\n", c->description().c_str());
-    return c;
-  }();
-  if (!ctx) std::abort();
-  return *ctx;
-}
 
 Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin, Shape shape,
                    Colour colour = {200, 120, 40, 255}) {
@@ -79,7 +67,7 @@ RenderOptions small(LodPolicy policy = LodPolicy::screen_space) {
 }
 
 std::unique_ptr<Renderer> make_renderer(const Store& store, RenderOptions options = small()) {
-  context();
+  test::gl_context();
   std::string error;
   auto r = Renderer::create(store, options, error);
   EXPECT_TRUE(r) << error;

@@ -22,6 +22,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
+#include "support/gl_context.h"
 #include "support/image_fill.h"
 #include "support/temp_dir.h"
 
@@ -650,19 +651,8 @@ TEST(ViewsCommand, UsageErrorsExitTwoAndRuntimeFailuresOne) {
 
 // ---- on rendered images ----
 
-GpuContext& context() {
-  static std::unique_ptr<GpuContext> ctx = [] {
-    std::string error;
-    auto c = GpuContext::create(-1, error);
-    if (!c) ADD_FAILURE() << error;
-    return c;
-  }();
-  if (!ctx) std::abort();
-  return *ctx;
-}
-
 std::unique_ptr<Renderer> make_renderer(const Store& store) {
-  context();
+  test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 64u << 20;
   std::string error;
