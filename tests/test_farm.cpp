@@ -196,6 +196,45 @@ TEST_F(Farm, ARenderAgainSkipsWhatIsDoneAndForceRendersAgain) {
   EXPECT_EQ(summary["skipped"], 0);
 }
 
+TEST_F(Farm, ARenderAgainAfterAnImportThatKeptEveryCountRendersAgain) {
+  // A copy of the plant's store, rendered; then every object imported again with one
+  // recoloured: the same counts and bounds, other images.
+  const fs::path store = scratch_.path() / "store", out = scratch_.path() / "out";
+  fs::copy(store_, store, fs::copy_options::recursive);
+  const std::string render = "render --store " + store.string() + " --views " + views_.string() +
+                             " --out " + out.string() + " --size " + kSize + " --shard 0/4";
+  Outcome first = run(render);
+  ASSERT_EQ(first.status, 0) << first.err;
+  ASSERT_EQ(json::parse(first.out)["rendered"], 6);
+  const Outcome info_before = run("info --json --store " + store.string());
+  ASSERT_EQ(info_before.status, 0) << info_before.err;
+
+  std::string xml = slurp(plant_->path() / "plant.xml");
+  const size_t colour = xml.find("colour=\"#");
+  ASSERT_NE(colour, std::string::npos);
+  xml.replace(colour, std::string("colour=\"#123456ff\"").size(), "colour=\"#123456ff\"");
+  const fs::path recoloured = scratch_.path() / "recoloured.xml";
+  std::ofstream(recoloured) << xml;
+  const Outcome imported = run("import --store " + store.string() + " " + recoloured.string());
+  ASSERT_EQ(imported.status, 0) << imported.err;
+
+  const Outcome info_after = run("info --json --store " + store.string());
+  ASSERT_EQ(info_after.status, 0) << info_after.err;
+  json before = json::parse(info_before.out), after = json::parse(info_after.out);
+  EXPECT_NE(before["commit_id"], after["commit_id"]);
+  for (json* j : {&before, &after}) {
+    j->erase("commit_id");
+    j->erase("store_bytes");
+  }
+  EXPECT_EQ(before, after) << "the statistics alone cannot tell the two stores apart";
+
+  const Outcome again = run(render);
+  ASSERT_EQ(again.status, 0) << again.err;
+  const json summary = json::parse(again.out);
+  EXPECT_EQ(summary["rendered"], 6);
+  EXPECT_EQ(summary["skipped"], 0);
+}
+
 TEST_F(Farm, LocalShardsWriteTheSameBytesAsOneProcess) {
   const fs::path single = scratch_.path() / "single", sharded = scratch_.path() / "sharded";
   render_single(single);

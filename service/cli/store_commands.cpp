@@ -138,6 +138,9 @@ int run_info(const InfoOptions& o) {
     j["store"] = o.store;
     j["format_version"] = info.format_version;
     j["store_bytes"] = info.store_bytes;
+    char commit_id[17];
+    std::snprintf(commit_id, sizeof commit_id, "%016llx", (unsigned long long)info.commit_id);
+    j["commit_id"] = commit_id;
     std::cout << j.dump(2) << "\n";
     return 0;
   }

@@ -68,6 +68,27 @@ nlohmann::json statistics_to_json(const ModelStatistics& s) {
   return j;
 }
 
+// Commit ids (StoreInfo::commit_id): a digest of what each import changed, chained onto the
+// previous commit's id.
+uint64_t mix_digest(uint64_t digest, uint64_t value) {
+  uint64_t x = digest ^ (value + 0x9e3779b97f4a7c15ull + (digest << 6) + (digest >> 2));
+  x ^= x >> 30;  // splitmix64's finaliser: every input bit reaches every output bit
+  x *= 0xbf58476d1ce4e5b9ull;
+  x ^= x >> 27;
+  x *= 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+// meta/"commit_id" as committed in `txn`; 0 for a store that has none (empty, or made before
+// commit ids).
+uint64_t read_commit_id(MDB_txn* txn, MDB_dbi meta) {
+  MDB_val k = as_val("commit_id"), v;
+  uint64_t id = 0;
+  if (mdb_get(txn, meta, &k, &v) == MDB_SUCCESS && v.mv_size == sizeof id)
+    std::memcpy(&id, v.mv_data, sizeof id);
+  return id;
+}
+
 // Reads meta/"statistics" (statistics_to_json's form; absent keys count 0). False, with `why`
 // naming the key, when the value is not JSON or a key holds the wrong type: the value is input
 // like any other byte of the file, and a damaged one must not take down every command.
@@ -543,6 +564,14 @@ struct Import::State {
   std::vector<uint32_t> slots;  // scratch
   uint64_t put_count = 0;
   ModelStatistics put_statistics;  // of the objects put (Import::put_statistics())
+  // What this import changed, in the order it did (each record put and slot removed): with the
+  // previous commit's id it makes this commit's (meta/"commit_id").
+  uint64_t changes_digest = 0;
+  void digest(uint64_t value) { changes_digest = mix_digest(changes_digest, value); }
+  void digest(const std::vector<uint8_t>& bytes) {
+    digest(std::hash<std::string_view>()(
+        std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size())));
+  }
   detail::ZstdCCtx compressor = detail::make_compressor();
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
 
@@ -602,6 +631,7 @@ struct Import::State {
   // id and name keys go now; this import's are left out of the merge at commit.
   bool remove_slot(uint32_t slot, std::string& error) {
     if (is_removed(slot)) return true;
+    digest(slot);
     std::span<const uint8_t> record;
     if (!objects.get(txn.get(), slot, record, error)) return false;
     Object old;
@@ -968,8 +998,11 @@ bool Import::put(const Object& object, std::string& error) {
   std::vector<detail::SlotRun>* runs;
   if (!s.source_runs(object.source, runs, error)) return false;
   detail::encode_object(object, s.raw);
+  s.digest(slot);
+  s.digest(s.raw);
   if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
   detail::encode_attributes(object.attributes, s.raw);
+  s.digest(s.raw);
   if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
   ++s.next_slot;
   if (!runs->empty() && runs->back().first + runs->back().length == slot) {
@@ -1016,9 +1049,11 @@ bool Import::State::commit(std::string& error) {
   };
   const std::string stats = statistics_json(s.totals);
   const uint32_t version = kStoreFormatVersion;
+  const uint64_t commit_id = mix_digest(read_commit_id(s.txn.get(), dbs.meta), s.changes_digest);
   if (!put_meta("statistics", stats.data(), stats.size()) ||
       !put_meta("next_slot", &s.next_slot, sizeof s.next_slot) ||
-      !put_meta("format", &version, sizeof version)) {
+      !put_meta("format", &version, sizeof version) ||
+      !put_meta("commit_id", &commit_id, sizeof commit_id)) {
     return false;
   }
   const int rc = s.txn.commit();
@@ -1144,6 +1179,7 @@ StoreInfo ReadView::info() const {
   std::string ignored;
   read_statistics(txn, dbs.meta, state_->store->directory, info.statistics, ignored);
   info.objects = info.statistics.objects;
+  info.commit_id = read_commit_id(txn, dbs.meta);
   std::error_code ec;
   const auto size = std::filesystem::file_size(
       std::filesystem::path(state_->store->directory) / "data.mdb", ec);

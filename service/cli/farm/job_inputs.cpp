@@ -36,7 +36,10 @@ bool check_subjects(const std::vector<ReviewView>& views, const ReadView& read, 
 
 std::string store_identity(const ReadView& read) {
   const StoreInfo info = read.info();
-  return hash_hex(statistics_json(info.statistics) + "\n" + std::to_string(info.objects));
+  // The commit id changes with every import, whatever the statistics say; the statistics
+  // still tell apart stores of other origins whose imports happen to digest alike.
+  return hash_hex(std::to_string(info.commit_id) + "\n" + statistics_json(info.statistics) + "\n" +
+                  std::to_string(info.objects));
 }
 
 }  // namespace plantview::cli::farm

@@ -21,9 +21,10 @@ bool read_views_file(const std::string& path, std::vector<ReviewView>& views, st
 // False naming up to five subject ids that are not objects of the store ("view 'P-101A': id 77").
 bool check_subjects(const std::vector<ReviewView>& views, const ReadView& read, std::string& error);
 
-// The store's content as far as images go, as 16 hex digits: a hash of its statistics (objects,
-// primitives and triangles by kind and by class, bounds), which change with every import that
-// changes geometry. (An import that only recolours objects keeps it: use --force then.)
+// The store's content as far as images go, as 16 hex digits: a hash of its commit id (which
+// changes with every import: StoreInfo::commit_id) and its statistics. A store made before
+// commit ids has id 0: only its statistics tell (an import that kept every count and the
+// bounds needs --force there).
 std::string store_identity(const ReadView& read);
 
 }  // namespace plantview::cli::farm

@@ -182,6 +182,11 @@ struct StoreInfo {
   uint64_t objects = 0;
   ModelStatistics statistics;  // bounds included
   uint64_t store_bytes = 0;    // size of the data file on disk
+  // Changes with every committed import: a digest of what the import changed (each object put,
+  // its attributes, each slot removed) chained onto the previous commit's id. The same imports
+  // in the same order give the same id; any other change another one, whatever the statistics
+  // say (an object recoloured or moved within the bounds). 0: nothing committed yet.
+  uint64_t commit_id = 0;
 };
 
 // The statistics as one JSON object: objects, primitives and triangles (full resolution), each
