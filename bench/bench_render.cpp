@@ -36,6 +36,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -260,6 +261,22 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
         std::set_difference(ia.begin(), ia.end(), ib.begin(), ib.end(), std::back_inserter(lost));
         if (is_interior) r.interior_seen.push_back(double(ia.size() - (!ia.empty() && ia[0] == 0)));
         r.missing += lost.size();
+        // Each one named, with what the frame with occlusion shows in its place (a twin whose
+        // surface coincides with it wins a depth tie, and is not a dropped object).
+        for (const uint64_t id : lost) {
+          size_t pixels = 0;
+          std::map<uint64_t, size_t> instead;
+          for (size_t p = 0; p < a.size(); ++p) {
+            if (a[p] != id) continue;
+            ++pixels;
+            ++instead[b[p]];
+          }
+          std::string there;
+          for (const auto& [other, n] : instead)
+            there += " " + std::to_string(other) + " (" + std::to_string(n) + " px)";
+          std::fprintf(stderr, "bench_render: view %zu, %s: object %llu (%zu px) not shown; there:%s\n",
+                       v, r.name.c_str(), (unsigned long long)id, pixels, there.c_str());
+        }
       }
     }
     if (tty) std::fprintf(stderr, "\rview %zu/%zu", v + 1, cameras.size());
