@@ -61,7 +61,8 @@ void BM_TessellateTable1Mix(benchmark::State& state) {
     size_t v = 0, i = 0;
     for (const Primitive& p : w.primitives) {
       const MeshPlan plan = plan_mesh(p);
-      write_vertices(p, plan, glm::dvec3(0.0), std::span(w.vertex_out).subspan(v));
+      // Fitted to level 0, as the renderer writes an object it draws at full detail.
+      write_vertices(p, plan, glm::dvec3(0.0), std::span(w.vertex_out).subspan(v), 0);
       for (uint32_t l = 0; l < plan.level_count; ++l) {
         i += write_indices(plan, l, uint32_t(v), std::span(w.index_out).subspan(i));
       }
@@ -85,7 +86,8 @@ void BM_WriteVerticesOnly(benchmark::State& state) {
   for (auto _ : state) {
     size_t v = 0;
     for (size_t k = 0; k < w.primitives.size(); ++k) {
-      write_vertices(w.primitives[k], plans[k], glm::dvec3(0.0), std::span(w.vertex_out).subspan(v));
+      write_vertices(w.primitives[k], plans[k], glm::dvec3(0.0), std::span(w.vertex_out).subspan(v),
+                     0);
       v += plans[k].vertex_count;
     }
     benchmark::DoNotOptimize(w.vertex_out.data());

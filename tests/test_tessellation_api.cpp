@@ -44,6 +44,45 @@ TEST(Templates, ALevelSwitchIsOnlyAnIndexRangeOverOneVertexArray) {
   EXPECT_NEAR(plan.error_m[0], 0.1 * (1 - std::cos(std::numbers::pi / 32)), 1e-7);
 }
 
+TEST(FittedRings, ALevelFittedToStraddlesItsCircleAtHalfTheError) {
+  const float r = 0.1f;
+  const Primitive p{{}, Cylinder{r, 1.0f}};
+  const MeshPlan plan = plan_mesh(p);
+  ASSERT_EQ(plan.level_count, 4);
+  std::vector<PackedVertex> v(plan.vertex_count);
+  write_vertices(p, plan, glm::dvec3(0.0), v);  // the default: on the surface
+  EXPECT_NEAR(glm::length(glm::vec2(v[0].position_m)), r, 1e-7f);
+  for (uint32_t level = 0; level < plan.level_count; ++level) {
+    const double c = std::cos(std::numbers::pi / double(32 >> level));
+    write_vertices(p, plan, glm::dvec3(0.0), v, level);
+    // s = 2 / (1 + cos(pi/N)): vertices r(s - 1) out, chord midpoints r(1 - s cos) in, equal.
+    const double s = 2.0 / (1.0 + c);
+    for (uint32_t i : {0u, 5u, 31u, 40u}) {
+      EXPECT_NEAR(glm::length(glm::vec2(v[i].position_m)), r * s, 2e-7) << "vertex " << i;
+    }
+    EXPECT_NEAR(plan.straddled_error_m[level], r * (1 - c) / (1 + c), 1e-8) << "level " << level;
+    // 1 / (1 + cos(pi/N)) of the inscribed error: 0.50 at 32 segments, 0.59 at 4.
+    EXPECT_NEAR(plan.straddled_error_m[level], plan.error_m[level] / (1 + c), 1e-8);
+  }
+  write_vertices(p, plan, glm::dvec3(0.0), v, 7);  // past the coarsest: clamped to it
+  EXPECT_NEAR(glm::length(glm::vec2(v[0].position_m)),
+              r * 2.0 / (1.0 + std::cos(std::numbers::pi / 4)), 2e-7);
+}
+
+TEST(FittedRings, PipesOfOneRadiusFittedToOneLevelMeetRingToRing) {
+  // A run of two cylinders and a concentric snout of the same radius: their shared end rings
+  // coincide when fitted to the same level.
+  const Primitive a{{glm::mat3(1.0f), {0, 0, 0.5f}}, Cylinder{0.1f, 1.0f}};
+  const Primitive b{{glm::mat3(1.0f), {0, 0, 1.25f}}, Snout{0.1f, 0.1f, 0.5f}};
+  const MeshPlan pa = plan_mesh(a), pb = plan_mesh(b);
+  std::vector<PackedVertex> va(pa.vertex_count), vb(pb.vertex_count);
+  write_vertices(a, pa, glm::dvec3(0.0), va, 2);
+  write_vertices(b, pb, glm::dvec3(0.0), vb, 2);
+  for (uint32_t i = 0; i < 32; ++i) {
+    EXPECT_NEAR(glm::distance(va[32 + i].position_m, vb[i].position_m), 0.0f, 1e-6f) << i;
+  }
+}
+
 TEST(Concatenation, AnObjectsPrimitivesShareOneVertexAndOneIndexArray) {
   const Primitive parts[] = {
       {{}, Cylinder{0.1f, 1.0f}},

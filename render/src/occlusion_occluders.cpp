@@ -118,7 +118,8 @@ void build_occluder_shape(std::span<const Primitive> primitives,
     const MeshPlan plan = plan_mesh(primitive);
     if (plan.topology != Topology::triangles || !plan.closed || plan.vertex_count == 0) continue;
     scratch.resize(plan.vertex_count);
-    write_vertices(primitive, plan, glm::dvec3(0.0), scratch);
+    // On the surface: an occluder must never reach outside its object.
+    write_vertices(primitive, plan, glm::dvec3(0.0), scratch, kOnSurface);
     // The coarsest level's vertices (each once: vertices repeat per face with their normals).
     const size_t first = out.points.size();
     for (const uint32_t v : plan.indices[plan.level_count - 1]) {

@@ -80,9 +80,10 @@ std::vector<PrimitiveCase> all_cases() {
   return out;
 }
 
-LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uint32_t level) {
+LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uint32_t level,
+                           uint32_t fit_level) {
   std::vector<PackedVertex> vertices(plan.vertex_count);
-  write_vertices(primitive, plan, glm::dvec3(0.0), vertices);
+  write_vertices(primitive, plan, glm::dvec3(0.0), vertices, fit_level);
   LevelMesh mesh;
   mesh.positions.reserve(vertices.size());
   for (const PackedVertex& v : vertices) {

@@ -50,7 +50,9 @@ struct LevelMesh {
   std::vector<glm::vec3> normals;
   std::vector<uint32_t> indices;  // this level's triangles (or lines)
 };
-LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uint32_t level);
+// Level `level` drawn from vertices fitted to `fit_level` (kOnSurface: on the true surface).
+LevelMesh tessellate_level(const Primitive& primitive, const MeshPlan& plan, uint32_t level,
+                           uint32_t fit_level = kOnSurface);
 
 // Largest distance from any of `points` to the triangle mesh: brute force over every triangle,
 // with the test's own point-to-triangle distance (no code shared with the tessellators, which

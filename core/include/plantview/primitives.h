@@ -20,8 +20,43 @@
 //     shape in a process-wide template cache and shared by every primitive of that shape.
 //   - Each level reports its geometric error in metres (model units, after the placement's scale):
 //     an upper bound of the distance between the mesh and the true surface, at most about twice
-//     the true figure. For a circle of radius r in N segments that is the sagitta r(1 - cos(pi/N)).
+//     the true figure. For a circle of radius r in N segments that is the sagitta r(1 - cos(pi/N))
+//     (error_m, on-surface vertices); the same rule holds for straddled_error_m (vertices fitted
+//     to that level, below).
 //   - Flat kinds (box, pyramid, prism, line, facet group) have one level and zero error.
+//
+// Fitted vertices (straddling polygons)
+//   - With every vertex on the true surface each polygon is inscribed: its error is one-sided.
+//     write_vertices can instead fit the vertices to one level l: in each curved direction they
+//     move outward by the scale s_l = 2 / (1 + cos(pi/N_l)) (N_l: level l's segments in that
+//     direction; for other deficits x, s = 2 / (2 - x)), so that level l's polygons straddle the
+//     surface: vertices r(s_l - 1) outside, the deepest points as far inside,
+//     r(1 - cos)/(1 + cos): about half the error for the same triangles (straddled_error_m[l]).
+//   - Fitting moves vertices, never changes which vertices a level uses: the nesting holds, and a
+//     coarser level l > b drawn from vertices fitted to b errs at most error_m[l] (its chords'
+//     midpoints dip r(1 - s_b cos(pi/N_l)) <= r(1 - cos(pi/N_l)) inside, its vertices stick
+//     r(s_b - 1) <= r(1 - cos(pi/N_l)) out). A level finer than the fit (l < b) errs at most
+//     error_m[l] + straddled_error_m[b] (the vertices are off the surface by up to the latter);
+//     draw it from vertices fitted to it instead.
+//   - Per kind: cylinder and snout scale their end rings about the end centres; circular torus
+//     its tube rings (tube s) and its stations' distance from the axis (sweep s); rectangular
+//     torus its stations (sweep s); the sphere scales about its centre (s = 2 / (1 + cos^2));
+//     the elliptical dish scales about its base centre (vessel heads from 2:1 to hemispheres
+//     only; its base ring stays in its plane). Never moved (straddled_error_m = error_m), as measurement showed no gain:
+//     twisted snouts and square-to-rounds (the side quads' twist dominates their error),
+//     spherical dishes (the base ring is held on the rim), elliptical dishes flatter than 2:1 or
+//     taller than a hemisphere, saddles (the cradle ends on the side
+//     edges); nor flat kinds, lines and facet groups. Caps copy their rim, so a fitted solid
+//     stays watertight.
+//   - Where parts meet: two primitives of the same radius and segment count fitted to the same
+//     level get the same s and meet as before (a pipe run of cylinders). An elbow's end ring is
+//     also pushed away from the bend axis by the sweep's s, so it meets the next cylinder with a
+//     gap or overlap of at most its level's straddled error; a square-to-round or twisted snout
+//     (never fitted) meets a fitted cylinder with a step of the cylinder's straddled error. Any
+//     gap between parts stays within the level's (straddled) error; on-surface vertices (kOnSurface) never reach outside
+//     the shape, which occluders need.
+//   - The bounds (local_bounds, model_bounds) are the analytic ones; a fitted mesh may reach
+//     outside them by up to straddled_error_m of its fit level.
 //
 // Segment counts (the size rule)
 //   For a curved direction of diameter D: n_max = 5 (32 segments) up to D = 1 m, one more per
@@ -240,7 +275,8 @@ struct Aabb {
   bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
 };
 
-// The analytic bounds of a shape in its local frame (not of its mesh; the mesh lies inside).
+// The analytic bounds of a shape in its local frame (not of its mesh: an on-surface mesh lies
+// inside, a fitted one up to its straddled error outside).
 Aabb local_bounds(const Shape& shape);
 // The bounds in model space: local bounds through the placement.
 Aabb model_bounds(const Primitive& primitive);
@@ -276,6 +312,10 @@ struct MeshPlan {
   uint32_t vertex_count = 0;     // vertices written by write_vertices, shared by every level
   std::array<std::span<const uint32_t>, kMaxLevels> indices{};  // per level, local vertex indices
   std::array<float, kMaxLevels> error_m{};                       // per level, model-space metres
+  // Per level l, model-space metres: the error of level l drawn from vertices fitted to l
+  // (write_vertices with fit_level = l), about half error_m[l] for curved kinds, error_m[l] for
+  // kinds that are never fitted. Level l drawn from vertices fitted to b < l: at most error_m[l].
+  std::array<float, kMaxLevels> straddled_error_m{};
   std::array<uint16_t, 2> segments{};  // level-0 segment counts of the curved directions (0: none)
 
   // Level l clamped to this primitive's coarsest level: objects mix primitives of many level counts.
@@ -289,11 +329,17 @@ struct MeshPlan {
 
 MeshPlan plan_mesh(const Primitive& primitive);
 
+// fit_level for vertices on the true surface (every level's polygons inscribed).
+inline constexpr uint32_t kOnSurface = 0xffffffffu;
+
 // Writes the plan's vertex_count vertices (level 0, shared by all levels) into `out`, positions
 // relative to origin_m (model space, metres). `out.size()` must be at least plan.vertex_count.
-// Allocates nothing.
+// With fit_level = l (clamped to the plan's levels) the vertices are fitted so that level l's
+// polygons straddle the surface (its error: straddled_error_m[l]; see "Fitted vertices" above);
+// with kOnSurface every vertex lies on the surface (error_m), as occluders and anything that must
+// stay inside the shape need. Allocates nothing.
 void write_vertices(const Primitive& primitive, const MeshPlan& plan, const glm::dvec3& origin_m,
-                    std::span<PackedVertex> out);
+                    std::span<PackedVertex> out, uint32_t fit_level = kOnSurface);
 
 // Appends level `level`'s indices, offset by base_vertex (and with the winding flipped if the
 // plan says so), to `out`, which must hold at least plan.index_count(level) entries. With 16-bit

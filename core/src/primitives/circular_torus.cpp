@@ -122,10 +122,15 @@ void plan(const CircularTorus& t, MeshPlan& plan, TemplateKey& key) {
   plan.vertex_count = stations * n_max + (p.closed ? 0 : 2 * n_max);
   plan.segments = {uint16_t(n_max), uint16_t(p.sweep_max)};
   // Chords along the sweep cut deepest at the outer radius; the tube's own chords add to that.
+  // Fitted, both straddle: the tube ring's by its own s, the sweep's at the fitted outer radius.
   for (uint32_t l = 0; l < plan.level_count; ++l) {
     const uint32_t n = segments_at(n_max, n_min, l), s = segments_at(p.sweep_max, p.sweep_min, l);
     plan.error_m[l] = sweep_sagitta(p.bend_m + p.tube_m, p.angle_rad, s) +
                       sweep_sagitta(p.tube_m, 2.0f * kPi, n);
+    const float tube_deficit = ring_deficit(n), sweep_deficit = sweep_sagitta(1.0f, p.angle_rad, s);
+    plan.straddled_error_m[l] =
+        straddled_deficit(p.bend_m + straddle_scale(tube_deficit) * p.tube_m, sweep_deficit) +
+        straddled_deficit(p.tube_m, tube_deficit);
   }
   key.kind = uint8_t(PrimitiveKind::circular_torus);
   key.flags = p.closed ? kClosedRing : 0;
@@ -168,10 +173,20 @@ void write(const CircularTorus& t, const MeshPlan& plan, const VertexSink& sink)
   sweep[0] = glm::vec2(1.0f, 0.0f);  // station 0 is angle 0 (sweep_directions agrees)
   sweep_directions(p.angle_rad, s, stations, sweep.data());
   // Station j is the tube circle about bend * u, u = sweep[j]: the sample (c, s) lies at
-  // (bend + tube c) u + tube s z, with the unit normal c u + s z.
+  // (bend + tube c) u + tube s z, with the unit normal c u + s z. Fitted, the tube radius scales
+  // by the tube's s and the distance from the axis (u) by the sweep's.
+  float tube_scale = 1.0f, sweep_scale = 1.0f;
+  if (sink.fitted()) {
+    const uint32_t level = uint32_t(sink.fit_level);
+    tube_scale = straddle_scale(ring_deficit(segments_at(n, n >> (plan.level_count - 1u), level)));
+    sweep_scale = straddle_scale(
+        sweep_sagitta(1.0f, p.angle_rad, segments_at(p.sweep_max, p.sweep_min, level)));
+  }
+  const float tube_m = tube_scale * p.tube_m;
   for (uint32_t j = 0; j < stations; ++j) {
     const glm::vec3 u(sweep[j], 0.0f);
-    sink.put_ring(j * n, n, AffineRing{p.bend_m * u, p.tube_m * u, {0, 0, p.tube_m}},
+    sink.put_ring(j * n, n,
+                  AffineRing{sweep_scale * p.bend_m * u, sweep_scale * tube_m * u, {0, 0, tube_m}},
                   AffineRing{{0, 0, 0}, u, {0, 0, 1}, true});
   }
   if (p.closed) return;

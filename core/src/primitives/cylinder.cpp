@@ -6,6 +6,7 @@
 //   [0, N) bottom ring, [N, 2N) top ring, [2N, 3N) bottom cap, [3N, 4N) top cap;
 //   vertex i of each block lies at angle 2*pi*i/N.
 // Level l uses every 2^l-th vertex of each block: side quads, and caps fanned from vertex 0.
+// Fitted to level l, both rings (and the caps that copy them) have radius r s_l.
 
 #include "kinds.h"
 
@@ -41,10 +42,19 @@ void plan_ring_solid(float max_radius_m, float diameter_for_rule_m, MeshPlan& pl
   for (uint32_t l = 0; l < plan.level_count; ++l) {
     const uint32_t n = segments_at(n_max, n_min, l);
     plan.error_m[l] = segment_sagitta(max_radius_m, n);
+    plan.straddled_error_m[l] = straddled_deficit(max_radius_m, ring_deficit(n));
   }
   key.kind = uint8_t(PrimitiveKind::cylinder);
   key.a_max = uint16_t(n_max);
   key.a_min = uint16_t(n_min);
+}
+
+// Shared with snout.cpp: the scale of a ring solid's rings for the sink's fit level (1 when on
+// the surface).
+float ring_solid_fit_scale(const MeshPlan& plan, const VertexSink& sink) {
+  if (!sink.fitted()) return 1.0f;
+  const uint32_t n_max = plan.segments[0], n_min = n_max >> (plan.level_count - 1u);
+  return straddle_scale(ring_deficit(segments_at(n_max, n_min, uint32_t(sink.fit_level))));
 }
 
 void plan(const Cylinder& c, MeshPlan& plan, TemplateKey& key) {
@@ -58,7 +68,7 @@ void build_template_Cylinder(const TemplateKey& key, TemplateBuilder& out) {
 }
 
 void write(const Cylinder& c, const MeshPlan& plan, const VertexSink& sink) {
-  const float r = sane(c.radius_m), h2 = 0.5f * sane(c.height_m);
+  const float r = sane(c.radius_m) * ring_solid_fit_scale(plan, sink), h2 = 0.5f * sane(c.height_m);
   const uint32_t n = plan.segments[0];
   const AffineRing radial{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, true};
   sink.put_ring(0, n, AffineRing{{0, 0, -h2}, {r, 0, 0}, {0, r, 0}}, radial);

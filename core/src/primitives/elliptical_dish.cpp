@@ -63,6 +63,31 @@ EllipticalDishParams params_of(const EllipticalDish& d) {
   return p;
 }
 
+// Both directions step 2*pi/N in angle. Around, chords cut deepest on the base ring. Along a
+// meridian (an ellipse of semi-axes r, h) a chord of half-angle t centred at latitude b cuts
+// (1 - cos t) r h / sqrt(h^2 cos^2 b + r^2 sin^2 b), deepest in the band nearest the flatter
+// end: the base when h <= r, the apex otherwise. The two add within a band.
+float error_at(float r, float h, uint32_t segments) {
+  const float half_step = kPi / float(segments);
+  const float c = std::cos(half_step), s = std::sin(half_step);
+  const float flattest = h <= r ? std::sqrt(h * h * c * c + r * r * s * s)
+                                : std::sqrt(h * h * s * s + r * r * c * c);
+  return one_minus_cos(half_step) * (r + r * h / flattest);
+}
+
+// Fitted: the ellipsoid scales about the base centre (the base ring stays in the base plane) so
+// that the error, measured against the longer semi-axis, straddles: s = 2 / (2 - e / max(r, h)),
+// the straddled deficit e / (2 - e / max(r, h)). Only vessel heads are fitted, from 2:1 heads
+// (h = r / 2) to hemispheres: flatter or taller dishes' deepest and highest points lie at
+// different ends of the meridian, and one scale gained a third at best there (measured).
+bool is_fitted(float r, float h) { return h >= 0.5f * r && h <= r; }
+float fit_scale(float r, float h, float error_m) {
+  return is_fitted(r, h) ? straddle_scale(error_m / std::max(r, h)) : 1.0f;
+}
+float straddled_error(float r, float h, float error_m) {
+  return is_fitted(r, h) ? straddled_deficit(std::max(r, h), error_m / std::max(r, h)) : error_m;
+}
+
 }  // namespace
 
 void plan(const EllipticalDish& d, MeshPlan& plan, TemplateKey& key) {
@@ -75,16 +100,10 @@ void plan(const EllipticalDish& d, MeshPlan& plan, TemplateKey& key) {
   plan.level_count = uint8_t(p.around.n_max - p.around.n_min + 1);
   plan.vertex_count = (n_max / 4) * n_max + 1 + n_max;
   plan.segments = {uint16_t(n_max), uint16_t(n_max / 4)};
-  // Both directions step 2*pi/N in angle. Around, chords cut deepest on the base ring. Along a
-  // meridian (an ellipse of semi-axes r, h) a chord of half-angle t centred at latitude b cuts
-  // (1 - cos t) r h / sqrt(h^2 cos^2 b + r^2 sin^2 b), deepest in the band nearest the flatter
-  // end: the base when h <= r, the apex otherwise. The two add within a band.
+  // The error: error_at() above.
   for (uint32_t l = 0; l < plan.level_count; ++l) {
-    const float half_step = kPi / float(segments_at(n_max, n_min, l));
-    const float c = std::cos(half_step), s = std::sin(half_step);
-    const float flattest = h <= r ? std::sqrt(h * h * c * c + r * r * s * s)
-                                  : std::sqrt(h * h * s * s + r * r * c * c);
-    plan.error_m[l] = one_minus_cos(half_step) * (r + r * h / flattest);
+    plan.error_m[l] = error_at(r, h, segments_at(n_max, n_min, l));
+    plan.straddled_error_m[l] = straddled_error(r, h, plan.error_m[l]);
   }
   key.kind = uint8_t(PrimitiveKind::elliptical_dish);
   key.a_max = uint16_t(n_max);
@@ -99,8 +118,14 @@ void build_template_EllipticalDish(const TemplateKey& key, TemplateBuilder& out)
 
 void write(const EllipticalDish& d, const MeshPlan& plan, const VertexSink& sink) {
   const EllipticalDishParams p = params_of(d);
-  const float r = p.radius_m, h = p.height_m;
+  float r = p.radius_m, h = p.height_m;
   const uint32_t n = plan.segments[0], bands = plan.segments[1];
+  if (sink.fitted()) {
+    const float scale = fit_scale(
+        r, h, error_at(r, h, segments_at(n, n >> (plan.level_count - 1u), uint32_t(sink.fit_level))));
+    r *= scale;
+    h *= scale;
+  }
   const uint32_t apex = bands * n, disc = apex + 1;
   // Latitude (pi/2)*k/B = 2*pi*k/N: the circle samples serve both directions.
   for (uint32_t k = 0; k < bands; ++k) {

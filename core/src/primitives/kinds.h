@@ -3,15 +3,17 @@
 //
 // Each kind provides four functions:
 //   void plan(const K&, MeshPlan& plan, TemplateKey& key);
-//       Fills plan.topology, closed, level_count, vertex_count, segments and the LOCAL error of
-//       each level (error_m, in the shape's own metres; the driver scales it by the placement).
+//       Fills plan.topology, closed, level_count, vertex_count, segments and the LOCAL errors of
+//       each level (error_m and straddled_error_m, in the shape's own metres; the driver scales
+//       them by the placement). A kind that does not fit its vertices copies error_m.
 //       Sets key to the shape's template (kind, flags, segment counts); the driver fetches or
 //       builds the template and fills plan.indices. Must be cheap and allocation-free.
 //       A shape without volume sets vertex_count = 0 and leaves key.kind = kNoTemplate.
 //   void build_template(const TemplateKey& key, TemplateBuilder& out);
 //       Writes the index arrays of every level, level 0 first, into `out`. Runs once per key.
 //   void write(const K&, const MeshPlan& plan, const VertexSink& sink);
-//       Writes plan.vertex_count vertices through the sink. Allocation-free; stack arrays only.
+//       Writes plan.vertex_count vertices through the sink, fitted to sink.fit_level (on the
+//       surface when negative). Allocation-free; stack arrays only.
 //   Aabb bounds(const K&);
 //       Analytic local bounds.
 #pragma once
@@ -132,6 +134,19 @@ inline float segment_sagitta(float radius_m, uint32_t segments) {
   return sagitta_from_half_sine(radius_m, kUnitCircle[kCircleSamples / (4 * segments)].y);
 }
 
+// Fitting (primitives.h, write_vertices). A curve whose inscribed polygon dips up to
+// x * W inside it (W: the radius that deficit is measured against, x relative) straddles it when
+// its vertices are moved out by the scale 2 / (2 - x): they then lie W x / (2 - x) outside, and
+// the deepest point of the polygon, W (1 - s (1 - x)), as far inside. For a circle of N
+// segments x = 1 - cos(pi/N), s = 2 / (1 + cos(pi/N)).
+inline float straddle_scale(float relative_deficit) { return 2.0f / (2.0f - relative_deficit); }
+// W x / (2 - x), computed without s - 1 (which cancels in float at fine steps).
+inline float straddled_deficit(float radius_m, float relative_deficit) {
+  return radius_m * relative_deficit / (2.0f - relative_deficit);
+}
+// The relative deficit of a circle of `segments` chords, 1 - cos(pi/N).
+inline float ring_deficit(uint32_t segments) { return segment_sagitta(1.0f, segments); }
+
 // A ring of a shape as a function of the unit circle sample cs = (c, s) it stands at:
 // centre + c * along_c + s * along_s, in local coordinates. Cylinders, snouts, tori, spheres and
 // dishes are stacks of rings whose positions (and mostly normals) are of this form; the sink maps
@@ -149,7 +164,10 @@ struct VertexSink {
   glm::vec3 translation_m{0.0f};   // placement translation minus origin, already in float
   glm::mat3 normal_matrix{1.0f};   // inverse transpose of linear
   bool preserves_unit_normals = false;  // normal_matrix is a rotation (placement is a similarity)
+  int fit_level = -1;  // the level the vertices are fitted to, clamped; -1: on the surface
   PackedVertex* out = nullptr;
+
+  bool fitted() const { return fit_level >= 0; }
 
   // Packs a model-space normal of any length (zero gives +z).
   static uint32_t pack_normalised(const glm::vec3& n) {

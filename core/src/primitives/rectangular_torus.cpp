@@ -75,8 +75,9 @@ void plan(const RectangularTorus& t, MeshPlan& plan, TemplateKey& key) {
   plan.segments = {uint16_t(p.sweep_max), 0};
   // The section is exact; only the sweep's chords cut in, deepest on the outer wall.
   for (uint32_t l = 0; l < plan.level_count; ++l) {
-    plan.error_m[l] =
-        sweep_sagitta(p.outer_m, p.angle_rad, segments_at(p.sweep_max, p.sweep_min, l));
+    const uint32_t s = segments_at(p.sweep_max, p.sweep_min, l);
+    plan.error_m[l] = sweep_sagitta(p.outer_m, p.angle_rad, s);
+    plan.straddled_error_m[l] = straddled_deficit(p.outer_m, sweep_sagitta(1.0f, p.angle_rad, s));
   }
   key.kind = uint8_t(PrimitiveKind::rectangular_torus);
   key.flags = p.closed ? kClosedRing : 0;
@@ -120,11 +121,17 @@ void write(const RectangularTorus& t, const MeshPlan& plan, const VertexSink& si
   const uint32_t start_normal = sink.normal({0, -1, 0});
   const uint32_t end_normal = sink.normal({-sweep[s % stations].y, sweep[s % stations].x, 0});
   const float h2 = p.half_height_m;
+  // Fitted, every station's distance from the axis scales by the sweep's s.
+  const float fit =
+      sink.fitted() ? straddle_scale(sweep_sagitta(
+                          1.0f, p.angle_rad,
+                          segments_at(p.sweep_max, p.sweep_min, uint32_t(sink.fit_level))))
+                    : 1.0f;
   for (uint32_t j = 0; j < stations; ++j) {
-    const glm::vec2 u = sweep[j];
+    const glm::vec2 u = fit * sweep[j];
     const glm::vec2 inner = p.inner_m * u, outer = p.outer_m * u;
     const glm::vec3 corners[4] = {{inner, -h2}, {outer, -h2}, {outer, h2}, {inner, h2}};
-    const uint32_t inward = sink.normal({-u, 0}), outward = sink.normal({u, 0});
+    const uint32_t inward = sink.normal({-sweep[j], 0}), outward = sink.normal({sweep[j], 0});
     const uint32_t v = kPerStation * j;
     sink.put(v + kInnerBottom, corners[0], inward);
     sink.put(v + kInnerTop, corners[3], inward);

@@ -82,6 +82,8 @@ void plan(const Saddle& s, MeshPlan& plan, TemplateKey& key) {
     const float sagitta = chord_sagitta(  // R(1 - cos(beta / A))
         shape.radius_m, shape.half_angle_rad / float(segments_at(a_max, a_min, l)));
     plan.error_m[l] = std::min({sagitta, 0.5f * shape.length_m, 0.5f * shape.height_m});
+    // Never fitted: the cradle's ends lie on the side faces' edges, which scaling would tear.
+    plan.straddled_error_m[l] = plan.error_m[l];
   }
   key.kind = uint8_t(PrimitiveKind::saddle);
   key.a_max = uint16_t(a_max);

@@ -9,6 +9,7 @@
 //
 // Error: a facet's centre lies furthest inside; the facets next to the equator are the worst, at
 // r sin^2(pi/N) (the square of the half-segment's sine: both directions' sagittas together).
+// Fitted, every vertex scales about the centre by 2 / (2 - sin^2(pi/N)).
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -34,6 +35,7 @@ void plan(const Sphere& s, MeshPlan& plan, TemplateKey& key) {
   for (uint32_t l = 0; l < plan.level_count; ++l) {
     const float half = std::sin(std::numbers::pi_v<float> / float(segments_at(n_max, n_min, l)));
     plan.error_m[l] = r * half * half;
+    plan.straddled_error_m[l] = straddled_deficit(r, half * half);
   }
   key.kind = uint8_t(PrimitiveKind::sphere);
   key.a_max = uint16_t(n_max);
@@ -60,8 +62,13 @@ void build_template_Sphere(const TemplateKey& key, TemplateBuilder& out) {
 }
 
 void write(const Sphere& s, const MeshPlan& plan, const VertexSink& sink) {
-  const float r = sane(s.radius_m);
+  float r = sane(s.radius_m);
   const uint32_t n = plan.segments[0];
+  if (sink.fitted()) {  // every vertex scales about the centre, by the deficit sin^2(pi/N)
+    const uint32_t fit_n = segments_at(n, n >> (plan.level_count - 1u), uint32_t(sink.fit_level));
+    const float half = std::sin(std::numbers::pi_v<float> / float(fit_n));
+    r *= straddle_scale(half * half);
+  }
   sink.put(0, {0, 0, r}, sink.unit_normal({0, 0, 1}));
   for (uint32_t j = 1; j < n / 2; ++j) {
     const glm::vec2 polar = circle_sample(j, n);  // (cos, sin) of the polar angle

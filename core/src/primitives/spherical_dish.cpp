@@ -71,6 +71,9 @@ void plan(const SphericalDish& d, MeshPlan& plan, TemplateKey& key) {
     const double around = p.widest_m * one_minus_cos(std::numbers::pi / double(n));
     const double meridian = p.sphere_m * one_minus_cos(0.5 * p.polar_max / double(bands));
     plan.error_m[l] = float(std::max(around, meridian + widest_sine * around));
+    // Never fitted: the base ring must stay in the base plane and on the rim, and scaling the
+    // cap about its sphere's centre with the ring held there gained only a third (measured).
+    plan.straddled_error_m[l] = plan.error_m[l];
   }
   key.kind = uint8_t(PrimitiveKind::spherical_dish);
   key.a_max = uint16_t(n_max);

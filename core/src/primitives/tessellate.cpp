@@ -221,6 +221,7 @@ MeshPlan plan_mesh(const Primitive& primitive) {
     plan.level_count = 1;
     plan.indices = {};
     plan.error_m = {};
+    plan.straddled_error_m = {};
     return plan;
   }
   if (key.kind != detail::kNoTemplate) {
@@ -238,16 +239,20 @@ MeshPlan plan_mesh(const Primitive& primitive) {
       is_similarity(m)
           ? std::sqrt(std::max({glm::dot(m[0], m[0]), glm::dot(m[1], m[1]), glm::dot(m[2], m[2])}))
           : max_stretch(m);
-  for (uint32_t l = 0; l < plan.level_count; ++l) plan.error_m[l] *= stretch;
+  for (uint32_t l = 0; l < plan.level_count; ++l) {
+    plan.error_m[l] *= stretch;
+    plan.straddled_error_m[l] *= stretch;
+  }
   plan.flip_winding = glm::determinant(m) < 0.0f;
   return plan;
 }
 
 void write_vertices(const Primitive& primitive, const MeshPlan& plan, const glm::dvec3& origin_m,
-                    std::span<PackedVertex> out) {
+                    std::span<PackedVertex> out, uint32_t fit_level) {
   assert(out.size() >= plan.vertex_count);
   if (plan.vertex_count == 0) return;
   detail::VertexSink sink;
+  sink.fit_level = fit_level == kOnSurface ? -1 : int(plan.clamp_level(fit_level));
   sink.linear = primitive.placement.linear;
   sink.translation_m = glm::vec3(glm::dvec3(primitive.placement.translation_m) - origin_m);
   if (is_similarity(sink.linear)) {

@@ -172,7 +172,8 @@ void MeshBuilder::build(const CanonicalObject& object, const PrimitiveLevels& le
     const uint32_t level = levels[i];
     if (plan.vertex_count == 0) continue;
     packed_.resize(plan.vertex_count);
-    write_vertices(object.primitives[i], plan, glm::dvec3(0.0), packed_);
+    // Fitted to the level drawn (primitives.h): within its straddled error, under error_m.
+    write_vertices(object.primitives[i], plan, glm::dvec3(0.0), packed_, level);
     const bool lines = plan.topology == Topology::lines;
     std::vector<GltfVertex>& vertices = lines ? line_vertices_ : tri_vertices_;
     std::vector<uint32_t>& indices = lines ? line_indices_ : tri_indices_;

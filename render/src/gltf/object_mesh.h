@@ -19,7 +19,9 @@
 //   - Levels: a mesh is made of each primitive at a level of its own (PrimitiveLevels). With a
 //     tolerance, each primitive's coarsest level whose error is at most the tolerance, so the
 //     object's error is at most it too; a level chosen for the whole object (the renderer's
-//     rule) applies to every primitive, clamped to each one's coarsest.
+//     rule) applies to every primitive, clamped to each one's coarsest. Each primitive's
+//     vertices are fitted to its level (primitives.h, "Fitted vertices"): its error is then
+//     straddled_error_m, about half the error_m the tolerance is held to.
 // Units: metres. Threads: any; MeshBuilder is one per thread.
 #pragma once
 
