@@ -4,30 +4,6 @@
 
 namespace plantview::ingest_detail {
 
-namespace {
-
-// Adds `part`'s counts to `total`.
-void add(ModelStatistics& total, const ModelStatistics& part) {
-  total.objects += part.objects;
-  total.primitives += part.primitives;
-  total.triangles += part.triangles;
-  for (size_t c = 0; c < kObjectClassCount; ++c) {
-    total.objects_by_class[c] += part.objects_by_class[c];
-    total.primitives_by_class[c] += part.primitives_by_class[c];
-    total.triangles_by_class[c] += part.triangles_by_class[c];
-  }
-  for (size_t k = 0; k < kPrimitiveKindCount; ++k) {
-    total.primitives_by_kind[k] += part.primitives_by_kind[k];
-    total.triangles_by_kind[k] += part.triangles_by_kind[k];
-  }
-  if (!part.bounds.empty()) {
-    total.bounds.extend(part.bounds.min);
-    total.bounds.extend(part.bounds.max);
-  }
-}
-
-}  // namespace
-
 Transaction::Transaction(Store& store, const IngestControl& control) : store_(store), control_(control) {}
 
 bool Transaction::begin() {
@@ -63,7 +39,12 @@ IngestResult Transaction::commit() {
   if (!check_stop()) return failure();
   file_index_ = file_count_;
   report(IngestStage::committing, 0, 1);
-  add(summary_.added, import_->put_statistics());
+  const ModelStatistics& put = import_->put_statistics();
+  summary_.added.add_counts(put);
+  if (!put.bounds.empty()) {
+    summary_.added.bounds.extend(put.bounds.min);
+    summary_.added.bounds.extend(put.bounds.max);
+  }
   if (!import_->commit(store_error_)) {
     fail_store();
     return failure();

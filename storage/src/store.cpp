@@ -193,36 +193,6 @@ bool read_statistics(MDB_txn* txn, MDB_dbi meta, const std::string& directory,
   return false;
 }
 
-void subtract(ModelStatistics& total, const ModelStatistics& part) {
-  total.objects -= part.objects;
-  total.primitives -= part.primitives;
-  total.triangles -= part.triangles;
-  for (int c = 0; c < kObjectClassCount; ++c) {
-    total.objects_by_class[c] -= part.objects_by_class[c];
-    total.primitives_by_class[c] -= part.primitives_by_class[c];
-    total.triangles_by_class[c] -= part.triangles_by_class[c];
-  }
-  for (int k = 0; k < kPrimitiveKindCount; ++k) {
-    total.primitives_by_kind[k] -= part.primitives_by_kind[k];
-    total.triangles_by_kind[k] -= part.triangles_by_kind[k];
-  }
-}
-
-void add(ModelStatistics& total, const ModelStatistics& part) {
-  total.objects += part.objects;
-  total.primitives += part.primitives;
-  total.triangles += part.triangles;
-  for (int c = 0; c < kObjectClassCount; ++c) {
-    total.objects_by_class[c] += part.objects_by_class[c];
-    total.primitives_by_class[c] += part.primitives_by_class[c];
-    total.triangles_by_class[c] += part.triangles_by_class[c];
-  }
-  for (int k = 0; k < kPrimitiveKindCount; ++k) {
-    total.primitives_by_kind[k] += part.primitives_by_kind[k];
-    total.triangles_by_kind[k] += part.triangles_by_kind[k];
-  }
-}
-
 struct Databases {
   MDB_dbi meta, objects, attributes, sources, ids, names;
   MDB_dbi spatial[2];  // spatial_a, spatial_b: the top says which holds the committed blocks
@@ -649,7 +619,7 @@ struct Import::State {
     }
     ModelStatistics part;
     part.add(old);
-    subtract(totals, part);
+    totals.subtract_counts(part);
     mark_removed(slot);
     // The source's list is rewritten at commit (without the removed slots).
     std::vector<detail::SlotRun>* unused;
@@ -1017,8 +987,8 @@ bool Import::put(const Object& object, std::string& error) {
     error = s.message(why);
     return false;
   }
-  add(s.totals, part);
-  add(s.put_statistics, part);
+  s.totals.add_counts(part);
+  s.put_statistics.add_counts(part);
   s.put_statistics.bounds.extend(part.bounds);
   ++s.put_count;
   return true;

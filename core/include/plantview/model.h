@@ -119,6 +119,9 @@ struct ModelStatistics {
   uint64_t triangles_by_kind[kPrimitiveKindCount] = {};
   DAabb bounds;
   void add(const Object& object);                     // adds one object's counts
+  // Adds or takes away another's counts (not its bounds: those cannot be taken away).
+  void add_counts(const ModelStatistics& part);
+  void subtract_counts(const ModelStatistics& part);
 };
 ModelStatistics model_statistics(const PlantModel& model);
 

@@ -69,6 +69,31 @@ void ModelStatistics::add(const Object& object) {
   bounds.extend(object_bounds(object));
 }
 
+namespace {
+
+// total += sign * part, count by count (unsigned arithmetic wraps, so -1 takes away).
+void combine_counts(ModelStatistics& total, const ModelStatistics& part, uint64_t sign) {
+  total.objects += sign * part.objects;
+  total.primitives += sign * part.primitives;
+  total.triangles += sign * part.triangles;
+  for (size_t c = 0; c < kObjectClassCount; ++c) {
+    total.objects_by_class[c] += sign * part.objects_by_class[c];
+    total.primitives_by_class[c] += sign * part.primitives_by_class[c];
+    total.triangles_by_class[c] += sign * part.triangles_by_class[c];
+  }
+  for (size_t k = 0; k < kPrimitiveKindCount; ++k) {
+    total.primitives_by_kind[k] += sign * part.primitives_by_kind[k];
+    total.triangles_by_kind[k] += sign * part.triangles_by_kind[k];
+  }
+}
+
+}  // namespace
+
+void ModelStatistics::add_counts(const ModelStatistics& part) { combine_counts(*this, part, 1); }
+void ModelStatistics::subtract_counts(const ModelStatistics& part) {
+  combine_counts(*this, part, ~uint64_t(0));
+}
+
 ModelStatistics model_statistics(const PlantModel& model) {
   ModelStatistics s;
   for (const Object& o : model.objects) s.add(o);
