@@ -142,10 +142,8 @@ GlBackend::~GlBackend() {
                                reduce_multisampled_program_})
     if (program) glDeleteProgram(program);
   for (const auto& [key, program] : reduce_fixed_) glDeleteProgram(program);
-  if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
-  if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
-  if (reduce_framebuffer_) glDeleteFramebuffers(1, &reduce_framebuffer_);
-  if (reduce_texture_) glDeleteTextures(1, &reduce_texture_);
+  release_grid(occlusion_grid_);
+  release_grid(reduce_grid_);
   GLuint buffers[] = {arena_, arena_objects_, index_buffer_, table_buffer_, proxy_buffer_, cube_indices_};
   glDeleteBuffers(6, buffers);
   GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
@@ -313,6 +311,23 @@ void GlBackend::unmap_indices() { glUnmapNamedBuffer(index_buffer_); }
 
 // --- framebuffers -------------------------------------------------------------------------------
 
+void GlBackend::ensure_grid(Grid& g, uint32_t gl_format, uint32_t w, uint32_t h) {
+  if (g.framebuffer && g.width == w && g.height == h) return;
+  release_grid(g);
+  glCreateTextures(GL_TEXTURE_2D, 1, &g.texture);
+  glTextureStorage2D(g.texture, 1, GLenum(gl_format), GLsizei(w), GLsizei(h));
+  glCreateFramebuffers(1, &g.framebuffer);
+  glNamedFramebufferTexture(g.framebuffer, GL_COLOR_ATTACHMENT0, g.texture, 0);
+  g.width = w;
+  g.height = h;
+}
+
+void GlBackend::release_grid(Grid& g) {
+  if (g.framebuffer) glDeleteFramebuffers(1, &g.framebuffer);
+  if (g.texture) glDeleteTextures(1, &g.texture);
+  g = Grid{};
+}
+
 void GlBackend::release_target(Target& t) {
   if (t.framebuffer) glDeleteFramebuffers(1, &t.framebuffer);
   GLuint names[] = {t.colour, t.pick};
@@ -467,16 +482,7 @@ void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_
 
 bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,
                              std::vector<float>& depth, std::string& error) {
-  if (reduce_width_ != cells_width || reduce_height_ != cells_height) {
-    if (reduce_framebuffer_) glDeleteFramebuffers(1, &reduce_framebuffer_);
-    if (reduce_texture_) glDeleteTextures(1, &reduce_texture_);
-    glCreateTextures(GL_TEXTURE_2D, 1, &reduce_texture_);
-    glTextureStorage2D(reduce_texture_, 1, GL_R32F, GLsizei(cells_width), GLsizei(cells_height));
-    glCreateFramebuffers(1, &reduce_framebuffer_);
-    glNamedFramebufferTexture(reduce_framebuffer_, GL_COLOR_ATTACHMENT0, reduce_texture_, 0);
-    reduce_width_ = cells_width;
-    reduce_height_ = cells_height;
-  }
+  ensure_grid(reduce_grid_, GL_R32F, cells_width, cells_height);
   const bool multisampled = scene_.samples > 1;
   GLuint p = multisampled ? reduce_multisampled_program_ : reduce_program_;
   if (scene_.width % cells_width == 0 && scene_.height % cells_height == 0) {
@@ -510,7 +516,7 @@ bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,
   glDisablei(GL_BLEND, 0);
   glBindTextureUnit(1, scene_.depth);
   glBindSampler(1, nearest_sampler_);
-  glBindFramebuffer(GL_FRAMEBUFFER, reduce_framebuffer_);
+  glBindFramebuffer(GL_FRAMEBUFFER, reduce_grid_.framebuffer);
   glViewport(0, 0, GLsizei(cells_width), GLsizei(cells_height));
   glUseProgram(p);
   glBindVertexArray(empty_vao_);
@@ -520,8 +526,8 @@ bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,
   glBindSampler(1, 0);
   depth.resize(size_t(cells_width) * cells_height);
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glNamedFramebufferReadBuffer(reduce_framebuffer_, GL_COLOR_ATTACHMENT0);
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, reduce_framebuffer_);
+  glNamedFramebufferReadBuffer(reduce_grid_.framebuffer, GL_COLOR_ATTACHMENT0);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, reduce_grid_.framebuffer);
   glReadPixels(0, 0, GLsizei(cells_width), GLsizei(cells_height), GL_RED, GL_FLOAT, depth.data());
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   glEnable(GL_DEPTH_TEST);
@@ -702,16 +708,7 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
   glBindSampler(1, nearest_sampler_);
   if (plan.occlusion) {
     const uint32_t ao_width = (output_.width + 1) / 2, ao_height = (output_.height + 1) / 2;
-    if (occlusion_width_ != ao_width || occlusion_height_ != ao_height) {
-      if (occlusion_framebuffer_) glDeleteFramebuffers(1, &occlusion_framebuffer_);
-      if (occlusion_texture_) glDeleteTextures(1, &occlusion_texture_);
-      glCreateTextures(GL_TEXTURE_2D, 1, &occlusion_texture_);
-      glTextureStorage2D(occlusion_texture_, 1, GL_RG32F, GLsizei(ao_width), GLsizei(ao_height));
-      glCreateFramebuffers(1, &occlusion_framebuffer_);
-      glNamedFramebufferTexture(occlusion_framebuffer_, GL_COLOR_ATTACHMENT0, occlusion_texture_, 0);
-      occlusion_width_ = ao_width;
-      occlusion_height_ = ao_height;
-    }
+    ensure_grid(occlusion_grid_, GL_RG32F, ao_width, ao_height);
     const GLuint o = occlusion_program_;
     glProgramUniform1i(o, at(o, "u_depth"), 1);
     glProgramUniform1i(o, at(o, "u_scale"), GLint(plan.scale));
@@ -720,7 +717,7 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
     glProgramUniform2f(o, at(o, "u_ndc_to_view"), view.aspect / view.focal, 1.0f / view.focal);
     glProgramUniform1f(o, at(o, "u_focal_px"), float(view.focal_px * plan.scale));
     glProgramUniform1f(o, at(o, "u_radius_m"), float(kOcclusionRadiusM));
-    glBindFramebuffer(GL_FRAMEBUFFER, occlusion_framebuffer_);
+    glBindFramebuffer(GL_FRAMEBUFFER, occlusion_grid_.framebuffer);
     glViewport(0, 0, GLsizei(ao_width), GLsizei(ao_height));
     glUseProgram(o);
     glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -734,7 +731,7 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
   glProgramUniform1i(p, at(p, "u_scale"), GLint(plan.scale));
   glProgramUniform1i(p, at(p, "u_edge_filter"), plan.edge_filter);
   glProgramUniform1i(p, at(p, "u_occlusion_on"), plan.occlusion);
-  glBindTextureUnit(3, plan.occlusion ? occlusion_texture_ : 0);
+  glBindTextureUnit(3, plan.occlusion ? occlusion_grid_.texture : 0);
   glBindSampler(3, nearest_sampler_);
   glBindTextureUnit(0, source->colour);
   glBindSampler(0, linear_sampler_);

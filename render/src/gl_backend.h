@@ -161,6 +161,15 @@ class GlBackend {
                                           std::span<const uint64_t> pick_ids,
                                           std::span<const uint64_t> highlight_ids);
 
+  // A single-texture framebuffer that a pass renders into, sized on demand.
+  struct Grid {
+    GlName framebuffer = 0, texture = 0;
+    uint32_t width = 0, height = 0;
+  };
+  // Makes `g` w x h of GL internal format `gl_format` (anew only when its size changed).
+  static void ensure_grid(Grid& g, uint32_t gl_format, uint32_t w, uint32_t h);
+  static void release_grid(Grid& g);
+
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
   GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
@@ -175,11 +184,9 @@ class GlBackend {
   Target scene_, resolved_, output_;
   // Ambient occlusion and depth per 2x2 output pixels (RG32F), before the finishing pass
   // blurs it.
-  GlName occlusion_framebuffer_ = 0, occlusion_texture_ = 0;
-  uint32_t occlusion_width_ = 0, occlusion_height_ = 0;
+  Grid occlusion_grid_;
   // The depth reduction's grid (R32F).
-  GlName reduce_framebuffer_ = 0, reduce_texture_ = 0;
-  uint32_t reduce_width_ = 0, reduce_height_ = 0;
+  Grid reduce_grid_;
   // Reduction programs for whole pixels per cell, by (pixels across, pixels up, samples).
   std::vector<std::pair<std::array<uint32_t, 3>, GlName>> reduce_fixed_;
   Plan frame_plan_;  // the frame's, from begin_frame()
