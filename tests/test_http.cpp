@@ -918,6 +918,29 @@ TEST(RenderWorker, OnASoftwareRendererTwoRenderersAndOnePer16CoresOnLargeMachine
 
 // --- objects by tag or id -----------------------------------------------------------------------
 
+// `objects` ingested into a new store in `dir`, then opened read-only (the store in `store`);
+// null, with a test failure, if any step fails.
+std::unique_ptr<ReadView> ingested_view(const test::TempDir& dir, const std::vector<Object>& objects,
+                                        std::unique_ptr<Store>& store) {
+  std::string error;
+  {
+    auto writable = Store::open(dir.str(), Store::Mode::read_write, error);
+    if (!writable) {
+      ADD_FAILURE() << error;
+      return nullptr;
+    }
+    const IngestResult result = ingest_objects(*writable, objects);
+    if (!result) {
+      ADD_FAILURE() << result.error().message;
+      return nullptr;
+    }
+  }
+  store = Store::open(dir.str(), Store::Mode::read_only, error);
+  std::unique_ptr<ReadView> view = store ? store->read(error) : nullptr;
+  if (!view) ADD_FAILURE() << error;
+  return view;
+}
+
 TEST(Objects, AnObjectIsFoundByIdByTagAsStoredOrWithoutItsLeadingSlash) {
   std::string error;
   auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
@@ -942,27 +965,19 @@ TEST(Objects, AnObjectIsFoundByIdByTagAsStoredOrWithoutItsLeadingSlash) {
 
 TEST(Objects, ATagOfSeveralObjectsIsAConflictListingTheirIds) {
   const test::TempDir dir;
-  std::string error;
-  {
-    auto store = Store::open(dir.str(), Store::Mode::read_write, error);
-    ASSERT_TRUE(store) << error;
-    std::vector<Object> objects;
-    for (const char* source : {"a.rvm", "b.rvm"}) {
-      Object o;
-      o.name = "/TWIN";
-      o.source = source;
-      o.id = object_id(o.source, o.name);
-      o.object_class = ObjectClass::equipment;
-      o.primitives.push_back(Primitive{Placement{}, Box{1, 1, 1}});
-      objects.push_back(std::move(o));
-    }
-    const IngestResult result = ingest_objects(*store, objects);
-    ASSERT_TRUE(result) << result.error().message;
+  std::vector<Object> objects;
+  for (const char* source : {"a.rvm", "b.rvm"}) {
+    Object o;
+    o.name = "/TWIN";
+    o.source = source;
+    o.id = object_id(o.source, o.name);
+    o.object_class = ObjectClass::equipment;
+    o.primitives.push_back(Primitive{Placement{}, Box{1, 1, 1}});
+    objects.push_back(std::move(o));
   }
-  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
-  ASSERT_TRUE(store) << error;
-  auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
+  std::unique_ptr<Store> store;
+  auto view = ingested_view(dir, objects, store);
+  ASSERT_TRUE(view);
   const ObjectAnswer a = object_answer(*view, 0, "TWIN");
   EXPECT_EQ(a.status, 409) << a.body;
   EXPECT_NE(a.body.find("names 2 objects"), std::string::npos) << a.body;
@@ -972,37 +987,29 @@ TEST(Objects, ATagOfSeveralObjectsIsAConflictListingTheirIds) {
 
 TEST(Objects, APipelineHasTheBoundsOfItsMembers) {
   const test::TempDir dir;
-  std::string error;
-  {
-    auto store = Store::open(dir.str(), Store::Mode::read_write, error);
-    ASSERT_TRUE(store) << error;
-    std::vector<Object> objects;
-    Object pipeline;
-    pipeline.name = "/LINE-1";
-    pipeline.source = "a.rvm";
-    pipeline.id = object_id(pipeline.source, pipeline.name);
-    pipeline.object_class = ObjectClass::pipeline;
-    pipeline.branches.push_back({"/LINE-1/B1", {}});
-    for (int i = 0; i < 2; ++i) {
-      Object pipe;
-      pipe.name = "/LINE-1/PIPE-" + std::to_string(i);
-      pipe.source = "a.rvm";
-      pipe.id = object_id(pipe.source, pipe.name);
-      pipe.object_class = ObjectClass::pipe;
-      pipe.pipeline_id = pipeline.id;
-      pipe.origin_m = {100.0 + 10.0 * i, 200.0, 5.0};
-      pipe.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
-      pipeline.branches[0].members.push_back(pipe.id);
-      objects.push_back(std::move(pipe));
-    }
-    objects.push_back(std::move(pipeline));
-    const IngestResult result = ingest_objects(*store, objects);
-    ASSERT_TRUE(result) << result.error().message;
+  std::vector<Object> objects;
+  Object pipeline;
+  pipeline.name = "/LINE-1";
+  pipeline.source = "a.rvm";
+  pipeline.id = object_id(pipeline.source, pipeline.name);
+  pipeline.object_class = ObjectClass::pipeline;
+  pipeline.branches.push_back({"/LINE-1/B1", {}});
+  for (int i = 0; i < 2; ++i) {
+    Object pipe;
+    pipe.name = "/LINE-1/PIPE-" + std::to_string(i);
+    pipe.source = "a.rvm";
+    pipe.id = object_id(pipe.source, pipe.name);
+    pipe.object_class = ObjectClass::pipe;
+    pipe.pipeline_id = pipeline.id;
+    pipe.origin_m = {100.0 + 10.0 * i, 200.0, 5.0};
+    pipe.primitives.push_back(Primitive{Placement{}, Box{2, 2, 2}});
+    pipeline.branches[0].members.push_back(pipe.id);
+    objects.push_back(std::move(pipe));
   }
-  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
-  ASSERT_TRUE(store) << error;
-  auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
+  objects.push_back(std::move(pipeline));
+  std::unique_ptr<Store> store;
+  auto view = ingested_view(dir, objects, store);
+  ASSERT_TRUE(view);
   const ObjectAnswer a = object_answer(*view, 0, "LINE-1");
   ASSERT_EQ(a.status, 200) << a.body;
   const auto j = nlohmann::json::parse(a.body);
