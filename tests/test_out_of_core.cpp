@@ -46,6 +46,62 @@ TEST(ResidencyKeyMap, MemoryFollowsTheKeysPresentNotHowLargeTheyAre) {
   EXPECT_LT(map.bytes(), 1024u);
 }
 
+// --- the decoded objects' directory -----------------------------------------------------------
+
+TEST(KnownDirectory, FindsWhatWasInsertedByResidencyKeyAndHoldsOnlyThePagesInUse) {
+  detail::KnownDirectory directory;
+  std::vector<detail::Known> known(6);
+  // Slots far apart (a 40-million-object plant), two in one page, and merged runs.
+  const uint32_t keys[] = {7u, 8u, 39'999'999u, 20'000'000u, detail::kRunKeyBit | 0u,
+                           detail::kRunKeyBit | 70'000u};
+  for (size_t i = 0; i < std::size(keys); ++i) directory.insert(keys[i], &known[i]);
+  for (size_t i = 0; i < std::size(keys); ++i) EXPECT_EQ(directory.find(keys[i]), &known[i]);
+  EXPECT_EQ(directory.find(9), nullptr);
+  EXPECT_EQ(directory.find(40'000'000u), nullptr);
+  EXPECT_EQ(directory.find(detail::kRunKeyBit | 1u), nullptr);
+  EXPECT_EQ(directory.pages(), 3u);
+  directory.erase(7);
+  EXPECT_EQ(directory.pages(), 3u) << "slot 8 still holds its page";
+  directory.erase(8);
+  directory.erase(39'999'999u);
+  EXPECT_EQ(directory.pages(), 1u);
+  EXPECT_EQ(directory.find(8), nullptr);
+  EXPECT_EQ(directory.find(20'000'000u), &known[3]);
+  directory.erase(detail::kRunKeyBit | 70'000u);
+  EXPECT_EQ(directory.find(detail::kRunKeyBit | 70'000u), nullptr);
+  EXPECT_EQ(directory.find(detail::kRunKeyBit | 0u), &known[4]);
+}
+
+TEST(KnownDirectory, AgreesWithAStandardMapUnderRandomInsertsAndErases) {
+  detail::KnownDirectory directory;
+  std::unordered_map<uint32_t, detail::Known*> oracle;
+  std::vector<detail::Known> known(64);
+  std::mt19937 rng(13);
+  for (int step = 0; step < 100000; ++step) {
+    const uint32_t r = uint32_t(rng());
+    const uint32_t key = r % 5 == 0 ? (detail::kRunKeyBit | (r >> 8) % 5000) : r % 20000;
+    const auto it = oracle.find(key);
+    ASSERT_EQ(directory.find(key), it == oracle.end() ? nullptr : it->second) << "step " << step;
+    if (it != oracle.end()) {
+      directory.erase(key);
+      oracle.erase(it);
+    } else {
+      detail::Known* k = &known[rng() % known.size()];
+      directory.insert(key, k);
+      oracle[key] = k;
+    }
+  }
+  for (const auto& [key, k] : oracle) ASSERT_EQ(directory.find(key), k) << key;
+  size_t pages = 0;
+  for (uint32_t p = 0; p * detail::KnownDirectory::kSlotsPerPage < 20000; ++p) {
+    bool any = false;
+    for (const auto& [key, k] : oracle)
+      any |= !(key & detail::kRunKeyBit) && key / detail::KnownDirectory::kSlotsPerPage == p;
+    pages += any;
+  }
+  EXPECT_EQ(directory.pages(), pages);
+}
+
 TEST(ResidencyKeyMap, AgreesWithAStandardMapUnderRandomInsertsAndErases) {
   FlatKeyMap<uint32_t> map;
   std::unordered_map<uint32_t, uint32_t> oracle;

@@ -292,6 +292,10 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
     const size_t batch = i % kPrepareBatch;
     if (batch == 0) prepare(draws.subspan(i, std::min(kPrepareBatch, draws.size() - i)), options.lod_policy);
     Draw& d = draws[i];
+    // The Knowns ahead, and nearer, their parts (place() reads them).
+    if (i + kPrefetchAhead < draws.size()) prefetch(draws[i + kPrefetchAhead].known);
+    if (i + kPrefetchAhead / 2 < draws.size())
+      __builtin_prefetch(draws[i + kPrefetchAhead / 2].known->parts.data());
     bool resident = false;
     const Job* job = job_of_draw_[batch] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[batch]];
     if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job)) return false;

@@ -11,9 +11,39 @@
 
 namespace plantview::detail {
 
+void KnownDirectory::insert(uint32_t key, Known* k) {
+  assert(!find(key));
+  if (key & kRunKeyBit) {
+    const uint32_t r = key & ~kRunKeyBit;
+    if (r >= runs_.size()) runs_.resize(r + 1, nullptr);
+    runs_[r] = k;
+    return;
+  }
+  const uint32_t page = key / kSlotsPerPage;
+  if (page >= pages_.size()) pages_.resize(page + 1);
+  if (!pages_[page]) pages_[page] = std::make_unique<Page>();
+  pages_[page]->known[key % kSlotsPerPage] = k;
+  pages_[page]->count += 1;
+}
+
+void KnownDirectory::erase(uint32_t key) {
+  if (key & kRunKeyBit) {
+    const uint32_t r = key & ~kRunKeyBit;
+    if (r < runs_.size()) runs_[r] = nullptr;
+    return;
+  }
+  const uint32_t page = key / kSlotsPerPage;
+  if (page >= pages_.size() || !pages_[page] || !pages_[page]->known[key % kSlotsPerPage]) return;
+  pages_[page]->known[key % kSlotsPerPage] = nullptr;
+  if (--pages_[page]->count == 0) pages_[page].reset();
+}
+
 void DecodedObjects::reset(const ReadView& view) {
   view_ = &view;
-  known_.clear();
+  pool_.clear();
+  keys_.clear();
+  free_known_.clear();
+  directory_.clear();
   decoded_.clear();
   runs_.clear();
   decisions_.clear();
@@ -22,9 +52,22 @@ void DecodedObjects::reset(const ReadView& view) {
   pipelines_referenced_ = 0;
 }
 
-Known* DecodedObjects::find(uint32_t key) {
-  const auto it = known_.find(key);
-  return it == known_.end() ? nullptr : &it->second;
+Known* DecodedObjects::find(uint32_t key) { return directory_.find(key); }
+
+Known& DecodedObjects::insert(uint32_t key) {
+  uint32_t i;
+  if (!free_known_.empty()) {
+    i = free_known_.back();
+    free_known_.pop_back();
+    pool_[i] = Known{};
+    keys_[i] = key;
+  } else {
+    i = uint32_t(pool_.size());
+    pool_.emplace_back();
+    keys_.push_back(key);
+  }
+  directory_.insert(key, &pool_[i]);
+  return pool_[i];
 }
 
 bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
@@ -32,8 +75,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
   new_slots_.clear();
   decoded_.resize(visible.size());
   for (size_t i = 0; i < visible.size(); ++i) {
-    const auto it = known_.find(visible[i].slot);
-    decoded_[i] = it == known_.end() ? nullptr : &it->second;
+    decoded_[i] = directory_.find(visible[i].slot);
     if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
   }
   std::sort(new_slots_.begin(), new_slots_.end());
@@ -57,17 +99,18 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       }
     }
   }
-  // The new ones' Known (node addresses survive the map's growth).
+  // The new ones' Known (the pool's growth moves none).
   if (!new_slots_.empty())
     for (size_t i = 0; i < visible.size(); ++i)
-      if (!decoded_[i]) decoded_[i] = &known_.at(visible[i].slot);
+      if (!decoded_[i]) decoded_[i] = directory_.find(visible[i].slot);
   return true;
 }
 
 // Makes the Known of `key` from an object (its primitives moved out of it): its parts, their
 // shared plans, its levels and their errors, its centreline.
 Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
-  Known& k = known_[key];
+  Known* existing = directory_.find(key);
+  Known& k = existing ? *existing : insert(key);
   k.id = o.id;
   k.order_key = key & kRunKeyBit ? runs_[key & ~kRunKeyBit].members.front() : key;
   k.object_class = o.object_class;
@@ -111,6 +154,7 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   }
   if (o.object_class == ObjectClass::pipe && !o.centreline.empty()) {
     k.centreline = o.centreline;
+    k.has_centreline = true;
     k.centreline_first = vertex_count;
     vertex_count += uint32_t(2 * o.centreline.size());
     for (const auto& s : o.centreline) k.pipe_diameter_m = std::max(k.pipe_diameter_m, s.diameter_m);
@@ -153,9 +197,8 @@ void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) 
       run.pipeline_id = pipeline_id;
       const uint32_t r = new_run(std::move(run));
       run_indices.push_back(r);
-      for (const uint32_t m : runs_[r].members) {
-        if (const auto it = known_.find(m); it != known_.end()) it->second.run = int32_t(r);
-      }
+      for (const uint32_t m : runs_[r].members)
+        if (Known* k = directory_.find(m)) k->run = int32_t(r);
     }
   }
   pipeline_runs_[pipeline_id] = std::move(run_indices);
@@ -178,9 +221,11 @@ void DecodedObjects::forget_pipelines() {
   if (pipeline_runs_.size() <= std::max(kPipelinesKept, 2 * pipelines_referenced_)) return;
   // What the known objects and runs refer to (their keys and runs survive only with it).
   std::unordered_set<uint64_t> referenced;
-  for (const auto& [key, k] : known_) {
+  for (size_t i = 0; i < pool_.size(); ++i) {
+    const uint32_t key = keys_[i];
+    if (key == kFreeKey) continue;
     if (key & kRunKeyBit) referenced.insert(runs_[key & ~kRunKeyBit].pipeline_id);
-    else if (k.run >= 0) referenced.insert(k.pipeline_id);
+    else if (pool_[i].run >= 0) referenced.insert(pool_[i].pipeline_id);
   }
   for (auto it = pipeline_runs_.begin(); it != pipeline_runs_.end();) {
     if (referenced.count(it->first)) {
@@ -198,7 +243,7 @@ void DecodedObjects::forget_pipelines() {
 
 Known& DecodedObjects::know_run(uint32_t run) {
   const uint32_t key = kRunKeyBit | run;
-  if (const auto it = known_.find(key); it != known_.end()) return it->second;
+  if (Known* k = directory_.find(key)) return *k;
   const PipelineRun& r = runs_[run];
   Object o;
   // The pipeline's id, known from the run itself: not from whichever member happens to be
@@ -238,13 +283,19 @@ void DecodedObjects::forget_old(uint64_t frame, const Residency& residency) {
 }
 
 void DecodedObjects::forget_known(uint64_t frame, const Residency& residency) {
-  if (known_.size() <= kKnownObjectsKept + residency.resident_count()) return;
+  const size_t limit = kKnownObjectsKept + residency.resident_count();
+  if (known_count() <= limit) return;
   decoded_.clear();
-  for (int pass = 0; pass < 2 && known_.size() > kKnownObjectsKept + residency.resident_count(); ++pass) {
-    for (auto it = known_.begin(); it != known_.end();) {
-      const bool old = pass == 1 || it->second.last_seen < frame;
-      if (old && !residency.resident(it->first)) it = known_.erase(it);
-      else ++it;
+  for (int pass = 0; pass < 2 && known_count() > limit; ++pass) {
+    for (size_t i = 0; i < pool_.size(); ++i) {
+      const uint32_t key = keys_[i];
+      if (key == kFreeKey) continue;
+      const bool old = pass == 1 || pool_[i].last_seen < frame;
+      if (!old || residency.resident(key)) continue;
+      directory_.erase(key);
+      pool_[i] = Known{};  // its memory goes now, not when the entry is reused
+      keys_[i] = kFreeKey;
+      free_known_.push_back(uint32_t(i));
     }
   }
 }

@@ -16,16 +16,21 @@
 //     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
 //     as many as the last time, are known. So a service that walks a whole site keeps the runs
 //     of what it shows, not of all it has shown.
-// Ownership: Known objects live in an unordered_map: a Known* stays valid until forget_old()
-//   or reset() (a frame's draws hold them for the frame). Part::plan points into this cache's
+// Ownership: Known objects live in a pool (a deque: growing it moves none), found through a
+//   directory by slot (see KnownDirectory) or by run index: a Known* stays valid until
+//   forget_old() or reset() (a frame's draws hold them for the frame). Part::plan points into this cache's
 //   template plans (kept for the renderer's life) or into the Known's own_plans.
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
 // Threads: the renderer's thread.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cassert>
+#include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <span>
 #include <string>
 #include <unordered_map>
@@ -51,7 +56,7 @@ inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held 
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
-struct Known {
+struct alignas(64) Known {
   struct Part {
     const MeshPlan* plan;   // shared per template (errors zeroed: see error_m), or own_plans
     uint32_t first_vertex;  // within the object's vertices
@@ -62,11 +67,10 @@ struct Known {
     uint32_t resident_first = 0;
     const MeshPlan* resident_plan = nullptr;
   };
-  // What every frame reads (choose, streaming), first: a frame touches two or three cache
-  // lines of each visible object, not the whole of it.
+  // What every frame reads, by cache line (a Known is aligned to one): line 0 is all that
+  // occlusion's first phase and streaming's checks read of a visible object; choose adds
+  // line 1; placing a drawn one adds line 2 (its parts).
   uint64_t last_seen = 0;           // frame
-  uint64_t id = 0;
-  glm::dvec3 origin_m{0.0};
   uint32_t table = UINT32_MAX;      // object-table entry while resident (UINT32_MAX: not)
   uint32_t arena_offset = 0;        // while resident: its first vertex in the arena
   uint32_t vertex_count = 0;
@@ -82,8 +86,12 @@ struct Known {
   // is there and the templates' indices serve every level; above 0 only the vertices of levels
   // >= base are, compacted part by part (see Part::resident_plan).
   uint8_t base = 0;
-  std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
-  std::vector<Part> parts;
+  bool has_lines = false, has_triangles = false;
+  bool has_centreline = false;      // a pipe with its centreline (below)
+  alignas(64) std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
+  uint64_t id = 0;
+  glm::dvec3 origin_m{0.0};
+  alignas(64) std::vector<Part> parts;
   std::vector<CentrelineSegment> centreline;  // pipes: drawn as lines when thin on screen
 
   ObjectClass object_class = ObjectClass::other;
@@ -93,10 +101,59 @@ struct Known {
   std::vector<MeshPlan> own_plans;  // facet groups' plans (others share the cache's)
   bool keeps_primitives = false;
   uint32_t centreline_first = 0;
-  bool has_lines = false, has_triangles = false;
   OccluderShape occluder;           // once built: empty unless it may occlude
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
 };
+static_assert(offsetof(Known, has_centreline) < 64 && offsetof(Known, origin_m) + 24 <= 128 &&
+              offsetof(Known, parts) == 128);
+
+// Known objects by residency key, with no hashing: slots through a directory of pages of
+// kSlotsPerPage pointers (a page exists while one of its slots is known: the store numbers
+// neighbouring objects together, so a view's objects share few pages), merged runs through a
+// vector by run index. Memory follows what is known, not the plant: 8 bytes a pointer of the
+// pages in use, plus 8 bytes per kSlotsPerPage slots of the store for the directory itself.
+class KnownDirectory {
+ public:
+  static constexpr uint32_t kSlotsPerPage = 1024;
+  Known* find(uint32_t key) const {
+    if (key & kRunKeyBit) {
+      const uint32_t r = key & ~kRunKeyBit;
+      return r < runs_.size() ? runs_[r] : nullptr;
+    }
+    const uint32_t page = key / kSlotsPerPage;
+    return page < pages_.size() && pages_[page] ? pages_[page]->known[key % kSlotsPerPage]
+                                                : nullptr;
+  }
+  // `key` must not be present; `k` must stay valid until erase(key) or clear().
+  void insert(uint32_t key, Known* k);
+  void erase(uint32_t key);
+  void clear() {
+    pages_.clear();
+    runs_.clear();
+  }
+  // Pages held now (for memory bounds).
+  size_t pages() const {
+    return size_t(std::count_if(pages_.begin(), pages_.end(), [](const auto& p) { return p != nullptr; }));
+  }
+
+ private:
+  struct Page {
+    std::array<Known*, kSlotsPerPage> known{};
+    uint32_t count = 0;
+  };
+  std::vector<std::unique_ptr<Page>> pages_;
+  std::vector<Known*> runs_;
+};
+
+// Asks for the cache lines of a Known that a frame reads (see Known), ahead of reading them:
+// loops over a frame's objects ask kPrefetchAhead objects ahead (their Knowns are scattered).
+inline constexpr size_t kPrefetchAhead = 8;
+inline void prefetch(const Known* k) {
+  const char* p = reinterpret_cast<const char*>(k);
+  __builtin_prefetch(p);
+  __builtin_prefetch(p + 64);
+  __builtin_prefetch(p + 128);
+}
 
 // Whether a pipeline run is drawn merged, decided once per frame by its first visible member.
 struct RunDecision {
@@ -119,11 +176,15 @@ class DecodedObjects {
   // A known object or run (null if not known).
   Known* find(uint32_t key);
   // Objects and runs known now; pipelines analysed and their runs held now.
-  size_t known_count() const { return known_.size(); }
+  size_t known_count() const { return pool_.size() - free_known_.size(); }
   size_t pipelines_count() const { return pipeline_runs_.size(); }
   size_t runs_count() const { return runs_.size() - free_runs_.size(); }
   // A known object; it must be known (decoded this frame or before).
-  Known& at(uint32_t slot) { return known_.at(slot); }
+  Known& at(uint32_t slot) {
+    Known* k = directory_.find(slot);
+    assert(k);
+    return *k;
+  }
   // The merged cylinder of run `run`, made the first time it is asked for.
   Known& know_run(uint32_t run);
 
@@ -146,6 +207,8 @@ class DecodedObjects {
 
  private:
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
+  // A fresh Known for `key` (not known), from the pool.
+  Known& insert(uint32_t key);
   void analyse_pipeline(uint64_t pipeline_id, std::string& error);
   // A run index for a new run: a freed one, or a new one at the end.
   uint32_t new_run(PipelineRun&& run);
@@ -167,7 +230,13 @@ class DecodedObjects {
   };
 
   const ReadView* view_ = nullptr;
-  std::unordered_map<uint32_t, Known> known_;
+  // Known objects and runs: the pool (an entry is in use while keys_[i] != kFreeKey), the free
+  // entries, and the directory that finds them by key.
+  static constexpr uint32_t kFreeKey = UINT32_MAX - 1;  // UINT32_MAX is the proxy cube's key
+  std::deque<Known> pool_;
+  std::vector<uint32_t> keys_;
+  std::vector<uint32_t> free_known_;
+  KnownDirectory directory_;
   std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans_;  // few: per template and winding
   // Pipeline HLOD: the runs (a deque: growing it copies nothing; a forgotten pipeline's run
   // indices go to free_runs_ and are reused), this frame's decision per run, and the pipelines

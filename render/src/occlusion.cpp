@@ -142,6 +142,8 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
   size_t kept = 0;
   for (size_t i = 0; i < visible.size(); ++i) {
     const VisibleObject& v = visible[i];
+    if (i + kPrefetchAhead < visible.size())
+      if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
     const Known* k = objects.find(v.slot);
     // Drawn last frame, and not found hidden behind what that frame drew first.
     const bool drawn_last = k && k->last_seen + 1 == frame &&
