@@ -2,6 +2,7 @@
 #include "frame_plan.h"
 
 #include <algorithm>
+#include <bit>
 #include <cassert>
 #include <cmath>
 
@@ -172,10 +173,19 @@ void FramePlan::second_phase(const FrameView& frame_view, uint64_t frame,
 }
 
 void FramePlan::order() {
-  std::sort(visible_.begin(), visible_.end(), [](const VisibleObject& a, const VisibleObject& b) {
-    const double pa = a.px_per_m * a.extent_m(), pb = b.px_per_m * b.extent_m();
-    return pa != pb ? pa > pb : a.slot < b.slot;  // the order does not depend on the walk's
-  });
+  // Sorted as packed keys (the pixels spanned, as float bits inverted: non-negative floats
+  // order as their bits; then the slot, so that the order does not depend on the walk's), then
+  // the objects moved once into that order.
+  order_keys_.clear();
+  for (uint32_t i = 0; i < visible_.size(); ++i) {
+    const VisibleObject& v = visible_[i];
+    const uint32_t px_bits = std::bit_cast<uint32_t>(float(v.px_per_m * v.extent_m()));
+    order_keys_.push_back({uint64_t(~px_bits) << 32 | v.slot, i});
+  }
+  std::sort(order_keys_.begin(), order_keys_.end());
+  ordered_.clear();
+  for (const auto& [key, i] : order_keys_) ordered_.push_back(visible_[i]);
+  visible_.swap(ordered_);
 }
 
 namespace {
@@ -351,7 +361,7 @@ bool FramePlan::walk_block(const ReadView& view, uint32_t block_index,
 
 bool drawn_as_centreline(const Known& k, const RenderOptions& options, double distance_m,
                          double px_per_m) {
-  if (!options.centrelines || k.centreline.empty()) return false;
+  if (!options.centrelines || !k.has_centreline) return false;
   switch (options.lod_policy) {
     case LodPolicy::none: return false;
     case LodPolicy::screen_space: return k.pipe_diameter_m * px_per_m < 1.0;
@@ -407,6 +417,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
   for (size_t i = 0; i < visible_.size(); ++i) {
     const VisibleObject& v = visible_[i];
     Known* k = known[i];
+    if (i + kPrefetchAhead < known.size()) prefetch(known[i + kPrefetchAhead]);
     k->last_seen = frame;
     if (k->vertex_count == 0) continue;
     if (k->run >= 0 && merging) {

@@ -262,6 +262,8 @@ class FramePlan {
   std::vector<Candidate> fresh_;       // an opened node's children, before they fit
   size_t pending_items_ = 0;           // items of candidates_
   std::vector<uint32_t> stack_, count_stack_;
+  std::vector<std::pair<uint64_t, uint32_t>> order_keys_;  // order(): (key, index in visible_)
+  std::vector<VisibleObject> ordered_;
   OcclusionCulling occlusion_;
 };
 
