@@ -4,8 +4,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <atomic>
-#include <thread>
 
 #include "decoded_objects.h"
 #include "frame_plan.h"
@@ -261,24 +259,20 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
     job.base = base;
     job_of_draw_[i] = uint32_t(job_count++);
   }
-  // Tessellate them on every core: each job writes only its own buffers and its own object.
-  const unsigned workers = std::min<unsigned>(std::max(1u, std::thread::hardware_concurrency()),
-                                              unsigned((job_count + kJobsPerWorker - 1) / kJobsPerWorker));
-  std::atomic<size_t> next{0};
-  const auto work = [&](std::vector<PackedVertex>& scratch) {
-    for (size_t j = next++; j < job_count; j = next++) {
-      Job& job = jobs_[j];
-      Known& k = *draws[job.draw].known;
-      tessellate(k.primitives, k, job.base, scratch, job.vertices);
-    }
-  };
-  if (scratch_.size() < workers) scratch_.resize(workers);
+  // Tessellate them on the pool: each job writes only its own buffers and its own object.
   for (Job& job : jobs_)  // a huge object's buffer is not kept for the frames after
     if (job.vertices.capacity() > kKeptJobVertices) std::vector<PackedVertex>().swap(job.vertices);
-  std::vector<std::thread> threads;
-  for (unsigned t = 1; t < workers; ++t) threads.emplace_back(work, std::ref(scratch_[t]));
-  if (job_count) work(scratch_[0]);
-  for (std::thread& t : threads) t.join();
+  if (scratch_.size() < pool_.size()) scratch_.resize(pool_.size());
+  const auto tessellate_job = [&](size_t j, unsigned worker) {
+    Job& job = jobs_[j];
+    Known& k = *draws[job.draw].known;
+    tessellate(k.primitives, k, job.base, scratch_[worker], job.vertices);
+  };
+  if (job_count < 2 * kJobsPerWorker) {
+    for (size_t j = 0; j < job_count; ++j) tessellate_job(j, 0);
+  } else {
+    pool_.run(job_count, tessellate_job);
+  }
 }
 
 bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
@@ -403,8 +397,6 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   }
   uint32_t* indices = backend_.map_indices(total, error);
   if (!indices) return false;
-  std::array<uint32_t*, kIndexListCount> cursor;
-  for (int list = 0; list < kIndexListCount; ++list) cursor[list] = indices + first[list];
   // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
   // broken by a key of the object's own (Known::order_key), so that the order of two objects
   // depends neither on what else is drawn nor on the frames before (coincident surfaces then
@@ -420,18 +412,42 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
   std::sort(sort_keys_.begin(), sort_keys_.end());
   draw_order_.clear();
   for (const auto& [key, i] : sort_keys_) draw_order_.push_back(i);
-  for (const uint32_t i : draw_order_) {
-    const Draw& d = draws[i];
+  // The draw order cut into runs of about equal indices, one per worker; each run starts
+  // writing each list where the runs before it end.
+  const size_t runs = std::clamp<size_t>(total / kIndicesPerRun, 1, pool_.size());
+  std::vector<size_t>& run_first = run_first_;
+  run_first.assign(1, 0);
+  run_cursors_.assign(1, first);
+  std::array<size_t, kIndexListCount> at = first;
+  size_t written = 0;
+  for (size_t o = 0; o < draw_order_.size(); ++o) {
+    if (run_first.size() < runs && written * runs >= total * run_first.size()) {
+      run_first.push_back(o);
+      run_cursors_.push_back(at);
+    }
+    const Draw& d = draws[draw_order_[o]];
     for (uint32_t g = d.segment_first; g < d.segment_first + d.segment_count; ++g) {
-      const Segment& seg = segments_[g];
-      uint32_t*& at = cursor[seg.list];
-      if (!seg.plan) {
-        for (uint32_t c = 0; c < seg.count; ++c) *at++ = seg.base_vertex + c;
-        continue;
-      }
-      at += write_indices(*seg.plan, seg.level, seg.base_vertex, std::span<uint32_t>(at, seg.count));
+      at[segments_[g].list] += segments_[g].count;
+      written += segments_[g].count;
     }
   }
+  run_first.push_back(draw_order_.size());
+  pool_.run(run_cursors_.size(), [&](size_t run, unsigned) {
+    std::array<uint32_t*, kIndexListCount> cursor;
+    for (int list = 0; list < kIndexListCount; ++list) cursor[list] = indices + run_cursors_[run][list];
+    for (size_t o = run_first[run]; o < run_first[run + 1]; ++o) {
+      const Draw& d = draws[draw_order_[o]];
+      for (uint32_t g = d.segment_first; g < d.segment_first + d.segment_count; ++g) {
+        const Segment& seg = segments_[g];
+        uint32_t*& to = cursor[seg.list];
+        if (!seg.plan) {
+          for (uint32_t c = 0; c < seg.count; ++c) *to++ = seg.base_vertex + c;
+          continue;
+        }
+        to += write_indices(*seg.plan, seg.level, seg.base_vertex, std::span<uint32_t>(to, seg.count));
+      }
+    }
+  });
   backend_.unmap_indices();
   return true;
 }

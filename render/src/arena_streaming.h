@@ -23,10 +23,11 @@
 //   renderer's life: Known::Part::resident_plan points into them) and its scratch buffers
 //   (reused: no allocation per frame once warm). Uses the GlBackend it is given, which must
 //   outlive it.
-// Threads: the renderer's thread (it calls GL through the backend); newly resident objects are
-//   tessellated on every core first, kPrepareBatch draws at a time (so that what waits for
-//   upload stays bounded; std::thread::hardware_concurrency threads, each writing only its own
-//   objects and buffers), then placed and uploaded on the renderer's thread.
+// Threads: the renderer's thread (it calls GL through the backend), with the renderer's worker
+//   pool (worker_pool.h) for two parts: newly resident objects are tessellated on it first,
+//   kPrepareBatch draws at a time (so that what waits for upload stays bounded; each job writes
+//   only its own object and buffers), then placed and uploaded on the renderer's thread; and the
+//   index lists are written on it, each worker a run of the draw order into its own ranges.
 #pragma once
 
 #include <array>
@@ -39,6 +40,7 @@
 #include "gl_backend.h"
 #include "plantview/render.h"
 #include "residency.h"
+#include "worker_pool.h"
 
 namespace plantview::detail {
 
@@ -73,7 +75,8 @@ class ObjectTable {
 
 class ArenaStreaming {
  public:
-  explicit ArenaStreaming(GlBackend& backend) : backend_(backend) {}
+  // `backend` and `pool` must outlive it.
+  ArenaStreaming(GlBackend& backend, WorkerPool& pool) : backend_(backend), pool_(pool) {}
 
   // Forgets everything resident (a new snapshot): an empty arena of budget_vertices holding
   // only the proxy cube. drop_primitives: resident objects give up their primitives (models
@@ -168,6 +171,7 @@ class ArenaStreaming {
   bool grow_for(std::span<const Draw> draws, LodPolicy policy, std::string& error);
 
   GlBackend& backend_;
+  WorkerPool& pool_;
   Residency residency_{0};
   ObjectTable table_;
   bool drop_primitives_ = false;
@@ -193,9 +197,13 @@ class ArenaStreaming {
   std::vector<Job> jobs_;
   std::vector<uint32_t> job_of_draw_;
   std::vector<std::vector<PackedVertex>> scratch_;  // one per worker
+  // write_index_lists(): where each run of the draw order starts writing, per list.
+  std::vector<std::array<size_t, kIndexListCount>> run_cursors_;
+  std::vector<size_t> run_first_;  // and the first draw (in draw order) of each run
 };
 
 inline constexpr size_t kJobsPerWorker = 16;     // fewer new objects are not worth a thread
+inline constexpr size_t kIndicesPerRun = 1u << 16;  // fewer indices are not worth a worker
 inline constexpr size_t kPrepareBatch = 256;     // draws tessellated ahead at a time
 inline constexpr size_t kKeptJobVertices = 1u << 16;  // a job buffer larger is freed
 

@@ -23,11 +23,12 @@ struct Renderer::State {
   DAabb bounds;
   uint64_t frame_number = 0;
 
-  // Declared in dependence order: streaming uses the backend, and destroys first.
+  // Declared in dependence order: streaming uses the backend and the pool, and destroys first.
   GlBackend backend;
+  WorkerPool pool{WorkerPool::default_size()};
   DecodedObjects objects;
   FramePlan plan;
-  ArenaStreaming streaming{backend};
+  ArenaStreaming streaming{backend, pool};
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
 
