@@ -60,6 +60,7 @@ namespace plantview::detail {
 
 struct Known;
 struct PipelineRun;
+class WorkerPool;
 class DecodedObjects;
 
 // Objects drawn one by one plus node boxes in a frame, at most, unless nodes of
@@ -162,6 +163,10 @@ bool drawn_as_centreline(const Known& k, const RenderOptions& options, double di
 
 class FramePlan {
  public:
+  // Occlusion's per-object tests run on `pool` (null: on the calling thread); it must outlive
+  // the plan.
+  explicit FramePlan(WorkerPool* pool = nullptr) : occlusion_(pool) {}
+
   // 1. Cull: fills visible() and node_boxes(), largest on screen first, and the statistics
   //    objects_visible, objects_culled, objects_subpixel, node_proxies, node_proxy_pixels and
   //    objects_in_node_proxies. `view` must be the same snapshot frame after frame (else

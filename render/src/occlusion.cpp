@@ -9,6 +9,7 @@
 #include "frame_plan.h"
 #include "lod.h"
 #include "plantview/store.h"
+#include "worker_pool.h"
 
 namespace plantview::detail {
 
@@ -46,6 +47,14 @@ bool drawn_opaque(DecodedObjects& objects, const Known& k, const VisibleObject& 
 }
 
 }  // namespace
+
+template <class F>
+void OcclusionCulling::for_parts(size_t n, const F& f) const {
+  const size_t parts = (n + kObjectsPerPart - 1) / kObjectsPerPart;
+  const auto part = [&](size_t p, unsigned) { f(p * kObjectsPerPart, std::min(n, (p + 1) * kObjectsPerPart)); };
+  if (pool_ && parts > 1) pool_->run(parts, part);
+  else for (size_t p = 0; p < parts; ++p) part(p, 0);
+}
 
 bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
   const glm::mat3 r(frame_view.rotation);
@@ -138,22 +147,29 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
   // depth actually drawn most likely hides it too.
   bool any = false;
   if (!rasterise_occluders(objects, frame_view, options, visible, any, stats, error)) return false;
+  // Which objects the first phase draws: tested in parts on the pool (reading only), then
+  // split in order here.
+  flags_.resize(visible.size());
+  for_parts(visible.size(), [&](size_t first, size_t end) {
+    for (size_t i = first; i < end; ++i) {
+      const VisibleObject& v = visible[i];
+      if (i + kPrefetchAhead < end)
+        if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
+      const Known* k = objects.find(v.slot);
+      // Drawn last frame, and not found hidden behind what that frame drew first.
+      const bool drawn_last = k && k->last_seen + 1 == frame &&
+                              !(hidden_drawn_frame_ + 1 == frame &&
+                                std::binary_search(hidden_drawn_.begin(), hidden_drawn_.end(), v.slot));
+      const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_;
+      flags_[i] = (drawn_last || largest) && k && drawn_opaque(objects, *k, v, frame_view, options) &&
+                  !(any && hidden(frame_view, v.min, v.max));
+    }
+  });
   rest.clear();
   size_t kept = 0;
   for (size_t i = 0; i < visible.size(); ++i) {
-    const VisibleObject& v = visible[i];
-    if (i + kPrefetchAhead < visible.size())
-      if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
-    const Known* k = objects.find(v.slot);
-    // Drawn last frame, and not found hidden behind what that frame drew first.
-    const bool drawn_last = k && k->last_seen + 1 == frame &&
-                            !(hidden_drawn_frame_ + 1 == frame &&
-                              std::binary_search(hidden_drawn_.begin(), hidden_drawn_.end(), v.slot));
-    const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_;
-    if ((drawn_last || largest) && k && drawn_opaque(objects, *k, v, frame_view, options) &&
-        !(any && hidden(frame_view, v.min, v.max)))
-      visible[kept++] = v;
-    else rest.push_back(v);
+    if (flags_[i]) visible[kept++] = visible[i];
+    else rest.push_back(visible[i]);
   }
   visible.resize(kept);
   stats.occluders = kept;
@@ -168,9 +184,13 @@ void OcclusionCulling::test_rest(const FrameBlocks& blocks, const FrameView& fra
   buffer_.load_device_depth(reversed_depth);
   // The first phase's objects that the others of it hide (never itself: an object's own depth
   // is no nearer than its bounds): drawn in vain, and not to be drawn first next frame.
+  flags_.resize(first.size());
+  for_parts(first.size(), [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) flags_[i] = hidden(frame_view, first[i].min, first[i].max);
+  });
   hidden_drawn_.clear();
-  for (const VisibleObject& v : first)
-    if (hidden(frame_view, v.min, v.max)) hidden_drawn_.push_back(v.slot);
+  for (size_t i = 0; i < first.size(); ++i)
+    if (flags_[i]) hidden_drawn_.push_back(first[i].slot);
   std::sort(hidden_drawn_.begin(), hidden_drawn_.end());
   hidden_drawn_frame_ = frame;
   drop_hidden(blocks, frame_view, rest, node_boxes, stats);
@@ -179,24 +199,34 @@ void OcclusionCulling::test_rest(const FrameBlocks& blocks, const FrameView& fra
 void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
                                    std::vector<VisibleObject>& visible,
                                    std::vector<NodeBox>& node_boxes, FrameStats& stats) const {
-  // Leaves once each (a leaf's objects are consecutive), then objects; then node boxes.
-  size_t kept = 0;
-  bool leaf_hidden = false;
-  uint32_t leaf_block = UINT32_MAX, leaf_node = UINT32_MAX;
-  for (size_t i = 0; i < visible.size(); ++i) {
-    const VisibleObject& v = visible[i];
-    if (v.block != leaf_block || v.node != leaf_node) {
-      leaf_block = v.block;
-      leaf_node = v.node;
-      const SpatialNode& leaf = blocks.at(v.block).nodes[v.node];
-      leaf_hidden = hidden(frame_view, leaf.min, leaf.max);
-      stats.nodes_occluded += leaf_hidden;
+  // Leaves once each (a leaf's objects are consecutive), then objects; in parts on the pool
+  // (a leaf cut by a part's start is tested by both parts, and counted where it starts); then
+  // the hidden dropped in order here; then node boxes.
+  constexpr uint8_t kHidden = 1, kLeafHidden = 2;  // flags: the object; a hidden leaf starts here
+  flags_.resize(visible.size());
+  for_parts(visible.size(), [&](size_t first, size_t end) {
+    bool leaf_hidden = false;
+    for (size_t i = first; i < end; ++i) {
+      const VisibleObject& v = visible[i];
+      const bool leaf_starts = i == 0 || v.block != visible[i - 1].block || v.node != visible[i - 1].node;
+      uint8_t flag = 0;
+      if (leaf_starts || i == first) {
+        const SpatialNode& leaf = blocks.at(v.block).nodes[v.node];
+        leaf_hidden = hidden(frame_view, leaf.min, leaf.max);
+        if (leaf_hidden && leaf_starts) flag |= kLeafHidden;
+      }
+      if (leaf_hidden || hidden(frame_view, v.min, v.max)) flag |= kHidden;
+      flags_[i] = flag;
     }
-    if (leaf_hidden || hidden(frame_view, v.min, v.max)) {
+  });
+  size_t kept = 0;
+  for (size_t i = 0; i < visible.size(); ++i) {
+    stats.nodes_occluded += (flags_[i] & kLeafHidden) != 0;
+    if (flags_[i] & kHidden) {
       stats.objects_occluded += 1;
       continue;
     }
-    visible[kept++] = v;
+    visible[kept++] = visible[i];
   }
   visible.resize(kept);
   kept = 0;

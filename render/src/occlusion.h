@@ -29,7 +29,8 @@
 //     leaf's visible objects are consecutive), through the frame's blocks; nothing is kept per
 //     node or per object between frames but what DecodedObjects keeps (Known::last_seen).
 // Units: metres, pixels. Ownership: owns its buffer and scratch (reused).
-// Threads: the renderer's thread.
+// Threads: the renderer's thread; the per-object tests (read-only: the buffer, the decoded
+//   objects' directory and Knowns) run on its worker pool, each part writing only its flags.
 #pragma once
 
 #include <array>
@@ -53,11 +54,17 @@ struct FrameView;
 struct NodeBox;
 struct VisibleObject;
 
+class WorkerPool;
+
 inline constexpr size_t kMaxOccluders = 384;
+inline constexpr size_t kObjectsPerPart = 2048;  // objects tested per part on the pool
 inline constexpr double kOccluderMinPixels = 24;
 
 class OcclusionCulling {
  public:
+  // The per-object tests of split() and the drops run on `pool` (null: on the calling thread).
+  explicit OcclusionCulling(WorkerPool* pool = nullptr) : pool_(pool) {}
+
   // CPU form. Drops the hidden objects of `visible` (in cull's tree order: a leaf's objects consecutive;
   // order kept) and the hidden `node_boxes`; counts objects_occluded and nodes_occluded
   // (leaves whose visible objects were all hidden at once, and node boxes). `blocks` holds the
@@ -101,8 +108,14 @@ class OcclusionCulling {
   // Whether the box (relative to the spatial origin) is hidden.
   bool hidden(const FrameView& frame_view, const float min[3], const float max[3]) const;
 
+  // Runs f(first, end) over [0, n) in runs of kObjectsPerPart, on the pool if there is one.
+  template <class F>
+  void for_parts(size_t n, const F& f) const;
+
+  WorkerPool* pool_;
   OcclusionBuffer buffer_;
   // Scratch, reused.
+  mutable std::vector<uint8_t> flags_;  // per object: kept (split) or hidden (drops)
   std::vector<VisibleObject> candidates_;
   double smallest_candidate_px_ = 0;  // of the last rasterise_occluders()
   // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).

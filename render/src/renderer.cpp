@@ -27,7 +27,7 @@ struct Renderer::State {
   GlBackend backend;
   WorkerPool pool{WorkerPool::default_size()};
   DecodedObjects objects;
-  FramePlan plan;
+  FramePlan plan{&pool};
   ArenaStreaming streaming{backend, pool};
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
