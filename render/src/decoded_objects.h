@@ -16,10 +16,12 @@
 //     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
 //     as many as the last time, are known. So a service that walks a whole site keeps the runs
 //     of what it shows, not of all it has shown.
-// Ownership: Known objects live in a pool (a deque: growing it moves none), found through a
-//   directory by slot (see KnownDirectory) or by run index: a Known* stays valid until
-//   forget_old() or reset() (a frame's draws hold them for the frame). Part::plan points into this cache's
-//   template plans (kept for the renderer's life) or into the Known's own_plans.
+// Ownership: Known objects live in a pool (a deque: growing it moves none; forgotten entries
+//   are emptied and reused, so the pool holds as many as were ever known at once), found
+//   through a directory by slot (see KnownDirectory) or by run index: a Known* stays valid
+//   until forget_old() or reset() (a frame's draws hold them for the frame). Part::plan points
+//   into this cache's template plans (kept for the renderer's life) or into the Known's
+//   own_plans.
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
 // Threads: the renderer's thread.
 #pragma once
