@@ -48,6 +48,9 @@ bool drawn_opaque(DecodedObjects& objects, const Known& k, const VisibleObject& 
 
 }  // namespace
 
+OcclusionCulling::OcclusionCulling(WorkerPool* pool) : pool_(pool) {}
+OcclusionCulling::~OcclusionCulling() = default;
+
 template <class F>
 void OcclusionCulling::for_parts(size_t n, const F& f) const {
   const size_t parts = (n + kObjectsPerPart - 1) / kObjectsPerPart;

@@ -63,7 +63,8 @@ inline constexpr double kOccluderMinPixels = 24;
 class OcclusionCulling {
  public:
   // The per-object tests of split() and the drops run on `pool` (null: on the calling thread).
-  explicit OcclusionCulling(WorkerPool* pool = nullptr) : pool_(pool) {}
+  explicit OcclusionCulling(WorkerPool* pool = nullptr);
+  ~OcclusionCulling();
 
   // CPU form. Drops the hidden objects of `visible` (in cull's tree order: a leaf's objects consecutive;
   // order kept) and the hidden `node_boxes`; counts objects_occluded and nodes_occluded
