@@ -293,3 +293,45 @@ TEST_F(Cli, RenderIntoAMissingDirectoryFailsBeforeRendering) {
 }
 
 }  // namespace
+
+namespace {
+
+// render --path writes its images on other threads while the next view renders: every image
+// and its stats line still come out, the lines in view order; an image it cannot write stops
+// the run with its name, after the views before it.
+TEST_F(Cli, RenderPathWritesEveryImageAndItsStatsInViewOrderAndStopsAtOneItCannotWrite) {
+  const fs::path store = dir_ / "store", camera_path = dir_ / "walk.json";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  ASSERT_EQ(run("path --store " + store.string() + " --kind orbit --frames 8 --out " + camera_path.string()).status, 0);
+  const std::string render = "render --store " + store.string() + " --size 96x64 --path " + camera_path.string();
+  const fs::path out = dir_ / "out";
+  Outcome r = run(render + " --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream stats(out / "stats.jsonl");
+  size_t view = 0;
+  for (std::string line; std::getline(stats, line); ++view) {
+    const auto j = nlohmann::json::parse(line);
+    EXPECT_EQ(j["view"], view);
+    char name[32];
+    std::snprintf(name, sizeof name, "%06zu.png", view);
+    EXPECT_EQ(j["file"], (out / name).string());
+    EXPECT_GT(fs::file_size(out / name), 0u) << name;
+    EXPECT_GT(j["ms"]["encode"].get<double>(), 0.0);
+  }
+  EXPECT_EQ(view, 8u);
+
+  // A directory where view 3's image goes: it cannot be written.
+  const fs::path blocked = dir_ / "blocked";
+  fs::create_directories(blocked / "000003.png" / "inside");
+  r = run(render + " --out " + blocked.string());
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("000003.png"), std::string::npos) << r.err;
+  for (const char* before : {"000000.png", "000001.png", "000002.png"})
+    EXPECT_TRUE(fs::is_regular_file(blocked / before)) << before;
+  std::ifstream blocked_stats(blocked / "stats.jsonl");
+  size_t lines = 0;
+  for (std::string line; std::getline(blocked_stats, line);) EXPECT_EQ(nlohmann::json::parse(line)["view"], lines++);
+  EXPECT_EQ(lines, 3u) << "the views before the one that failed";
+}
+
+}  // namespace

@@ -19,6 +19,7 @@
 #include "cli/farm/job_inputs.h"
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
+#include "cli/ordered_tasks.h"
 #include "cli/progress.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
@@ -243,6 +244,58 @@ bool write_image_file(const fs::path& path, const Image& image, ImageFormat form
   return true;
 }
 
+// One image on its way to a file (OrderedTasks' work writes it; its done reads the outcome).
+struct ImageToWrite {
+  fs::path path;
+  Image image;
+  FrameStats stats;
+  bool ok = false;
+  std::string error;
+};
+
+// Writes the images of a run of views on other threads while the next view renders: at most
+// threads + 1 images wait, and their buffers are rendered into again once written.
+class ImageWriter {
+ public:
+  ImageWriter(ImageFormat format, int quality)
+      : format_(format),
+        quality_(quality),
+        tasks_(OrderedTasks::default_threads(), OrderedTasks::default_threads() + 1) {}
+
+  // An image buffer to render into: one already written, or a new one.
+  Image take_buffer() {
+    if (spare_.empty()) return {};
+    Image image = std::move(spare_.back());
+    spare_.pop_back();
+    return image;
+  }
+  // Writes `image` (with the stats of its frame) to `path`; then, on this thread and in the
+  // order written, calls done(written) and takes the buffer back.
+  void write(fs::path path, Image&& image, const FrameStats& stats,
+             std::function<void(ImageToWrite&)> done) {
+    auto job = std::make_shared<ImageToWrite>();
+    job->path = std::move(path);
+    job->image = std::move(image);
+    job->stats = stats;
+    tasks_.submit(
+        [job, format = format_, quality = quality_] {
+          job->ok = write_image_file(job->path, job->image, format, quality, job->stats, job->error);
+        },
+        [this, job, done = std::move(done)] {
+          done(*job);
+          spare_.push_back(std::move(job->image));
+        });
+  }
+  // Waits until every image is written and its done called.
+  void finish() { tasks_.finish(); }
+
+ private:
+  ImageFormat format_;
+  int quality_;
+  std::vector<Image> spare_;  // written images' buffers (declared before tasks_: outlives it)
+  OrderedTasks tasks_;
+};
+
 // The GPU context, the image module and a renderer of `store`, in the order they must come.
 struct RenderSession {
   std::unique_ptr<GpuContext> context;
@@ -300,11 +353,15 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
     if (!stats_file) return fail("cannot write " + (fs::path(a.out) / "stats.jsonl").string());
   }
   Progress progress("render");
-  Image image;
   FrameStats stats;
   size_t done = 0, total = 0;
   for (size_t i = plan.shard_index; i < cameras.size(); i += plan.shard_count) ++total;
-  for (size_t i = plan.shard_index; i < cameras.size(); i += plan.shard_count) {
+  // Each image is encoded and written while the next view renders; its stats line follows
+  // in view order once it is written. The first image that cannot be written stops the run.
+  std::string write_error;
+  ImageWriter writer(plan.format, a.quality);
+  for (size_t i = plan.shard_index; i < cameras.size() && write_error.empty(); i += plan.shard_count) {
+    Image image = writer.take_buffer();
     if (!session.renderer->render(cameras[i], plan.width, plan.height, false, image, stats, error))
       return fail("view " + std::to_string(i) + ": " + error);
     std::string file = a.out;
@@ -313,16 +370,24 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
       std::snprintf(name, sizeof name, "%06zu.%s", i, plan.format == ImageFormat::png ? "png" : "jpg");
       file = (fs::path(a.out) / name).string();
     }
-    if (!write_image_file(file, image, plan.format, a.quality, stats, error)) return fail(error);
-    std::string line = stats.to_json();
-    line.insert(1, "\"view\":" + std::to_string(i) + ",\"file\":\"" + file + "\",");
-    if (many) stats_file << line << "\n";
-    else std::cout << line << "\n";
-    if (done == 0 && !many) report_first_image(t_start);
-    ++done;
-    progress.update(double(done) / double(total), std::to_string(done) + "/" + std::to_string(total));
+    writer.write(file, std::move(image), stats, [&, i, file](ImageToWrite& written) {
+      if (!write_error.empty()) return;
+      if (!written.ok) {
+        write_error = written.error;
+        return;
+      }
+      std::string line = written.stats.to_json();
+      line.insert(1, "\"view\":" + std::to_string(i) + ",\"file\":\"" + file + "\",");
+      if (many) stats_file << line << "\n";
+      else std::cout << line << "\n";
+      if (done == 0 && !many) report_first_image(t_start);
+      ++done;
+      progress.update(double(done) / double(total), std::to_string(done) + "/" + std::to_string(total));
+    });
   }
+  writer.finish();
   progress.finish();
+  if (!write_error.empty()) return fail(write_error);
   return 0;
 }
 
@@ -443,40 +508,60 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
     if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
     const double context_ms = ms_since(t_context);
     Progress progress("render");
-    Image image;
-    for (size_t n = 0; n < to_render.size(); ++n) {
+    // Each view's image is encoded and written while the next renders; its record follows in
+    // the shard's order once written.
+    std::string manifest_error;
+    ImageWriter writer(plan.format, a.quality);
+    for (size_t n = 0; n < to_render.size() && manifest_error.empty(); ++n) {
       const ReviewView& view = views[to_render[n]];
       const auto t_view = std::chrono::steady_clock::now();
       const std::string file = view.name + extension;
-      nlohmann::json record = view_record(view, file, hashes[to_render[n]], plan);
+      auto record = std::make_shared<nlohmann::json>(view_record(view, file, hashes[to_render[n]], plan));
       FrameStats stats;
+      Image image = writer.take_buffer();
       session.renderer->set_options(review_render_options(plan.options, view));
       bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
       const auto t_caption = std::chrono::steady_clock::now();
       ok = ok && add_review_caption(image, view, error);
       const double caption_ms = ms_since(t_caption);
-      ok = ok && write_image_file(out / file, image, plan.format, a.quality, stats, error);
-      record["status"] = ok ? "done" : "failed";
+      // Recorded once written (or at once, failed).
+      const auto finish_view = [&, n, t_view, caption_ms, record](bool written, const std::string& why,
+                                                                 const FrameStats& frame) {
+        (*record)["status"] = written ? "done" : "failed";
+        if (!written) {
+          (*record)["error"] = why;
+          std::cerr << "plantview: view '" << views[to_render[n]].name << "': " << why << "\n";
+          ++failed;
+        }
+        (*record)["stats"] = nlohmann::json::parse(frame.to_json());
+        (*record)["ms"] = {{"store_open", store_open_ms},  {"context", context_ms},
+                           {"first_in_process", n == 0}, {"frame", frame.ms.total},
+                           {"caption", caption_ms},       {"encode", frame.ms.encode},
+                           {"total", ms_since(t_view)}};
+        (*record)["finished_unix_ms"] = farm::unix_ms_now();
+        records.push_back(std::move(*record));
+        // The part lists every view this shard finished, so a killed task loses only the
+        // views it was rendering and writing.
+        if (manifest_error.empty() &&
+            !farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, manifest_error) &&
+            manifest_error.empty())
+          manifest_error = "cannot write the manifest part";
+        progress.update(double(n + 1) / double(to_render.size()),
+                        std::to_string(n + 1) + "/" + std::to_string(to_render.size()) + " " +
+                            views[to_render[n]].name);
+      };
       if (!ok) {
-        record["error"] = error;
-        std::cerr << "plantview: view '" << view.name << "': " << error << "\n";
-        ++failed;
+        writer.finish();  // the views before it first, in order
+        finish_view(false, error, stats);
+        continue;
       }
-      record["stats"] = nlohmann::json::parse(stats.to_json());
-      record["ms"] = {{"store_open", store_open_ms},  {"context", context_ms},
-                      {"first_in_process", n == 0}, {"frame", stats.ms.total},
-                      {"caption", caption_ms},       {"encode", stats.ms.encode},
-                      {"total", ms_since(t_view)}};
-      record["finished_unix_ms"] = farm::unix_ms_now();
-      records.push_back(std::move(record));
-      // The part lists every view this shard finished, so a killed task loses only the view
-      // it was rendering.
-      if (!farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, error))
-        return fail(error);
-      progress.update(double(n + 1) / double(to_render.size()),
-                      std::to_string(n + 1) + "/" + std::to_string(to_render.size()) + " " + view.name);
+      writer.write(out / file, std::move(image), stats, [finish_view](ImageToWrite& written) {
+        finish_view(written.ok, written.error, written.stats);
+      });
     }
+    writer.finish();
     progress.finish();
+    if (!manifest_error.empty()) return fail(manifest_error);
   } else if (!farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, error)) {
     return fail(error);
   }
