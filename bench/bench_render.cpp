@@ -143,7 +143,7 @@ struct PolicyRun {
   RenderOptions options;
   size_t reference = 0;  // the run with occlusion off at the same policy (itself if off)
   std::unique_ptr<Renderer> renderer;
-  std::vector<double> frame_ms, cpu_ms, occlusion_ms, depth_ms, walk_triangles,
+  std::vector<double> frame_ms, cpu_ms, cpu_without_growth_ms, occlusion_ms, depth_ms, walk_triangles,
       interior_triangles, psnr, id_match, uploaded;
   FrameStats::Times cpu_parts_ms{};  // summed over the steady views (cull, occlusion, ...)
   uint64_t missing = 0, occluded = 0, occluders = 0;
@@ -226,6 +226,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
       }
       r.frame_ms.push_back(stats.ms.total);
       r.cpu_ms.push_back(stats.ms.cpu);
+      r.cpu_without_growth_ms.push_back(stats.ms.cpu - stats.ms.arena_growth);
       r.occlusion_ms.push_back(stats.ms.occlusion);
       r.depth_ms.push_back(stats.ms.depth_reduction);
       if (v > 0) {
@@ -297,7 +298,8 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   const double none_mean = mean(steady(runs[0].frame_ms));
   for (size_t i = 0; i < runs.size(); ++i) {
     PolicyRun& r = runs[i];
-    const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms), occlusion = steady(r.occlusion_ms),
+    const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms),
+               cpu_without_growth = steady(r.cpu_without_growth_ms), occlusion = steady(r.occlusion_ms),
                depth = steady(r.depth_ms);
     const double psnr_mean = r.psnr.empty() ? 99 : mean(r.psnr);
     const double psnr_min = r.psnr.empty() ? 99 : *std::min_element(r.psnr.begin(), r.psnr.end());
@@ -316,6 +318,8 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
                         {"width", w}, {"height", h}, {"mean_ms", mean(ms)},
                         {"p95_ms", percentile(ms, 0.95)}, {"first_ms", r.frame_ms.front()},
                         {"cpu_mean_ms", mean(cpu)}, {"cpu_p95_ms", percentile(cpu, 0.95)},
+                        {"cpu_without_arena_growth_mean_ms", mean(cpu_without_growth)},
+                        {"cpu_without_arena_growth_p95_ms", percentile(cpu_without_growth, 0.95)},
                         {"uploaded_mean_bytes_per_frame", uploaded_mb * 1048576.0},
                         {"walk_mean_triangles", mean(r.walk_triangles)},
                         {"interior_mean_triangles", mean(r.interior_triangles)},

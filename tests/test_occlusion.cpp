@@ -397,5 +397,30 @@ TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {
   EXPECT_NE(s.to_json().find("\"objects_occluded\":1"), std::string::npos);
 }
 
+// Growing the GPU vertex arena is reported apart, as the part of stream it took: in the frame
+// that grows it and no other.
+TEST(Occlusion, ArenaGrowthIsReportedAsPartOfStreamInTheFrameThatGrowsIt) {
+  TempDir dir;
+  std::vector<Object> objects;  // 3,600 boxes of 24 vertices: more than the arena starts with
+  for (int i = 0; i < 3600; ++i)
+    objects.push_back(make_object("B-" + std::to_string(i), ObjectClass::structure,
+                                  {2.0 * (i % 60), 2.0 * (i / 60), 0.5},
+                                  {Primitive{Placement{}, Box{1, 1, 1}}}));
+  auto store = make_store(dir, objects);
+  auto r = make_renderer(*store, true);
+  std::string error;
+  Image image;
+  FrameStats first, again;
+  const Camera above = look({60, -40, 90}, {60, 60, 0});
+  ASSERT_TRUE(r->render(above, 320, 180, false, image, first, error)) << error;
+  ASSERT_GT(first.objects_tessellated, 3000u);
+  EXPECT_GT(first.ms.arena_growth, 0.0);
+  EXPECT_LE(first.ms.arena_growth, first.ms.stream);
+  EXPECT_NE(first.to_json().find("\"arena_growth\":"), std::string::npos);
+  ASSERT_TRUE(r->render(above, 320, 180, false, image, again, error)) << error;
+  EXPECT_EQ(again.objects_tessellated, 0u);
+  EXPECT_EQ(again.ms.arena_growth, 0.0) << "nothing new: the arena holds it all";
+}
+
 }  // namespace
 }  // namespace plantview

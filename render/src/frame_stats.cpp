@@ -11,13 +11,13 @@ std::string FrameStats::to_json() const {
   std::string levels;
   for (size_t l = 0; l < triangles_by_level.size(); ++l)
     levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
-  char times[400];
+  char times[440];
   std::snprintf(times, sizeof times,
                 "{\"cull\":%.3f,\"occlusion\":%.3f,\"depth_reduction\":%.3f,\"choose\":%.3f,"
-                "\"stream\":%.3f,\"cpu\":%.3f,\"draw\":%.3f,\"read_back\":%.3f,\"encode\":%.3f,"
-                "\"total\":%.3f}",
-                ms.cull, ms.occlusion, ms.depth_reduction, ms.choose, ms.stream, ms.cpu, ms.draw,
-                ms.read_back, ms.encode, ms.total);
+                "\"stream\":%.3f,\"arena_growth\":%.3f,\"cpu\":%.3f,\"draw\":%.3f,"
+                "\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
+                ms.cull, ms.occlusion, ms.depth_reduction, ms.choose, ms.stream, ms.arena_growth,
+                ms.cpu, ms.draw, ms.read_back, ms.encode, ms.total);
   return "{\"objects_visible\":" + std::to_string(objects_visible) +
          ",\"objects_culled\":" + std::to_string(objects_culled) +
          ",\"objects_occluded\":" + std::to_string(objects_occluded) +
@@ -55,6 +55,7 @@ void report_times(const StageTimes& stages, double total_ms, FrameStats::Times& 
   ms.depth_reduction = stages.depth_reduction;
   ms.choose = stages.choose + stages.index_lists;
   ms.stream = stages.stream + stages.decode;
+  ms.arena_growth = stages.arena_growth;
   ms.cpu = ms.cull + ms.occlusion + ms.choose + ms.stream;
   ms.draw = stages.draw;
   ms.read_back = stages.read_back;

@@ -5,6 +5,7 @@
 #include <epoxy/gl.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
@@ -261,6 +262,7 @@ bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
   vertices = std::min(vertices, budget_vertices_);  // (a full arena evicts instead)
   if (vertices <= arena_vertices_) return true;
   const uint64_t size = std::min(budget_vertices_, std::max(vertices, arena_vertices_ * 2));
+  const auto start = std::chrono::steady_clock::now();
   GLuint buffers[2];
   glCreateBuffers(2, buffers);
   glNamedBufferStorage(buffers[0], GLsizeiptr(size * sizeof(PackedVertex)), nullptr, GL_DYNAMIC_STORAGE_BIT);
@@ -281,6 +283,7 @@ bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
   arena_objects_ = buffers[1];
   arena_vertices_ = size;
   bind_arena();
+  growth_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return true;
 }
 

@@ -91,6 +91,8 @@ class GlBackend {
 
   // The arena buffers hold at least `vertices` (capped at the budget), keeping their contents.
   bool grow_arena(uint64_t vertices, std::string& error);
+  // Milliseconds grow_arena() spent growing the buffers since the last call.
+  double take_growth_ms() { return std::exchange(growth_ms_, 0.0); }
   // Writes vertices at arena offset `first` (and, unless `objects` is empty, their object-table
   // indices alike). The range must lie within the arena's current size.
   void upload(uint64_t first, std::span<const PackedVertex> vertices,
@@ -178,7 +180,8 @@ class GlBackend {
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
-  uint64_t arena_vertices_ = 0;  // size of the GPU buffers, in vertices (<= the budget)
+  uint64_t arena_vertices_ = 0;
+  double growth_ms_ = 0;  // size of the GPU buffers, in vertices (<= the budget)
   // Drawing goes to scene_ (scale x the output's size, multisampled or not); multisampled, it
   // is resolved into resolved_; finished, into output_; read back from the last of these used.
   Target scene_, resolved_, output_;

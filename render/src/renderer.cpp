@@ -78,6 +78,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     return false;
   }
   ++frame_number;
+  backend.take_growth_ms();  // (growth outside a frame: opening a view)
   const FrameView frame_view = make_frame_view(camera, w, h, view->spatial_origin());
   const Look look = look_of(options, bounds);
   const Look* drawn = draw ? &look : nullptr;
@@ -110,6 +111,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   stats.objects_known = objects.known_count();
   stats.residency_bytes = streaming.residency().bookkeeping_bytes();
   times.stream += clock.lap();
+  times.arena_growth = backend.take_growth_ms();
 
   // Backend: the ground, finishing and read back (render() only).
   if (draw) {

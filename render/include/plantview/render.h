@@ -196,10 +196,13 @@ struct FrameStats {
   // phases together; choose includes writing the index lists, stream decoding new objects;
   // occlusion is choosing the first phase and testing the rest). depth_reduction: occlusion's
   // GPU part, the first phase's depth reduced and read back (the CPU waits for the GPU there,
-  // so it is not in cpu); draw includes the first phase's drawing.
+  // so it is not in cpu); draw includes the first phase's drawing. arena_growth: the part of
+  // stream spent growing the GPU vertex arena (a buffer twice the size, the old one copied
+  // in): rare, and on a software renderer mostly the first touch of the new memory, which
+  // the operating system pays page by page.
   struct Times {
-    double cull = 0, occlusion = 0, depth_reduction = 0, choose = 0, stream = 0, cpu = 0,
-           draw = 0, read_back = 0,
+    double cull = 0, occlusion = 0, depth_reduction = 0, choose = 0, stream = 0,
+           arena_growth = 0, cpu = 0, draw = 0, read_back = 0,
            encode = 0, total = 0;
   } ms;
   // One JSON object (one line): the fields above, times under "ms".
