@@ -261,7 +261,7 @@ void GlBackend::bind_arena() {
 bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
   vertices = std::min(vertices, budget_vertices_);  // (a full arena evicts instead)
   if (vertices <= arena_vertices_) return true;
-  const uint64_t size = std::min(budget_vertices_, std::max(vertices, arena_vertices_ * 2));
+  const uint64_t size = std::min(budget_vertices_, std::max(vertices + vertices / 2, arena_vertices_ * 2));
   const auto start = std::chrono::steady_clock::now();
   GLuint buffers[2];
   glCreateBuffers(2, buffers);

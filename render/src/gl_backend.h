@@ -90,6 +90,9 @@ class GlBackend {
   bool init(uint64_t budget_vertices, std::string& error);
 
   // The arena buffers hold at least `vertices` (capped at the budget), keeping their contents.
+  // A growth allocates the larger of twice the arena and half as much again as asked: the
+  // frames after one that needed a large step (the first view) mostly need a little more,
+  // and every growth zeroes a whole new buffer.
   bool grow_arena(uint64_t vertices, std::string& error);
   // Milliseconds grow_arena() spent growing the buffers since the last call.
   double take_growth_ms() { return std::exchange(growth_ms_, 0.0); }
