@@ -702,6 +702,25 @@ TEST(RenderArena, FreedRangesCoalesce) {
   EXPECT_TRUE(a.allocate(100));
 }
 
+// Objects of one template leave many free ranges of one size: best fit takes the smallest
+// that fits, the lowest of equal ones, and every range freed is found again to coalesce.
+TEST(RenderArena, BestFitAmongManyEqualFreeRangesTakesTheLowestAndAllCoalesce) {
+  detail::RangeAllocator a(30000);
+  std::vector<uint64_t> at;
+  for (int i = 0; i < 3000; ++i) at.push_back(*a.allocate(10));
+  for (int i = 2999; i >= 1; i -= 2) a.release(at[size_t(i)], 10);  // 1500 holes of 10
+  a.release(at[0], 10);  // merges with the hole at 10: one of 20 at 0
+  EXPECT_EQ(a.allocate(10), std::optional<uint64_t>(30)) << "the lowest range of the exact size";
+  EXPECT_EQ(a.allocate(15), std::optional<uint64_t>(0)) << "the smallest that fits";
+  EXPECT_EQ(a.allocate(10), std::optional<uint64_t>(50));
+  a.release(0, 15);
+  a.release(30, 10);
+  a.release(50, 10);
+  for (int i = 2; i < 3000; i += 2) a.release(at[size_t(i)], 10);
+  EXPECT_EQ(a.used(), 0u);
+  EXPECT_EQ(a.largest_free(), 30000u) << "every freed range coalesced";
+}
+
 TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
   TempDir dir;
   std::vector<Object> objects;

@@ -15,19 +15,14 @@ void RangeAllocator::insert_free(uint64_t offset, uint64_t size) {
 }
 
 void RangeAllocator::erase_free(std::map<uint64_t, uint64_t>::iterator it) {
-  auto [lo, hi] = by_size_.equal_range(it->second);
-  for (auto s = lo; s != hi; ++s) {
-    if (s->second == it->first) {
-      by_size_.erase(s);
-      break;
-    }
-  }
+  by_size_.erase({it->second, it->first});
   by_offset_.erase(it);
 }
 
 std::optional<uint64_t> RangeAllocator::allocate(uint64_t size) {
   if (size == 0) return std::nullopt;
-  const auto best = by_size_.lower_bound(size);
+  // The smallest range that fits, the lowest such first.
+  const auto best = by_size_.lower_bound({size, 0});
   if (best == by_size_.end()) return std::nullopt;
   const uint64_t offset = best->second, free_size = best->first;
   erase_free(by_offset_.find(offset));
@@ -86,27 +81,25 @@ std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
     if (!candidates_built_) {
       candidates_.clear();
       entries_.for_each([&](uint32_t k, const Entry& e) {
-        if (e.visible_frame != frame_) candidates_.push_back(k);
+        if (e.visible_frame != frame_) candidates_.push_back({e.visible_frame, e.units, k});
       });
       // Best candidate last: largest counter (the longest unseen), then largest size, then key
       // for determinism.
-      std::sort(candidates_.begin(), candidates_.end(), [&](uint32_t a, uint32_t b) {
-        const Entry& ea = *entries_.find(a);
-        const Entry& eb = *entries_.find(b);
-        if (ea.visible_frame != eb.visible_frame) return ea.visible_frame > eb.visible_frame;
-        if (ea.units != eb.units) return ea.units < eb.units;
-        return a > b;
+      std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+        if (a.visible_frame != b.visible_frame) return a.visible_frame > b.visible_frame;
+        if (a.units != b.units) return a.units < b.units;
+        return a.key > b.key;
       });
       candidates_built_ = true;
     }
     // Candidates made visible or dropped since the list was built are skipped.
     while (!candidates_.empty()) {
-      const Entry* e = entries_.find(candidates_.back());
+      const Entry* e = entries_.find(candidates_.back().key);
       if (e && e->visible_frame != frame_) break;
       candidates_.pop_back();
     }
     if (candidates_.empty()) return std::nullopt;
-    const uint32_t victim = candidates_.back();
+    const uint32_t victim = candidates_.back().key;
     candidates_.pop_back();
     const Entry e = *entries_.find(victim);
     allocator_.release(e.offset, e.units);

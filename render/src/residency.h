@@ -17,11 +17,14 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
+#include <utility>
 #include <vector>
 
 namespace plantview::detail {
 
-// Best-fit allocator over [0, capacity) with coalescing of freed ranges.
+// Best-fit allocator over [0, capacity) with coalescing of freed ranges: the smallest free range
+// that fits, the lowest of equal ones. O(log n) per call.
 class RangeAllocator {
  public:
   explicit RangeAllocator(uint64_t capacity);
@@ -36,7 +39,9 @@ class RangeAllocator {
   void erase_free(std::map<uint64_t, uint64_t>::iterator it);
   uint64_t capacity_, used_ = 0;
   std::map<uint64_t, uint64_t> by_offset_;         // offset -> size
-  std::multimap<uint64_t, uint64_t> by_size_;      // size -> offset
+  // (size, offset): best fit is the first not smaller; a range is erased by its exact key
+  // (free ranges of one size are many when objects share a template).
+  std::set<std::pair<uint64_t, uint64_t>> by_size_;
 };
 
 // Values by residency key (any uint32_t, the proxy cube's UINT32_MAX included) in a dense
@@ -164,7 +169,7 @@ class Residency {
   size_t resident_count() const { return entries_.size(); }
   // Bytes of the per-object bookkeeping (follows the resident count, not the plant).
   size_t bookkeeping_bytes() const {
-    return entries_.bytes() + candidates_.capacity() * sizeof(uint32_t);
+    return entries_.bytes() + candidates_.capacity() * sizeof(Candidate);
   }
 
  private:
@@ -176,7 +181,14 @@ class Residency {
   FlatKeyMap<Entry> entries_;
   uint64_t frame_ = 0, ended_ = 0;
   // This frame's eviction candidates, best last (popped from the back).
-  std::vector<uint32_t> candidates_;
+  // Eviction candidates of this frame, sorted by what admit() orders them by (copied, so that
+  // sorting needs no lookup).
+  struct Candidate {
+    uint64_t visible_frame;
+    uint64_t units;
+    uint32_t key;
+  };
+  std::vector<Candidate> candidates_;
   bool candidates_built_ = false;
 };
 
