@@ -358,8 +358,12 @@ TEST(Service, ANewerRequestOfTheSameClientSupersedesAWaitingOne) {
   Server server;
   // Keep the render threads busy, then queue two requests of one client on two connections (the
   // id the server issued to the first, sent by both): the first waits and is superseded by the
-  // second.
-  Client busy(server.port()), busy2(server.port()), a(server.port()), b(server.port());
+  // second. Two full-size frames without LOD on both render threads take minutes under the
+  // ThreadSanitizer on a loaded 2-core machine: the reads wait that long (what is tested is
+  // which request is answered, not how fast).
+  constexpr int kPatientS = 300;
+  Client busy(server.port(), kPatientS), busy2(server.port(), kPatientS), a(server.port(), kPatientS),
+      b(server.port(), kPatientS);
   const std::string id = a.request("/api/stats?w=8&h=8").headers["x-plantview-client"];
   ASSERT_EQ(id.size(), 32u);
   busy.get("/api/frame?w=2000&h=2000&format=png&lod=none");
