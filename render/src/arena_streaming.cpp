@@ -240,19 +240,23 @@ bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std
   return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
 }
 
-void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
+size_t ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
   // Which draws will be tessellated, at the base they will most likely get (the arena's
   // roominess as the frame starts); their compactions made here, on this thread.
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
   job_of_draw_.assign(draws.size(), UINT32_MAX);
-  size_t job_count = 0;
+  size_t job_count = 0, batch_vertices = 0, covered = draws.size();
   for (size_t i = 0; i < draws.size(); ++i) {
+    if (batch_vertices >= kPrepareBatchVertices) {
+      covered = i;
+      break;
+    }
     Draw& d = draws[i];
     Known& k = *d.known;
     if (resident(k) && d.level >= k.base) continue;
     if (k.primitives.empty() && !k.parts.empty()) continue;  // decoded again on this thread
     const uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
-    resident_vertices(k, base);
+    batch_vertices += resident_vertices(k, base);
     if (jobs_.size() <= job_count) jobs_.emplace_back();
     Job& job = jobs_[job_count];
     job.draw = uint32_t(i);
@@ -260,8 +264,16 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
     job_of_draw_[i] = uint32_t(job_count++);
   }
   // Tessellate them on the pool: each job writes only its own buffers and its own object.
-  for (Job& job : jobs_)  // a huge object's buffer is not kept for the frames after
-    if (job.vertices.capacity() > kKeptJobVertices) std::vector<PackedVertex>().swap(job.vertices);
+  // What the buffers keep from the batches before is bounded: a huge object's buffer, and
+  // those past kKeptJobBytes in all, are freed.
+  size_t kept_bytes = 0;
+  for (Job& job : jobs_) {
+    const size_t bytes = job.vertices.capacity() * sizeof(PackedVertex);
+    if (job.vertices.capacity() > kKeptJobVertices || kept_bytes + bytes > kKeptJobBytes)
+      std::vector<PackedVertex>().swap(job.vertices);
+    else
+      kept_bytes += bytes;
+  }
   if (scratch_.size() < pool_.size()) scratch_.resize(pool_.size());
   const auto tessellate_job = [&](size_t j, unsigned worker) {
     Job& job = jobs_[j];
@@ -273,6 +285,7 @@ void ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
   } else {
     pool_.run(job_count, tessellate_job);
   }
+  return covered;
 }
 
 bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
@@ -281,10 +294,14 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
   begin_frame(plan, second_phase);
   if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
   const std::span<Draw> draws = plan.draws();
+  size_t batch_first = 0, batch_end = 0;
   for (size_t i = 0; i < draws.size(); ++i) {
     // Draws are tessellated ahead a batch at a time: what waits for upload stays bounded.
-    const size_t batch = i % kPrepareBatch;
-    if (batch == 0) prepare(draws.subspan(i, std::min(kPrepareBatch, draws.size() - i)), options.lod_policy);
+    if (i == batch_end) {
+      batch_first = i;
+      batch_end = i + prepare(draws.subspan(i, std::min(kPrepareBatch, draws.size() - i)), options.lod_policy);
+    }
+    const size_t batch = i - batch_first;
     Draw& d = draws[i];
     // The Knowns ahead, and nearer, their parts (place() reads them).
     if (i + kPrefetchAhead < draws.size()) prefetch(draws[i + kPrefetchAhead].known);

@@ -25,7 +25,9 @@
 //   outlive it.
 // Threads: the renderer's thread (it calls GL through the backend), with the renderer's worker
 //   pool (worker_pool.h) for two parts: newly resident objects are tessellated on it first,
-//   kPrepareBatch draws at a time (so that what waits for upload stays bounded; each job writes
+//   up to kPrepareBatch draws or kPrepareBatchVertices vertices at a time (so that what waits
+//   for upload stays bounded, and what the jobs' buffers keep between batches is bounded by
+//   kKeptJobBytes; each job writes
 //   only its own object and buffers), then placed and uploaded on the renderer's thread; and the
 //   index lists are written on it, each worker a run of the draw order into its own ranges.
 #pragma once
@@ -143,9 +145,10 @@ class ArenaStreaming {
   // Safe on several threads at once for different objects.
   void tessellate(const std::vector<Primitive>& primitives, Known& k, uint8_t base,
                   std::vector<PackedVertex>& scratch, std::vector<PackedVertex>& out) const;
-  // Tessellates the newly resident objects of `draws` (a batch of the frame's) on every core
-  // (jobs_, job_of_draw_ by index in the batch).
-  void prepare(std::span<Draw> draws, LodPolicy policy);
+  // Tessellates the newly resident objects of the first draws of `draws` on every core
+  // (jobs_, job_of_draw_ by index in the batch), as many draws as fit kPrepareBatchVertices
+  // (at least one): returns how many.
+  size_t prepare(std::span<Draw> draws, LodPolicy policy);
   // Makes `k` resident in the arena from level `base` on (tessellating it unless `prepared`
   // holds its vertices for that base), evicting if needed. fits = false when it cannot be
   // placed without evicting what this frame shows.
@@ -204,7 +207,9 @@ class ArenaStreaming {
 
 inline constexpr size_t kJobsPerWorker = 16;     // fewer new objects are not worth a thread
 inline constexpr size_t kIndicesPerRun = 1u << 16;  // fewer indices are not worth a worker
-inline constexpr size_t kPrepareBatch = 256;     // draws tessellated ahead at a time
+inline constexpr size_t kPrepareBatch = 256;     // draws tessellated ahead at a time, at most
+inline constexpr size_t kPrepareBatchVertices = 1u << 19;  // and their vertices (8 MB), at most
 inline constexpr size_t kKeptJobVertices = 1u << 16;  // a job buffer larger is freed
+inline constexpr size_t kKeptJobBytes = size_t(8) << 20;  // all the jobs' buffers keep at most
 
 }  // namespace plantview::detail
