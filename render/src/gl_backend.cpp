@@ -340,9 +340,12 @@ void GlBackend::release_target(Target& t) {
   t = Target{};
 }
 
+// The id attachment costs as much memory as the colour one (and clearing it, a pass over it), so
+// a target has one only once a frame has asked for ids; it keeps it for the frames after.
 bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth,
-                              std::string& error) {
-  if (t.framebuffer && t.width == w && t.height == h && t.samples == samples && t.has_depth == depth)
+                              bool pick, std::string& error) {
+  if (t.framebuffer && t.width == w && t.height == h && t.samples == samples && t.has_depth == depth &&
+      (t.has_pick || !pick))
     return true;
   release_target(t);
   glCreateFramebuffers(1, &t.framebuffer);
@@ -350,6 +353,7 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
   t.height = h;
   t.samples = samples;
   t.has_depth = depth;
+  t.has_pick = pick;
   const auto attach = [&](GLuint& name, GLenum format, GLenum attachment) {
     if (samples > 1) {
       glCreateRenderbuffers(1, &name);
@@ -362,7 +366,7 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
     }
   };
   attach(t.colour, GL_RGBA8, GL_COLOR_ATTACHMENT0);
-  attach(t.pick, GL_R32UI, GL_COLOR_ATTACHMENT1);
+  if (pick) attach(t.pick, GL_R32UI, GL_COLOR_ATTACHMENT1);
   if (depth && samples > 1) {
     // A texture, not a renderbuffer: the depth reduction reads every sample.
     glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t.depth);
@@ -372,7 +376,7 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
   } else if (depth) {
     attach(t.depth, GL_DEPTH32F_STENCIL8, GL_DEPTH_STENCIL_ATTACHMENT);
   }
-  const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(pick ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(t.framebuffer, 2, buffers);
   if (glCheckNamedFramebufferStatus(t.framebuffer, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
     error = "renderer: cannot make a " + std::to_string(w) + "x" + std::to_string(h) +
@@ -432,15 +436,15 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
   frame_plan_ = plan_for(look);
   const Plan& plan = frame_plan_;
   const uint32_t w = view.width, h = view.height;
-  if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, error)) return false;
-  if (plan.samples > 1 &&
-      !ensure_target(resolved_, w, h, 1, plan.occlusion, error))
+  if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, with_ids, error))
     return false;
-  if (plan.finish() && !ensure_target(output_, w, h, 1, false, error)) return false;
+  if (plan.samples > 1 && !ensure_target(resolved_, w, h, 1, plan.occlusion, with_ids, error))
+    return false;
+  if (plan.finish() && !ensure_target(output_, w, h, 1, false, with_ids, error)) return false;
   begin_pass(view, plan, with_ids);
   const GLuint no_pick[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(scene_.framebuffer, GL_COLOR, 0, kBackground);
-  glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
+  if (with_ids) glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
   glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
   final_ = nullptr;
   return true;
@@ -697,7 +701,7 @@ void GlBackend::finish(const FrameView& view, const Plan& plan, bool with_ids) {
       glBlitNamedFramebuffer(scene_.framebuffer, resolved_.framebuffer, 0, 0, GLint(scene_.width),
                              GLint(scene_.height), 0, 0, GLint(scene_.width), GLint(scene_.height),
                              GL_DEPTH_BUFFER_BIT, GL_NEAREST);
-    const GLenum both[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    const GLenum both[] = {GL_COLOR_ATTACHMENT0, GLenum(resolved_.has_pick ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
     glNamedFramebufferDrawBuffers(resolved_.framebuffer, 2, both);
     source = &resolved_;
   }

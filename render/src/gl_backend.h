@@ -137,6 +137,7 @@ class GlBackend {
     GlName framebuffer = 0, colour = 0, pick = 0, depth = 0;
     uint32_t width = 0, height = 0, samples = 0;
     bool has_depth = false;
+    bool has_pick = false;  // an id attachment: made the first time a frame asks for ids
   };
   // What a frame is drawn with, from the look and the device.
   struct Plan {
@@ -145,7 +146,7 @@ class GlBackend {
     bool finish() const { return scale > 1 || edge_filter || occlusion; }
   };
   Plan plan_for(const Look& look) const;
-  bool ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth,
+  bool ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth, bool pick,
                      std::string& error);
   static void release_target(Target& t);
   void bind_arena();
