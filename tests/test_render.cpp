@@ -492,6 +492,33 @@ TEST(RenderLook, AntialiasingChangesOnlyEdgePixelsToIntermediateValues) {
   }
 }
 
+// A renderer makes its id buffer only when a frame first asks for ids (stills never do): frames
+// without ids, then with, then without again give the same colours, and the frame with ids the
+// same ids as a renderer that always drew them. Every method (multisampling resolves ids too).
+TEST(RenderLook, FramesWithAndWithoutIdsAlternateOnOneRenderer) {
+  EdgeScene scene;
+  const uint32_t w = 200, h = 100;
+  const Camera camera = look({0, 0, 0.5}, {0, 10, 0});
+  for (const AntialiasMethod method : {AntialiasMethod::supersampling,
+                                       AntialiasMethod::multisampling,
+                                       AntialiasMethod::edge_filter}) {
+    const std::string name(antialias_method_name(method));
+    const Frame reference = render(*make_renderer(*scene.store, plain_look(true, method)), camera, w, h);
+    ASSERT_EQ(ids_in(reference.image), (std::set<uint64_t>{scene.box.id, scene.ball.id})) << name;
+    auto r = make_renderer(*scene.store, plain_look(true, method));
+    std::string error;
+    Frame before, after;
+    ASSERT_TRUE(r->render(camera, w, h, false, before.image, before.stats, error)) << error;
+    EXPECT_TRUE(before.image.object_ids.empty()) << name;
+    const Frame with_ids = render(*r, camera, w, h);
+    ASSERT_TRUE(r->render(camera, w, h, false, after.image, after.stats, error)) << error;
+    EXPECT_EQ(before.image.rgba, reference.image.rgba) << name;
+    EXPECT_EQ(with_ids.image.rgba, reference.image.rgba) << name;
+    EXPECT_EQ(after.image.rgba, reference.image.rgba) << name;
+    EXPECT_EQ(with_ids.image.object_ids, reference.image.object_ids) << name;
+  }
+}
+
 // The ground lies at the model's lowest level: seen from above, the rays that meet that plane
 // near the plant show it (no object id), those that rise above the horizon show the sky; from
 // below it, or without it, there is none.
