@@ -8,6 +8,7 @@
 #include <random>
 #include <set>
 
+#include "gl_backend.h"
 #include "hlod.h"
 #include "lod.h"
 #include "plantview/ingest.h"
@@ -779,6 +780,36 @@ TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
   EXPECT_GT(all.stats.budget_coarsened, 0u);
   EXPECT_LE(all.stats.arena_bytes_resident, options.vertex_budget_bytes);
   EXPECT_EQ(ids_in(all.image).size(), 400u);
+}
+
+// A model larger than the vertex budget is drawn in bounded pieces on a software renderer
+// (GlBackend::draw_triangles): a view of more triangles than a piece, all of them resident,
+// looks exactly as it does from a renderer whose budget holds the whole model.
+TEST(RenderArena, AModelLargerThanTheBudgetIsDrawnInPiecesToTheSameImage) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 24; ++i)
+    for (int j = 0; j < 24; ++j)
+      objects.push_back(make_object("S" + std::to_string(i) + "_" + std::to_string(j),
+                                    ObjectClass::equipment, {i * 1.0, 10 + j * 1.0, 0},
+                                    Sphere{0.45f}, {uint8_t(40 + 8 * i), uint8_t(40 + 8 * j), 200, 255}));
+  auto store = make_store(dir, objects);
+  const Camera camera = look({11.5, -6, 14}, {11.5, 21.5, 0});
+  RenderOptions roomy = small(LodPolicy::none);
+  roomy.vertex_budget_bytes = 256u << 20;
+  const Frame whole = render(*make_renderer(*store, roomy), camera, 240, 160);
+  ASSERT_GT(whole.stats.triangles, 2 * detail::kSoftwarePieceTriangles) << "more than two pieces";
+  ASSERT_EQ(ids_in(whole.image).size(), objects.size());
+  // A budget that holds this view's vertices but not the model's triangles' worth.
+  RenderOptions tight = roomy;
+  tight.vertex_budget_bytes = ((whole.stats.arena_bytes_resident * 5 / 4) | ((1u << 20) - 1)) + 1;
+  ASSERT_LT(tight.vertex_budget_bytes / detail::kBytesPerVertex, whole.stats.triangles)
+      << "the model must be larger than the budget";
+  const Frame pieces = render(*make_renderer(*store, tight), camera, 240, 160);
+  EXPECT_EQ(pieces.stats.budget_proxies, 0u);
+  EXPECT_EQ(pieces.stats.triangles, whole.stats.triangles);
+  EXPECT_EQ(pieces.image.rgba, whole.image.rgba);
+  EXPECT_EQ(pieces.image.object_ids, whole.image.object_ids);
 }
 
 TEST(RenderArena, AnObjectLargerThanTheWholeBudgetIsDrawnAsItsBox) {

@@ -587,6 +587,24 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer_);
 }
 
+void GlBackend::draw_triangles(size_t first, size_t count) const {
+  const size_t piece = software_ && bounded_drawing_ ? 3 * kSoftwarePieceTriangles : count;
+  GLsync previous = nullptr;
+  for (size_t done = 0; done < count; done += piece) {
+    glDrawElements(GL_TRIANGLES, GLsizei(std::min(piece, count - done)), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>((first + done) * sizeof(uint32_t)));
+    if (done + piece >= count) break;
+    // This piece is binned: the one before must be rasterised before the next is binned.
+    const GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+    if (previous) {
+      glClientWaitSync(previous, GL_SYNC_FLUSH_COMMANDS_BIT, GL_TIMEOUT_IGNORED);
+      glDeleteSync(previous);
+    }
+    previous = fence;
+  }
+  if (previous) glDeleteSync(previous);
+}
+
 void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                            bool with_ids) {
   const size_t n_closed = counts[kClosed], n_open = counts[kOpen];
@@ -613,12 +631,10 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
     glFrontFace(GL_CCW);
-    glDrawElements(GL_TRIANGLES, GLsizei(n_closed), GL_UNSIGNED_INT, nullptr);
+    draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
   }
-  if (n_open)
-    glDrawElements(GL_TRIANGLES, GLsizei(n_open), GL_UNSIGNED_INT,
-                   reinterpret_cast<const void*>(n_closed * sizeof(uint32_t)));
+  if (n_open) draw_triangles(n_closed, n_open);
   if (proxies) {
     glBindVertexArray(proxy_vao_);
     glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLsizei(proxies));
@@ -639,8 +655,7 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     glEnablei(GL_BLEND, 0);
     glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
     glDepthMask(GL_FALSE);
-    glDrawElements(GL_TRIANGLES, GLsizei(n_transparent), GL_UNSIGNED_INT,
-                   reinterpret_cast<const void*>(n_opaque * sizeof(uint32_t)));
+    draw_triangles(n_opaque, n_transparent);
   }
   glDepthMask(GL_TRUE);
   glDisablei(GL_BLEND, 0);

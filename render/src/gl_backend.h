@@ -57,6 +57,9 @@ struct TableEntry {
 static_assert(sizeof(TableEntry) == 32);
 
 inline constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
+// With bounded drawing on a software renderer, triangles drawn at a time at most (see
+// GlBackend::draw_triangles).
+inline constexpr size_t kSoftwarePieceTriangles = size_t(1) << 17;
 inline constexpr uint32_t kProxyVertices = 24;  // the unit cube of proxy boxes, at arena offset 0
 
 using GlName = uint32_t;  // a GLuint: the name of a GL object (0: none)
@@ -94,6 +97,9 @@ class GlBackend {
   // frames after one that needed a large step (the first view) mostly need a little more,
   // and every growth zeroes a whole new buffer.
   bool grow_arena(uint64_t vertices, std::string& error);
+  // Whether drawing holds memory down at some cost in speed (see draw_triangles): the
+  // renderer asks it for models larger than the vertex budget.
+  void set_bounded_drawing(bool bounded) { bounded_drawing_ = bounded; }
   // Milliseconds grow_arena() spent growing the buffers since the last call.
   double take_growth_ms() { return std::exchange(growth_ms_, 0.0); }
   // Writes vertices at arena offset `first` (and, unless `objects` is empty, their object-table
@@ -159,6 +165,14 @@ class GlBackend {
   void draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                   bool with_ids);
   void draw_ground(const FrameView& view, const DAabb& bounds, bool with_ids);
+  // Draws `count` indices of the index buffer from index `first` as triangles. A software
+  // renderer keeps a draw's triangles, binned, in memory until it has rasterised them, and its
+  // setup runs several scenes ahead of rasterisation (llvmpipe: about 130 MB for a frame of a
+  // million triangles). With bounded drawing there the list is drawn in pieces of
+  // kSoftwarePieceTriangles, the next binned while the last is rasterised and no further
+  // ahead, so that at most two are held. Measured (llvmpipe, 2 cores, render --path): peak
+  // resident memory 120 MB lower, drawing 5-9% slower, images identical.
+  void draw_triangles(size_t first, size_t count) const;
   // Resolves multisampling and runs the finishing pass into output_.
   void finish(const FrameView& view, const Plan& plan, bool with_ids);
   // The table with the context ghosted for a highlight: colours lightened and desaturated,
@@ -178,6 +192,7 @@ class GlBackend {
 
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
+  bool bounded_drawing_ = false;
   GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
          occlusion_program_ = 0, finish_program_ = 0, reduce_program_ = 0,
          reduce_multisampled_program_ = 0;

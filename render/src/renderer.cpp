@@ -59,10 +59,12 @@ bool Renderer::State::open_view(std::string& error) {
   // arena now: growing it later copies it, and the old and new buffers together would exceed
   // the budget for a moment. Smaller ones grow as they need (a new buffer costs zeroing it).
   // Such a model also drops the primitives of what is resident (decoding them again when they
-  // must be tessellated again); a smaller one keeps them, for speed.
+  // must be tessellated again), and is drawn in bounded pieces (GlBackend::draw_triangles); a
+  // smaller one keeps them and is drawn at once, for speed.
   const uint64_t budget_vertices = options.vertex_budget_bytes / kBytesPerVertex;
   const bool larger_than_budget = statistics.triangles > budget_vertices;
   if (!streaming.reset(budget_vertices, larger_than_budget, error)) return false;
+  backend.set_bounded_drawing(larger_than_budget);
   return !larger_than_budget || backend.grow_arena(budget_vertices, error);
 }
 
