@@ -525,6 +525,22 @@ std::unique_ptr<Client> non_reading_client(int port, int pages) {
   return c;
 }
 
+// Polls /metrics on `c` until it shows `line`; false if it does not within `limit`.
+bool wait_for_metric(Client& c, const std::string& line, std::chrono::seconds limit = 10s) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
+    if (c.request("/metrics").body.find(line) != std::string::npos) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return false;
+}
+
+// The same on a connection of its own.
+bool wait_for_metric(int port, const std::string& line, std::chrono::seconds limit = 10s) {
+  Client c(port);
+  return wait_for_metric(c, line, limit);
+}
+
 TEST(Service, AClientThatDoesNotReadIsDisconnectedAtTheWriteDeadline) {
   const test::TempDir web;
   constexpr size_t kPage = 8u << 20;
@@ -533,31 +549,13 @@ TEST(Service, AClientThatDoesNotReadIsDisconnectedAtTheWriteDeadline) {
   // The stuck client reads nothing until the server says it has given up on it: how soon that is
   // depends on the machine (seconds under the sanitizers on a loaded one), what it does does not.
   Client fine(server.port());
-  const auto until = std::chrono::steady_clock::now() + 120s;
-  Response metrics;
-  do {
-    std::this_thread::sleep_for(100ms);
-    metrics = fine.request("/metrics");
-  } while (metrics.body.find("plantview_timed_out_connections_total 1\n") == std::string::npos &&
-           std::chrono::steady_clock::now() < until);
-  EXPECT_NE(metrics.body.find("plantview_timed_out_connections_total 1\n"), std::string::npos) << metrics.body;
+  EXPECT_TRUE(wait_for_metric(fine, "plantview_timed_out_connections_total 1\n", 120s));
   bool closed = false;
   const size_t received = stuck->read_until_closed(closed);
   EXPECT_TRUE(closed);
   EXPECT_LT(received, 4 * kPage);
-  metrics = fine.request("/metrics");
+  const Response metrics = fine.request("/metrics");
   EXPECT_NE(metrics.body.find("plantview_connections 1\n"), std::string::npos) << metrics.body;
-}
-
-// Polls /metrics until it shows `line`; false if it does not within `limit`.
-bool wait_for_metric(int port, const std::string& line, std::chrono::seconds limit = 10s) {
-  Client c(port);
-  const auto until = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < until) {
-    if (c.request("/metrics").body.find(line) != std::string::npos) return true;
-    std::this_thread::sleep_for(20ms);
-  }
-  return false;
 }
 
 TEST(Service, SigtermExitsWithinTheShutdownDeadlineDespiteAClientThatDoesNotRead) {

@@ -26,10 +26,10 @@
 // Threads: the renderer's thread (it calls GL through the backend), with the renderer's worker
 //   pool (worker_pool.h) for two parts: newly resident objects are tessellated on it first,
 //   up to kPrepareBatch draws or kPrepareBatchVertices vertices at a time (so that what waits
-//   for upload stays bounded, and what the jobs' buffers keep between batches is bounded by
-//   kKeptJobBytes; each job writes
-//   only its own object and buffers), then placed and uploaded on the renderer's thread; and the
-//   index lists are written on it, each worker a run of the draw order into its own ranges.
+//   for upload stays bounded; the jobs' buffers keep at most kKeptJobBytes between batches;
+//   each job writes only its own object and buffers), then placed and uploaded on the
+//   renderer's thread; and the index lists are written on it, each worker a run of the draw
+//   order into its own ranges.
 #pragma once
 
 #include <array>
