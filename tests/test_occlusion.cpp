@@ -397,9 +397,9 @@ TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {
   EXPECT_NE(s.to_json().find("\"objects_occluded\":1"), std::string::npos);
 }
 
-// Growing the GPU vertex arena is reported apart, as the part of stream it took: in the frame
-// that grows it and no other.
-TEST(Occlusion, ArenaGrowthIsReportedAsPartOfStreamInTheFrameThatGrowsIt) {
+// Growing the GPU vertex arena is reported apart, as the part of stream it took: never in a
+// frame that streams nothing new.
+TEST(Occlusion, ArenaGrowthIsReportedAsPartOfStreamAndNotInAFrameThatStreamsNothing) {
   TempDir dir;
   std::vector<Object> objects;  // drawn in full: more vertices than the arena starts with
   for (int i = 0; i < 1600; ++i)
@@ -417,8 +417,9 @@ TEST(Occlusion, ArenaGrowthIsReportedAsPartOfStreamInTheFrameThatGrowsIt) {
   FrameStats first, again;
   const Camera above = look({40, -30, 60}, {40, 40, 0});
   ASSERT_TRUE(r->render(above, 320, 180, false, image, first, error)) << error;
-  ASSERT_GT(first.arena_bytes_resident, 3u << 20) << "more than the arena starts with (2 MB)";
-  EXPECT_GT(first.ms.arena_growth, 0.0);
+  ASSERT_GT(first.arena_bytes_resident, 3u << 20) << "more than a grown arena starts with (2 MB)";
+  // (A software renderer may map its whole budget at once and never grow: 0. The growth
+  // itself is tested on the backend, RenderArena in test_render.cpp.)
   EXPECT_LE(first.ms.arena_growth, first.ms.stream);
   EXPECT_NE(first.to_json().find("\"arena_growth\":"), std::string::npos);
   ASSERT_TRUE(r->render(above, 320, 180, false, image, again, error)) << error;

@@ -812,6 +812,63 @@ TEST(RenderArena, AModelLargerThanTheBudgetIsDrawnInPiecesToTheSameImage) {
   EXPECT_EQ(pieces.image.object_ids, whole.image.object_ids);
 }
 
+// The arena's two kinds of memory (gl_backend.h): grown GPU buffers report the time each
+// growth took; on a software renderer that can draw from client memory, the whole budget is
+// mapped at once and never grows.
+TEST(RenderArena, AGrownArenaAtLeastDoublesAndReportsTheTimeItTook) {
+  test::gl_context();
+  detail::GlBackend backend;
+  std::string error;
+  const uint64_t budget_vertices = (64u << 20) / detail::kBytesPerVertex;
+  ASSERT_TRUE(backend.init(budget_vertices, error, detail::ArenaMemory::grown)) << error;
+  EXPECT_FALSE(backend.arena_mapped());
+  const uint64_t initial = backend.arena_vertices();
+  ASSERT_LT(initial, budget_vertices);
+  backend.take_growth_ms();
+  ASSERT_TRUE(backend.grow_arena(initial + 1, error)) << error;
+  EXPECT_GE(backend.arena_vertices(), 2 * initial);
+  EXPECT_GT(backend.take_growth_ms(), 0.0);
+  ASSERT_TRUE(backend.grow_arena(initial + 1, error)) << error;
+  EXPECT_EQ(backend.take_growth_ms(), 0.0) << "it holds that already";
+  ASSERT_TRUE(backend.grow_arena(2 * budget_vertices, error)) << error;
+  EXPECT_EQ(backend.arena_vertices(), budget_vertices) << "never more than the budget";
+}
+
+long resident_kb() {
+  long pages = 0, resident = 0;
+  FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return -1;
+  if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = -1;
+  std::fclose(f);
+  return resident < 0 ? -1 : resident * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+TEST(RenderArena, ASoftwareRendererMapsItsWholeBudgetAndTakesMemoryOnlyForWhatItHolds) {
+  test::gl_context();
+  {
+    detail::GlBackend probe;
+    std::string error;
+    ASSERT_TRUE(probe.init(1u << 16, error)) << error;
+    if (!probe.arena_mapped())
+      GTEST_SKIP() << "this renderer grows GPU buffers (no GL_AMD_pinned_memory, or a GPU)";
+  }
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 40; ++i)
+    objects.push_back(make_object("P" + std::to_string(i), ObjectClass::equipment, {i * 2.0, 0, 0},
+                                  Cylinder{0.5f, 1.0f}));
+  auto store = make_store(dir, objects);
+  RenderOptions options = small(LodPolicy::none);
+  options.vertex_budget_bytes = 4ull << 30;  // a sixth of this machine's memory
+  const long before_kb = resident_kb();
+  auto renderer = make_renderer(*store, options);
+  const Frame first = render(*renderer, look({39, -90, 40}, {39, 0, 0}));
+  EXPECT_EQ(ids_in(first.image).size(), objects.size());
+  EXPECT_EQ(first.stats.ms.arena_growth, 0.0) << "mapped once: it never grows";
+  const long taken_kb = resident_kb() - before_kb;
+  EXPECT_LT(taken_kb, 256 * 1024) << "a 4 GB budget took " << taken_kb << " kB";
+}
+
 TEST(RenderArena, AnObjectLargerThanTheWholeBudgetIsDrawnAsItsBox) {
   FacetGroup mesh;  // 60,000 vertices in one level: more than a 1 MB arena holds
   for (uint32_t t = 0; t < 20000; ++t) {

@@ -3,11 +3,14 @@
 
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
+#include <sys/mman.h>
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <initializer_list>
 #include <type_traits>
 #include <utility>
@@ -137,7 +140,29 @@ Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
   return look;
 }
 
+GlBackend::Mapping::~Mapping() { reset(); }
+
+void GlBackend::Mapping::reset() {
+  if (data_) munmap(data_, bytes_);
+  data_ = nullptr;
+  bytes_ = 0;
+}
+
+bool GlBackend::Mapping::map(size_t bytes) {
+  assert(!data_ && bytes > 0);
+  // Anonymous pages read as zero and take memory only once written; no swap is reserved for
+  // the untouched rest.
+  void* p = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (p == MAP_FAILED) return false;
+  data_ = p;
+  bytes_ = bytes;
+  return true;
+}
+
 GlBackend::~GlBackend() {
+  // The driver draws from the mapped arena until its buffers are gone (the mappings are
+  // unmapped after this body).
+  if (arena_mapped()) glFinish();
   for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
                                occlusion_program_, finish_program_, reduce_program_,
                                reduce_multisampled_program_})
@@ -156,7 +181,7 @@ GlBackend::~GlBackend() {
   release_target(output_);
 }
 
-bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
+bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory memory) {
   budget_vertices_ = budget_vertices;
   if (eglGetCurrentContext() == EGL_NO_CONTEXT) {
     error = "renderer: no current OpenGL context (create a GpuContext first)";
@@ -249,7 +274,39 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error) {
     glSamplerParameteri(sampler, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glSamplerParameteri(sampler, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   }
+  if (memory == ArenaMemory::automatic && software_ && map_arena()) return true;
   return grow_arena(std::min<uint64_t>(kInitialArenaVertices, budget_vertices_), error);
+}
+
+bool GlBackend::map_arena() {
+  if (!epoxy_has_gl_extension("GL_AMD_pinned_memory")) return false;
+  if (!mapped_vertices_.map(budget_vertices_ * sizeof(PackedVertex)) ||
+      !mapped_objects_.map(budget_vertices_ * sizeof(uint32_t))) {
+    mapped_vertices_.reset();
+    mapped_objects_.reset();
+    return false;
+  }
+  GLuint buffers[2];
+  glCreateBuffers(2, buffers);
+  const Mapping* memory[2] = {&mapped_vertices_, &mapped_objects_};
+  const size_t sizes[2] = {sizeof(PackedVertex), sizeof(uint32_t)};
+  for (int b = 0; b < 2; ++b) {
+    glBindBuffer(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, buffers[b]);
+    glBufferData(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, GLsizeiptr(budget_vertices_ * sizes[b]),
+                 memory[b]->data(), GL_STREAM_DRAW);
+  }
+  glBindBuffer(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, 0);
+  if (glGetError() != GL_NO_ERROR) {  // (llvmpipe: a buffer over 4 GB)
+    glDeleteBuffers(2, buffers);
+    mapped_vertices_.reset();
+    mapped_objects_.reset();
+    return false;
+  }
+  arena_ = buffers[0];
+  arena_objects_ = buffers[1];
+  arena_vertices_ = budget_vertices_;
+  bind_arena();
+  return true;
 }
 
 void GlBackend::bind_arena() {
@@ -289,6 +346,12 @@ bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
 
 void GlBackend::upload(uint64_t first, std::span<const PackedVertex> vertices,
                        std::span<const uint32_t> objects) {
+  if (arena_mapped()) {
+    std::memcpy(static_cast<PackedVertex*>(mapped_vertices_.data()) + first, vertices.data(), vertices.size_bytes());
+    if (!objects.empty())
+      std::memcpy(static_cast<uint32_t*>(mapped_objects_.data()) + first, objects.data(), objects.size_bytes());
+    return;
+  }
   glNamedBufferSubData(arena_, GLintptr(first * sizeof(PackedVertex)),
                        GLsizeiptr(vertices.size_bytes()), vertices.data());
   if (!objects.empty())

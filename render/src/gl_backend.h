@@ -9,6 +9,14 @@
 //     than the budget; growing at least doubles them (each growth allocates new buffers, which
 //     the driver zeroes, and copies the old: about 1 ms a MB on llvmpipe). A centreline vertex's
 //     normal word holds the pipe's diameter in metres (float bits), not a normal.
+//   - On a software renderer that can draw from client memory (GL_AMD_pinned_memory), the
+//     arena is instead the whole budget of address space mapped once (ArenaMemory::mapped):
+//     memory is taken only where vertices are written, and it never grows (no zeroing, no
+//     copy), and uploads are written straight into it (no driver copy: every frame's draws
+//     are finished before the next streams, as for the index buffer below, and a second
+//     phase streams after its first was waited for). A GPU driver keeps the grown buffers (its
+//     own memory is faster to draw from), and so does a budget the driver cannot map
+//     (llvmpipe: over 4 GB of vertices).
 //   - The index buffer holds the frame's lists one after the other in IndexList order; it is
 //     written through an unsynchronised mapping, which is safe because every frame is finished
 //     (read back) before the next begins.
@@ -80,6 +88,12 @@ struct Look {
 };
 Look look_of(const RenderOptions& options, const DAabb& model_bounds);
 
+// How the arena's buffers are made (see the rules above).
+enum class ArenaMemory {
+  automatic,  // mapped where the renderer is software and can draw from client memory
+  grown,      // GPU buffers grown on demand
+};
+
 class GlBackend {
  public:
   GlBackend() = default;
@@ -88,9 +102,13 @@ class GlBackend {
   GlBackend& operator=(const GlBackend&) = delete;
 
   // Compiles the shaders and makes the buffers and vertex arrays, the arena at its initial size
-  // (at most budget_vertices, which bounds every later growth). Needs a current OpenGL 4.5
-  // context.
-  bool init(uint64_t budget_vertices, std::string& error);
+  // (at most budget_vertices, which bounds every later growth), or mapped whole. Needs a
+  // current OpenGL 4.5 context.
+  bool init(uint64_t budget_vertices, std::string& error,
+            ArenaMemory memory = ArenaMemory::automatic);
+  // Whether the arena is the budget mapped once (no growth ever), and its size in vertices.
+  bool arena_mapped() const { return !mapped_vertices_.empty(); }
+  uint64_t arena_vertices() const { return arena_vertices_; }
 
   // The arena buffers hold at least `vertices` (capped at the budget), keeping their contents.
   // A growth allocates the larger of twice the arena and half as much again as asked: the
@@ -199,8 +217,31 @@ class GlBackend {
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
-  uint64_t arena_vertices_ = 0;
-  double growth_ms_ = 0;  // size of the GPU buffers, in vertices (<= the budget)
+  // Client memory mapped for the arena (ArenaMemory::mapped): unmapped on destruction, after
+  // the buffers that draw from it are deleted.
+  class Mapping {
+   public:
+    Mapping() = default;
+    ~Mapping();
+    Mapping(const Mapping&) = delete;
+    Mapping& operator=(const Mapping&) = delete;
+    // Reserves `bytes` of zeroed address space, backed only where written; false if refused.
+    bool map(size_t bytes);
+    void reset();  // unmaps
+    void* data() const { return data_; }
+    bool empty() const { return data_ == nullptr; }
+
+   private:
+    void* data_ = nullptr;
+    size_t bytes_ = 0;
+  };
+  // Makes the arena's buffers from client memory, the whole budget at once: false (nothing
+  // changed) where the driver or the system refuses.
+  bool map_arena();
+
+  uint64_t arena_vertices_ = 0;  // size of the arena's buffers, in vertices (<= the budget)
+  double growth_ms_ = 0;
+  Mapping mapped_vertices_, mapped_objects_;  // unmapped after ~GlBackend deleted the buffers
   // Drawing goes to scene_ (scale x the output's size, multisampled or not); multisampled, it
   // is resolved into resolved_; finished, into output_; read back from the last of these used.
   Target scene_, resolved_, output_;
