@@ -280,12 +280,14 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
 
 bool GlBackend::map_arena() {
   if (!epoxy_has_gl_extension("GL_AMD_pinned_memory")) return false;
-  if (!mapped_vertices_.map(budget_vertices_ * sizeof(PackedVertex)) ||
-      !mapped_objects_.map(budget_vertices_ * sizeof(uint32_t))) {
+  const auto give_up = [&] {
     mapped_vertices_.reset();
     mapped_objects_.reset();
     return false;
-  }
+  };
+  if (!mapped_vertices_.map(budget_vertices_ * sizeof(PackedVertex)) ||
+      !mapped_objects_.map(budget_vertices_ * sizeof(uint32_t)))
+    return give_up();
   GLuint buffers[2];
   glCreateBuffers(2, buffers);
   const Mapping* memory[2] = {&mapped_vertices_, &mapped_objects_};
@@ -298,9 +300,7 @@ bool GlBackend::map_arena() {
   glBindBuffer(GL_EXTERNAL_VIRTUAL_MEMORY_BUFFER_AMD, 0);
   if (glGetError() != GL_NO_ERROR) {  // (llvmpipe: a buffer over 4 GB)
     glDeleteBuffers(2, buffers);
-    mapped_vertices_.reset();
-    mapped_objects_.reset();
-    return false;
+    return give_up();
   }
   arena_ = buffers[0];
   arena_objects_ = buffers[1];

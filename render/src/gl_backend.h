@@ -10,7 +10,7 @@
 //     the driver zeroes, and copies the old: about 1 ms a MB on llvmpipe). A centreline vertex's
 //     normal word holds the pipe's diameter in metres (float bits), not a normal.
 //   - On a software renderer that can draw from client memory (GL_AMD_pinned_memory), the
-//     arena is instead the whole budget of address space mapped once (ArenaMemory::mapped):
+//     arena is instead the whole budget of address space mapped once (ArenaMemory::automatic):
 //     memory is taken only where vertices are written, and it never grows (no zeroing, no
 //     copy), and uploads are written straight into it (no driver copy: every frame's draws
 //     are finished before the next streams, as for the index buffer below, and a second
@@ -217,7 +217,7 @@ class GlBackend {
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
-  // Client memory mapped for the arena (ArenaMemory::mapped): unmapped on destruction, after
+  // Client memory mapped for the arena (see the rules above): unmapped on destruction, after
   // the buffers that draw from it are deleted.
   class Mapping {
    public:
