@@ -263,6 +263,35 @@ TEST(Store, AReadViewIsASnapshotWhileAnImportCommits) {
   EXPECT_EQ(store->read(error)->info().objects, 2u);
 }
 
+TEST(Store, ASiblingViewReadsItsViewsSnapshotAndNoneIsHadOnceTheStoreMovedOn) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  import_objects(*store, {sample_object("a", "/A1", {})}, "a");
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  auto sibling = view->sibling(error);
+  ASSERT_TRUE(sibling) << error;
+  // Used on another thread, as a renderer's worker does.
+  std::optional<uint32_t> slot;
+  Object o;
+  std::thread([&] {
+    std::string why;
+    slot = sibling->slot_of(sample_object("a", "/A1", {}).id);
+    if (slot && !sibling->object(*slot, o, false, why)) ADD_FAILURE() << why;
+  }).join();
+  ASSERT_TRUE(slot);
+  EXPECT_EQ(o.name, "/A1");
+  EXPECT_EQ(sibling->info().objects, 1u);
+
+  import_objects(*store, {sample_object("b", "/B1", {})}, "b");
+  EXPECT_TRUE(sibling->slots_named("/B1").empty()) << "a sibling keeps its snapshot";
+  error.clear();
+  EXPECT_FALSE(view->sibling(error)) << "the old snapshot cannot be read again";
+  EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
+  EXPECT_NE(error.find("committed"), std::string::npos) << error;
+}
+
 TEST(Store, TheSpatialHierarchyHoldsEveryObjectInsideItsNodes) {
   TempDir dir;
   auto store = open_store(dir.str());
@@ -755,7 +784,7 @@ TEST(Store, TwoThreadsLookUpSlotsOnViewsOfTheSameStateAtOnce) {
   std::latch start(2);
   auto look_up = [&](size_t& wrong) {
     std::string error;
-    auto view = store->read(error);  // a view belongs to the thread that made it
+    auto view = store->read(error);  // each thread a view of its own
     start.arrive_and_wait();
     if (!view) {
       ++wrong;

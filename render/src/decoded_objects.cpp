@@ -2,12 +2,14 @@
 #include "decoded_objects.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <unordered_set>
 
 #include "frame_plan.h"
 #include "plantview/store.h"
 #include "residency.h"
+#include "worker_pool.h"
 
 namespace plantview::detail {
 
@@ -40,6 +42,8 @@ void KnownDirectory::erase(uint32_t key) {
 
 void DecodedObjects::reset(const ReadView& view) {
   view_ = &view;
+  views_.clear();
+  siblings_.clear();
   pool_.clear();
   keys_.clear();
   free_known_.clear();
@@ -79,6 +83,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
     if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
   }
   std::sort(new_slots_.begin(), new_slots_.end());
+  pipelines_pending_.clear();
   for (const uint32_t slot : new_slots_) {
     if (!view_->object(slot, object_, false, error)) return false;
     Known& k = add(slot, object_, false);
@@ -87,9 +92,10 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       continue;
     auto it = pipeline_runs_.find(k.pipeline_id);
     if (it == pipeline_runs_.end()) {
-      std::string ignored;  // a pipeline that cannot be read is simply not merged
-      analyse_pipeline(k.pipeline_id, ignored);
-      it = pipeline_runs_.find(k.pipeline_id);
+      // Analysed below, all at once (the members known by then are told their runs).
+      pipeline_runs_.emplace(k.pipeline_id, std::vector<uint32_t>{});
+      pipelines_pending_.push_back(k.pipeline_id);
+      continue;
     }
     for (const uint32_t r : it->second) {
       const auto& members = runs_[r].members;
@@ -99,6 +105,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       }
     }
   }
+  analyse_pending_pipelines();
   // The new ones' Known (the pool's growth moves none).
   if (!new_slots_.empty())
     for (size_t i = 0; i < visible.size(); ++i)
@@ -165,25 +172,35 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   return k;
 }
 
-void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) {
-  // Analysed from now on, with no runs unless some are found below (a pipeline that cannot be
-  // read keeps none).
-  pipeline_runs_[pipeline_id].clear();
-  const auto slot = view_->slot_of(pipeline_id);
+namespace {
+
+// The runs of one pipeline, read through `view` (none if the pipeline or all its members cannot
+// be read: such a pipeline is simply not merged).
+void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<PipelineRun>& runs) {
+  runs.clear();
+  const auto slot = view.slot_of(pipeline_id);
   Object pipeline;
-  if (!slot || !view_->object(*slot, pipeline, false, error)) return;
+  std::string ignored;
+  if (!slot || !view.object(*slot, pipeline, false, ignored)) return;
   std::vector<Object> members;
+  std::vector<uint32_t> slots;
   std::vector<std::pair<uint32_t, const Object*>> branch;
-  std::vector<uint32_t> run_indices;
   for (const Branch& b : pipeline.branches) {
     members.clear();
     members.reserve(b.members.size());
-    std::vector<uint32_t> slots;
+    slots.clear();
     for (const uint64_t id : b.members) {
-      const auto s = view_->slot_of(id);
-      if (!s) continue;
+      // Importers put a branch's members in order, so the slot after the last member's is
+      // tried first: reading it costs little (its chunk is most likely decompressed already),
+      // a lookup in the ids table a page fault or more.
       members.emplace_back();
-      if (!view_->object(*s, members.back(), false, error)) {
+      if (!slots.empty() && view.object(slots.back() + 1, members.back(), false, ignored) &&
+          members.back().id == id) {
+        slots.push_back(slots.back() + 1);
+        continue;
+      }
+      const auto s = view.slot_of(id);
+      if (!s || !view.object(*s, members.back(), false, ignored)) {
         members.pop_back();
         continue;
       }
@@ -191,17 +208,57 @@ void DecodedObjects::analyse_pipeline(uint64_t pipeline_id, std::string& error) 
     }
     branch.clear();
     for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
-    branch_runs_.clear();
-    find_runs(branch, branch_runs_);
-    for (auto& run : branch_runs_) {
-      run.pipeline_id = pipeline_id;
-      const uint32_t r = new_run(std::move(run));
-      run_indices.push_back(r);
-      for (const uint32_t m : runs_[r].members)
-        if (Known* k = directory_.find(m)) k->run = int32_t(r);
-    }
+    find_runs(branch, runs);
   }
-  pipeline_runs_[pipeline_id] = std::move(run_indices);
+}
+
+}  // namespace
+
+void DecodedObjects::make_sibling_views() {
+  views_.assign(1, view_);
+  const unsigned workers = workers_ ? workers_->size() : 1;
+  while (views_.size() < workers) {
+    std::string why;  // without a sibling, fewer workers read
+    std::unique_ptr<ReadView> sibling = view_->sibling(why);
+    if (!sibling) break;
+    views_.push_back(sibling.get());
+    siblings_.push_back(std::move(sibling));
+  }
+}
+
+void DecodedObjects::analyse_pending_pipelines() {
+  const size_t n = pipelines_pending_.size();
+  if (n == 0) return;
+  if (pending_runs_.size() < n) pending_runs_.resize(n);
+  const size_t parts = (n + kPipelinesPerPart - 1) / kPipelinesPerPart;
+  if (workers_ && parts > 1 && views_.empty()) make_sibling_views();
+  // Parts taken in turn by the workers that have a view, then by this thread (every part may
+  // have gone to workers without one).
+  std::atomic<size_t> next{0};
+  const auto take_parts = [&](const ReadView& view) {
+    for (size_t p; (p = next.fetch_add(1)) < parts;)
+      for (size_t i = p * kPipelinesPerPart; i < std::min(n, (p + 1) * kPipelinesPerPart); ++i)
+        find_pipeline_runs(view, pipelines_pending_[i], pending_runs_[i]);
+  };
+  if (workers_ && parts > 1 && views_.size() > 1)
+    workers_->run(views_.size(), [&](size_t, unsigned worker) {
+      if (worker < views_.size()) take_parts(*views_[worker]);
+    });
+  take_parts(*view_);
+  for (size_t i = 0; i < n; ++i) add_pipeline(pipelines_pending_[i], pending_runs_[i]);
+}
+
+void DecodedObjects::add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs) {
+  std::vector<uint32_t>& run_indices = pipeline_runs_[pipeline_id];
+  run_indices.clear();
+  for (PipelineRun& run : runs) {
+    run.pipeline_id = pipeline_id;
+    const uint32_t r = new_run(std::move(run));
+    run_indices.push_back(r);
+    for (const uint32_t m : runs_[r].members)
+      if (Known* k = directory_.find(m)) k->run = int32_t(r);
+  }
+  runs.clear();
 }
 
 uint32_t DecodedObjects::new_run(PipelineRun&& run) {

@@ -23,7 +23,9 @@
 //   into this cache's template plans (kept for the renderer's life) or into the Known's
 //   own_plans.
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
-// Threads: the renderer's thread.
+// Threads: the renderer's thread. Pipelines are analysed on its worker pool, each worker
+//   reading the store through a view of its own and writing only its pipelines' runs; what is
+//   found is added on the renderer's thread.
 #pragma once
 
 #include <algorithm>
@@ -50,11 +52,13 @@ class ReadView;
 namespace plantview::detail {
 
 class Residency;
+class WorkerPool;
 struct VisibleObject;
 
 inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
 inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held before forgetting
+inline constexpr size_t kPipelinesPerPart = 16;      // pipelines analysed per part on the pool
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
@@ -165,6 +169,10 @@ struct RunDecision {
 
 class DecodedObjects {
  public:
+  // Pipelines are analysed on `pool` (null: on the calling thread), each worker reading from a
+  // sibling view of its own (ReadView::sibling), made the first time a frame has pipelines
+  // enough to share out (kPipelinesPerPart).
+  explicit DecodedObjects(WorkerPool* pool = nullptr) : workers_(pool) {}
   // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
   void reset(const ReadView& view);
 
@@ -181,6 +189,9 @@ class DecodedObjects {
   size_t known_count() const { return pool_.size() - free_known_.size(); }
   size_t pipelines_count() const { return pipeline_runs_.size(); }
   size_t runs_count() const { return runs_.size() - free_runs_.size(); }
+  // Views pipelines are read through at once: 1 until a decode() had pipelines enough to share
+  // out among the workers, then the workers that got a view of their own.
+  size_t reading_views() const { return std::max<size_t>(views_.size(), 1); }
   // A known object; it must be known (decoded this frame or before).
   Known& at(uint32_t slot) {
     Known* k = directory_.find(slot);
@@ -211,7 +222,14 @@ class DecodedObjects {
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
   // A fresh Known for `key` (not known), from the pool.
   Known& insert(uint32_t key);
-  void analyse_pipeline(uint64_t pipeline_id, std::string& error);
+  // The runs of the pipelines in pipelines_pending_, read through each worker's view, then
+  // added in that order (so run indices do not depend on the thread count).
+  void analyse_pending_pipelines();
+  // Adds the runs found for `pipeline_id` and tells the known members which is theirs.
+  void add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs);
+  // The worker views (views_[0] is the renderer's own); fewer than the pool's workers when
+  // siblings cannot be had (the store moved on, or no reader slot left).
+  void make_sibling_views();
   // A run index for a new run: a freed one, or a new one at the end.
   uint32_t new_run(PipelineRun&& run);
   // forget_old()'s parts: the objects, then the pipelines that no known object or run refers to.
@@ -232,6 +250,9 @@ class DecodedObjects {
   };
 
   const ReadView* view_ = nullptr;
+  WorkerPool* workers_ = nullptr;
+  std::vector<std::unique_ptr<ReadView>> siblings_;  // views_[1..]
+  std::vector<const ReadView*> views_;  // per worker; empty until first needed
   // Known objects and runs: the pool (an entry is in use while keys_[i] != kFreeKey), the free
   // entries, and the directory that finds them by key.
   static constexpr uint32_t kFreeKey = UINT32_MAX - 1;  // UINT32_MAX is the proxy cube's key
@@ -249,8 +270,10 @@ class DecodedObjects {
   std::vector<uint32_t> free_runs_;
   std::unordered_map<uint64_t, std::vector<uint32_t>> pipeline_runs_;
   size_t pipelines_referenced_ = 0;  // at the last forget_pipelines()
-  // Scratch, reused.
-  std::vector<PipelineRun> branch_runs_;
+  // Scratch, reused: the pipelines this decode() met that are not analysed yet (in the order
+  // met), and their runs.
+  std::vector<uint64_t> pipelines_pending_;
+  std::vector<std::vector<PipelineRun>> pending_runs_;
   std::vector<uint32_t> new_slots_;
   std::vector<Known*> decoded_;
   Object object_;  // decode target

@@ -26,7 +26,7 @@ struct Renderer::State {
   // Declared in dependence order: streaming uses the backend and the pool, and destroys first.
   GlBackend backend;
   WorkerPool pool{WorkerPool::default_size()};
-  DecodedObjects objects;
+  DecodedObjects objects{&pool};
   FramePlan plan{&pool};
   ArenaStreaming streaming{backend, pool};
 

@@ -1136,6 +1136,22 @@ ReadView::~ReadView() {
   }
 }
 
+std::unique_ptr<ReadView> ReadView::sibling(std::string& error) const {
+  const State& s = *state_;
+  auto other = std::make_unique<State>(s.store);
+  const int rc = other->txn.begin(s.store->env.get(), MDB_RDONLY);
+  if (rc != MDB_SUCCESS) {
+    error = s.store->fail("starting a sibling read", rc);
+    return nullptr;
+  }
+  if (mdb_txn_id(other->txn.get()) != mdb_txn_id(s.txn.get())) {
+    error = "store " + s.store->directory + ": an import committed since this view began";
+    return nullptr;
+  }
+  other->snapshot = s.snapshot;
+  return std::unique_ptr<ReadView>(new ReadView(std::move(other)));
+}
+
 StoreInfo ReadView::info() const {
   StoreInfo info;
   MDB_txn* txn = state_->txn.get();

@@ -60,7 +60,9 @@
 //     --scale 1000` (40.75 million objects) peaked at 0.87 GB while putting objects and 1.15 GB
 //     while committing (format 3: 3.7 GB).
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
-//     import writes; they do not see it. A view belongs to the thread that made it.
+//     import writes; they do not see it. A view is used by one thread at a time (it need not
+//     be the thread that made it); threads that read one snapshot together each take a
+//     sibling() view of it.
 //   - Store::open(), Store::read() and info() read metadata only (a millisecond or so whatever
 //     the store's size). The first spatial call on any view of a committed state decodes that
 //     state's spatial top (about 10 MB at 40 million objects: 2 top nodes and up to 8 proxy
@@ -245,6 +247,13 @@ class ReadView {
 
   // Metadata only (meta/"format" and "statistics", the file's size): nothing spatial is read.
   StoreInfo info() const;
+
+  // Another view of this view's snapshot, for another thread (a renderer's workers reading
+  // objects beside it): it shares the state's caches and answers every call as this one does.
+  // Null with a message naming the store when the store has committed since this view began
+  // (LMDB starts a read at the latest commit, so the snapshot cannot be had again), or when no
+  // read can start (every reader slot of the store taken). Costs a read transaction.
+  std::unique_ptr<ReadView> sibling(std::string& error) const;
 
   // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
   // decoded on demand. Spans are valid while this view lives; no work per call once the top is
