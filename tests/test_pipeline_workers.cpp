@@ -4,6 +4,7 @@
 // service unit tests so that the ThreadSanitizer pass (scripts/test.sh) runs it: the render
 // workers of the service decode on their pools.
 #include <gtest/gtest.h>
+#include <lmdb.h>
 
 #include <vector>
 
@@ -103,6 +104,61 @@ TEST(PipelineWorkers, AfterAnImportCommittedTheRenderersThreadReadsAloneAndFinds
   size_t reading_views = 0;
   EXPECT_GT(compare_runs(*view, 3, reading_views), 1000u);
   EXPECT_EQ(reading_views, 1u);
+}
+
+// A damaged record among a frame's new objects: decoding stops there with the store's message
+// naming the slot, on the workers as on one thread, and what came before it is known, its
+// pipelines analysed.
+TEST(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBeforeItKnown) {
+  TempDir dir;
+  ASSERT_TRUE(generated_store(dir));
+  // Object block 20 (slots 1280-1343; chunks.h) overwritten with a frame that is not zstd.
+  {
+    MDB_env* env = nullptr;
+    ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+    mdb_env_set_maxdbs(env, 12);
+    ASSERT_EQ(mdb_env_open(env, dir.str().c_str(), 0, 0644), MDB_SUCCESS);
+    MDB_txn* txn = nullptr;
+    MDB_dbi dbi;
+    ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
+    ASSERT_EQ(mdb_dbi_open(txn, "objects", 0, &dbi), MDB_SUCCESS);
+    char key[4] = {0, 0, 0, 20};
+    uint8_t value[8] = {4, 0, 0, 0, 'X', 'X', 'X', 'X'};
+    MDB_val k{4, key}, v{8, value};
+    ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
+    ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
+    mdb_env_close(env);
+  }
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_only, error);
+  ASSERT_TRUE(store) << error;
+  const auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  detail::WorkerPool pool(3);
+  detail::DecodedObjects alone, shared(&pool);
+  alone.reset(*view);
+  shared.reset(*view);
+  std::vector<detail::VisibleObject> frame;
+  for (uint32_t slot = 0; slot < 3000; ++slot)
+    frame.push_back(detail::VisibleObject{slot, {}, {}, 0.0, 0.0, 0, 0});
+  std::string alone_error, shared_error;
+  EXPECT_FALSE(alone.decode(frame, true, alone_error));
+  EXPECT_FALSE(shared.decode(frame, true, shared_error));
+  EXPECT_EQ(shared_error, alone_error);
+  EXPECT_NE(shared_error.find(dir.str()), std::string::npos) << shared_error;
+  EXPECT_NE(shared_error.find("object slot 1280"), std::string::npos) << shared_error;
+  EXPECT_GT(shared.reading_views(), 1u) << "the objects must have been read on the workers";
+  size_t in_runs = 0;
+  for (uint32_t slot = 0; slot < 1280; ++slot) {
+    const detail::Known* a = alone.find(slot);
+    const detail::Known* b = shared.find(slot);
+    ASSERT_TRUE(a && b) << "slot " << slot << " precedes the damage and must be known";
+    EXPECT_EQ(a->run, b->run) << "slot " << slot;
+    in_runs += a->run >= 0;
+  }
+  // (59 of these slots are in runs: the plant lists its equipment first.)
+  EXPECT_GT(in_runs, 20u) << "the pipelines of the objects known must have been analysed";
+  EXPECT_FALSE(shared.find(1280));
 }
 
 }  // namespace

@@ -84,9 +84,17 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
   }
   std::sort(new_slots_.begin(), new_slots_.end());
   pipelines_pending_.clear();
-  for (const uint32_t slot : new_slots_) {
-    if (!view_->object(slot, object_, false, error)) return false;
-    Known& k = add(slot, object_, false);
+  for (size_t i = 0; i < new_slots_.size(); ++i) {
+    // Read in waves, on the workers.
+    const size_t in_wave = i % kNewObjectsPerWave;
+    if (in_wave == 0) read_wave(i);
+    if (!wave_read_[in_wave]) {
+      error = wave_errors_[in_wave / kNewObjectsPerPart];
+      analyse_pending_pipelines();  // (those of the objects added)
+      return false;
+    }
+    const uint32_t slot = new_slots_[i];
+    Known& k = add(slot, wave_objects_[in_wave], false);
     if (!hlod || k.pipeline_id == 0 ||
         (k.object_class != ObjectClass::pipe && k.object_class != ObjectClass::component))
       continue;
@@ -214,6 +222,37 @@ void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<
 
 }  // namespace
 
+template <class F>
+void DecodedObjects::on_views(size_t parts, const F& f) {
+  if (workers_ && parts > 1 && views_.empty()) make_sibling_views();
+  // Parts taken in turn by the workers that have a view, then by this thread (every part may
+  // have gone to workers without one).
+  std::atomic<size_t> next{0};
+  const auto take_parts = [&](const ReadView& view) {
+    for (size_t p; (p = next.fetch_add(1)) < parts;) f(p, view);
+  };
+  if (workers_ && parts > 1 && views_.size() > 1)
+    workers_->run(views_.size(), [&](size_t, unsigned worker) {
+      if (worker < views_.size()) take_parts(*views_[worker]);
+    });
+  take_parts(*view_);
+}
+
+void DecodedObjects::read_wave(size_t first) {
+  const size_t count = std::min(kNewObjectsPerWave, new_slots_.size() - first);
+  if (wave_objects_.size() < count) wave_objects_.resize(count);
+  wave_read_.assign(count, 0);
+  const size_t parts = (count + kNewObjectsPerPart - 1) / kNewObjectsPerPart;
+  wave_errors_.resize(parts);
+  on_views(parts, [&](size_t part, const ReadView& view) {
+    // A part stops at its first object that cannot be read (decode() stops there).
+    for (size_t i = part * kNewObjectsPerPart; i < std::min(count, (part + 1) * kNewObjectsPerPart); ++i) {
+      if (!view.object(new_slots_[first + i], wave_objects_[i], false, wave_errors_[part])) break;
+      wave_read_[i] = 1;
+    }
+  });
+}
+
 void DecodedObjects::make_sibling_views() {
   views_.assign(1, view_);
   const unsigned workers = workers_ ? workers_->size() : 1;
@@ -231,20 +270,10 @@ void DecodedObjects::analyse_pending_pipelines() {
   if (n == 0) return;
   if (pending_runs_.size() < n) pending_runs_.resize(n);
   const size_t parts = (n + kPipelinesPerPart - 1) / kPipelinesPerPart;
-  if (workers_ && parts > 1 && views_.empty()) make_sibling_views();
-  // Parts taken in turn by the workers that have a view, then by this thread (every part may
-  // have gone to workers without one).
-  std::atomic<size_t> next{0};
-  const auto take_parts = [&](const ReadView& view) {
-    for (size_t p; (p = next.fetch_add(1)) < parts;)
-      for (size_t i = p * kPipelinesPerPart; i < std::min(n, (p + 1) * kPipelinesPerPart); ++i)
-        find_pipeline_runs(view, pipelines_pending_[i], pending_runs_[i]);
-  };
-  if (workers_ && parts > 1 && views_.size() > 1)
-    workers_->run(views_.size(), [&](size_t, unsigned worker) {
-      if (worker < views_.size()) take_parts(*views_[worker]);
-    });
-  take_parts(*view_);
+  on_views(parts, [&](size_t part, const ReadView& view) {
+    for (size_t i = part * kPipelinesPerPart; i < std::min(n, (part + 1) * kPipelinesPerPart); ++i)
+      find_pipeline_runs(view, pipelines_pending_[i], pending_runs_[i]);
+  });
   for (size_t i = 0; i < n; ++i) add_pipeline(pipelines_pending_[i], pending_runs_[i]);
 }
 

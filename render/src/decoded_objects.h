@@ -23,9 +23,9 @@
 //   into this cache's template plans (kept for the renderer's life) or into the Known's
 //   own_plans.
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
-// Threads: the renderer's thread. Pipelines are analysed on its worker pool, each worker
-//   reading the store through a view of its own and writing only its pipelines' runs; what is
-//   found is added on the renderer's thread.
+// Threads: the renderer's thread. New objects are read and pipelines analysed on its worker
+//   pool, each worker reading the store through a view of its own and writing only its own
+//   parts' objects or runs; what is read is added on the renderer's thread, in slot order.
 #pragma once
 
 #include <algorithm>
@@ -59,6 +59,8 @@ inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
 inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held before forgetting
 inline constexpr size_t kPipelinesPerPart = 16;      // pipelines analysed per part on the pool
+inline constexpr size_t kNewObjectsPerPart = 256;       // new objects read per part on the pool
+inline constexpr size_t kNewObjectsPerWave = 4096;      // new objects read before they are added
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
@@ -169,15 +171,16 @@ struct RunDecision {
 
 class DecodedObjects {
  public:
-  // Pipelines are analysed on `pool` (null: on the calling thread), each worker reading from a
-  // sibling view of its own (ReadView::sibling), made the first time a frame has pipelines
-  // enough to share out (kPipelinesPerPart).
+  // New objects are read and pipelines analysed on `pool` (null: on the calling thread), each
+  // worker reading from a sibling view of its own (ReadView::sibling), made the first time a
+  // frame has work enough to share out (kNewObjectsPerPart, kPipelinesPerPart).
   explicit DecodedObjects(WorkerPool* pool = nullptr) : workers_(pool) {}
   // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
   void reset(const ReadView& view);
 
   // Decodes the visible objects not known yet, in slot order. hlod: also find the runs of the
-  // pipelines their pipes and components belong to. False if an object cannot be decoded.
+  // pipelines their pipes and components belong to. False if an object cannot be decoded
+  // (error names the store and slot; the objects before it in slot order are known).
   // Afterwards decoded()[i] is the Known of visible[i] (one lookup per object and frame).
   bool decode(std::span<const VisibleObject> visible, bool hlod, std::string& error);
   // The Known of each object of the last decode() call's span, in its order; valid until the
@@ -230,6 +233,14 @@ class DecodedObjects {
   // The worker views (views_[0] is the renderer's own); fewer than the pool's workers when
   // siblings cannot be had (the store moved on, or no reader slot left).
   void make_sibling_views();
+  // Calls f(part, view) for every part in [0, parts), on the workers that have a view (made
+  // here the first time there are parts enough to share) and this thread.
+  template <class F>
+  void on_views(size_t parts, const F& f);
+  // Reads the objects of new_slots_[first..] (up to kNewObjectsPerWave) into wave_objects_,
+  // setting wave_read_ for each read (a part's first failure: its wave_errors_ entry, and the
+  // rest of that part left unread).
+  void read_wave(size_t first);
   // A run index for a new run: a freed one, or a new one at the end.
   uint32_t new_run(PipelineRun&& run);
   // forget_old()'s parts: the objects, then the pipelines that no known object or run refers to.
@@ -275,6 +286,9 @@ class DecodedObjects {
   std::vector<uint64_t> pipelines_pending_;
   std::vector<std::vector<PipelineRun>> pending_runs_;
   std::vector<uint32_t> new_slots_;
+  std::vector<Object> wave_objects_;
+  std::vector<uint8_t> wave_read_;
+  std::vector<std::string> wave_errors_;  // per part of a wave
   std::vector<Known*> decoded_;
   Object object_;  // decode target
   std::vector<PackedVertex> occluder_scratch_;
