@@ -124,6 +124,93 @@ TEST(OcclusionBuffer, WhatItCallsHiddenIsHiddenForEveryRayThroughIt) {
   EXPECT_GT(visible_boxes, 100);
 }
 
+// Inner conservative rasterisation, cell by cell: a convex silhouette covers every cell whose
+// corners all lie inside it, and no cell with a corner outside it (cells within a hair of its
+// edges, where the buffer's float projection and margin decide, are left out of the check).
+TEST(OcclusionBuffer, AConvexSilhouetteCoversExactlyTheCellsWhollyInsideIt) {
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const float focal = 1.0f / std::tan(glm::radians(30.0f)), aspect = 16.0f / 9.0f;
+  OcclusionBuffer buffer;
+  buffer.begin(1280, 720, focal, aspect, 0.05f);
+  const double w = buffer.width(), h = buffer.height();
+  const double sx = 0.5 * w * focal / aspect, sy = 0.5 * h * focal;
+  constexpr double kHair = 1e-3;  // cells
+  size_t covered_cells = 0, polygons_covering = 0;
+  for (int polygon = 0; polygon < 200; ++polygon) {
+    // Points in cell coordinates: a cluster of 3 to 40 (or a rectangle's corners, whose hull has
+    // horizontal and vertical edges), from a few cells to wider than the buffer.
+    const double size = std::pow(10.0, -0.5 + 3.0 * u(rng));
+    const double cx = -0.2 * w + 1.4 * w * u(rng), cy = -0.2 * h + 1.4 * h * u(rng);
+    std::vector<glm::dvec2> cells;
+    if (polygon % 4 == 0) {
+      const double hw = size * u(rng), hh = size * u(rng);
+      cells = {{cx - hw, cy - hh}, {cx + hw, cy - hh}, {cx + hw, cy + hh}, {cx - hw, cy + hh}};
+    } else {
+      const int n = 3 + int(u(rng) * 38);
+      for (int i = 0; i < n; ++i) cells.push_back({cx + size * (u(rng) - 0.5), cy + size * (u(rng) - 0.5)});
+    }
+    const double d = 1 + 99 * u(rng);
+    std::vector<glm::vec3> points;
+    for (const glm::dvec2& c : cells)
+      points.push_back(glm::vec3((c.x - 0.5 * w) / sx * d, (c.y - 0.5 * h) / sy * d, -d));
+    buffer.begin(1280, 720, focal, aspect, 0.05f);
+    buffer.add_convex(points);
+    // The hull, counter-clockwise (monotone chain, in double).
+    std::sort(cells.begin(), cells.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
+      return a.x < b.x || (a.x == b.x && a.y < b.y);
+    });
+    const auto turn = [](const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
+      return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+    };
+    std::vector<glm::dvec2> hull(2 * cells.size());
+    size_t k = 0;
+    for (size_t i = 0; i < cells.size(); ++i) {
+      while (k >= 2 && turn(hull[k - 2], hull[k - 1], cells[i]) <= 0) --k;
+      hull[k++] = cells[i];
+    }
+    for (size_t i = cells.size() - 1, t = k + 1; i > 0; --i) {
+      while (k >= t && turn(hull[k - 2], hull[k - 1], cells[i - 1]) <= 0) --k;
+      hull[k++] = cells[i - 1];
+    }
+    hull.resize(k - 1);
+    // A corner's distance inside the hull (negative: outside).
+    const auto inside_by = [&](double x, double y) {
+      double least = std::numeric_limits<double>::infinity();
+      for (size_t e = 0; e < hull.size(); ++e) {
+        const glm::dvec2 a = hull[e], b = hull[(e + 1) % hull.size()];
+        least = std::min(least, turn(a, b, {x, y}) / glm::length(b - a));
+      }
+      return least;
+    };
+    // Each corner of the grid once.
+    const uint32_t bw = buffer.width(), bh = buffer.height();
+    std::vector<double> corner((bw + 1) * size_t(bh + 1));
+    for (uint32_t j = 0; j <= bh; ++j)
+      for (uint32_t i = 0; i <= bw; ++i) corner[j * size_t(bw + 1) + i] = inside_by(i, j);
+    bool any = false;
+    for (uint32_t j = 0; j < bh; ++j) {
+      for (uint32_t i = 0; i < bw; ++i) {
+        const size_t c = j * size_t(bw + 1) + i;
+        const double least = std::min({corner[c], corner[c + 1], corner[c + bw + 1], corner[c + bw + 2]});
+        const bool covered = buffer.depth(i, j) < std::numeric_limits<float>::infinity();
+        if (least > kHair) {
+          ASSERT_TRUE(covered) << "polygon " << polygon << " cell " << i << "," << j;
+        } else if (least < -kHair) {
+          ASSERT_FALSE(covered) << "polygon " << polygon << " cell " << i << "," << j;
+        }
+        covered_cells += covered;
+        any |= covered;
+      }
+    }
+    polygons_covering += any;
+  }
+  // Small, large and off-screen silhouettes: most cover cells, some none.
+  EXPECT_GT(polygons_covering, 50u);
+  EXPECT_LT(polygons_covering, 200u);
+  EXPECT_GT(covered_cells, 100000u);
+}
+
 // --- occluder shapes -------------------------------------------------------------------------
 
 // Whether p lies inside (or on, within rounding) the closed convex mesh of `primitive` at

@@ -77,22 +77,34 @@ bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
   }
   const int row_first = std::max(0, int(std::floor(y_min)));
   const int row_last = std::min(int(height_) - 1, int(std::ceil(y_max)) - 1);
-  bool covered = false;
-  for (int j = row_first; j <= row_last; ++j) {
-    // The cells [i, i+1] x [j, j+1] wholly inside every edge: each edge's function is smallest
-    // at the cell corner farthest against its normal.
-    double lo = 0, hi = double(width_) - 1;
-    for (size_t e = 0; e < hull_.size() && lo <= hi; ++e) {
-      const glm::vec2& a = hull_[e];
-      const glm::vec2& b = hull_[(e + 1) % hull_.size()];
-      const double ea = -(double(b.y) - a.y), eb = double(b.x) - a.x;
-      const double ec = -(ea * a.x + eb * a.y);
-      const double margin = 1e-4 * (std::abs(ea) + std::abs(eb));
+  if (row_first > row_last) return false;
+  // Per row, the cells [i, i+1] x [j, j+1] wholly inside every edge: each edge's function is
+  // smallest at the cell corner farthest against its normal. Only the edges that span one of a
+  // row's corner heights can bind there (along a convex hull's side, the edge beside a height
+  // is the innermost), so each edge is applied to the rows its height span touches, with a row
+  // of slack each way: two rows per side of the hull rather than every edge on every row.
+  row_lo_.assign(size_t(row_last - row_first + 1), 0.0);
+  row_hi_.assign(size_t(row_last - row_first + 1), double(width_) - 1);
+  for (size_t e = 0; e < hull_.size(); ++e) {
+    const glm::vec2& a = hull_[e];
+    const glm::vec2& b = hull_[(e + 1) % hull_.size()];
+    const double ea = -(double(b.y) - a.y), eb = double(b.x) - a.x;
+    const double ec = -(ea * a.x + eb * a.y);
+    const double margin = 1e-4 * (std::abs(ea) + std::abs(eb));
+    const int j_first = std::max(row_first, int(std::floor(std::min(a.y, b.y))) - 2);
+    const int j_last = std::min(row_last, int(std::ceil(std::max(a.y, b.y))) + 1);
+    for (int j = j_first; j <= j_last; ++j) {
+      double& lo = row_lo_[size_t(j - row_first)];
+      double& hi = row_hi_[size_t(j - row_first)];
       const double r = margin - (eb * j + std::min(eb, 0.0) + ec + std::min(ea, 0.0));
       if (ea > 0) lo = std::max(lo, std::ceil(r / ea));
       else if (ea < 0) hi = std::min(hi, std::floor(r / ea));
       else if (r > 0) hi = -1;
     }
+  }
+  bool covered = false;
+  for (int j = row_first; j <= row_last; ++j) {
+    const double lo = row_lo_[size_t(j - row_first)], hi = row_hi_[size_t(j - row_first)];
     if (lo > hi) continue;
     float* row = cells_.data() + size_t(j) * width_;
     for (int i = int(lo); i <= int(hi); ++i) row[i] = std::min(row[i], far_m);

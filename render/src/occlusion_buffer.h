@@ -70,6 +70,7 @@ class OcclusionBuffer {
   std::vector<float> cells_;
   // Scratch, reused.
   std::vector<glm::vec2> projected_, hull_;
+  std::vector<double> row_lo_, row_hi_;  // add_convex(): each row's first and last cell covered
 };
 
 }  // namespace plantview::detail
