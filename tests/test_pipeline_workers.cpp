@@ -71,28 +71,32 @@ size_t compare_runs(const ReadView& view, unsigned threads, size_t& reading_view
   return in_runs;
 }
 
-TEST(PipelineWorkers, RunsFoundOnWorkersAreThoseOfOneThread) {
-  TempDir dir;
-  auto store = generated_store(dir);
-  ASSERT_TRUE(store);
-  std::string error;
-  const auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
+// A generated plant and a view of it.
+class PipelineWorkers : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    store_ = generated_store(dir_);
+    ASSERT_TRUE(store_);
+    std::string error;
+    view_ = store_->read(error);
+    ASSERT_TRUE(view_) << error;
+  }
+  TempDir dir_;
+  std::unique_ptr<Store> store_;
+  std::unique_ptr<ReadView> view_;
+};
+
+TEST_F(PipelineWorkers, RunsFoundOnWorkersAreThoseOfOneThread) {
   size_t reading_views = 0;
-  EXPECT_GT(compare_runs(*view, 3, reading_views), 1000u) << "the plant must have pipeline runs";
+  EXPECT_GT(compare_runs(*view_, 3, reading_views), 1000u) << "the plant must have pipeline runs";
   EXPECT_EQ(reading_views, 3u) << "every worker reads through a view of its own";
 }
 
-TEST(PipelineWorkers, AfterAnImportCommittedTheRenderersThreadReadsAloneAndFindsTheSameRuns) {
-  TempDir dir;
-  auto store = generated_store(dir);
-  ASSERT_TRUE(store);
+TEST_F(PipelineWorkers, AfterAnImportCommittedTheRenderersThreadReadsAloneAndFindsTheSameRuns) {
   std::string error;
-  const auto view = store->read(error);
-  ASSERT_TRUE(view) << error;
   // The store moves on: the view's snapshot cannot be read again by a sibling.
   {
-    auto import = store->begin_import(error);
+    auto import = store_->begin_import(error);
     ASSERT_TRUE(import) << error;
     Object o;
     o.id = 1;
@@ -102,16 +106,17 @@ TEST(PipelineWorkers, AfterAnImportCommittedTheRenderersThreadReadsAloneAndFinds
     ASSERT_TRUE(import->commit(error)) << error;
   }
   size_t reading_views = 0;
-  EXPECT_GT(compare_runs(*view, 3, reading_views), 1000u);
+  EXPECT_GT(compare_runs(*view_, 3, reading_views), 1000u);
   EXPECT_EQ(reading_views, 1u);
 }
 
 // A damaged record among a frame's new objects: decoding stops there with the store's message
 // naming the slot, on the workers as on one thread, and what came before it is known, its
 // pipelines analysed.
-TEST(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBeforeItKnown) {
-  TempDir dir;
-  ASSERT_TRUE(generated_store(dir));
+TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBeforeItKnown) {
+  view_.reset();
+  store_.reset();
+  const TempDir& dir = dir_;
   // Object block 20 (slots 1280-1343; chunks.h) overwritten with a frame that is not zstd.
   {
     MDB_env* env = nullptr;
