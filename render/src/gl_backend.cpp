@@ -622,6 +622,8 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
   glDepthFunc(GL_GREATER);
   glDepthMask(GL_TRUE);
   glDisable(GL_CULL_FACE);  // two-sided: facet groups and open meshes are seen from both sides
+  glCullFace(GL_BACK);      // (closed solids and boxes: back faces culled where enabled)
+  glFrontFace(GL_CCW);
 
   // The key light: 50 degrees up, from behind the eye's left shoulder (turned with the view
   // about the vertical, so every view is lit alike).
@@ -692,16 +694,17 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   if (n_closed) {
     // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
     glEnable(GL_CULL_FACE);
-    glCullFace(GL_BACK);
-    glFrontFace(GL_CCW);
     draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
   }
   if (n_open) draw_triangles(n_closed, n_open);
   if (proxies) {
+    // Boxes are closed, their faces counter-clockwise outward.
+    glEnable(GL_CULL_FACE);
     glBindVertexArray(proxy_vao_);
     glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLsizei(proxies));
     glBindVertexArray(vao_);
+    glDisable(GL_CULL_FACE);
   }
   if (n_lines) {
     // Centrelines blend their coverage; they write depth like the pipes they stand for.
