@@ -71,6 +71,15 @@ bool FrameView::outside(const float mn[3], const float mx[3]) const {
   return false;
 }
 
+bool FrameView::inside(const float mn[3], const float mx[3]) const {
+  for (const glm::vec4& pl : planes) {
+    const glm::vec3 p(pl.x > 0 ? mn[0] : mx[0], pl.y > 0 ? mn[1] : mx[1], pl.z > 0 ? mn[2] : mx[2]);
+    if (pl.x * (p.x + shift_m.x) + pl.y * (p.y + shift_m.y) + pl.z * (p.z + shift_m.z) + pl.w < 0)
+      return false;
+  }
+  return true;
+}
+
 double FrameView::nearest_distance_m(const float mn[3], const float mx[3]) const {
   glm::dvec3 nearest;
   for (int a = 0; a < 3; ++a)
@@ -317,10 +326,12 @@ size_t FramePlan::take_leaf(const SpatialBlock& block, uint32_t block_index, uin
                             bool subpixel_culling, FrameStats& stats) {
   const SpatialNode& node = block.nodes[n];
   const size_t before = visible_.size();
+  // A leaf wholly in the frustum holds only objects in it (their bounds lie within the leaf's).
+  const bool all_inside = frame_view.inside(node.min, node.max);
   for (uint32_t e = node.first; e < node.first + node.count; ++e) {
     VisibleObject v{block.entries[e].slot, {}, {}, 0.0, 0.0, block_index, n};
     entry_bounds(node, block.entries[e], v.min, v.max);
-    if (frame_view.outside(v.min, v.max)) continue;
+    if (!all_inside && frame_view.outside(v.min, v.max)) continue;
     v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
     v.px_per_m = pixels_per_metre(v.distance_m, frame_view.focal_px);
     // Screen-space policy: an object whose whole extent is under the pixel error is left out

@@ -93,8 +93,10 @@ struct FrameView {
   // Frustum planes (x, y, z, w), eye-relative: inside where dot(p, xyz) + w >= 0; no far plane.
   std::array<glm::vec4, 5> planes{};
 
-  // Whether a box (relative to the spatial origin) lies wholly outside one plane.
+  // Whether a box (relative to the spatial origin) lies wholly outside one plane; wholly inside
+  // every plane.
   bool outside(const float min[3], const float max[3]) const;
+  bool inside(const float min[3], const float max[3]) const;
   // From the eye to the nearest point of a box (relative to the spatial origin); 0 inside it.
   double nearest_distance_m(const float min[3], const float max[3]) const;
 };
