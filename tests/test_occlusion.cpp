@@ -211,6 +211,37 @@ TEST(OcclusionBuffer, AConvexSilhouetteCoversExactlyTheCellsWhollyInsideIt) {
   EXPECT_GT(covered_cells, 100000u);
 }
 
+// Occluders rasterised by several workers, each into a buffer of its own, then merged: every
+// cell equals what one buffer given them all holds, whichever worker took which occluder.
+TEST(OcclusionBuffer, OccludersSplitOverBuffersAndMergedFillTheCellsOneBufferWould) {
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const float focal = 1.0f / std::tan(glm::radians(25.0f)), aspect = 16.0f / 9.0f;
+  OcclusionBuffer whole, parts[3];
+  whole.begin(1280, 720, focal, aspect, 0.05f);
+  for (OcclusionBuffer& b : parts) b.begin(1280, 720, focal, aspect, 0.05f);
+  size_t covering = 0;
+  for (int o = 0; o < 300; ++o) {
+    // A box somewhere in front of the eye, at 1 to 100 m, overlapping others at other depths.
+    const float d = 1.0f + 99.0f * u(rng);
+    const glm::vec3 centre((u(rng) - 0.5f) * d, (u(rng) - 0.5f) * 0.6f * d, -d);
+    const glm::vec3 half = glm::vec3(u(rng), u(rng), u(rng)) * (0.02f + 0.3f * u(rng)) * d;
+    const std::vector<glm::vec3> corners = ViewBox{centre - half, centre + half}.corners();
+    covering += whole.add_convex(corners);
+    parts[rng() % 3].add_convex(corners);
+  }
+  parts[0].merge_nearest(parts[1]);
+  parts[0].merge_nearest(parts[2]);
+  size_t covered = 0;
+  for (uint32_t j = 0; j < whole.height(); ++j)
+    for (uint32_t i = 0; i < whole.width(); ++i) {
+      ASSERT_EQ(parts[0].depth(i, j), whole.depth(i, j)) << "cell " << i << "," << j;
+      covered += whole.depth(i, j) < std::numeric_limits<float>::infinity();
+    }
+  EXPECT_GT(covering, 100u);  // the occluders overlap and cover much of the buffer
+  EXPECT_GT(covered, whole.width() * whole.height() / 4);
+}
+
 // --- occluder shapes -------------------------------------------------------------------------
 
 // Whether p lies inside (or on, within rounding) the closed convex mesh of `primitive` at

@@ -100,30 +100,56 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
   if (candidates_.empty()) return true;
   if (!objects.decode(candidates_, options.hlod, error)) return false;
 
-  // 2. Rasterise them.
-  const glm::mat3 rotation(frame_view.rotation);
+  // 2. Which of them occlude (shapes built here, on this thread), then their pieces rasterised
+  //    in parts on the pool, each worker into a buffer of its own, merged by the nearest depth
+  //    (the same cells whatever the split).
   stats.occluders = 0;
+  occluding_.clear();
   for (const VisibleObject& v : candidates_) {
     Known& k = objects.at(v.slot);
     if (!may_occlude(k.object_class, k.colour)) continue;
     if (!objects.occluder(v.slot, k, error)) return false;
     if (!drawn_as_solid(objects, k, v, frame_view, options)) continue;
     stats.occluders += 1;
-    const glm::vec3 offset(k.origin_m - frame_view.eye_m);
-    uint32_t first = 0;
-    for (size_t piece = 0; piece < k.occluder.ends.size(); ++piece) {
-      const uint32_t end = k.occluder.ends[piece];
-      // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h).
-      const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
-      if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) {
+    occluding_.push_back(&k);
+  }
+  const glm::mat3 rotation(frame_view.rotation);
+  const unsigned workers = pool_ ? pool_->size() : 1;
+  if (worker_buffers_.size() < workers) worker_buffers_.resize(workers);
+  worker_used_.assign(workers, 0);
+  const auto rasterise = [&](size_t part, unsigned worker) {
+    WorkerBuffer& wb = worker_buffers_[worker];
+    OcclusionBuffer& into = worker == 0 ? buffer_ : wb.buffer;
+    if (worker != 0 && !worker_used_[worker])
+      into.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
+                 float(kNearPlaneM));
+    worker_used_[worker] = 1;
+    for (size_t o = part * kOccludersPerPart; o < std::min(occluding_.size(), (part + 1) * kOccludersPerPart); ++o) {
+      const Known& k = *occluding_[o];
+      const glm::vec3 offset(k.origin_m - frame_view.eye_m);
+      uint32_t first = 0;
+      for (size_t piece = 0; piece < k.occluder.ends.size(); ++piece) {
+        const uint32_t end = k.occluder.ends[piece];
+        // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h).
+        const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
+        if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) {
+          first = end;
+          continue;
+        }
+        wb.piece.clear();
+        for (uint32_t p = first; p < end; ++p) wb.piece.push_back(rotation * (offset + k.occluder.points[p]));
         first = end;
-        continue;
+        wb.any |= into.add_convex(wb.piece);
       }
-      piece_.clear();
-      for (uint32_t p = first; p < end; ++p) piece_.push_back(rotation * (offset + k.occluder.points[p]));
-      first = end;
-      any |= buffer_.add_convex(piece_);
     }
+  };
+  for (WorkerBuffer& wb : worker_buffers_) wb.any = false;
+  const size_t parts = (occluding_.size() + kOccludersPerPart - 1) / kOccludersPerPart;
+  if (pool_ && parts > 1) pool_->run(parts, rasterise);
+  else for (size_t p = 0; p < parts; ++p) rasterise(p, 0);
+  for (unsigned w = 0; w < workers; ++w) {
+    any |= worker_buffers_[w].any;
+    if (w != 0 && worker_used_[w]) buffer_.merge_nearest(worker_buffers_[w].buffer);
   }
   return true;
 }

@@ -50,6 +50,7 @@ namespace plantview::detail {
 
 class DecodedObjects;
 class FrameBlocks;
+struct Known;
 struct FrameView;
 struct NodeBox;
 struct VisibleObject;
@@ -59,6 +60,7 @@ class WorkerPool;
 inline constexpr size_t kMaxOccluders = 384;
 inline constexpr size_t kObjectsPerPart = 2048;  // objects tested per part on the pool
 inline constexpr double kOccluderMinPixels = 24;
+inline constexpr size_t kOccludersPerPart = 32;  // occluders rasterised per part on the pool
 
 class OcclusionCulling {
  public:
@@ -122,7 +124,16 @@ class OcclusionCulling {
   // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).
   std::vector<uint32_t> hidden_drawn_;
   uint64_t hidden_drawn_frame_ = 0;
-  std::vector<glm::vec3> piece_;
+  // rasterise_occluders(): the occluders, and per worker a buffer (worker 0: buffer_) and
+  // scratch.
+  std::vector<const Known*> occluding_;
+  struct WorkerBuffer {
+    OcclusionBuffer buffer;
+    std::vector<glm::vec3> piece;
+    bool any = false;
+  };
+  std::vector<WorkerBuffer> worker_buffers_;
+  std::vector<uint8_t> worker_used_;
 };
 
 }  // namespace plantview::detail

@@ -124,6 +124,11 @@ void OcclusionBuffer::load_device_depth(std::span<const float> reversed_depth) {
   }
 }
 
+void OcclusionBuffer::merge_nearest(const OcclusionBuffer& other) {
+  assert(other.width_ == width_ && other.height_ == height_);
+  for (size_t i = 0; i < cells_.size(); ++i) cells_[i] = std::min(cells_[i], other.cells_[i]);
+}
+
 bool OcclusionBuffer::hidden(const glm::vec3& mn, const glm::vec3& mx) const {
   const float near_d = -mx.z, far_d = -mn.z;
   if (near_d <= near_m_ || cells_.empty()) return false;

@@ -49,6 +49,10 @@ class OcclusionBuffer {
   // where nothing was drawn) over the pixels the cell overlaps.
   void load_device_depth(std::span<const float> reversed_depth);
 
+  // Takes, cell by cell, the nearer of this buffer's depth and `other`'s (begun alike): what
+  // both rasterised, as if into one.
+  void merge_nearest(const OcclusionBuffer& other);
+
   // Whether the view-space box [min, max] is hidden behind what was rasterised.
   bool hidden(const glm::vec3& min, const glm::vec3& max) const;
 
