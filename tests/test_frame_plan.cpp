@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -14,6 +15,7 @@
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "lod.h"
+#include "radix_sort.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -232,6 +234,31 @@ TEST(FramePlanCull, ObjectsUnderThePixelErrorAreLeftOutOnlyWithSubpixelCulling) 
 }
 
 // --- choose -----------------------------------------------------------------------------------
+
+// The frame's sorts (largest on screen first, nearest first) order (key, index) pairs as
+// std::sort does: by key, equal keys by index. Keys like the frame's (float bits over a slot),
+// many equal, some bytes the same in every key; sizes on both sides of the small-sort cut.
+TEST(FramePlanOrder, TheRadixSortOrdersPairsAsStdSortDoes) {
+  std::mt19937_64 rng(3);
+  std::vector<detail::SortPair> items, expected, scratch;
+  for (const size_t n : {size_t(0), size_t(1), size_t(2), size_t(255), size_t(256), size_t(257),
+                         size_t(5000), size_t(40000)}) {
+    for (int kind = 0; kind < 3; ++kind) {
+      items.clear();
+      for (uint32_t i = 0; i < n; ++i) {
+        uint64_t key;
+        if (kind == 0) key = rng();                                  // every byte varies
+        else if (kind == 1) key = uint64_t(rng() % 7) << 40 | 5;     // few keys, many ties
+        else key = uint64_t(std::bit_cast<uint32_t>(float(rng() % 100000) * 0.01f)) << 32 | (rng() % 300);
+        items.push_back({key, i});
+      }
+      expected = items;
+      std::sort(expected.begin(), expected.end());
+      detail::radix_sort(items, scratch);
+      ASSERT_EQ(items, expected) << n << " pairs, kind " << kind;
+    }
+  }
+}
 
 TEST(FramePlanChoose, TheChosenLevelIsTheCoarsestWhoseErrorProjectsUnderThePixelError) {
   const float radius = 0.4f;

@@ -426,7 +426,7 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
     const uint64_t distance_bits = std::bit_cast<uint32_t>(float(std::max(draws[i].distance_m, 0.0)));
     sort_keys_.push_back({distance_bits << 32 | draws[i].order_key, i});
   }
-  std::sort(sort_keys_.begin(), sort_keys_.end());
+  radix_sort(sort_keys_, sort_scratch_);
   draw_order_.clear();
   for (const auto& [key, i] : sort_keys_) draw_order_.push_back(i);
   // The draw order cut into runs of about equal indices, one per worker; each run starts

@@ -41,6 +41,7 @@
 
 #include "gl_backend.h"
 #include "plantview/render.h"
+#include "radix_sort.h"
 #include "residency.h"
 #include "worker_pool.h"
 
@@ -185,7 +186,7 @@ class ArenaStreaming {
   size_t phase_proxies_ = 0;            // where this phase's begin
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
-  std::vector<std::pair<uint64_t, uint32_t>> sort_keys_;  // (distance, order key), draw
+  std::vector<SortPair> sort_keys_, sort_scratch_;  // (distance, order key), draw
   // This frame's index ranges to write, drawn objects' parts in draw order (Draw::segment_*):
   // a plan's level at a base vertex, into a list; lines: `plan` null, `count` line vertices.
   struct Segment {

@@ -191,7 +191,7 @@ void FramePlan::order() {
     const uint32_t px_bits = std::bit_cast<uint32_t>(float(v.px_per_m * v.extent_m()));
     order_keys_.push_back({uint64_t(~px_bits) << 32 | v.slot, i});
   }
-  std::sort(order_keys_.begin(), order_keys_.end());
+  radix_sort(order_keys_, order_scratch_);
   ordered_.clear();
   for (const auto& [key, i] : order_keys_) ordered_.push_back(visible_[i]);
   visible_.swap(ordered_);

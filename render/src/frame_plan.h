@@ -50,6 +50,7 @@
 
 #include "frame_blocks.h"
 #include "occlusion.h"
+#include "radix_sort.h"
 #include "plantview/render.h"
 
 namespace plantview {
@@ -269,7 +270,7 @@ class FramePlan {
   std::vector<Candidate> fresh_;       // an opened node's children, before they fit
   size_t pending_items_ = 0;           // items of candidates_
   std::vector<uint32_t> stack_, count_stack_;
-  std::vector<std::pair<uint64_t, uint32_t>> order_keys_;  // order(): (key, index in visible_)
+  std::vector<SortPair> order_keys_, order_scratch_;  // order(): (key, index in visible_)
   std::vector<VisibleObject> ordered_;
   OcclusionCulling occlusion_;
 };
