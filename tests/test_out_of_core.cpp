@@ -345,8 +345,15 @@ TEST(OutOfCore, CullOpensTheLargestNodesFirstAndReadsOnlyTheBlocksItOpens) {
     FrameStats stats;
     ASSERT_TRUE(renderer->statistics(cameras[i], 1280, 720, stats, error)) << error;
     SCOPED_TRACE("view " + std::to_string(i));
-    EXPECT_LE(stats.objects_visible + stats.node_proxies, detail::kMaxDrawnItems);
-    EXPECT_GE(stats.node_proxy_pixels, detail::kNodeProxyPixels * renderer->options().pixel_error);
+    // Beyond kMaxDrawnItems only where the view is opened whole (boxes only under the proxy
+    // size).
+    const size_t items = stats.objects_visible + stats.node_proxies;
+    const double proxy_px = detail::kNodeProxyPixels * renderer->options().pixel_error;
+    EXPECT_LE(items, detail::kMaxCompleteItems);
+    if (items > detail::kMaxDrawnItems) {
+      EXPECT_EQ(stats.node_proxy_pixels, proxy_px);
+    }
+    EXPECT_GE(stats.node_proxy_pixels, proxy_px);
     // The blocks under top leaves that span at least the boxed size, in the frustum.
     const detail::FrameView fv = detail::make_frame_view(cameras[i], 1280, 720, view->spatial_origin());
     uint64_t openable = 0;
@@ -363,6 +370,41 @@ TEST(OutOfCore, CullOpensTheLargestNodesFirstAndReadsOnlyTheBlocksItOpens) {
                   stats.node_proxy_pixels);
       EXPECT_GT(stats.objects_in_node_proxies, 0u);
     }
+  }
+}
+
+// A plant of one unit (40,746 objects) seen whole at the still pixel error needs more objects
+// than kMaxDrawnItems: its nodes are still opened down to the proxy size (no node of several
+// pixels drawn as a grey box for the bound), while the thirty units' overview keeps the bound.
+TEST(OutOfCore, AViewOfOneUnitIsOpenedWholeWhereTheBoundWouldBoxIt) {
+  test::gl_context();
+  std::string error;
+  RenderOptions options;
+  options.pixel_error = kStillPixelError;
+  options.occlusion = false;  // the items counted are then exactly what cull kept
+  const double proxy_px = detail::kNodeProxyPixels * options.pixel_error;
+  {
+    const Store& store = preset_c(1);
+    auto renderer = Renderer::create(store, options, error);
+    ASSERT_TRUE(renderer) << error;
+    FrameStats stats;
+    ASSERT_TRUE(renderer->statistics(default_camera(renderer->model_bounds(), 16.0 / 9.0), 1280, 720,
+                                     stats, error)) << error;
+    std::printf("one unit's overview: %llu objects, %llu boxes under %.2f px\n",
+                (unsigned long long)stats.objects_visible, (unsigned long long)stats.node_proxies,
+                stats.node_proxy_pixels);
+    EXPECT_GT(stats.objects_visible + stats.node_proxies, detail::kMaxDrawnItems);
+    EXPECT_EQ(stats.node_proxy_pixels, proxy_px);
+  }
+  {
+    const Store& store = preset_c(30);
+    auto renderer = Renderer::create(store, options, error);
+    ASSERT_TRUE(renderer) << error;
+    FrameStats stats;
+    ASSERT_TRUE(renderer->statistics(default_camera(renderer->model_bounds(), 16.0 / 9.0), 1280, 720,
+                                     stats, error)) << error;
+    EXPECT_LE(stats.objects_visible + stats.node_proxies, detail::kMaxDrawnItems);
+    EXPECT_GT(stats.node_proxy_pixels, proxy_px);
   }
 }
 

@@ -108,6 +108,9 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
   // and it and all the rest (no larger than it) are drawn whole.
   double whole_below_px = base_px;
   bool stopped = false;
+  item_bound_ = subpixel_culling && frustum_objects_at_most(view, frame_view, kMaxCompleteItems)
+                    ? kMaxCompleteItems
+                    : kMaxDrawnItems;
   fresh_.clear();
   if (!view.spatial_top().empty()) consider_top(view, 0, frame_view, subpixel_culling);
   push_fresh();
@@ -221,6 +224,29 @@ uint64_t objects_beneath(const SpatialBlock& block, uint32_t node, std::vector<u
 
 }  // namespace
 
+bool FramePlan::frustum_objects_at_most(const ReadView& view, const FrameView& frame_view,
+                                        uint64_t limit) {
+  const std::span<const SpatialNode> top = view.spatial_top();
+  const std::span<const uint32_t> objects = view.spatial_top_objects();
+  if (top.empty()) return true;
+  uint64_t total = 0;
+  stack_.assign(1, 0);
+  while (!stack_.empty()) {
+    const uint32_t t = stack_.back();
+    stack_.pop_back();
+    const SpatialNode& node = top[t];
+    if (frame_view.outside(node.min, node.max)) continue;
+    // A whole subtree that fits is counted at once (its objects bound those in the frustum).
+    if (total + objects[t] <= limit) {
+      total += objects[t];
+      continue;
+    }
+    if (node.count != 0) return false;  // a top leaf (a block) that does not fit
+    stack_.insert(stack_.end(), {node.first, node.first + 1});
+  }
+  return true;
+}
+
 void FramePlan::consider_top(const ReadView& view, uint32_t t, const FrameView& frame_view,
                              bool subpixel_culling) {
   const SpatialNode& node = view.spatial_top()[t];
@@ -310,7 +336,7 @@ bool FramePlan::open(const ReadView& view, const Candidate& c, const FrameView& 
   }
   size_t fresh_items = 0;
   for (const Candidate& f : fresh_) fresh_items += f.items;
-  if (bounded && items() + fresh_items > kMaxDrawnItems) {
+  if (bounded && items() + fresh_items > item_bound_) {
     fresh_.clear();
     visible_.resize(visible_before);
     stats.objects_subpixel = subpixel_before;

@@ -18,8 +18,9 @@
 //     top, so a far node reads no block), a node inside a block as one grey box.
 //   - The frame's work is bounded: nodes are opened largest on screen first (a node spans no
 //     fewer pixels than its children), and when opening the next one would make more than
-//     kMaxDrawnItems objects and boxes, or need more than kMaxFrameBlocksHeld blocks, it and
-//     every node not yet opened are drawn whole. That is the one node size above which all is
+//     kMaxDrawnItems objects and boxes (kMaxCompleteItems where the frustum's top leaves hold
+//     no more objects than that, so that such a view is opened whole), or need more than
+//     kMaxFrameBlocksHeld blocks, it and every node not yet opened are drawn whole. That is the one node size above which all is
 //     opened (node_proxy_pixels), found in one walk that reads no block it does not open: the
 //     overview of a huge plant reads none. Nodes of kMaxNodeProxyPixels and more are always
 //     opened. The other policies draw no node whole but stop at kMaxObjectsAnyPolicy objects.
@@ -66,10 +67,15 @@ class DecodedObjects;
 
 // Objects drawn one by one plus node boxes in a frame, at most, unless nodes of
 // kMaxNodeProxyPixels would have to be boxes. Measured on preset c at 1280x720 and the still
-// pixel error (0.5 px): one unit's walkthrough views need up to about 35,000 (its overview boxes
-// nodes under 6.3 px, its nearer views none), x1000's overview boxes nodes under 35 px (0.4 M
-// triangles) and its walkthrough views under 35-90 px.
+// pixel error (0.5 px): one unit's overview and widest walkthrough views need 36,000-39,000
+// (with this bound alone they boxed nodes under 6-10 px in grey), x1000's overview boxes nodes
+// under 35 px (0.4 M triangles) and its walkthrough views under 35-90 px.
 inline constexpr size_t kMaxDrawnItems = 32768;
+// ... unless the top leaves the frustum meets hold at most kMaxCompleteItems objects: then
+// every node above the proxy size is opened, so that a plant of one unit (preset c: 40,746
+// objects) is never boxed for the bound. Views of more keep kMaxDrawnItems (their cost and
+// memory are what the bound is for).
+inline constexpr size_t kMaxCompleteItems = 2 * kMaxDrawnItems;
 inline constexpr double kMaxNodeProxyPixels = 256;
 // Objects drawn one by one in a frame by the policies that draw no node whole (none, distance,
 // or no subpixel culling), at most (their decoded records take about 250 MB): beyond, the top
@@ -260,6 +266,10 @@ class FramePlan {
                    const FrameView& frame_view, const RenderOptions& options,
                    bool subpixel_culling, FrameStats& stats);
   size_t items() const { return visible_.size() + node_boxes_.size() + pending_items_; }
+  // Whether the top leaves in the frustum hold at most `limit` objects (counted from the
+  // resident top; stops as soon as they do not).
+  bool frustum_objects_at_most(const ReadView& view, const FrameView& frame_view, uint64_t limit);
+  size_t item_bound_ = kMaxDrawnItems;  // this frame's
   std::vector<VisibleObject> visible_;
   std::vector<NodeBox> node_boxes_;
   std::vector<VisibleObject> second_visible_;  // set aside for the second phase (tree order)
