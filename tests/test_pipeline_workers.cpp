@@ -1,8 +1,9 @@
 // Pipelines analysed for runs on the renderer's workers (render/src/decoded_objects.h), each
 // worker reading through a sibling view of the renderer's: the runs are exactly those one thread
-// finds, and where no sibling can be had the renderer's thread reads alone. Built into the
-// service unit tests so that the ThreadSanitizer pass (scripts/test.sh) runs it: the render
-// workers of the service decode on their pools.
+// finds, and where no sibling can be had the renderer's thread reads alone; and occlusion's
+// occluders and tests on the workers drop what one thread drops. Built into the service unit
+// tests so that the ThreadSanitizer pass (scripts/test.sh) runs it: the render workers of the
+// service decode and cull on their pools.
 #include <gtest/gtest.h>
 #include <lmdb.h>
 
@@ -10,6 +11,8 @@
 
 #include "decoded_objects.h"
 #include "frame_plan.h"
+#include "occlusion.h"
+#include "plantview/camera.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
 #include "plantview/store.h"
@@ -164,6 +167,48 @@ TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBefore
   // (59 of these slots are in runs: the plant lists its equipment first.)
   EXPECT_GT(in_runs, 20u) << "the pipelines of the objects known must have been analysed";
   EXPECT_FALSE(shared.find(1280));
+}
+
+// Occlusion's CPU form on the pool (the occluders rasterised by each worker into a buffer of
+// its own, merged; the tests in parts) keeps and drops exactly what it does on one thread.
+TEST_F(PipelineWorkers, OcclusionOnWorkersDropsWhatOneThreadDrops) {
+  std::string error;
+  detail::WorkerPool pool(3);
+  detail::DecodedObjects alone_objects, shared_objects(&pool);
+  alone_objects.reset(*view_);
+  shared_objects.reset(*view_);
+  detail::FramePlan alone, shared(&pool);
+  RenderOptions options;
+  const DAabb bounds = view_->info().statistics.bounds;
+  const glm::dvec3 centre = 0.5 * (bounds.min + bounds.max), size = bounds.max - bounds.min;
+  size_t most_occluders = 0, occluded = 0;
+  for (int i = 0; i < 8; ++i) {
+    // Around the plant at a fifth of its size from its middle, a little above its floor.
+    const double angle = 0.8 * i;
+    Camera camera;
+    camera.eye_m = centre + glm::dvec3(0.2 * size.x * std::cos(angle), 0.2 * size.y * std::sin(angle),
+                                       -0.3 * size.z);
+    camera.target_m = centre + glm::dvec3(0.0, 0.0, -0.3 * size.z);
+    camera.fov_deg = 60;
+    const detail::FrameView fv = detail::make_frame_view(camera, 640, 360, view_->spatial_origin());
+    FrameStats a, b;
+    ASSERT_TRUE(alone.find_visible(*view_, fv, options, a, error)) << error;
+    ASSERT_TRUE(alone.occlude(*view_, alone_objects, fv, options, a, error)) << error;
+    ASSERT_TRUE(shared.find_visible(*view_, fv, options, b, error)) << error;
+    ASSERT_TRUE(shared.occlude(*view_, shared_objects, fv, options, b, error)) << error;
+    SCOPED_TRACE("view " + std::to_string(i));
+    EXPECT_EQ(a.occluders, b.occluders);
+    EXPECT_EQ(a.objects_occluded, b.objects_occluded);
+    EXPECT_EQ(a.nodes_occluded, b.nodes_occluded);
+    ASSERT_EQ(alone.visible().size(), shared.visible().size());
+    for (size_t v = 0; v < alone.visible().size(); ++v)
+      ASSERT_EQ(alone.visible()[v].slot, shared.visible()[v].slot);
+    most_occluders = std::max<size_t>(most_occluders, b.occluders);
+    occluded += b.objects_occluded;
+  }
+  // Views with more occluders than one part of the pool takes, hiding something.
+  EXPECT_GT(most_occluders, 2 * detail::kOccludersPerPart);
+  EXPECT_GT(occluded, 0u);
 }
 
 }  // namespace
