@@ -62,21 +62,28 @@ FrameView make_frame_view(const Camera& camera, uint32_t width, uint32_t height,
   return v;
 }
 
+namespace {
+
+// A frustum plane's value (inside where >= 0) at the corner of a box relative to the spatial
+// origin that lies farthest along its normal (`along`), or farthest against it.
+float plane_at_corner(const glm::vec4& pl, const glm::vec3& shift_m, const float mn[3],
+                      const float mx[3], bool along) {
+  const glm::vec3 p((pl.x > 0) == along ? mx[0] : mn[0], (pl.y > 0) == along ? mx[1] : mn[1],
+                    (pl.z > 0) == along ? mx[2] : mn[2]);
+  return pl.x * (p.x + shift_m.x) + pl.y * (p.y + shift_m.y) + pl.z * (p.z + shift_m.z) + pl.w;
+}
+
+}  // namespace
+
 bool FrameView::outside(const float mn[3], const float mx[3]) const {
-  for (const glm::vec4& pl : planes) {
-    const glm::vec3 p(pl.x > 0 ? mx[0] : mn[0], pl.y > 0 ? mx[1] : mn[1], pl.z > 0 ? mx[2] : mn[2]);
-    if (pl.x * (p.x + shift_m.x) + pl.y * (p.y + shift_m.y) + pl.z * (p.z + shift_m.z) + pl.w < 0)
-      return true;
-  }
+  for (const glm::vec4& pl : planes)
+    if (plane_at_corner(pl, shift_m, mn, mx, true) < 0) return true;
   return false;
 }
 
 bool FrameView::inside(const float mn[3], const float mx[3]) const {
-  for (const glm::vec4& pl : planes) {
-    const glm::vec3 p(pl.x > 0 ? mn[0] : mx[0], pl.y > 0 ? mn[1] : mx[1], pl.z > 0 ? mn[2] : mx[2]);
-    if (pl.x * (p.x + shift_m.x) + pl.y * (p.y + shift_m.y) + pl.z * (p.z + shift_m.z) + pl.w < 0)
-      return false;
-  }
+  for (const glm::vec4& pl : planes)
+    if (plane_at_corner(pl, shift_m, mn, mx, false) < 0) return false;
   return true;
 }
 
