@@ -116,14 +116,13 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
   const glm::mat3 rotation(frame_view.rotation);
   const unsigned workers = pool_ ? pool_->size() : 1;
   if (worker_buffers_.size() < workers) worker_buffers_.resize(workers);
-  worker_used_.assign(workers, 0);
   const auto rasterise = [&](size_t part, unsigned worker) {
     WorkerBuffer& wb = worker_buffers_[worker];
     OcclusionBuffer& into = worker == 0 ? buffer_ : wb.buffer;
-    if (worker != 0 && !worker_used_[worker])
+    if (worker != 0 && !wb.used)
       into.begin(frame_view.width, frame_view.height, frame_view.focal, frame_view.aspect,
                  float(kNearPlaneM));
-    worker_used_[worker] = 1;
+    wb.used = true;
     for (size_t o = part * kOccludersPerPart; o < std::min(occluding_.size(), (part + 1) * kOccludersPerPart); ++o) {
       const Known& k = *occluding_[o];
       const glm::vec3 offset(k.origin_m - frame_view.eye_m);
@@ -143,13 +142,13 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
       }
     }
   };
-  for (WorkerBuffer& wb : worker_buffers_) wb.any = false;
+  for (WorkerBuffer& wb : worker_buffers_) wb.any = wb.used = false;
   const size_t parts = (occluding_.size() + kOccludersPerPart - 1) / kOccludersPerPart;
   if (pool_ && parts > 1) pool_->run(parts, rasterise);
   else for (size_t p = 0; p < parts; ++p) rasterise(p, 0);
   for (unsigned w = 0; w < workers; ++w) {
     any |= worker_buffers_[w].any;
-    if (w != 0 && worker_used_[w]) buffer_.merge_nearest(worker_buffers_[w].buffer);
+    if (w != 0 && worker_buffers_[w].used) buffer_.merge_nearest(worker_buffers_[w].buffer);
   }
   return true;
 }

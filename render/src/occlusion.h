@@ -130,10 +130,10 @@ class OcclusionCulling {
   struct WorkerBuffer {
     OcclusionBuffer buffer;
     std::vector<glm::vec3> piece;
-    bool any = false;
+    bool any = false;   // covered a cell
+    bool used = false;  // begun this frame (worker 0 draws into buffer_)
   };
   std::vector<WorkerBuffer> worker_buffers_;
-  std::vector<uint8_t> worker_used_;
 };
 
 }  // namespace plantview::detail
