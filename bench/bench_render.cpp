@@ -4,6 +4,7 @@
 // Usage: bench_render [--quick] [--preset P] [--scale K] [--frames N] [--size WxH]
 //                     [--vertex-budget MB] [--store DIR] [--out-of-core] [--samples S]
 //                     [--interior N] [--pixel-error PX] [--extra-pixel-error PX]...
+//                     [--occlusion-test automatic|coarse|exact]
 //   default        preset c, 1280x720, 4 samples (antialiased stills), a 100-view walkthrough
 //                  then 12 views from inside the plant; policies none, distance and
 //                  screen-space (--pixel-error, 1 px), each with occlusion off and on (and
@@ -12,7 +13,9 @@
 //                  triangles (walkthrough, interior), mean and 95th-percentile frame and CPU
 //                  time, occlusion culling time, vertex data uploaded per frame, PSNR against
 //                  none without occlusion, and occlusion's id-buffer check
-//                  against the same policy without it.
+//                  against the same policy without it. --occlusion-test: how the runs with
+//                  occlusion test what its first phase did not draw (render.h; default
+//                  automatic: coarse on llvmpipe, exact on a GPU).
 //   --out-of-core  a --store DIR (or a generated --scale K plant, default 100), as `plantview
 //                  render` would show it: the time from Store::open to the overview's PNG
 //                  written (open + first read, then renderer and overview frame), the
@@ -177,7 +180,8 @@ std::vector<Camera> interior_views(const DAabb& bounds, int count) {
 // at the extra pixel errors, occlusion on), along the walkthrough and then the interior views.
 int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, uint32_t h,
              uint64_t budget_bytes, uint64_t full_triangles, uint32_t samples,
-             double pixel_error, const std::vector<double>& extra_pixel_errors, int interior) {
+             double pixel_error, const std::vector<double>& extra_pixel_errors, int interior,
+             OcclusionTest occlusion_test) {
   std::vector<PolicyRun> runs;
   for (const LodPolicy policy : {LodPolicy::none, LodPolicy::distance, LodPolicy::screen_space}) {
     for (const bool occlusion : {false, true}) {
@@ -185,6 +189,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
       r.options.lod_policy = policy;
       r.options.pixel_error = pixel_error;
       r.options.occlusion = occlusion;
+      r.options.occlusion_test = occlusion_test;
       char name[64];
       std::snprintf(name, sizeof name, "%s%s occl %s", std::string(lod_policy_name(policy)).c_str(),
                     policy == LodPolicy::screen_space ? (" " + std::to_string(pixel_error).substr(0, 4) + "px").c_str() : "",
@@ -196,6 +201,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   for (const double pe : extra_pixel_errors) {
     PolicyRun& r = runs.emplace_back();
     r.options.pixel_error = pe;
+    r.options.occlusion_test = occlusion_test;
     r.name = "screen-space " + std::to_string(pe).substr(0, 4) + "px occl on";
     r.reference = runs.size() - 1;  // no id check: no run with occlusion off at this error
   }
@@ -285,8 +291,9 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   if (tty) std::fputc('\n', stderr);
 
   std::printf("\nPolicies along a %zu-view walkthrough and %d interior views at %ux%u, %u samples "
-              "(full resolution: %.2f M triangles)\n",
-              walk.size(), interior, w, h, samples, double(full_triangles) / 1e6);
+              "(full resolution: %.2f M triangles; occlusion test %s)\n",
+              walk.size(), interior, w, h, samples, double(full_triangles) / 1e6,
+              std::string(occlusion_test_name(occlusion_test)).c_str());
   std::printf("%-26s %9s %9s %7s %8s %8s %7s %7s %7s %7s %7s %7s %7s %8s %7s %7s\n", "policy",
               "walk tri", "inside tri", "in off/on", "frame ms", "p95 ms", "cpu ms", "cpu p95",
               "occl ms", "depth ms", "up MB/f", "PSNR", "PSNR min", "id match", "missing",
@@ -313,6 +320,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
                 psnr_mean, psnr_min,
                 id_min, (unsigned long long)r.missing, none_mean / std::max(mean(ms), 1e-9));
     nlohmann::json j = {{"bench", "render_policies"}, {"policy", lod_policy_name(r.options.lod_policy)},
+                        {"occlusion_test", occlusion_test_name(r.options.occlusion_test)},
                         {"pixel_error", r.options.pixel_error}, {"occlusion", r.options.occlusion},
                         {"samples", samples}, {"walk_views", walk.size()}, {"interior_views", interior},
                         {"width", w}, {"height", h}, {"mean_ms", mean(ms)},
@@ -489,6 +497,7 @@ int main(int argc, char** argv) {
   std::vector<double> extra_pixel_errors;
   uint64_t budget_mb = 0;
   std::string store_dir;
+  OcclusionTest occlusion_test = OcclusionTest::automatic;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
@@ -503,6 +512,16 @@ int main(int argc, char** argv) {
     else if (a == "--interior") interior = std::stoi(next());
     else if (a == "--pixel-error") pixel_error = std::stod(next());
     else if (a == "--extra-pixel-error") extra_pixel_errors.push_back(std::stod(next()));
+    else if (a == "--occlusion-test") {
+      const std::string t = next();
+      if (t == "automatic") occlusion_test = OcclusionTest::automatic;
+      else if (t == "coarse") occlusion_test = OcclusionTest::coarse;
+      else if (t == "exact") occlusion_test = OcclusionTest::exact;
+      else {
+        std::fprintf(stderr, "bench_render: --occlusion-test is automatic, coarse or exact, not '%s'\n", t.c_str());
+        return 2;
+      }
+    }
     else if (a == "--size") {
       const std::string s = next();
       if (std::sscanf(s.c_str(), "%ux%u", &w, &h) != 2) return 2;
@@ -586,7 +605,7 @@ int main(int argc, char** argv) {
     const auto cameras = walkthrough(*store, frames);
     if (cameras.empty()) return 1;
     const int status = policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles,
-                                samples, pixel_error, extra_pixel_errors, interior);
+                                samples, pixel_error, extra_pixel_errors, interior, occlusion_test);
     if (status != 0) return status;
   }
   store.reset();

@@ -2,8 +2,9 @@
 // renderer with occlusion on against itself with it off (on whatever EGL offers: llvmpipe in
 // CI): a wall hides a row of pumps (not drawn, not uploaded) and they appear the frame the wall
 // is out of the way; what was drawn last frame hides what comes into view behind it (the two
-// phases), until it is uncovered; along a random path the object-id buffers agree and no visible object is
-// missing; the CPU time is the sum of its parts.
+// phases), until it is uncovered; the exact test drops an object whose parts are hidden though
+// its bounds span a gap; along a random path the object-id buffers agree and no visible object
+// is missing (coarse and exact tests); the CPU time is the sum of its parts.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -320,11 +321,13 @@ std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>&
   return store;
 }
 
-std::unique_ptr<Renderer> make_renderer(const Store& store, bool occlusion) {
+std::unique_ptr<Renderer> make_renderer(const Store& store, bool occlusion,
+                                        OcclusionTest test = OcclusionTest::automatic) {
   test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 16u << 20;
   options.occlusion = occlusion;
+  options.occlusion_test = test;
   std::string error;
   auto r = Renderer::create(store, options, error);
   EXPECT_TRUE(r) << error;
@@ -451,6 +454,49 @@ TEST(Occlusion, WhatWasDrawnLastFrameHidesWhatComesIntoViewBehindItUntilItIsUnco
   EXPECT_EQ(off_image.object_ids, image.object_ids);
 }
 
+// The exact test: an object of two parts, each behind a wall of its own, with a gap between
+// the walls that its bounds span. The coarse test sees the gap through its bounds; the exact
+// one tests its parts' bounds against the depth drawn, sample by sample, and drops it.
+TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
+  const Colour grey{120, 120, 120, 255};
+  const std::vector<Object> objects = {
+      make_object("wall-west", ObjectClass::structure, {-3, 0, 3}, {Primitive{Placement{}, Box{4, 0.4f, 6}}}, grey),
+      make_object("wall-east", ObjectClass::structure, {3, 0, 3}, {Primitive{Placement{}, Box{4, 0.4f, 6}}}, grey),
+      make_object("E-301", ObjectClass::equipment, {0, 6, 1},
+                  {Primitive{Placement{glm::mat3(1.0f), {-3, 0, 0}}, Box{1.5f, 1.5f, 1.5f}},
+                   Primitive{Placement{glm::mat3(1.0f), {3, 0, 0}}, Box{1.5f, 1.5f, 1.5f}}})};
+  TempDir dir;
+  auto store = make_store(dir, objects);
+  std::string error;
+  const Camera view = look({0, -12, 1.5}, {0, 6, 1.5});
+  // Through the gap the ground shows: nothing of E-301 (each part lies behind its wall).
+  auto off = make_renderer(*store, false);
+  Image off_image;
+  FrameStats stats;
+  ASSERT_TRUE(off->render(view, 320, 180, true, off_image, stats, error)) << error;
+  ASSERT_EQ(ids_in(off_image), (std::set<uint64_t>{objects[0].id, objects[1].id}));
+
+  // (The coarse test alone keeps it, the exact test drops it.)
+  auto coarse = make_renderer(*store, true, OcclusionTest::coarse);
+  Image image;
+  ASSERT_TRUE(coarse->render(view, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(stats.objects_occluded, 0u);
+  EXPECT_EQ(image.object_ids, off_image.object_ids);
+  auto on = make_renderer(*store, true, OcclusionTest::exact);
+  ASSERT_TRUE(on->render(view, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(stats.objects_occluded, 1u);
+  EXPECT_EQ(stats.objects_tessellated, 2u) << "E-301 is neither tessellated nor drawn";
+  EXPECT_EQ(image.object_ids, off_image.object_ids);
+
+  // Seen from higher up, its parts show above the walls: drawn, as without occlusion.
+  const Camera above = look({0, -12, 30}, {0, 6, 0});
+  ASSERT_TRUE(off->render(above, 320, 180, true, off_image, stats, error)) << error;
+  ASSERT_TRUE(ids_in(off_image).count(objects[2].id));
+  ASSERT_TRUE(on->render(above, 320, 180, true, image, stats, error)) << error;
+  EXPECT_EQ(stats.objects_occluded, 0u);
+  EXPECT_EQ(image.object_ids, off_image.object_ids);
+}
+
 TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
   TempDir dir;
   std::string error;
@@ -460,11 +506,10 @@ TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
   g.preset = 'a';
   const IngestResult result = ingest_generated(*store, g);
   ASSERT_TRUE(result) << result.error().message;
-  auto on = make_renderer(*store, true);
   auto off = make_renderer(*store, false);
   // Random cameras inside the plant, at eye height, looking level-ish in random directions:
   // where occlusion matters most.
-  const DAabb bounds = on->model_bounds();
+  const DAabb bounds = off->model_bounds();
   std::mt19937 rng(2026);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<Camera> cameras;
@@ -477,6 +522,9 @@ TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
     const double a = u(rng) * 2 * M_PI;
     cameras.push_back(look(eye, eye + glm::dvec3(std::cos(a), std::sin(a), -0.05)));
   }
+  for (const OcclusionTest test : {OcclusionTest::coarse, OcclusionTest::exact}) {
+  SCOPED_TRACE(std::string(occlusion_test_name(test)) + " test");
+  auto on = make_renderer(*store, true, test);
   uint64_t occluded = 0;
   for (size_t v = 0; v < cameras.size(); ++v) {
     Image a, b;
@@ -493,6 +541,7 @@ TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
     EXPECT_LE(sa.triangles, sb.triangles) << "view " << v;
   }
   EXPECT_GT(occluded, 0u) << "the path hides nothing: the comparison checks nothing";
+  }
 }
 
 TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {

@@ -38,7 +38,8 @@ uint32_t ObjectTable::acquire() {
 }
 
 void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec3& scale,
-                      Colour c, uint64_t id) {
+                      Colour c, uint64_t id, uint32_t tie) {
+  assert(tie < (1u << kTieBits));
   TableEntry& e = entries_[entry];
   e.offset_m[0] = float(offset_m.x);
   e.offset_m[1] = float(offset_m.y);
@@ -48,7 +49,8 @@ void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec
   e.scale[1] = scale.y;
   e.scale[2] = scale.z;
   pick_ids_.push_back(id);
-  e.pick = uint32_t(pick_ids_.size());
+  assert(pick_ids_.size() < kPickLimit);
+  e.pick = uint32_t(pick_ids_.size()) | tie << (32 - kTieBits);
 }
 
 // --- residency ----------------------------------------------------------------------------------
@@ -369,7 +371,8 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   d.drawn = true;
   d.arena_first = k.arena_offset;
   d.segment_first = uint32_t(segments_.size());
-  table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id);
+  table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id,
+             tie_of(k.order_key));
   if (d.centreline) {
     stats.centreline_pipes += 1;
     stats.lines += k.centreline.size();

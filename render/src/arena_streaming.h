@@ -62,9 +62,10 @@ class ObjectTable {
   void reset();
   uint32_t acquire();
   void release(uint32_t entry) { free_.push_back(entry); }
-  // Fills `entry` for this frame and gives it the next pick id.
+  // Fills `entry` for this frame and gives it the next pick id; `tie` is its depth tie-break
+  // (TableEntry::pick).
   void set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec3& scale, Colour colour,
-           uint64_t id);
+           uint64_t id, uint32_t tie = 0);
   void begin_frame() { pick_ids_.clear(); }
   std::span<const TableEntry> entries() const { return {entries_.data(), used_}; }
   std::span<const uint64_t> pick_ids() const { return pick_ids_; }

@@ -121,6 +121,57 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
   return true;
 }
 
+namespace {
+
+// Known::test_boxes of `primitives`: each one's bounds, or where there are more than
+// kMaxTestBoxes, those of groups of neighbours: the set split in halves at the median of their
+// centres along its widest spread, and each half again, down to kMaxTestBoxes groups (a tower's
+// shell, its platforms and its ladders part early).
+void group_bounds(const std::vector<Primitive>& primitives, std::vector<Aabb>& boxes) {
+  boxes.clear();
+  if (primitives.size() < 2) return;
+  std::vector<Aabb> each;
+  each.reserve(primitives.size());
+  for (const Primitive& p : primitives) {
+    const Aabb b = model_bounds(p);
+    if (!b.empty()) each.push_back(b);
+  }
+  if (each.size() < 2) return;
+  if (each.size() <= kMaxTestBoxes) {
+    boxes = std::move(each);
+    return;
+  }
+  const auto split = [&](auto& self, size_t first, size_t end, size_t groups) -> void {
+    if (groups <= 1 || end - first <= 1) {
+      Aabb g = each[first];
+      for (size_t i = first + 1; i < end; ++i) {
+        g.min = glm::min(g.min, each[i].min);
+        g.max = glm::max(g.max, each[i].max);
+      }
+      boxes.push_back(g);
+      return;
+    }
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    for (size_t i = first; i < end; ++i) {
+      const glm::vec3 c = each[i].min + each[i].max;
+      lo = glm::min(lo, c);
+      hi = glm::max(hi, c);
+    }
+    const glm::vec3 spread = hi - lo;
+    const int axis = spread.x >= spread.y && spread.x >= spread.z ? 0 : spread.y >= spread.z ? 1 : 2;
+    const size_t middle = first + (end - first) / 2;
+    std::nth_element(each.begin() + ptrdiff_t(first), each.begin() + ptrdiff_t(middle),
+                     each.begin() + ptrdiff_t(end), [axis](const Aabb& a, const Aabb& b) {
+                       return a.min[axis] + a.max[axis] < b.min[axis] + b.max[axis];
+                     });
+    self(self, first, middle, groups / 2);
+    self(self, middle, end, groups - groups / 2);
+  };
+  split(split, 0, each.size(), kMaxTestBoxes);
+}
+
+}  // namespace
+
 // Makes the Known of `key` from an object (its primitives moved out of it): its parts, their
 // shared plans, its levels and their errors, its centreline.
 Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
@@ -177,6 +228,7 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   k.vertex_count = vertex_count;
   k.occluder = {};
   k.occluder_built = false;
+  group_bounds(k.primitives, k.test_boxes);
   return k;
 }
 

@@ -61,6 +61,7 @@ inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held 
 inline constexpr size_t kPipelinesPerPart = 16;      // pipelines analysed per part on the pool
 inline constexpr size_t kNewObjectsPerPart = 256;       // new objects read per part on the pool
 inline constexpr size_t kNewObjectsPerWave = 4096;      // new objects read before they are added
+inline constexpr size_t kMaxTestBoxes = 32;  // Known::test_boxes
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
 // indices at any level.
@@ -110,6 +111,10 @@ struct alignas(64) Known {
   bool keeps_primitives = false;
   uint32_t centreline_first = 0;
   OccluderShape occluder;           // once built: empty unless it may occlude
+  // Occlusion's exact test (occlusion.h): the bounds of up to kMaxTestBoxes groups of its
+  // primitives (metres, relative to origin_m), which hold all it draws; empty for an object of
+  // one primitive (its own bounds serve).
+  std::vector<Aabb> test_boxes;
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
 };
 static_assert(offsetof(Known, has_centreline) < 64 && offsetof(Known, origin_m) + 24 <= 128 &&

@@ -171,9 +171,9 @@ bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const Fra
 }
 
 bool FramePlan::first_phase(DecodedObjects& objects, const FrameView& frame_view,
-                            const RenderOptions& options, uint64_t frame, FrameStats& stats,
-                            std::string& error) {
-  if (!occlusion_.split(objects, frame_view, options, frame, visible_, second_visible_, stats, error))
+                            const RenderOptions& options, uint64_t frame, bool exact,
+                            FrameStats& stats, std::string& error) {
+  if (!occlusion_.split(objects, frame_view, options, frame, exact, visible_, second_visible_, stats, error))
     return false;
   second_boxes_.swap(node_boxes_);
   node_boxes_.clear();
@@ -187,7 +187,43 @@ void FramePlan::second_phase(const FrameView& frame_view, uint64_t frame,
                        second_boxes_, stats);
   visible_.swap(second_visible_);
   node_boxes_.swap(second_boxes_);
+  drawn_before_ = first_objects;
   stats.objects_visible = first_objects + visible_.size();
+  stats.node_proxies = node_boxes_.size();
+}
+
+bool FramePlan::defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
+                          const RenderOptions& options, bool& third, std::string& error) {
+  if (!occlusion_.defer_smaller(objects, frame_view, options, visible_, second_visible_, third, error))
+    return false;
+  if (third) {
+    second_boxes_.swap(node_boxes_);
+    node_boxes_.clear();
+  }
+  return true;
+}
+
+void FramePlan::third_phase(const FrameView& frame_view, std::span<const float> reversed_depth,
+                            FrameStats& stats) {
+  const size_t drawn = drawn_before_ + visible_.size();
+  occlusion_.test_later(blocks_, frame_view, reversed_depth, second_visible_, second_boxes_, stats);
+  visible_.swap(second_visible_);
+  node_boxes_.swap(second_boxes_);
+  drawn_before_ = drawn;
+  stats.objects_visible = drawn + visible_.size();
+  stats.node_proxies = node_boxes_.size();
+}
+
+bool FramePlan::box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
+                                const RenderOptions& options, std::vector<glm::vec4>& boxes,
+                                std::string& error) {
+  if (!occlusion_.box_test_inputs(objects, frame_view, options, visible_, boxes, error)) return false;
+  return true;
+}
+
+void FramePlan::drop_unseen(std::span<const uint32_t> seen, FrameStats& stats) {
+  occlusion_.drop_unseen(seen, visible_, node_boxes_, stats);
+  stats.objects_visible = drawn_before_ + visible_.size();
   stats.node_proxies = node_boxes_.size();
 }
 
@@ -431,23 +467,25 @@ RunDecisionInputs decide_run(const PipelineRun& run, const FrameView& frame_view
   return d;
 }
 
+uint32_t chosen_level(const Known& k, const RenderOptions& options, double distance_m,
+                      double px_per_m, double size_m) {
+  switch (options.lod_policy) {
+    case LodPolicy::none: break;
+    case LodPolicy::screen_space:
+      return choose_level_screen_space(k.error_m.data(), k.level_count, px_per_m, options.pixel_error);
+    case LodPolicy::distance:
+      return choose_level_distance(k.level_count, distance_m, size_m);
+  }
+  return 0;
+}
+
 namespace {
 
 // The level for one object or run by the policy, and whether it is drawn as its centreline.
 void choose_level(const Known& k, const RenderOptions& options, double distance_m,
                   double px_per_m, double size_m, uint8_t& level, bool& centreline) {
-  level = 0;
+  level = uint8_t(chosen_level(k, options, distance_m, px_per_m, size_m));
   centreline = drawn_as_centreline(k, options, distance_m, px_per_m);
-  switch (options.lod_policy) {
-    case LodPolicy::none: break;
-    case LodPolicy::screen_space:
-      level = uint8_t(choose_level_screen_space(k.error_m.data(), k.level_count, px_per_m,
-                                                options.pixel_error));
-      break;
-    case LodPolicy::distance:
-      level = uint8_t(choose_level_distance(k.level_count, distance_m, size_m));
-      break;
-  }
 }
 
 }  // namespace

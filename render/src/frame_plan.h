@@ -166,6 +166,10 @@ struct RunDecisionInputs {
 };
 RunDecisionInputs decide_run(const PipelineRun& run, const FrameView& frame_view,
                              const RenderOptions& options);
+// The level choose() draws an object at (`size_m`: its largest extent), by the policy.
+uint32_t chosen_level(const Known& k, const RenderOptions& options, double distance_m,
+                      double px_per_m, double size_m);
+
 // Whether a pipe (k.centreline not empty) is drawn as its centreline at that distance.
 bool drawn_as_centreline(const Known& k, const RenderOptions& options, double distance_m,
                          double px_per_m);
@@ -194,7 +198,8 @@ class FramePlan {
                const RenderOptions& options, FrameStats& stats, std::string& error);
   // 1b, in two phases (occlusion.h), for a drawn frame when two_phase(options):
   //   first_phase(): visible() keeps the first phase's objects (those drawn in frame - 1 and
-  //     the largest on screen, but what the largest hide on the CPU; stats.occluders),
+  //     the largest on screen, but what the largest hide on the CPU; stats.occluders; `exact`:
+  //     the exact test follows, OcclusionCulling::split),
   //     node_boxes() none; the rest is set aside. False if an occluder cannot be decoded.
   //   second_phase(): once the first phase is drawn, with its depth reduced to
   //     occlusion_cells() cells (GlBackend::reduce_depth): visible() and node_boxes() become
@@ -204,13 +209,28 @@ class FramePlan {
     return options.occlusion && options.highlight_ids.empty();
   }
   bool first_phase(DecodedObjects& objects, const FrameView& frame_view,
-                   const RenderOptions& options, uint64_t frame, FrameStats& stats,
+                   const RenderOptions& options, uint64_t frame, bool exact, FrameStats& stats,
                    std::string& error);
   std::pair<uint32_t, uint32_t> occlusion_cells() const {
     return {occlusion_.buffer().width(), occlusion_.buffer().height()};
   }
   void second_phase(const FrameView& frame_view, uint64_t frame,
                     std::span<const float> reversed_depth, FrameStats& stats);
+  //   defer_smaller(): after second_phase(), where the second phase is large (occlusion.h:
+  //     defer_smaller): visible() keeps its largest opaque part, and the rest and the node boxes
+  //     are set aside for a third phase (`third` true). False on a decode error.
+  //   third_phase(): once the second phase is drawn too, its depth reduced likewise:
+  //     visible() and node_boxes() become what was set aside and is not hidden.
+  bool defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
+                 const RenderOptions& options, bool& third, std::string& error);
+  void third_phase(const FrameView& frame_view, std::span<const float> reversed_depth,
+                   FrameStats& stats);
+  //   box_test_inputs() / drop_unseen(): after second_phase() or third_phase(), the exact
+  //     test of what the coarse one left (occlusion.h). False on a decode error.
+  bool box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
+                       const RenderOptions& options, std::vector<glm::vec4>& boxes,
+                       std::string& error);
+  void drop_unseen(std::span<const uint32_t> seen, FrameStats& stats);
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
   // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
@@ -274,6 +294,7 @@ class FramePlan {
   std::vector<NodeBox> node_boxes_;
   std::vector<VisibleObject> second_visible_;  // set aside for the second phase (tree order)
   std::vector<NodeBox> second_boxes_;
+  size_t drawn_before_ = 0;  // objects drawn in the phases before the one in visible_
   FrameBlocks blocks_;
   std::vector<Draw> draws_;
   std::vector<Candidate> candidates_;  // a max-heap on px

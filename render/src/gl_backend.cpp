@@ -33,6 +33,15 @@ std::string_view antialias_method_name(AntialiasMethod method) {
   return "?";
 }
 
+std::string_view occlusion_test_name(OcclusionTest test) {
+  switch (test) {
+    case OcclusionTest::automatic: return "automatic";
+    case OcclusionTest::coarse: return "coarse";
+    case OcclusionTest::exact: return "exact";
+  }
+  return "?";
+}
+
 }  // namespace plantview
 
 namespace plantview::detail {
@@ -165,13 +174,14 @@ GlBackend::~GlBackend() {
   if (arena_mapped()) glFinish();
   for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
                                occlusion_program_, finish_program_, reduce_program_,
-                               reduce_multisampled_program_})
+                               reduce_multisampled_program_, box_test_program_})
     if (program) glDeleteProgram(program);
   for (const auto& [key, program] : reduce_fixed_) glDeleteProgram(program);
   release_grid(occlusion_grid_);
   release_grid(reduce_grid_);
-  GLuint buffers[] = {arena_, arena_objects_, index_buffer_, table_buffer_, proxy_buffer_, cube_indices_};
-  glDeleteBuffers(6, buffers);
+  GLuint buffers[] = {arena_,       arena_objects_, index_buffer_, table_buffer_,
+                      proxy_buffer_, cube_indices_,  box_buffer_,   seen_buffer_};
+  glDeleteBuffers(8, buffers);
   GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
   glDeleteVertexArrays(3, vaos);
   GLuint samplers[] = {linear_sampler_, nearest_sampler_};
@@ -227,12 +237,17 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
              {{GL_VERTEX_SHADER, {kFullScreenVertex}},
               {GL_FRAGMENT_SHADER, {kVersion, kMultisampled, kDepthReduceFragment}}},
              error);
-  if (!reduce_multisampled_program_) return false;
+  if (reduce_multisampled_program_)
+    box_test_program_ = link("box test", {{GL_VERTEX_SHADER, {kBoxTestVertex}},
+                                          {GL_FRAGMENT_SHADER, {kBoxTestFragment}}}, error);
+  if (!box_test_program_) return false;
 
   glCreateBuffers(1, &index_buffer_);
   glCreateBuffers(1, &table_buffer_);
   glCreateBuffers(1, &proxy_buffer_);
   glCreateBuffers(1, &cube_indices_);
+  glCreateBuffers(1, &box_buffer_);
+  glCreateBuffers(1, &seen_buffer_);
   static constexpr uint32_t kCube[36] = {0,  2,  1,  0,  3,  2,  4,  5,  6,  4,  6,  7,
                                          8,  10, 9,  8,  11, 10, 12, 13, 14, 12, 14, 15,
                                          16, 18, 17, 16, 19, 18, 20, 21, 22, 20, 22, 23};
@@ -548,6 +563,50 @@ void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_
   if (look.ground) draw_ground(view, look.model_bounds, with_ids);
   finish(view, frame_plan_, with_ids);
   glFinish();
+}
+
+bool GlBackend::test_boxes(const FrameView& view, std::span<const glm::vec4> boxes,
+                           std::vector<uint32_t>& seen, std::string& error) {
+  const size_t count = boxes.size() / 2;
+  seen.assign(count, 0);
+  if (count == 0) return true;
+  upload_stream(box_buffer_, box_capacity_, boxes.size_bytes(), {{boxes.data(), boxes.size_bytes()}});
+  const size_t seen_bytes = count * sizeof(uint32_t);
+  if (seen_bytes > seen_capacity_) {
+    seen_capacity_ = std::max(seen_bytes, seen_capacity_ * 3 / 2);
+    glNamedBufferData(seen_buffer_, GLsizeiptr(seen_capacity_), nullptr, GL_STREAM_READ);
+  }
+  const uint32_t zero = 0;
+  glClearNamedBufferSubData(seen_buffer_, GL_R32UI, 0, GLsizeiptr(seen_bytes), GL_RED_INTEGER,
+                            GL_UNSIGNED_INT, &zero);
+  glBindFramebuffer(GL_FRAMEBUFFER, scene_.framebuffer);
+  glViewport(0, 0, GLsizei(scene_.width), GLsizei(scene_.height));
+  glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glColorMaski(1, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GEQUAL);
+  glDepthMask(GL_FALSE);
+  glDisable(GL_CULL_FACE);  // only the faces the eye sees are drawn
+  glDisablei(GL_BLEND, 0);
+  glProgramUniformMatrix4fv(box_test_program_, at(box_test_program_, "u_view_projection"), 1,
+                            GL_FALSE, glm::value_ptr(view.view_projection));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, box_buffer_);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, seen_buffer_);
+  glUseProgram(box_test_program_);
+  glBindVertexArray(empty_vao_);
+  glDrawArrays(GL_TRIANGLES, 0, GLsizei(18 * count));
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  glGetNamedBufferSubData(seen_buffer_, 0, GLsizeiptr(seen_bytes), seen.data());
+  glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glDepthMask(GL_TRUE);
+  glDepthFunc(GL_GREATER);
+  glDisable(GL_CULL_FACE);
+  if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
+    error = "renderer: the occlusion box test failed (GL error " + std::to_string(e) + ")";
+    return false;
+  }
+  return true;
 }
 
 bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,

@@ -47,6 +47,8 @@
 #include <utility>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include "plantview/image.h"
 #include "plantview/primitives.h"
 #include "plantview/render.h"
@@ -60,9 +62,19 @@ struct TableEntry {
   float offset_m[3];  // the object's origin relative to the eye
   uint32_t colour;    // RGBA8
   float scale[3];     // 1 for objects; the box size for proxies
-  uint32_t pick;      // index into the frame's pick table + 1; 0: no object
+  // Low 32 - kTieBits bits: index into the frame's pick table + 1 (0: no object). High bits:
+  // the object's tie-break t (tie_of): its depth is drawn t x kTieStep (relative) farther, so
+  // that where two objects' surfaces coincide the same one shows whatever the order they are
+  // drawn in (occlusion's phases draw an object earlier or later as the frames before it
+  // differ). Farther only: what a test reads of drawn depth stays conservative. 1.5e-5 at
+  // most: 1.5 mm at 100 m.
+  uint32_t pick;
 };
 static_assert(sizeof(TableEntry) == 32);
+inline constexpr uint32_t kTieBits = 6;  // gl_shaders.h: PLANTVIEW_TIE_CONSTANTS agrees
+inline constexpr uint32_t kPickLimit = 1u << (32 - kTieBits);  // picks in a frame, at most
+// The tie-break of an object from its order key (Known::order_key: its slot), spread.
+inline uint32_t tie_of(uint32_t order_key) { return (order_key * 2654435761u) >> (32 - kTieBits); }
 
 inline constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);
 // With bounded drawing on a software renderer, triangles drawn at a time at most (see
@@ -147,6 +159,14 @@ class GlBackend {
   // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
   // was drawn) over every sample of every framebuffer pixel it overlaps. Between
   // begin_frame() and finish_frame(); waits for the GPU. `depth` is resized to the cells.
+  // Occlusion's exact test: which of `boxes` (eye-relative {min, max} pairs, metres; each
+  // wholly beyond the near plane) have a sample of their front faces that is not behind what
+  // has been drawn so far in the frame (reversed depth greater or equal). seen[i] is non-zero
+  // for those. Nothing is drawn. Between begin_frame() and finish_frame(); waits for the GPU.
+  bool test_boxes(const FrameView& view, std::span<const glm::vec4> boxes,
+                  std::vector<uint32_t>& seen, std::string& error);
+  // A software renderer (llvmpipe and the like: fragments are the cost).
+  bool software() const { return software_; }
   bool reduce_depth(uint32_t cells_width, uint32_t cells_height, std::vector<float>& depth,
                     std::string& error);
   // Reads the frame drawn back into `out` (top row first). with_ids: also the object ids, each
@@ -213,7 +233,9 @@ class GlBackend {
   bool bounded_drawing_ = false;
   GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
          occlusion_program_ = 0, finish_program_ = 0, reduce_program_ = 0,
-         reduce_multisampled_program_ = 0;
+         reduce_multisampled_program_ = 0, box_test_program_ = 0;
+  GlName box_buffer_ = 0, seen_buffer_ = 0;
+  size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
          index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;

@@ -43,7 +43,11 @@ vec3 lit_colour(vec3 base, vec3 n, vec3 to_eye) {
 }
 )";
 
-inline constexpr const char* kSurfaceVertex = R"(#version 450 core
+// TableEntry::pick's fields and the tie-break's step (gl_backend.h: kTieBits).
+#define PLANTVIEW_TIE_CONSTANTS \
+  "const uint kPickMask = 0x3ffffffu;\nconst uint kTieShift = 26u;\nconst float kTieStep = 1.0 / 4194304.0;\n"
+
+inline constexpr const char* kSurfaceVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec4 a_normal;
 layout(location = 2) in uint a_object;
@@ -58,7 +62,8 @@ flat out uint v_pick;
 void main() {
   vec4 a = objects[2u * a_object];
   vec4 b = objects[2u * a_object + 1u];
-  v_pick = floatBitsToUint(b.w);
+  uint word = floatBitsToUint(b.w);
+  v_pick = word & kPickMask;
   if ((u_mode == 1 && v_pick == 0u) || (u_mode == 2 && v_pick != 0u)) {
     gl_Position = vec4(0.0, 0.0, -1.0, 1.0);  // outside: clipped
     return;
@@ -67,6 +72,7 @@ void main() {
   v_normal = a_normal.xyz;
   v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
   gl_Position = u_view_projection * vec4(p, 1.0);
+  gl_Position.z *= 1.0 - float(word >> kTieShift) * kTieStep;  // TableEntry::pick
 }
 )";
 
@@ -91,7 +97,7 @@ void main() {
 }
 )";
 
-inline constexpr const char* kCentrelineVertex = R"(#version 450 core
+inline constexpr const char* kCentrelineVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 2) in uint a_object;
 layout(location = 3) in uint a_diameter;  // float bits: the pipe's outside diameter, metres
@@ -101,11 +107,13 @@ out vec3 g_position;  // camera-relative
 flat out vec4 g_colour;
 flat out uint g_pick;
 flat out float g_diameter;
+flat out float g_tie;
 flat out int g_drawn;
 void main() {
   vec4 a = objects[2u * a_object];
   vec4 b = objects[2u * a_object + 1u];
-  g_pick = floatBitsToUint(b.w);
+  g_pick = floatBitsToUint(b.w) & kPickMask;
+  g_tie = 1.0 - float(floatBitsToUint(b.w) >> kTieShift) * kTieStep;  // TableEntry::pick
   g_drawn = (u_mode == 1 && g_pick == 0u) || (u_mode == 2 && g_pick != 0u) ? 0 : 1;
   g_position = a_position * b.xyz + a.xyz;
   g_colour = unpackUnorm4x8(floatBitsToUint(a.w));
@@ -120,6 +128,7 @@ in vec3 g_position[];
 flat in vec4 g_colour[];
 flat in uint g_pick[];
 flat in float g_diameter[];
+flat in float g_tie[];
 flat in int g_drawn[];
 uniform mat4 u_view_projection;
 uniform vec2 u_viewport;   // pixels of the framebuffer
@@ -161,7 +170,7 @@ void main() {
     float reach = v_half_px + 1.0;  // a pixel of feather on each side
     for (int side = -1; side <= 1; side += 2) {
       vec2 offset = across * (float(side) * reach) / (0.5 * u_viewport);
-      gl_Position = vec4(c.xy + offset * c.w, c.z, c.w);
+      gl_Position = vec4(c.xy + offset * c.w, c.z * g_tie[0], c.w);
       v_across = float(side) * reach;
       v_position = i == 0 ? p0 : p1;
       EmitVertex();
@@ -419,6 +428,39 @@ void main() {
   o_colour = vec4(c, 1.0);
   o_pick = texelFetch(u_pick, q + ivec2(u_scale - 1), 0).r;
 }
+)";
+
+// Occlusion's box test (GlBackend::test_boxes): boxes from eye-relative (min, max) pairs, each
+// drawn as the faces the eye sees (the eye is outside every box): per axis, the face on the
+// eye's side, if the eye is not between the two; two triangles each, 18 vertices a box in one
+// draw (not instanced: llvmpipe runs its vertex pipeline once per instance), a face not seen
+// collapsed to a point.
+inline constexpr const char* kBoxTestVertex = R"(#version 450 core
+layout(std430, binding = 1) readonly buffer Boxes { vec4 boxes[]; };
+uniform mat4 u_view_projection;
+flat out uint v_box;
+const int kQuad[6] = int[6](0, 1, 2, 0, 2, 3);
+void main() {
+  int box = gl_VertexID / 18, corner = gl_VertexID % 18;
+  vec3 lo = boxes[2 * box].xyz, hi = boxes[2 * box + 1].xyz;
+  int a = corner / 6, b = (a + 1) % 3, c = (a + 2) % 3;
+  int q = kQuad[corner % 6];
+  vec3 p;
+  p[a] = hi[a] < 0.0 ? hi[a] : lo[a];
+  p[b] = q == 1 || q == 2 ? hi[b] : lo[b];
+  p[c] = q >= 2 ? hi[c] : lo[c];
+  if (lo[a] <= 0.0 && hi[a] >= 0.0) p = lo;  // not seen: collapsed
+  v_box = uint(box);
+  gl_Position = u_view_projection * vec4(p, 1.0);
+}
+)";
+
+// A box's fragment that passed the depth test (tested before shading) marks the box seen.
+inline constexpr const char* kBoxTestFragment = R"(#version 450 core
+layout(early_fragment_tests) in;
+layout(std430, binding = 2) writeonly buffer Seen { uint seen[]; };
+flat in uint v_box;
+void main() { seen[v_box] = 1u; }
 )";
 
 }  // namespace plantview::detail::shaders

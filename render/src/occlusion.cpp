@@ -2,6 +2,7 @@
 #include "occlusion.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
@@ -21,6 +22,16 @@ float nearest_depth(const glm::mat3& rotation, const glm::vec3& lo, const glm::v
   for (int c = 0; c < 8; ++c) {
     const glm::vec3 p(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
     depth = std::min(depth, -(rotation * p).z);
+  }
+  return depth;
+}
+
+// The farthest view depth of an eye-relative box: that of its farthest corner.
+float farthest_depth(const glm::mat3& rotation, const glm::vec3& lo, const glm::vec3& hi) {
+  float depth = 0;
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 p(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
+    depth = std::max(depth, -(rotation * p).z);
   }
   return depth;
 }
@@ -168,13 +179,24 @@ bool OcclusionCulling::apply(const ReadView& /*view*/, const FrameBlocks& blocks
 }
 
 bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_view,
-                             const RenderOptions& options, uint64_t frame,
+                             const RenderOptions& options, uint64_t frame, bool exact,
                              std::vector<VisibleObject>& visible, std::vector<VisibleObject>& rest,
                              FrameStats& stats, std::string& error) {
   // The CPU occluders choose: what they hide is left to the second phase's test, where the
   // depth actually drawn most likely hides it too.
   bool any = false;
   if (!rasterise_occluders(objects, frame_view, options, visible, any, stats, error)) return false;
+  // Of the largest, with the exact test, the nearer half is drawn first (the farther are left
+  // to the tests, where the nearer most likely hide them); none with the eye within its bounds
+  // (its size on screen says nothing: it may well draw nothing, seen from inside).
+  double near_cut_m = std::numeric_limits<double>::infinity();
+  if (exact && !candidates_.empty()) {
+    distances_.clear();
+    for (const VisibleObject& v : candidates_) distances_.push_back(v.distance_m);
+    const size_t cut = size_t(kFirstPhaseNearShare * double(distances_.size() - 1));
+    std::nth_element(distances_.begin(), distances_.begin() + ptrdiff_t(cut), distances_.end());
+    near_cut_m = distances_[cut];
+  }
   // Which objects the first phase draws: tested in parts on the pool (reading only), then
   // split in order here.
   flags_.resize(visible.size());
@@ -184,11 +206,13 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
       if (i + kPrefetchAhead < end)
         if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
       const Known* k = objects.find(v.slot);
-      // Drawn last frame, and not found hidden behind what that frame drew first.
-      const bool drawn_last = k && k->last_seen + 1 == frame &&
+      // Drawn last frame (frames count from 1: 0 is never), and not found hidden behind what
+      // that frame drew first.
+      const bool drawn_last = k && k->last_seen != 0 && k->last_seen + 1 == frame &&
                               !(hidden_drawn_frame_ + 1 == frame &&
                                 std::binary_search(hidden_drawn_.begin(), hidden_drawn_.end(), v.slot));
-      const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_;
+      const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_ &&
+                           v.distance_m <= near_cut_m && v.distance_m > 2 * kNearPlaneM;
       flags_[i] = (drawn_last || largest) && k && drawn_opaque(objects, *k, v, frame_view, options) &&
                   !(any && hidden(frame_view, v.min, v.max));
     }
@@ -222,6 +246,138 @@ void OcclusionCulling::test_rest(const FrameBlocks& blocks, const FrameView& fra
   std::sort(hidden_drawn_.begin(), hidden_drawn_.end());
   hidden_drawn_frame_ = frame;
   drop_hidden(blocks, frame_view, rest, node_boxes, stats);
+}
+
+bool OcclusionCulling::defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
+                                 const RenderOptions& options, std::vector<VisibleObject>& rest,
+                                 std::vector<VisibleObject>& later, bool& deferred,
+                                 std::string& error) {
+  later.clear();
+  deferred = rest.size() >= kThirdPhaseObjects;
+  if (!deferred) return true;
+  // The size on screen above which the largest share lies (ties at it drawn now too).
+  const auto pixels = [](const VisibleObject& v) { return v.px_per_m * v.extent_m(); };
+  distances_.resize(rest.size());
+  for (size_t i = 0; i < rest.size(); ++i) distances_[i] = -pixels(rest[i]);
+  const size_t cut = size_t(kThirdPhaseLargestShare * double(rest.size() - 1));
+  std::nth_element(distances_.begin(), distances_.begin() + ptrdiff_t(cut), distances_.end());
+  const double smallest_px = -distances_[cut];
+  candidates_.clear();
+  for (const VisibleObject& v : rest)
+    if (pixels(v) >= smallest_px) candidates_.push_back(v);
+  if (!objects.decode(candidates_, options.hlod, error)) return false;
+  size_t kept = 0;
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const VisibleObject& v = rest[i];
+    const Known* k = pixels(v) >= smallest_px ? objects.find(v.slot) : nullptr;
+    if (k && drawn_opaque(objects, *k, v, frame_view, options)) rest[kept++] = v;
+    else later.push_back(v);
+  }
+  rest.resize(kept);
+  return true;
+}
+
+void OcclusionCulling::test_later(const FrameBlocks& blocks, const FrameView& frame_view,
+                                  std::span<const float> reversed_depth,
+                                  std::vector<VisibleObject>& later,
+                                  std::vector<NodeBox>& node_boxes, FrameStats& stats) {
+  buffer_.load_device_depth(reversed_depth);
+  drop_hidden(blocks, frame_view, later, node_boxes, stats);
+}
+
+bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
+                                       const RenderOptions& options,
+                                       std::span<const VisibleObject> rest,
+                                       std::vector<glm::vec4>& boxes, std::string& error) {
+  candidates_.clear();
+  for (const VisibleObject& v : rest)
+    if (v.px_per_m * v.extent_m() >= kBoxTestDecodePixels && !objects.find(v.slot)) candidates_.push_back(v);
+  if (!candidates_.empty() && !objects.decode(candidates_, options.hlod, error)) return false;
+  const glm::mat3 rotation(frame_view.rotation);
+  boxes.clear();
+  tested_.clear();
+  // `spill_px`: image pixels of drawing that may reach past the bounds (occlusion_buffer.h).
+  const auto add = [&](const float mn[3], const float mx[3], uint32_t index, double spill_px) {
+    glm::vec3 lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = mn[a] + frame_view.shift_m[a];
+      hi[a] = mx[a] + frame_view.shift_m[a];
+    }
+    if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) return;
+    // The spill in metres where the box is farthest (a pixel spans the most metres there), and
+    // a hair for rounding (of the shift, of the drawn vertices and depths).
+    const float spill_m = spill_px > 0 ? float(spill_px * farthest_depth(rotation, lo, hi) / frame_view.focal_px) : 0.0f;
+    for (int a = 0; a < 3; ++a) {
+      const float grow = spill_m + 1e-5f * std::max(std::abs(lo[a]), std::abs(hi[a])) + 1e-4f;
+      lo[a] -= grow;
+      hi[a] += grow;
+    }
+    boxes.emplace_back(lo, 0.0f);
+    boxes.emplace_back(hi, 0.0f);
+    tested_.push_back(index);
+  };
+  for (size_t i = 0; i < rest.size(); ++i) {
+    const VisibleObject& v = rest[i];
+    const Known* k = objects.find(v.slot);
+    // Not decoded yet (nor to be, if hidden), drawn as a centreline, with lines, or a member of
+    // a merged run: its own bounds, grown by what is drawn of it past them.
+    if (!k || k->has_lines || drawn_as_centreline(*k, options, v.distance_m, v.px_per_m) ||
+        (k->run >= 0 && decide_run(objects.run(uint32_t(k->run)), frame_view, options).merged)) {
+      add(v.min, v.max, uint32_t(i), OcclusionBuffer::kSpillPixels);
+      continue;
+    }
+    // A solid of its own: tested only where drawing it costs more triangles than testing its
+    // boxes (the bounds of groups of its primitives, else its own).
+    const uint32_t level = chosen_level(*k, options, v.distance_m, v.px_per_m, v.extent_m());
+    size_t triangles = 0;
+    for (const Known::Part& part : k->parts)
+      triangles += part.plan->index_count(part.plan->clamp_level(level)) / 3;
+    if (triangles <= kBoxTestTriangles * std::max<size_t>(1, k->test_boxes.size())) continue;
+    if (k->test_boxes.empty()) {
+      add(v.min, v.max, uint32_t(i), 0);
+      continue;
+    }
+    // Each clipped to the object's bounds, which hold all it draws too.
+    const glm::vec3 origin(k->origin_m - frame_view.spatial_origin_m);
+    for (const Aabb& b : k->test_boxes) {
+      float mn[3], mx[3];
+      for (int a = 0; a < 3; ++a) {
+        mn[a] = std::max(v.min[a], origin[a] + b.min[a]);
+        mx[a] = std::min(v.max[a], origin[a] + b.max[a]);
+      }
+      if (mn[0] <= mx[0] && mn[1] <= mx[1] && mn[2] <= mx[2]) add(mn, mx, uint32_t(i), 0);
+    }
+  }
+  return true;
+}
+
+void OcclusionCulling::drop_unseen(std::span<const uint32_t> seen, std::vector<VisibleObject>& rest,
+                                   std::vector<NodeBox>& node_boxes, FrameStats& stats) {
+  assert(seen.size() == tested_.size());
+  const size_t objects = rest.size();
+  // Hidden: tested, and none of its boxes seen.
+  flags_.assign(objects + node_boxes.size(), 0);
+  for (size_t t = 0; t < tested_.size(); ++t) flags_[tested_[t]] = 1;
+  for (size_t t = 0; t < tested_.size(); ++t)
+    if (seen[t]) flags_[tested_[t]] = 0;
+  size_t kept = 0;
+  for (size_t i = 0; i < objects; ++i) {
+    if (flags_[i]) {
+      stats.objects_occluded += 1;
+      continue;
+    }
+    rest[kept++] = rest[i];
+  }
+  rest.resize(kept);
+  kept = 0;
+  for (size_t i = 0; i < node_boxes.size(); ++i) {
+    if (flags_[objects + i]) {
+      stats.nodes_occluded += 1;
+      continue;
+    }
+    node_boxes[kept++] = node_boxes[i];
+  }
+  node_boxes.resize(kept);
 }
 
 void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,

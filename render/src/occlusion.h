@@ -2,20 +2,26 @@
 // it is neither decoded, tessellated, uploaded nor drawn, and its visibility counter ages like
 // a culled object's. Two forms, one buffer of tests (occlusion_buffer.h):
 //
-//   - Two phases on the GPU (frames drawn: Renderer::render). Phase 1 draws for real a set
-//     that will mostly be visible: the objects drawn in the previous frame that are still in
-//     the frustum (temporal coherence; less those its own first phase's depth hid), and this
-//     frame's largest on screen (up to kMaxOccluders spanning kOccluderMinPixels; for a first
-//     frame that is all there is); less what the largest, rasterised on the CPU as below,
-//     hide; and only objects drawn as opaque triangles: see-through objects and centrelines
-//     blend, and are drawn after the opaque surfaces behind them, as in a frame drawn at once
-//     (so the image equals the one without occlusion). The
-//     GL backend reduces the depth drawn to a coarse grid (each cell's farthest depth), read
-//     back into the buffer; phase 2 tests every other object, leaf and node box the cull found
-//     against it and draws those not hidden into the same framebuffer, without clearing.
-//     Correct by construction: what phase 1 drew is in the image, so whatever it hides is
-//     hidden at every sample; an object seen for the first time is drawn in the frame it
-//     appears (phase 2 draws it).
+//   - Two phases on the GPU (frames drawn: Renderer::render), three where the second is
+//     large. Phase 1 draws for real a set that will mostly be visible: the objects drawn in
+//     the previous frame that are still in the frustum (temporal coherence; less those its own
+//     first phase's depth hid), and the nearer half of this frame's largest on screen (of up
+//     to kMaxOccluders spanning kOccluderMinPixels; for a first frame that is all there is;
+//     none with the eye within its bounds); less what the largest, rasterised on the CPU as
+//     below, hide; and only objects drawn as opaque triangles: see-through objects and
+//     centrelines blend, and are drawn after the opaque surfaces behind them, as in a frame
+//     drawn at once (so the image equals the one without occlusion). The GL backend reduces
+//     the depth drawn to a coarse grid (each cell's farthest depth), read back into the
+//     buffer; every other object, leaf and node box the cull found is tested against it
+//     (coarse: a box's screen rectangle against the cells, on the CPU), and what passes is
+//     tested exactly (GlBackend::test_boxes: its boxes drawn against the depth itself,
+//     sample by sample; an object of several primitives by the bounds of up to kMaxTestBoxes
+//     groups of them, Known::test_boxes). Phase 2 draws what is left into the same
+//     framebuffer, without clearing. Where that is kThirdPhaseObjects or more (a view cut
+//     to), phase 2 draws its largest on screen only, and the rest is tested again (coarse and
+//     exact) against the depth of both and drawn in phase 3. Correct by construction: what a
+//     phase drew is in the image, so whatever it hides is hidden at every sample; an object
+//     seen for the first time is drawn in the frame it appears (a later phase draws it).
 //   - Occluders rasterised on the CPU (frames not drawn: Renderer::statistics). Of the objects
 //     in the frustum, the largest on screen that can occlude (occlusion_occluders.h) are
 //     rasterised at their farthest depth (up to kMaxOccluders objects spanning at least
@@ -61,6 +67,18 @@ inline constexpr size_t kMaxOccluders = 384;
 inline constexpr size_t kObjectsPerPart = 2048;  // objects tested per part on the pool
 inline constexpr double kOccluderMinPixels = 24;
 inline constexpr size_t kOccludersPerPart = 32;  // occluders rasterised per part on the pool
+// The first phase's largest: the nearer kFirstPhaseNearShare of the kMaxOccluders largest.
+inline constexpr double kFirstPhaseNearShare = 0.5;
+// A third phase is taken when the second holds at least kThirdPhaseObjects objects (a view
+// cut to, with little drawn the frame before): the second then draws the largest
+// kThirdPhaseLargestShare of them on screen, and the rest is tested against both. Measured on
+// preset c's interior views (README, occlusion culling).
+inline constexpr size_t kThirdPhaseObjects = 256;
+// Triangles the exact test draws a box with (the faces the eye sees, GlBackend::test_boxes):
+// an object is tested only where it draws more than its boxes would.
+inline constexpr size_t kBoxTestTriangles = 6;
+inline constexpr double kBoxTestDecodePixels = 8;
+inline constexpr double kThirdPhaseLargestShare = 0.3;
 
 class OcclusionCulling {
  public:
@@ -79,12 +97,13 @@ class OcclusionCulling {
 
   // Two phases, 1: moves out of `visible` (cull's, tree order) into `rest` (order kept) every
   // object that is neither drawn in the previous frame (`frame` - 1, Known::last_seen) nor
-  // among this frame's largest on screen, or that the largest, rasterised on the CPU, hide
-  // (the CPU form's occluders choose the first phase); counts the others in
-  // stats.occluders. Sizes the buffer for the view (buffer().width() x height() cells).
-  // False if an occluder cannot be decoded.
+  // among this frame's largest on screen (with `exact`, the nearer kFirstPhaseNearShare of
+  // them: the exact test drops what the nearer hide of the farther; none with the eye within
+  // its bounds), or that the largest, rasterised on the CPU, hide (the CPU form's occluders
+  // choose the first phase); counts the others in stats.occluders. Sizes the buffer for the
+  // view (buffer().width() x height() cells). False if an occluder cannot be decoded.
   bool split(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,
-             uint64_t frame, std::vector<VisibleObject>& visible,
+             uint64_t frame, bool exact, std::vector<VisibleObject>& visible,
              std::vector<VisibleObject>& rest, FrameStats& stats, std::string& error);
   // Two phases, 2: loads the depth phase 1 drew (`reversed_depth`: GlBackend::reduce_depth's
   // grid of buffer().width() x height() cells) and drops the hidden of `rest` and `node_boxes`
@@ -95,6 +114,40 @@ class OcclusionCulling {
                  std::span<const VisibleObject> first, std::span<const float> reversed_depth,
                  std::vector<VisibleObject>& rest, std::vector<NodeBox>& node_boxes,
                  FrameStats& stats);
+
+  // A third phase, where the second is large: when `rest` (tested, tree order) holds at least
+  // kThirdPhaseObjects objects, moves out of it into `later` (order kept) every object that is
+  // not among the largest kThirdPhaseLargestShare of rest on screen or is not drawn as opaque
+  // triangles of its own (`deferred` true); else changes nothing (`later` empty). The largest
+  // are decoded here to know that (they are drawn next anyway). Once rest is drawn,
+  // test_later() drops what of `later` and the node boxes the depth drawn by then hides.
+  // False with an error if an object cannot be decoded.
+  bool defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
+                 const RenderOptions& options, std::vector<VisibleObject>& rest,
+                 std::vector<VisibleObject>& later, bool& deferred, std::string& error);
+  // Loads the depth drawn so far (as test_rest) and drops the hidden of `later` and
+  // `node_boxes` (objects_occluded, nodes_occluded counted).
+  void test_later(const FrameBlocks& blocks, const FrameView& frame_view,
+                  std::span<const float> reversed_depth, std::vector<VisibleObject>& later,
+                  std::vector<NodeBox>& node_boxes, FrameStats& stats);
+
+  // The exact test, after a coarse one (test_rest, test_later), for GlBackend::test_boxes:
+  // `boxes` gets, eye-relative and grown by a hair, boxes for the objects of `rest`: for one
+  // drawn as solids of its own, the bounds of groups of its primitives (Known::test_boxes,
+  // else its own bounds), where it draws more than kBoxTestTriangles a box (else it is kept);
+  // for one not decoded, drawn as a centreline, with lines or merged into a run, its own
+  // bounds grown by kSpillPixels (what is drawn of it may reach past them). New objects are
+  // decoded for it only where they span kBoxTestDecodePixels (few, and drawn most likely:
+  // decoding what turns out hidden costs, and out of core it is decoded again frame after
+  // frame). Not those reaching within 2 x the near plane (kept). False on a decode error.
+  bool box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
+                       const RenderOptions& options, std::span<const VisibleObject> rest,
+                       std::vector<glm::vec4>& boxes, std::string& error);
+  // Drops the objects of `rest` and the `node_boxes` whose boxes `seen` says no sample of is
+  // visible (objects_occluded, nodes_occluded counted); `rest` and `node_boxes` as given to
+  // box_test_inputs().
+  void drop_unseen(std::span<const uint32_t> seen, std::vector<VisibleObject>& rest,
+                   std::vector<NodeBox>& node_boxes, FrameStats& stats);
 
   const OcclusionBuffer& buffer() const { return buffer_; }
 
@@ -120,6 +173,8 @@ class OcclusionCulling {
   // Scratch, reused.
   mutable std::vector<uint8_t> flags_;  // per object: kept (split) or hidden (drops)
   std::vector<VisibleObject> candidates_;
+  std::vector<double> distances_;  // split() and defer_smaller(): sort keys
+  std::vector<uint32_t> tested_;   // box_test_inputs(): per box, its index (objects, then boxes)
   double smallest_candidate_px_ = 0;  // of the last rasterise_occluders()
   // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).
   std::vector<uint32_t> hidden_drawn_;

@@ -1,7 +1,7 @@
 // Renderer: one frame as the data flows (render.h has the rules). The frontend (frame_plan.h:
 // view, cull, occlusion, choose) and the decoded objects need no GL; arena streaming and the GL
 // backend put what was chosen on the GPU, draw it and read it back. A drawn frame with
-// occlusion runs choose, stream and draw twice (occlusion.h: two phases).
+// occlusion runs choose, stream and draw twice, or three times (occlusion.h: phases).
 #include <cmath>
 
 #include "arena_streaming.h"
@@ -31,10 +31,16 @@ struct Renderer::State {
   ArenaStreaming streaming{backend, pool};
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
+  std::vector<glm::vec4> test_boxes;  // and its exact test
+  std::vector<uint32_t> boxes_seen;
 
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
              FrameStats& stats, std::string& error);
+  // Occlusion's exact test of what a coarse test left (FramePlan::box_test_inputs): the boxes
+  // drawn against the depth drawn so far.
+  bool exact_test(const FrameView& frame_view, FrameStats& stats, StageTimes& times,
+                  Stopwatch& clock, std::string& error);
   // One phase of a frame (the whole frame without two-phase occlusion): the plan's visible
   // objects decoded where new, a level chosen for each, made resident; with a look (drawing),
   // their index lists written and drawn (the first phase begins the frame's image; `wait`:
@@ -43,6 +49,18 @@ struct Renderer::State {
              bool wait, FrameStats& stats, StageTimes& times, Stopwatch& clock,
              std::string& error);
 };
+
+bool Renderer::State::exact_test(const FrameView& frame_view, FrameStats& stats,
+                                 StageTimes& times, Stopwatch& clock, std::string& error) {
+  times.occlusion += clock.lap();
+  if (!plan.box_test_inputs(objects, frame_view, options, test_boxes, error)) return false;
+  times.occlusion += clock.lap();
+  if (!backend.test_boxes(frame_view, test_boxes, boxes_seen, error)) return false;
+  times.depth_reduction += clock.lap();
+  plan.drop_unseen(boxes_seen, stats);
+  times.occlusion += clock.lap();
+  return true;
+}
 
 // Starts a new snapshot of the store and forgets everything decoded and resident. If the store
 // cannot be read, the current snapshot (if any) stays.
@@ -93,15 +111,31 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   if (draw && FramePlan::two_phase(options)) {
     // What will mostly be visible drawn first; its depth reduced and read back; the rest
     // tested against it and drawn into the same image.
-    if (!plan.first_phase(objects, frame_view, options, frame_number, stats, error)) return false;
+    // The exact test (render.h: OcclusionTest) where it pays: on a GPU unless told.
+    const bool exact = options.occlusion_test == OcclusionTest::exact ||
+                       (options.occlusion_test == OcclusionTest::automatic && !backend.software());
+    if (!plan.first_phase(objects, frame_view, options, frame_number, exact, stats, error)) return false;
     times.occlusion = clock.lap();
     if (!phase(frame_view, drawn, with_ids, false, true, stats, times, clock, error)) return false;
     const auto [cells_width, cells_height] = plan.occlusion_cells();
     if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
     times.depth_reduction = clock.lap();
     plan.second_phase(frame_view, frame_number, reduced_depth, stats);
+    if (exact && !exact_test(frame_view, stats, times, clock, error)) return false;
+    // A large second phase (a view cut to: little drawn last frame to draw first) draws its
+    // largest first, and the rest is tested against both.
+    bool third = false;
+    if (exact && !plan.defer_smaller(objects, frame_view, options, third, error)) return false;
     times.occlusion += clock.lap();
-    if (!phase(frame_view, drawn, with_ids, true, false, stats, times, clock, error)) return false;
+    if (!phase(frame_view, drawn, with_ids, true, third, stats, times, clock, error)) return false;
+    if (third) {
+      if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
+      times.depth_reduction += clock.lap();
+      plan.third_phase(frame_view, reduced_depth, stats);
+      if (!exact_test(frame_view, stats, times, clock, error)) return false;
+      times.occlusion += clock.lap();
+      if (!phase(frame_view, drawn, with_ids, true, false, stats, times, clock, error)) return false;
+    }
   } else {
     // Statistics alone: occluders rasterised on the CPU. (A highlight hides nothing: its
     // occluders are drawn see-through; FramePlan::occlude knows.)
