@@ -182,19 +182,16 @@ bool FramePlan::first_phase(DecodedObjects& objects, const FrameView& frame_view
 
 void FramePlan::second_phase(const FrameView& frame_view, uint64_t frame,
                              std::span<const float> reversed_depth, FrameStats& stats) {
-  const size_t first_objects = visible_.size();
+  const size_t drawn = visible_.size();
   occlusion_.test_rest(blocks_, frame_view, frame, visible_, reversed_depth, second_visible_,
                        second_boxes_, stats);
-  visible_.swap(second_visible_);
-  node_boxes_.swap(second_boxes_);
-  drawn_before_ = first_objects;
-  stats.objects_visible = first_objects + visible_.size();
-  stats.node_proxies = node_boxes_.size();
+  take_set_aside(drawn, stats);
 }
 
 bool FramePlan::defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
-                          const RenderOptions& options, bool& third, std::string& error) {
-  if (!occlusion_.defer_smaller(objects, frame_view, options, visible_, second_visible_, third, error))
+                              const RenderOptions& options, bool& third, std::string& error) {
+  if (!occlusion_.defer_smaller(objects, frame_view, options, visible_, second_visible_, third,
+                                error))
     return false;
   if (third) {
     second_boxes_.swap(node_boxes_);
@@ -207,6 +204,10 @@ void FramePlan::third_phase(const FrameView& frame_view, std::span<const float> 
                             FrameStats& stats) {
   const size_t drawn = drawn_before_ + visible_.size();
   occlusion_.test_later(blocks_, frame_view, reversed_depth, second_visible_, second_boxes_, stats);
+  take_set_aside(drawn, stats);
+}
+
+void FramePlan::take_set_aside(size_t drawn, FrameStats& stats) {
   visible_.swap(second_visible_);
   node_boxes_.swap(second_boxes_);
   drawn_before_ = drawn;
@@ -217,14 +218,12 @@ void FramePlan::third_phase(const FrameView& frame_view, std::span<const float> 
 bool FramePlan::box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
                                 const RenderOptions& options, std::vector<glm::vec4>& boxes,
                                 std::string& error) {
-  if (!occlusion_.box_test_inputs(objects, frame_view, options, visible_, boxes, error)) return false;
-  return true;
+  return occlusion_.box_test_inputs(objects, frame_view, options, visible_, boxes, error);
 }
 
 void FramePlan::drop_unseen(std::span<const uint32_t> seen, FrameStats& stats) {
-  occlusion_.drop_unseen(seen, visible_, node_boxes_, stats);
+  occlusion_.drop_unseen(seen, visible_, stats);
   stats.objects_visible = drawn_before_ + visible_.size();
-  stats.node_proxies = node_boxes_.size();
 }
 
 void FramePlan::order() {

@@ -295,6 +295,9 @@ class FramePlan {
   std::vector<VisibleObject> second_visible_;  // set aside for the second phase (tree order)
   std::vector<NodeBox> second_boxes_;
   size_t drawn_before_ = 0;  // objects drawn in the phases before the one in visible_
+  // What was set aside and passed its test becomes visible() and node_boxes(); `drawn`
+  // objects were drawn in the phases before.
+  void take_set_aside(size_t drawn, FrameStats& stats);
   FrameBlocks blocks_;
   std::vector<Draw> draws_;
   std::vector<Candidate> candidates_;  // a max-heap on px

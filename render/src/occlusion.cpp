@@ -16,24 +16,28 @@ namespace plantview::detail {
 
 namespace {
 
-// The nearest view depth (along -z, metres) of an eye-relative box: that of its nearest corner.
-float nearest_depth(const glm::mat3& rotation, const glm::vec3& lo, const glm::vec3& hi) {
-  float depth = std::numeric_limits<float>::infinity();
+// The nearest and farthest view depths (along -z, metres) of an eye-relative box: those of
+// its nearest and farthest corners.
+std::pair<float, float> depth_range(const glm::mat3& rotation, const glm::vec3& lo, const glm::vec3& hi) {
+  float nearest = std::numeric_limits<float>::infinity(), farthest = 0;
   for (int c = 0; c < 8; ++c) {
     const glm::vec3 p(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
-    depth = std::min(depth, -(rotation * p).z);
+    const float depth = -(rotation * p).z;
+    nearest = std::min(nearest, depth);
+    farthest = std::max(farthest, depth);
   }
-  return depth;
+  return {nearest, farthest};
 }
 
-// The farthest view depth of an eye-relative box: that of its farthest corner.
-float farthest_depth(const glm::mat3& rotation, const glm::vec3& lo, const glm::vec3& hi) {
-  float depth = 0;
-  for (int c = 0; c < 8; ++c) {
-    const glm::vec3 p(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
-    depth = std::max(depth, -(rotation * p).z);
-  }
-  return depth;
+// Removes from `items` (order kept) those whose index `hidden` holds for; returns how many.
+template <class T, class F>
+size_t remove_hidden(std::vector<T>& items, const F& hidden) {
+  size_t kept = 0;
+  for (size_t i = 0; i < items.size(); ++i)
+    if (!hidden(i)) items[kept++] = items[i];
+  const size_t removed = items.size() - kept;
+  items.resize(kept);
+  return removed;
 }
 
 // Whether `k` (seen as `v`) has an occluder shape and is drawn as its solids this frame: not a
@@ -142,7 +146,7 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
         const uint32_t end = k.occluder.ends[piece];
         // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h).
         const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
-        if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) {
+        if (depth_range(rotation, lo, hi).first <= 2 * kNearPlaneM) {
           first = end;
           continue;
         }
@@ -303,10 +307,11 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
       lo[a] = mn[a] + frame_view.shift_m[a];
       hi[a] = mx[a] + frame_view.shift_m[a];
     }
-    if (nearest_depth(rotation, lo, hi) <= 2 * kNearPlaneM) return;
+    const auto [nearest_m, farthest_m] = depth_range(rotation, lo, hi);
+    if (nearest_m <= 2 * kNearPlaneM) return;
     // The spill in metres where the box is farthest (a pixel spans the most metres there), and
     // a hair for rounding (of the shift, of the drawn vertices and depths).
-    const float spill_m = spill_px > 0 ? float(spill_px * farthest_depth(rotation, lo, hi) / frame_view.focal_px) : 0.0f;
+    const float spill_m = float(spill_px * farthest_m / frame_view.focal_px);
     for (int a = 0; a < 3; ++a) {
       const float grow = spill_m + 1e-5f * std::max(std::abs(lo[a]), std::abs(hi[a])) + 1e-4f;
       lo[a] -= grow;
@@ -352,32 +357,14 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
 }
 
 void OcclusionCulling::drop_unseen(std::span<const uint32_t> seen, std::vector<VisibleObject>& rest,
-                                   std::vector<NodeBox>& node_boxes, FrameStats& stats) {
+                                   FrameStats& stats) {
   assert(seen.size() == tested_.size());
-  const size_t objects = rest.size();
   // Hidden: tested, and none of its boxes seen.
-  flags_.assign(objects + node_boxes.size(), 0);
+  flags_.assign(rest.size(), 0);
   for (size_t t = 0; t < tested_.size(); ++t) flags_[tested_[t]] = 1;
   for (size_t t = 0; t < tested_.size(); ++t)
     if (seen[t]) flags_[tested_[t]] = 0;
-  size_t kept = 0;
-  for (size_t i = 0; i < objects; ++i) {
-    if (flags_[i]) {
-      stats.objects_occluded += 1;
-      continue;
-    }
-    rest[kept++] = rest[i];
-  }
-  rest.resize(kept);
-  kept = 0;
-  for (size_t i = 0; i < node_boxes.size(); ++i) {
-    if (flags_[objects + i]) {
-      stats.nodes_occluded += 1;
-      continue;
-    }
-    node_boxes[kept++] = node_boxes[i];
-  }
-  node_boxes.resize(kept);
+  stats.objects_occluded += remove_hidden(rest, [&](size_t i) { return flags_[i] != 0; });
 }
 
 void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& frame_view,
@@ -403,26 +390,11 @@ void OcclusionCulling::drop_hidden(const FrameBlocks& blocks, const FrameView& f
       flags_[i] = flag;
     }
   });
-  size_t kept = 0;
-  for (size_t i = 0; i < visible.size(); ++i) {
-    stats.nodes_occluded += (flags_[i] & kLeafHidden) != 0;
-    if (flags_[i] & kHidden) {
-      stats.objects_occluded += 1;
-      continue;
-    }
-    visible[kept++] = visible[i];
-  }
-  visible.resize(kept);
-  kept = 0;
-  for (size_t i = 0; i < node_boxes.size(); ++i) {
-    const NodeBox& b = node_boxes[i];
-    if (hidden(frame_view, b.min, b.max)) {
-      stats.nodes_occluded += 1;
-      continue;
-    }
-    node_boxes[kept++] = b;
-  }
-  node_boxes.resize(kept);
+  for (size_t i = 0; i < visible.size(); ++i) stats.nodes_occluded += (flags_[i] & kLeafHidden) != 0;
+  stats.objects_occluded += remove_hidden(visible, [&](size_t i) { return (flags_[i] & kHidden) != 0; });
+  stats.nodes_occluded += remove_hidden(node_boxes, [&](size_t i) {
+    return hidden(frame_view, node_boxes[i].min, node_boxes[i].max);
+  });
 }
 
 }  // namespace plantview::detail

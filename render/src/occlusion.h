@@ -139,15 +139,15 @@ class OcclusionCulling {
   // bounds grown by kSpillPixels (what is drawn of it may reach past them). New objects are
   // decoded for it only where they span kBoxTestDecodePixels (few, and drawn most likely:
   // decoding what turns out hidden costs, and out of core it is decoded again frame after
-  // frame). Not those reaching within 2 x the near plane (kept). False on a decode error.
+  // frame). Not those reaching within 2 x the near plane (kept). Node boxes are not tested (a
+  // box costs what testing it would). False on a decode error.
   bool box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
                        const RenderOptions& options, std::span<const VisibleObject> rest,
                        std::vector<glm::vec4>& boxes, std::string& error);
-  // Drops the objects of `rest` and the `node_boxes` whose boxes `seen` says no sample of is
-  // visible (objects_occluded, nodes_occluded counted); `rest` and `node_boxes` as given to
-  // box_test_inputs().
+  // Drops the objects of `rest` (as given to box_test_inputs()) none of whose boxes `seen`
+  // says a sample of is visible (objects_occluded counted).
   void drop_unseen(std::span<const uint32_t> seen, std::vector<VisibleObject>& rest,
-                   std::vector<NodeBox>& node_boxes, FrameStats& stats);
+                   FrameStats& stats);
 
   const OcclusionBuffer& buffer() const { return buffer_; }
 

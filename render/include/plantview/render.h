@@ -124,9 +124,9 @@ std::string_view antialias_method_name(AntialiasMethod method);
 // (render/src/occlusion.h). Measured with bench_render (preset c, 1280x720, 4 samples, 30-view
 // walkthrough and 12 interior views, llvmpipe), screen-space 1 px: interior views draw 1.97x
 // fewer triangles than without occlusion with `exact`, 1.58x with `coarse`; but on llvmpipe
-// the exact test's box drawing and its second read-back cost more than the triangles saved
-// (frames 297 -> 315 ms there, and the out-of-core walk 581 -> 794 ms), where on a GPU
-// drawing boxes against the depth costs next to nothing.
+// drawing the boxes costs 56-96 ms of a frame, more than the triangles it saves with LOD (the
+// out-of-core walk: 581 -> 794 ms; README, occlusion culling), where on a GPU drawing boxes
+// against the depth costs next to nothing.
 enum class OcclusionTest {
   automatic,  // exact on a GPU, coarse on a software renderer
   coarse,     // bounds against a grid of the first phase's depth (a cell per 4 x 4 pixels)
