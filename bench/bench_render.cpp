@@ -355,7 +355,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
               " missing: objects shown without occlusion and not with it, summed over views; in off/on:\n"
               " interior views' triangles without occlusion over with it; occl ms: occlusion culling's\n"
               " CPU part (choosing phase 1, the tests; in cpu ms); depth ms: its GPU part (the depth\n"
-              " reduction and read-back, not in cpu ms); up MB/f: vertex data uploaded\n"
+              " reductions, the exact test's boxes, their read-backs; not in cpu ms); up MB/f: vertex data uploaded\n"
               " per frame; times and uploads exclude view 0.)\n");
   return 0;
 }

@@ -208,11 +208,12 @@ struct FrameStats {
   uint64_t spatial_blocks_walked = 0, spatial_blocks_held = 0;
   uint64_t objects_known = 0;
   uint64_t residency_bytes = 0;
-  // cpu: the frame's CPU work, cull + occlusion + choose + stream (each part as measured, both
+  // cpu: the frame's CPU work, cull + occlusion + choose + stream (each part as measured, all
   // phases together; choose includes writing the index lists, stream decoding new objects;
   // occlusion is choosing the first phase and testing the rest). depth_reduction: occlusion's
-  // GPU part, the first phase's depth reduced and read back (the CPU waits for the GPU there,
-  // so it is not in cpu); draw includes the first phase's drawing. arena_growth: the part of
+  // GPU part, the drawn depth reduced and read back, and the exact test's boxes drawn and
+  // their flags read back (the CPU waits for the GPU there, so it is not in cpu); draw
+  // includes the earlier phases' drawing. arena_growth: the part of
   // stream spent growing the GPU vertex arena (a buffer twice the size, the old one copied
   // in): rare, and on a software renderer mostly the first touch of the new memory, which
   // the operating system pays page by page.
