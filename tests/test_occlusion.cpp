@@ -488,6 +488,24 @@ TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
   EXPECT_EQ(stats.objects_tessellated, 2u) << "E-301 is neither tessellated nor drawn";
   EXPECT_EQ(image.object_ids, off_image.object_ids);
 
+  // A part right in front of the eye (nearer than twice the near plane) keeps the object,
+  // though its other part is hidden.
+  {
+    std::vector<Object> with_near = objects;
+    with_near[2].primitives.push_back(
+        Primitive{Placement{glm::mat3(1.0f), {0.0f, -17.92f, 0.5f}}, Box{0.05f, 0.05f, 0.05f}});
+    with_near[2].primitives.erase(with_near[2].primitives.begin() + 1);  // the east part
+    TempDir near_dir;
+    auto near_store = make_store(near_dir, with_near);
+    auto near_off = make_renderer(*near_store, false);
+    auto near_on = make_renderer(*near_store, true, OcclusionTest::exact);
+    Image a, b;
+    ASSERT_TRUE(near_off->render(view, 320, 180, true, a, stats, error)) << error;
+    ASSERT_TRUE(ids_in(a).count(with_near[2].id)) << "the near part shows";
+    ASSERT_TRUE(near_on->render(view, 320, 180, true, b, stats, error)) << error;
+    EXPECT_EQ(b.object_ids, a.object_ids);
+  }
+
   // Seen from higher up, its parts show above the walls: drawn, as without occlusion.
   const Camera above = look({0, -12, 30}, {0, 6, 0});
   ASSERT_TRUE(off->render(above, 320, 180, true, off_image, stats, error)) << error;

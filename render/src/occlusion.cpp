@@ -301,6 +301,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   boxes.clear();
   tested_.clear();
   // `spill_px`: image pixels of drawing that may reach past the bounds (occlusion_buffer.h).
+  // False (nothing added) for a box reaching within 2 x the near plane: its object is kept.
   const auto add = [&](const float mn[3], const float mx[3], uint32_t index, double spill_px) {
     glm::vec3 lo, hi;
     for (int a = 0; a < 3; ++a) {
@@ -308,7 +309,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
       hi[a] = mx[a] + frame_view.shift_m[a];
     }
     const auto [nearest_m, farthest_m] = depth_range(rotation, lo, hi);
-    if (nearest_m <= 2 * kNearPlaneM) return;
+    if (nearest_m <= 2 * kNearPlaneM) return false;
     // The spill in metres where the box is farthest (a pixel spans the most metres there), and
     // a hair for rounding (of the shift, of the drawn vertices and depths).
     const float spill_m = float(spill_px * farthest_m / frame_view.focal_px);
@@ -320,6 +321,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
     boxes.emplace_back(lo, 0.0f);
     boxes.emplace_back(hi, 0.0f);
     tested_.push_back(index);
+    return true;
   };
   for (size_t i = 0; i < rest.size(); ++i) {
     const VisibleObject& v = rest[i];
@@ -342,15 +344,21 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
       add(v.min, v.max, uint32_t(i), 0);
       continue;
     }
-    // Each clipped to the object's bounds, which hold all it draws too.
+    // Each clipped to the object's bounds, which hold all it draws too. One reaching the near
+    // plane keeps the object: none of its boxes is tested.
     const glm::vec3 origin(k->origin_m - frame_view.spatial_origin_m);
+    const size_t boxes_before = boxes.size(), tested_before = tested_.size();
     for (const Aabb& b : k->test_boxes) {
       float mn[3], mx[3];
       for (int a = 0; a < 3; ++a) {
         mn[a] = std::max(v.min[a], origin[a] + b.min[a]);
         mx[a] = std::min(v.max[a], origin[a] + b.max[a]);
       }
-      if (mn[0] <= mx[0] && mn[1] <= mx[1] && mn[2] <= mx[2]) add(mn, mx, uint32_t(i), 0);
+      if (mn[0] <= mx[0] && mn[1] <= mx[1] && mn[2] <= mx[2] && !add(mn, mx, uint32_t(i), 0)) {
+        boxes.resize(boxes_before);
+        tested_.resize(tested_before);
+        break;
+      }
     }
   }
   return true;
