@@ -228,7 +228,8 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   k.vertex_count = vertex_count;
   k.occluder = {};
   k.occluder_built = false;
-  group_bounds(k.primitives, k.test_boxes);
+  k.test_boxes.clear();
+  k.test_boxes_built = false;
   return k;
 }
 
@@ -405,6 +406,16 @@ const OccluderShape* DecodedObjects::occluder(uint32_t slot, Known& k, std::stri
     k.occluder_built = true;
   }
   return &k.occluder;
+}
+
+const std::vector<Aabb>* DecodedObjects::test_boxes(uint32_t slot, Known& k, std::string& error) {
+  if (!k.test_boxes_built) {
+    const std::vector<Primitive>* p = primitives(slot, k, error);
+    if (!p) return nullptr;
+    group_bounds(*p, k.test_boxes);
+    k.test_boxes_built = true;
+  }
+  return &k.test_boxes;
 }
 
 const std::vector<Primitive>* DecodedObjects::primitives(uint32_t key, const Known& k,

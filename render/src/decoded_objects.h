@@ -111,11 +111,12 @@ struct alignas(64) Known {
   bool keeps_primitives = false;
   uint32_t centreline_first = 0;
   OccluderShape occluder;           // once built: empty unless it may occlude
-  // Occlusion's exact test (occlusion.h): the bounds of up to kMaxTestBoxes groups of its
-  // primitives (metres, relative to origin_m), which hold all it draws; empty for an object of
-  // one primitive (its own bounds serve).
+  // Occlusion's exact test (occlusion.h), once built (DecodedObjects::test_boxes): the bounds
+  // of up to kMaxTestBoxes groups of its primitives (metres, relative to origin_m), which hold
+  // all it draws; empty for an object of one primitive (its own bounds serve).
   std::vector<Aabb> test_boxes;
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
+  bool test_boxes_built = false;
 };
 static_assert(offsetof(Known, has_centreline) < 64 && offsetof(Known, origin_m) + 24 <= 128 &&
               offsetof(Known, parts) == 128);
@@ -220,6 +221,11 @@ class DecodedObjects {
   // The occluder shape of the object in `slot` (known), built the first time it is asked for
   // (from its primitives, decoded again if dropped). Null on a read error.
   const OccluderShape* occluder(uint32_t slot, Known& k, std::string& error);
+
+  // The exact test's boxes of the object in `slot` (known; Known::test_boxes), built the first
+  // time they are asked for (from its primitives, decoded again if dropped): only objects the
+  // exact test meets pay for them. Null on a read error.
+  const std::vector<Aabb>* test_boxes(uint32_t slot, Known& k, std::string& error);
 
   // Keeps the cache bounded: objects neither resident nor seen in frame `frame` go first, the
   // longest unseen first; those seen (drawn as boxes because the arena was full) only if that

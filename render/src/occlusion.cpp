@@ -209,7 +209,7 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
       const VisibleObject& v = visible[i];
       if (i + kPrefetchAhead < end)
         if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
-      const Known* k = objects.find(v.slot);
+      Known* k = objects.find(v.slot);
       // Drawn last frame (frames count from 1: 0 is never), and not found hidden behind what
       // that frame drew first.
       const bool drawn_last = k && k->last_seen != 0 && k->last_seen + 1 == frame &&
@@ -325,7 +325,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   };
   for (size_t i = 0; i < rest.size(); ++i) {
     const VisibleObject& v = rest[i];
-    const Known* k = objects.find(v.slot);
+    Known* k = objects.find(v.slot);
     // Not decoded yet (nor to be, if hidden), drawn as a centreline, with lines, or a member of
     // a merged run: its own bounds, grown by what is drawn of it past them.
     if (!k || k->has_lines || drawn_as_centreline(*k, options, v.distance_m, v.px_per_m) ||
@@ -339,8 +339,10 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
     size_t triangles = 0;
     for (const Known::Part& part : k->parts)
       triangles += part.plan->index_count(part.plan->clamp_level(level)) / 3;
-    if (triangles <= kBoxTestTriangles * std::max<size_t>(1, k->test_boxes.size())) continue;
-    if (k->test_boxes.empty()) {
+    const std::vector<Aabb>* test_boxes = objects.test_boxes(v.slot, *k, error);
+    if (!test_boxes) return false;
+    if (triangles <= kBoxTestTriangles * std::max<size_t>(1, test_boxes->size())) continue;
+    if (test_boxes->empty()) {
       add(v.min, v.max, uint32_t(i), 0);
       continue;
     }
@@ -348,7 +350,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
     // plane keeps the object: none of its boxes is tested.
     const glm::vec3 origin(k->origin_m - frame_view.spatial_origin_m);
     const size_t boxes_before = boxes.size(), tested_before = tested_.size();
-    for (const Aabb& b : k->test_boxes) {
+    for (const Aabb& b : *test_boxes) {
       float mn[3], mx[3];
       for (int a = 0; a < 3; ++a) {
         mn[a] = std::max(v.min[a], origin[a] + b.min[a]);
