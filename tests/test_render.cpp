@@ -366,7 +366,7 @@ TEST(RenderLod, ARenderedCylinderCoarsensWithDistanceAsItsErrorProjects) {
   EXPECT_EQ(f.stats.triangles, element_count(plan, 0));
 }
 
-TEST(RenderLod, PipesUnderAPixelAreDrawnAsTheirCentreline) {
+TEST(RenderLod, PipesUnderAPixelAndThePixelErrorAreDrawnAsTheirCentreline) {
   TempDir dir;
   Object pipe = make_object("P", ObjectClass::pipe, {0, 0, 0}, Cylinder{0.05f, 4.0f});
   pipe.centreline = {{{0, 0, -2}, {0, 0, 2}, 0.1f}};
@@ -380,6 +380,24 @@ TEST(RenderLod, PipesUnderAPixelAreDrawnAsTheirCentreline) {
   EXPECT_EQ(far.stats.triangles, 0u);
   EXPECT_EQ(far.stats.lines, 1u);
   EXPECT_EQ(ids_in(far.image), std::set<uint64_t>{pipe.id});  // still drawn, as a line
+
+  // A finer pixel error than a pixel (stills) keeps a pipe solid down to that error: at 25 m
+  // its diameter spans half a pixel (a line at 1 px, a cylinder at 0.25 px); at 100 m an
+  // eighth (a line at both).
+  RenderOptions fine = small();
+  fine.pixel_error = 0.25;
+  auto still = make_renderer(*store, fine);
+  const double half_px = 0.1 * detail::pixels_per_metre(25.0 - 0.05, 50.0, 120);
+  ASSERT_GT(half_px, 0.25);
+  ASSERT_LT(half_px, 1.0);
+  EXPECT_EQ(render(*r, look({0, -25, 0}, {0, 0, 0})).stats.centreline_pipes, 1u);
+  const Frame solid = render(*still, look({0, -25, 0}, {0, 0, 0}));
+  EXPECT_EQ(solid.stats.centreline_pipes, 0u);
+  EXPECT_GT(solid.stats.triangles, 0u);
+  EXPECT_EQ(ids_in(solid.image), std::set<uint64_t>{pipe.id});
+  const Frame line = render(*still, look({0, -100, 0}, {0, 0, 0}));
+  EXPECT_EQ(line.stats.centreline_pipes, 1u);
+  EXPECT_EQ(line.stats.triangles, 0u);
 }
 
 // A thin far pipe's centreline covers what its diameter covers: half the diameter on screen,

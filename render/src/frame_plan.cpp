@@ -443,7 +443,10 @@ bool drawn_as_centreline(const Known& k, const RenderOptions& options, double di
   if (!options.centrelines || !k.has_centreline) return false;
   switch (options.lod_policy) {
     case LodPolicy::none: return false;
-    case LodPolicy::screen_space: return k.pipe_diameter_m * px_per_m < 1.0;
+    // A line stands for a pipe as wide as the pipe's diameter, but flat: its error is about
+    // that width, so a finer pixel error than a pixel (stills) keeps thicker pipes solid.
+    case LodPolicy::screen_space:
+      return k.pipe_diameter_m * px_per_m < std::min(1.0, options.pixel_error);
     case LodPolicy::distance: return distance_m > kCentrelineRadii * 0.5 * k.pipe_diameter_m;
   }
   return false;

@@ -170,7 +170,8 @@ RunDecisionInputs decide_run(const PipelineRun& run, const FrameView& frame_view
 uint32_t chosen_level(const Known& k, const RenderOptions& options, double distance_m,
                       double px_per_m, double size_m);
 
-// Whether a pipe (k.centreline not empty) is drawn as its centreline at that distance.
+// Whether a pipe (k.centreline not empty) is drawn as its centreline at that distance:
+// screen-space, where its diameter projects under a pixel and under the pixel error.
 bool drawn_as_centreline(const Known& k, const RenderOptions& options, double distance_m,
                          double px_per_m);
 

@@ -12,7 +12,8 @@
 //   - merge_error_m is how far the merged cylinder departs from the members: the largest
 //     radial extent of any member's primitives beyond the pipe's radius (a flange's collar,
 //     a valve's body). The renderer merges a run when that error projects under its pixel
-//     error, and draws its centreline when the diameter projects under a pixel.
+//     error, and draws its centreline when the diameter projects under a pixel (and under
+//     the pixel error where that is finer: drawn_as_centreline).
 //   - Splitting: runs are straight and local, so a long pipeline is many runs; the near part of
 //     a pipeline keeps its detail while its far runs merge.
 // Threads: pure functions.

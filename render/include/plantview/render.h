@@ -19,7 +19,8 @@
 //               What is left out is neither decoded, tessellated, uploaded nor drawn, and its
 //               visibility counter ages like a culled object's. Nothing visible is dropped;
 //   2. choose   a level per visible object by LodPolicy (screen-space error by default); pipes
-//               whose diameter projects under about a pixel are drawn as their centreline.
+//               whose diameter projects under a pixel, and under the pixel error where that is
+//               finer, are drawn as their centreline.
 //               Pipeline HLOD: a straight run of pipes and inline components is drawn as one
 //               cylinder where the components' relief projects under the pixel error;
 //   3. stream   vertices of newly visible objects are tessellated from their parameters into one
