@@ -209,7 +209,7 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
       const VisibleObject& v = visible[i];
       if (i + kPrefetchAhead < end)
         if (const Known* ahead = objects.find(visible[i + kPrefetchAhead].slot)) prefetch(ahead);
-      Known* k = objects.find(v.slot);
+      const Known* k = objects.find(v.slot);
       // Drawn last frame (frames count from 1: 0 is never), and not found hidden behind what
       // that frame drew first.
       const bool drawn_last = k && k->last_seen != 0 && k->last_seen + 1 == frame &&
