@@ -219,7 +219,7 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
                                               {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
                                               {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
   if (centreline_program_)
-    ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
+    ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kGroundVertex}},
                                       {GL_FRAGMENT_SHADER, {kGroundFragment}}}, error);
   if (ground_program_)
     occlusion_program_ = link("ambient occlusion", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
@@ -810,13 +810,14 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   glProgramUniform1f(p, at(p, "u_grid_m"), float(grid));
   glProgramUniform2f(p, at(p, "u_centre"), float(centre.x), float(centre.y));
   glProgramUniform1f(p, at(p, "u_radius_m"), float(radius));
+  glProgramUniform1f(p, at(p, "u_reach_m"), float(3 * radius + 20));  // (kGroundFragment's fade)
   const GLenum colour_only[] = {GL_COLOR_ATTACHMENT0, GL_NONE};
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, colour_only);
   glEnablei(GL_BLEND, 0);
   glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
   glUseProgram(p);
   glBindVertexArray(empty_vao_);
-  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glDrawArrays(GL_TRIANGLES, 0, 6);
   glDisablei(GL_BLEND, 0);
   const GLenum restored[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, restored);

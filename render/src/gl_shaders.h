@@ -218,8 +218,26 @@ void main() {
 
 // The ground: a plane at the plant's lowest level, a light floor with a grid of u_grid_m
 // squares and heavier lines every ten, fading out from 5 m + 1.2 to 20 m + 3 plant radii from
-// the plant's centre, and where the grid gets denser than a few pixels. Where it shows, its depth is written (so that ambient occlusion
-// darkens it under the plant).
+// the plant's centre, and where the grid gets denser than a few pixels. Drawn as a square
+// about the plant's centre as wide as the fade, so that its depth comes from rasterising (the
+// depth test can then reject it where the plant hides it before it is shaded: a plane found
+// per fragment, writing its depth, was shaded everywhere) and is written where it shows (so
+// that ambient occlusion darkens it under the plant). Its depth is drawn a little farther than
+// the plane (twice the tie-break's most, PLANTVIEW_TIE_CONSTANTS), so that what lies on the
+// plane is drawn over it.
+inline constexpr const char* kGroundVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
+uniform mat4 u_view_projection;
+uniform float u_ground_z;  // the plane's height relative to the eye
+uniform vec2 u_centre;     // the plant's centre (x, y) relative to the eye
+uniform float u_reach_m;   // half the square's side: where the fade ends
+void main() {
+  const vec2 kCorners[6] = vec2[](vec2(-1.0, -1.0), vec2(1.0, -1.0), vec2(1.0, 1.0),
+                                  vec2(-1.0, -1.0), vec2(1.0, 1.0), vec2(-1.0, 1.0));
+  gl_Position = u_view_projection * vec4(u_centre + kCorners[gl_VertexID] * u_reach_m, u_ground_z, 1.0);
+  gl_Position.z *= 1.0 - 2.0 * float((1u << (32u - kTieShift)) - 1u) * kTieStep;
+}
+)";
+
 inline constexpr const char* kGroundFragment = R"(#version 450 core
 layout(location = 0) out vec4 o_colour;
 uniform mat3 u_ray;
@@ -248,8 +266,6 @@ void main() {
   vec3 floor_colour = vec3(0.70, 0.71, 0.69);
   vec3 c = mix(floor_colour, vec3(0.50, 0.52, 0.52), max(0.5 * minor, major));
   o_colour = vec4(c, alpha);
-  vec4 clip = u_view_projection * vec4(p, 1.0);
-  gl_FragDepth = clamp(clip.z / clip.w, 0.0, 1.0);
 }
 )";
 
