@@ -339,6 +339,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
     size_t triangles = 0;
     for (const Known::Part& part : k->parts)
       triangles += part.plan->index_count(part.plan->clamp_level(level)) / 3;
+    if (triangles <= kBoxTestTriangles) continue;  // (whatever its boxes: none built for it)
     const std::vector<Aabb>* test_boxes = objects.test_boxes(v.slot, *k, error);
     if (!test_boxes) return false;
     if (triangles <= kBoxTestTriangles * std::max<size_t>(1, test_boxes->size())) continue;
