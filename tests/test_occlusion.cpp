@@ -71,6 +71,48 @@ TEST(OcclusionBuffer, BoxBehindAWallIsHiddenAndOneBesideItIsNot) {
   EXPECT_FALSE(buffer.hidden({-1, -1, -20}, {1, 1, 0.5f}));     // reaching behind the eye
 }
 
+// One cell where nothing was drawn, in drawn depth at 5 m everywhere else (at the buffer's
+// corners and inside): a box behind whose rectangle takes in that cell is visible, one beside
+// it is hidden, a wide one is visible only if the cell lies within it; filled, both hidden.
+TEST(OcclusionBuffer, OneOpenCellShowsWhatIsBehindIt) {
+  const float focal = 1.0f, aspect = 16.0f / 9.0f, near_m = 0.05f;
+  OcclusionBuffer buffer;
+  buffer.begin(1280, 720, focal, aspect, near_m);
+  const uint32_t w = buffer.width(), h = buffer.height();
+  const float sx = 0.5f * float(w) * focal / aspect, sy = 0.5f * float(h) * focal;
+  // A box 18..20 m ahead whose rectangle spans cells [i - r, i + r] x [j - r, j + r] (less
+  // the spill: r >= 1 keeps cell (i, j) inside).
+  const auto box_at = [&](int i, int j, float r) {
+    const float d = 18.0f;  // its near face: the rectangle's extreme uses the nearer depth
+    const float x0 = (float(i) + 0.5f - r - 0.5f * float(w)) / sx, x1 = (float(i) + 0.5f + r - 0.5f * float(w)) / sx;
+    const float y0 = (float(j) + 0.5f - r - 0.5f * float(h)) / sy, y1 = (float(j) + 0.5f + r - 0.5f * float(h)) / sy;
+    // Each extreme at the depth that makes it extreme: inside [x0 * d, x1 * d] at 18 m and
+    // within it at 20 m too, for x of either sign.
+    const float lo_x = std::max(x0 * d, x0 * 20.0f), hi_x = std::min(x1 * d, x1 * 20.0f);
+    const float lo_y = std::max(y0 * d, y0 * 20.0f), hi_y = std::min(y1 * d, y1 * 20.0f);
+    return ViewBox{{lo_x, lo_y, -20.0f}, {hi_x, hi_y, -d}};
+  };
+  const std::vector<std::pair<uint32_t, uint32_t>> holes = {
+      {0, 0}, {7, 7}, {8, 8}, {43, 36}, {w / 2, h / 2}, {w - 1, 0}, {w - 1, h - 1}};
+  for (const auto& [hi, hj] : holes) {
+    std::vector<float> depth(size_t(w) * h, near_m / 5.0f);
+    depth[size_t(hj) * w + hi] = 0;  // nothing drawn there
+    buffer.load_device_depth(depth);
+    const ViewBox over = box_at(int(hi), int(hj), 2.0f);
+    const ViewBox beside = box_at(int(hi) + (hi + 20 < w ? 12 : -12), int(hj), 2.0f);
+    const ViewBox wide = box_at(int(w / 2), int(h / 2), float(std::min(w, h)) / 2 - 4);
+    EXPECT_FALSE(buffer.hidden(over.min, over.max)) << "hole at " << hi << "," << hj;
+    EXPECT_TRUE(buffer.hidden(beside.min, beside.max)) << "hole at " << hi << "," << hj;
+    const bool hole_in_wide = std::abs(int(hi) - int(w / 2)) < int(std::min(w, h) / 2) - 4 &&
+                              std::abs(int(hj) - int(h / 2)) < int(std::min(w, h) / 2) - 4;
+    EXPECT_EQ(buffer.hidden(wide.min, wide.max), !hole_in_wide) << "hole at " << hi << "," << hj;
+    depth[size_t(hj) * w + hi] = near_m / 5.0f;
+    buffer.load_device_depth(depth);
+    EXPECT_TRUE(buffer.hidden(over.min, over.max)) << "filled at " << hi << "," << hj;
+    EXPECT_TRUE(buffer.hidden(wide.min, wide.max)) << "filled at " << hi << "," << hj;
+  }
+}
+
 TEST(OcclusionBuffer, WhatItCallsHiddenIsHiddenForEveryRayThroughIt) {
   // Random box occluders and random boxes; for every box the buffer calls hidden, rays from the
   // eye through points spread over the box's surface must enter an occluder first.
