@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cassert>
+#include <mutex>
 #include <unordered_set>
 
 #include "frame_plan.h"
@@ -56,6 +57,18 @@ void DecodedObjects::reset(const ReadView& view) {
   pipelines_referenced_ = 0;
 }
 
+namespace {
+
+// Whether an object of this class and pipeline is analysed for runs (pipes and components).
+bool in_pipeline(ObjectClass object_class, uint64_t pipeline_id) {
+  return pipeline_id != 0 &&
+         (object_class == ObjectClass::pipe || object_class == ObjectClass::component);
+}
+
+void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<PipelineRun>& runs);
+
+}  // namespace
+
 Known* DecodedObjects::find(uint32_t key) { return directory_.find(key); }
 
 Known& DecodedObjects::insert(uint32_t key) {
@@ -83,26 +96,33 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
     if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
   }
   std::sort(new_slots_.begin(), new_slots_.end());
-  pipelines_pending_.clear();
+  analysed_.clear();
+  analysed_runs_.clear();
   for (size_t i = 0; i < new_slots_.size(); ++i) {
-    // Read in waves, on the workers.
+    // Read in waves, on the workers, with the pipelines they meet analysed (read_wave).
     const size_t in_wave = i % kNewObjectsPerWave;
-    if (in_wave == 0) read_wave(i);
+    if (in_wave == 0) read_wave(i, hlod);
     if (!wave_read_[in_wave]) {
       error = wave_errors_[in_wave / kNewObjectsPerPart];
-      analyse_pending_pipelines();  // (those of the objects added)
       return false;
     }
     const uint32_t slot = new_slots_[i];
     Known& k = add(slot, wave_objects_[in_wave], false);
-    if (!hlod || k.pipeline_id == 0 ||
-        (k.object_class != ObjectClass::pipe && k.object_class != ObjectClass::component))
-      continue;
+    if (!hlod || !in_pipeline(k.object_class, k.pipeline_id)) continue;
     auto it = pipeline_runs_.find(k.pipeline_id);
     if (it == pipeline_runs_.end()) {
-      // Analysed below, all at once (the members known by then are told their runs).
-      pipeline_runs_.emplace(k.pipeline_id, std::vector<uint32_t>{});
-      pipelines_pending_.push_back(k.pipeline_id);
+      // Met first: its runs added now, in the order pipelines are met (so run indices do not
+      // depend on the thread count), and the members known told theirs; those added after
+      // find theirs below.
+      const auto analysed = analysed_.find(k.pipeline_id);
+      assert(analysed != analysed_.end());  // (read_wave analysed every pipeline it met)
+      if (analysed != analysed_.end()) {
+        add_pipeline(k.pipeline_id, *analysed->second);
+      } else {
+        std::vector<PipelineRun> runs;
+        find_pipeline_runs(*view_, k.pipeline_id, runs);
+        add_pipeline(k.pipeline_id, runs);
+      }
       continue;
     }
     for (const uint32_t r : it->second) {
@@ -113,7 +133,6 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
       }
     }
   }
-  analyse_pending_pipelines();
   // The new ones' Known (the pool's growth moves none).
   if (!new_slots_.empty())
     for (size_t i = 0; i < visible.size(); ++i)
@@ -291,17 +310,33 @@ void DecodedObjects::on_views(size_t parts, const F& f) {
   take_parts(*view_);
 }
 
-void DecodedObjects::read_wave(size_t first) {
+void DecodedObjects::read_wave(size_t first, bool hlod) {
   const size_t count = std::min(kNewObjectsPerWave, new_slots_.size() - first);
   if (wave_objects_.size() < count) wave_objects_.resize(count);
   wave_read_.assign(count, 0);
   const size_t parts = (count + kNewObjectsPerPart - 1) / kNewObjectsPerPart;
   wave_errors_.resize(parts);
+  std::mutex claims;
   on_views(parts, [&](size_t part, const ReadView& view) {
     // A part stops at its first object that cannot be read (decode() stops there).
     for (size_t i = part * kNewObjectsPerPart; i < std::min(count, (part + 1) * kNewObjectsPerPart); ++i) {
+      const Object& o = wave_objects_[i];
       if (!view.object(new_slots_[first + i], wave_objects_[i], false, wave_errors_[part])) break;
       wave_read_[i] = 1;
+      // Its pipeline analysed now, through the view that just read it, if no part has taken it
+      // yet: its members lie in the slots about this one, whose chunks that view holds
+      // decompressed (analysed after the whole wave, they were decompressed again).
+      // (pipeline_runs_ is only read while the parts run.)
+      if (!hlod || !in_pipeline(o.object_class, o.pipeline_id) || pipeline_runs_.count(o.pipeline_id))
+        continue;
+      std::vector<PipelineRun>* runs = nullptr;
+      {
+        std::lock_guard<std::mutex> lock(claims);
+        const auto [it, claimed] = analysed_.try_emplace(o.pipeline_id, nullptr);
+        if (!claimed) continue;
+        it->second = runs = &analysed_runs_.emplace_back();
+      }
+      find_pipeline_runs(view, o.pipeline_id, *runs);
     }
   });
 }
@@ -316,18 +351,6 @@ void DecodedObjects::make_sibling_views() {
     views_.push_back(sibling.get());
     siblings_.push_back(std::move(sibling));
   }
-}
-
-void DecodedObjects::analyse_pending_pipelines() {
-  const size_t n = pipelines_pending_.size();
-  if (n == 0) return;
-  if (pending_runs_.size() < n) pending_runs_.resize(n);
-  const size_t parts = (n + kPipelinesPerPart - 1) / kPipelinesPerPart;
-  on_views(parts, [&](size_t part, const ReadView& view) {
-    for (size_t i = part * kPipelinesPerPart; i < std::min(n, (part + 1) * kPipelinesPerPart); ++i)
-      find_pipeline_runs(view, pipelines_pending_[i], pending_runs_[i]);
-  });
-  for (size_t i = 0; i < n; ++i) add_pipeline(pipelines_pending_[i], pending_runs_[i]);
 }
 
 void DecodedObjects::add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs) {

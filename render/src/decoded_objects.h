@@ -11,7 +11,10 @@
 //     the arena budget), in which case they are decoded again when tessellated again.
 //   - The cache is bounded: forget_old() keeps the resident objects and kKnownObjectsKept more.
 //   - A pipeline is analysed for runs the first time one of its pipes or components is decoded
-//     (with HLOD on); a pipeline that cannot be read simply has no runs.
+//     (with HLOD on), as soon as it is read, through the view that read it: its members lie in
+//     the slots about it, whose chunks that view still holds decompressed (analysed once the
+//     frame's objects were all read, they were decompressed again: x100 walk, 39% fewer chunk
+//     inflations). A pipeline that cannot be read simply has no runs.
 //   - The runs are bounded too: a pipeline none of whose members or runs is known any more is
 //     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
 //     as many as the last time, are known. So a service that walks a whole site keeps the runs
@@ -25,7 +28,9 @@
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
 // Threads: the renderer's thread. New objects are read and pipelines analysed on its worker
 //   pool, each worker reading the store through a view of its own and writing only its own
-//   parts' objects or runs; what is read is added on the renderer's thread, in slot order.
+//   parts' objects and the runs of the pipelines it claimed (each claimed once, under a lock);
+//   what is read is added on the renderer's thread, in slot order, and a pipeline's runs when
+//   its first member is added (so run indices do not depend on the thread count).
 #pragma once
 
 #include <algorithm>
@@ -58,7 +63,6 @@ struct VisibleObject;
 inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged runs: bit | run
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
 inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held before forgetting
-inline constexpr size_t kPipelinesPerPart = 16;      // pipelines analysed per part on the pool
 inline constexpr size_t kNewObjectsPerPart = 256;       // new objects read per part on the pool
 inline constexpr size_t kNewObjectsPerWave = 4096;      // new objects read before they are added
 inline constexpr size_t kMaxTestBoxes = 32;  // Known::test_boxes
@@ -179,7 +183,7 @@ class DecodedObjects {
  public:
   // New objects are read and pipelines analysed on `pool` (null: on the calling thread), each
   // worker reading from a sibling view of its own (ReadView::sibling), made the first time a
-  // frame has work enough to share out (kNewObjectsPerPart, kPipelinesPerPart).
+  // frame has work enough to share out (kNewObjectsPerPart).
   explicit DecodedObjects(WorkerPool* pool = nullptr) : workers_(pool) {}
   // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
   void reset(const ReadView& view);
@@ -236,9 +240,6 @@ class DecodedObjects {
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
   // A fresh Known for `key` (not known), from the pool.
   Known& insert(uint32_t key);
-  // The runs of the pipelines in pipelines_pending_, read through each worker's view, then
-  // added in that order (so run indices do not depend on the thread count).
-  void analyse_pending_pipelines();
   // Adds the runs found for `pipeline_id` and tells the known members which is theirs.
   void add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs);
   // The worker views (views_[0] is the renderer's own); fewer than the pool's workers when
@@ -251,7 +252,9 @@ class DecodedObjects {
   // Reads the objects of new_slots_[first..] (up to kNewObjectsPerWave) into wave_objects_,
   // setting wave_read_ for each read (a part's first failure: its wave_errors_ entry, and the
   // rest of that part left unread).
-  void read_wave(size_t first);
+  // hlod: also analyses the pipelines of the pipes and components read that are not analysed
+  // yet, each once, through the view that read it (into analysed_).
+  void read_wave(size_t first, bool hlod);
   // A run index for a new run: a freed one, or a new one at the end.
   uint32_t new_run(PipelineRun&& run);
   // forget_old()'s parts: the objects, then the pipelines that no known object or run refers to.
@@ -292,10 +295,10 @@ class DecodedObjects {
   std::vector<uint32_t> free_runs_;
   std::unordered_map<uint64_t, std::vector<uint32_t>> pipeline_runs_;
   size_t pipelines_referenced_ = 0;  // at the last forget_pipelines()
-  // Scratch, reused: the pipelines this decode() met that are not analysed yet (in the order
-  // met), and their runs.
-  std::vector<uint64_t> pipelines_pending_;
-  std::vector<std::vector<PipelineRun>> pending_runs_;
+  // The pipelines this decode() met that were not analysed before, and their runs (read_wave;
+  // added by decode() in the order met).
+  std::unordered_map<uint64_t, std::vector<PipelineRun>*> analysed_;
+  std::deque<std::vector<PipelineRun>> analysed_runs_;
   std::vector<uint32_t> new_slots_;
   std::vector<Object> wave_objects_;
   std::vector<uint8_t> wave_read_;
