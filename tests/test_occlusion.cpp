@@ -179,7 +179,7 @@ TEST(OcclusionBuffer, AConvexSilhouetteCoversExactlyTheCellsWhollyInsideIt) {
   const double w = buffer.width(), h = buffer.height();
   const double sx = 0.5 * w * focal / aspect, sy = 0.5 * h * focal;
   constexpr double kHair = 1e-3;  // cells
-  size_t covered_cells = 0, polygons_covering = 0;
+  size_t covered_cells = 0, polygons_covering = 0, polygons_left_early = 0;
   for (int polygon = 0; polygon < 200; ++polygon) {
     // Points in cell coordinates: a cluster of 3 to 40 (or a rectangle's corners, whose hull has
     // horizontal and vertical edges), from a few cells to wider than the buffer.
@@ -247,11 +247,68 @@ TEST(OcclusionBuffer, AConvexSilhouetteCoversExactlyTheCellsWhollyInsideIt) {
       }
     }
     polygons_covering += any;
+    // What covers a cell passes the early test, by its points and by their bounding box (the
+    // renderer asks it of a piece's bounds before transforming its points).
+    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    for (const glm::vec3& p : points) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    const std::array<glm::vec3, 8> box = {glm::vec3{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z},
+                                          {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z},
+                                          {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z},
+                                          {lo.x, hi.y, hi.z}, {hi.x, hi.y, hi.z}};
+    if (any) {
+      EXPECT_TRUE(buffer.may_cover(points)) << "polygon " << polygon;
+      EXPECT_TRUE(buffer.may_cover(box)) << "polygon " << polygon;
+    }
+    polygons_left_early += !buffer.may_cover(points);
   }
-  // Small, large and off-screen silhouettes: most cover cells, some none.
+  // Small, large and off-screen silhouettes: most cover cells, some none, and of those some
+  // are left before their hull is built.
+  EXPECT_GT(polygons_left_early, 0u);
   EXPECT_GT(polygons_covering, 50u);
   EXPECT_LT(polygons_covering, 200u);
   EXPECT_GT(covered_cells, 100000u);
+}
+
+// A silhouette whose bounds on screen, clipped to the buffer, hold no whole cell covers none,
+// and is told so before its hull is built: smaller than a cell, a thin sliver, reaching less
+// than a cell into the buffer from beside it, or off it.
+TEST(OcclusionBuffer, ASilhouetteWhoseBoundsHoldNoWholeCellCoversNone) {
+  const float focal = 1.0f, aspect = 16.0f / 9.0f;
+  OcclusionBuffer buffer;
+  buffer.begin(1280, 720, focal, aspect, 0.05f);
+  const float w = float(buffer.width()), h = float(buffer.height());
+  const float sx = 0.5f * w * focal / aspect, sy = 0.5f * h * focal;
+  // A rectangle 10 m ahead spanning cells [x0, x1] x [y0, y1] (cell coordinates).
+  const auto rectangle = [&](float x0, float y0, float x1, float y1) {
+    const float d = 10.0f;
+    const auto at = [&](float x, float y) {
+      return glm::vec3((x - 0.5f * w) / sx * d, (y - 0.5f * h) / sy * d, -d);
+    };
+    return std::vector<glm::vec3>{at(x0, y0), at(x1, y0), at(x1, y1), at(x0, y1)};
+  };
+  const struct {
+    const char* what;
+    float x0, y0, x1, y1;
+    bool covers;
+  } cases[] = {
+      {"smaller than a cell", 40.2f, 30.2f, 40.9f, 30.9f, false},
+      {"a cell wide across two cells", 40.5f, 30.5f, 41.5f, 31.5f, false},
+      {"a thin sliver", 10.0f, 30.2f, 200.0f, 30.9f, false},
+      {"less than a cell into the left", -50.0f, 20.0f, 0.8f, 60.0f, false},
+      {"less than a cell into the top", 20.0f, h - 0.6f, 60.0f, h + 40.0f, false},
+      {"off the buffer", w + 1.0f, 10.0f, w + 90.0f, 50.0f, false},
+      {"a cell and a little more", 39.9f, 29.9f, 41.1f, 31.1f, true},
+      {"three cells into the left", -50.0f, 20.0f, 3.0f, 60.0f, true},
+  };
+  for (const auto& c : cases) {
+    buffer.begin(1280, 720, focal, aspect, 0.05f);
+    const std::vector<glm::vec3> points = rectangle(c.x0, c.y0, c.x1, c.y1);
+    EXPECT_EQ(buffer.may_cover(points), c.covers) << c.what;
+    EXPECT_EQ(buffer.add_convex(points), c.covers) << c.what;
+  }
 }
 
 // Occluders rasterised by several workers, each into a buffer of its own, then merged: every

@@ -144,9 +144,17 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
       uint32_t first = 0;
       for (size_t piece = 0; piece < k.occluder.ends.size(); ++piece) {
         const uint32_t end = k.occluder.ends[piece];
-        // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h).
+        // The piece's bounds wholly beyond the near plane (see occlusion_occluders.h), and
+        // holding a whole cell of the buffer on screen: else the piece covers none (most
+        // pieces: small on screen or off it), and its points are not even transformed.
         const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
-        if (depth_range(rotation, lo, hi).first <= 2 * kNearPlaneM) {
+        std::array<glm::vec3, 8> corners;
+        float nearest_m = std::numeric_limits<float>::infinity();
+        for (int c = 0; c < 8; ++c) {
+          corners[c] = rotation * glm::vec3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
+          nearest_m = std::min(nearest_m, -corners[c].z);
+        }
+        if (nearest_m <= 2 * kNearPlaneM || !into.may_cover(corners)) {
           first = end;
           continue;
         }

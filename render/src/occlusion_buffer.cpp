@@ -62,12 +62,14 @@ glm::vec2 OcclusionBuffer::to_cells(const glm::vec3& p) const {
 bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
   if (view_points.size() < 3) return false;
   float far_m = 0;
-  projected_.clear();
   for (const glm::vec3& p : view_points) {
     if (-p.z <= near_m_) return false;
     far_m = std::max(far_m, -p.z);
-    projected_.push_back(to_cells(p));
   }
+  // Most pieces are small on screen or off it: left before the hull, most of a piece's cost.
+  if (!may_cover(view_points)) return false;
+  projected_.clear();
+  for (const glm::vec3& p : view_points) projected_.push_back(to_cells(p));
   convex_hull(projected_, hull_);
   if (hull_.size() < 3) return false;
   float y_min = hull_[0].y, y_max = hull_[0].y;
@@ -111,6 +113,20 @@ bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
     covered = true;
   }
   return covered;
+}
+
+bool OcclusionBuffer::may_cover(std::span<const glm::vec3> view_points) const {
+  glm::vec2 lo(kFar), hi(-kFar);
+  for (const glm::vec3& p : view_points) {
+    assert(-p.z > near_m_);
+    const glm::vec2 c = to_cells(p);
+    lo = glm::min(lo, c);
+    hi = glm::max(hi, c);
+  }
+  // Only a whole cell inside the silhouette is covered (add_convex), and the silhouette lies
+  // within these bounds.
+  return std::max(std::ceil(lo.x), 0.0f) + 1 <= std::min(std::floor(hi.x), float(width_)) &&
+         std::max(std::ceil(lo.y), 0.0f) + 1 <= std::min(std::floor(hi.y), float(height_));
 }
 
 void OcclusionBuffer::load_device_depth(std::span<const float> reversed_depth) {

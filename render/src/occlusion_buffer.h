@@ -43,6 +43,11 @@ class OcclusionBuffer {
   // Returns whether it covered at least one cell. Skipped if a point is nearer than the near
   // plane.
   bool add_convex(std::span<const glm::vec3> view_points);
+  // Whether a convex occluder within the hull of these view-space points (all beyond the near
+  // plane) may cover a cell: false when their bounds on screen, clipped to the buffer, hold no
+  // whole cell. add_convex() asks it too; asking it first of a piece's bounding box spares
+  // transforming the piece's points.
+  bool may_cover(std::span<const glm::vec3> view_points) const;
 
   // Replaces the cells (after begin()) with drawn depth: `reversed_depth` holds width() x
   // height() values, rows bottom-up, each the farthest reversed depth (near_m / distance, 0
