@@ -103,7 +103,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
     const size_t in_wave = i % kNewObjectsPerWave;
     if (in_wave == 0) read_wave(i, hlod);
     if (!wave_read_[in_wave]) {
-      error = wave_errors_[in_wave / kNewObjectsPerPart];
+      error = wave_errors_[in_wave / part_size_];
       return false;
     }
     const uint32_t slot = new_slots_[i];
@@ -314,12 +314,20 @@ void DecodedObjects::read_wave(size_t first, bool hlod) {
   const size_t count = std::min(kNewObjectsPerWave, new_slots_.size() - first);
   if (wave_objects_.size() < count) wave_objects_.resize(count);
   wave_read_.assign(count, 0);
-  const size_t parts = (count + kNewObjectsPerPart - 1) / kNewObjectsPerPart;
+  // Parts of kNewObjectsPerPart, or fewer, down to kMinNewObjectsPerPart, where that gives
+  // every worker one: a walk's frame meets a few hundred new objects, which one part left to
+  // one thread. (A part reads through a view of its own: each part boundary may inflate a
+  // chunk twice.)
+  const size_t workers = workers_ ? workers_->size() : 1;
+  const size_t per_part = std::clamp<size_t>((count + workers - 1) / workers, kMinNewObjectsPerPart,
+                                             kNewObjectsPerPart);
+  part_size_ = per_part;
+  const size_t parts = (count + per_part - 1) / per_part;
   wave_errors_.resize(parts);
   std::mutex claims;
   on_views(parts, [&](size_t part, const ReadView& view) {
     // A part stops at its first object that cannot be read (decode() stops there).
-    for (size_t i = part * kNewObjectsPerPart; i < std::min(count, (part + 1) * kNewObjectsPerPart); ++i) {
+    for (size_t i = part * per_part; i < std::min(count, (part + 1) * per_part); ++i) {
       const Object& o = wave_objects_[i];
       if (!view.object(new_slots_[first + i], wave_objects_[i], false, wave_errors_[part])) break;
       wave_read_[i] = 1;

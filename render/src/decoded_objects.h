@@ -64,6 +64,7 @@ inline constexpr uint32_t kRunKeyBit = 0x80000000u;  // residency keys of merged
 inline constexpr size_t kKnownObjectsKept = 10000;   // decoded objects kept beyond the resident
 inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held before forgetting
 inline constexpr size_t kNewObjectsPerPart = 256;       // new objects read per part on the pool
+inline constexpr size_t kMinNewObjectsPerPart = 64;     // ... or fewer, to give every worker one
 inline constexpr size_t kNewObjectsPerWave = 4096;      // new objects read before they are added
 inline constexpr size_t kMaxTestBoxes = 32;  // Known::test_boxes
 
@@ -183,7 +184,7 @@ class DecodedObjects {
  public:
   // New objects are read and pipelines analysed on `pool` (null: on the calling thread), each
   // worker reading from a sibling view of its own (ReadView::sibling), made the first time a
-  // frame has work enough to share out (kNewObjectsPerPart).
+  // frame has work enough to share out (kMinNewObjectsPerPart).
   explicit DecodedObjects(WorkerPool* pool = nullptr) : workers_(pool) {}
   // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
   void reset(const ReadView& view);
@@ -300,6 +301,7 @@ class DecodedObjects {
   std::unordered_map<uint64_t, std::vector<PipelineRun>*> analysed_;
   std::deque<std::vector<PipelineRun>> analysed_runs_;
   std::vector<uint32_t> new_slots_;
+  size_t part_size_ = kNewObjectsPerPart;  // read_wave()'s, for decode() to find a part's error
   std::vector<Object> wave_objects_;
   std::vector<uint8_t> wave_read_;
   std::vector<std::string> wave_errors_;  // per part of a wave
