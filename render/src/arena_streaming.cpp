@@ -305,10 +305,18 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
     }
     const size_t batch = i - batch_first;
     Draw& d = draws[i];
-    // The Knowns ahead, and nearer, their parts (place() reads them).
+    // The Knowns ahead; nearer, their parts and object-table entries; nearer still, their
+    // first part's plan (place() reads them, and writes the entry).
     if (i + kPrefetchAhead < draws.size()) prefetch(draws[i + kPrefetchAhead].known);
-    if (i + kPrefetchAhead / 2 < draws.size())
-      __builtin_prefetch(draws[i + kPrefetchAhead / 2].known->parts.data());
+    if (i + kPrefetchAhead / 2 < draws.size()) {
+      const Known& ahead = *draws[i + kPrefetchAhead / 2].known;
+      __builtin_prefetch(ahead.parts.data());
+      if (ahead.table < table_.entries().size()) __builtin_prefetch(&table_.entries()[ahead.table], 1);
+    }
+    if (i + 2 < draws.size()) {
+      const Known& ahead = *draws[i + 2].known;
+      if (!ahead.parts.empty()) __builtin_prefetch(ahead.parts.front().plan);
+    }
     bool resident = false;
     const Job* job = job_of_draw_[batch] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[batch]];
     if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job)) return false;
