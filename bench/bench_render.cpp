@@ -303,6 +303,11 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
     return std::vector<double>(v.begin() + (v.size() > 1 ? 1 : 0), v.end());
   };
   const double none_mean = mean(steady(runs[0].frame_ms));
+  struct CpuSplit {
+    std::string name;
+    double walk_mean, walk_p95, interior_mean, interior_p95;
+  };
+  std::vector<CpuSplit> cpu_split;
   for (size_t i = 0; i < runs.size(); ++i) {
     PolicyRun& r = runs[i];
     const auto ms = steady(r.frame_ms), cpu = steady(r.cpu_ms),
@@ -343,6 +348,18 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
                         {"interior_mean_objects_drawn", mean(r.interior_drawn)},
                         {"id_match_min_percent", id_min}, {"objects_missing", r.missing},
                         {"speedup_vs_none", none_mean / std::max(mean(ms), 1e-9)}};
+    // The CPU frame apart for the walkthrough's views (a camera moving by steps, the frames
+    // before known) and the interior views (each a jump: thousands of objects new at once).
+    const std::vector<double> walk_cpu(r.cpu_ms.begin() + (walk.size() > 1 ? 1 : 0),
+                                       r.cpu_ms.begin() + ptrdiff_t(std::min(walk.size(), r.cpu_ms.size())));
+    const std::vector<double> interior_cpu(r.cpu_ms.begin() + ptrdiff_t(std::min(walk.size(), r.cpu_ms.size())),
+                                           r.cpu_ms.end());
+    j["cpu_walk_mean_ms"] = mean(walk_cpu);
+    j["cpu_walk_p95_ms"] = percentile(walk_cpu, 0.95);
+    j["cpu_interior_mean_ms"] = mean(interior_cpu);
+    j["cpu_interior_p95_ms"] = percentile(interior_cpu, 0.95);
+    cpu_split.push_back({r.name, mean(walk_cpu), percentile(walk_cpu, 0.95), mean(interior_cpu),
+                         percentile(interior_cpu, 0.95)});
     if (!r.interior_seen.empty()) j["interior_mean_objects_seen"] = mean(r.interior_seen);
     if (!r.psnr.empty()) {
       j["psnr_mean_db"] = psnr_mean;
@@ -357,6 +374,11 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
               " CPU part (choosing phase 1, the tests; in cpu ms); depth ms: its GPU part (the depth\n"
               " reductions, the exact test's boxes, their read-backs; not in cpu ms); up MB/f: vertex data uploaded\n"
               " per frame; times and uploads exclude view 0.)\n");
+  std::printf("\nCPU frame (ms.cpu), walkthrough views (after view 0) and interior views apart:\n");
+  std::printf("%-26s %9s %9s %9s %9s\n", "policy", "walk ms", "walk p95", "inside ms", "inside p95");
+  for (const CpuSplit& c : cpu_split)
+    std::printf("%-26s %9.2f %9.2f %9.2f %9.2f\n", c.name.c_str(), c.walk_mean, c.walk_p95,
+                c.interior_mean, c.interior_p95);
   return 0;
 }
 
