@@ -155,6 +155,17 @@ void GlBackend::Mapping::reset() {
   if (data_) munmap(data_, bytes_);
   data_ = nullptr;
   bytes_ = 0;
+  committed_ = 0;
+}
+
+void GlBackend::Mapping::commit_to(size_t end_bytes) {
+  if (end_bytes <= committed_ || !can_commit_) return;
+  const size_t target = std::min(bytes_, (end_bytes + kCommitStep - 1) / kCommitStep * kCommitStep);
+  if (madvise(static_cast<char*>(data_) + committed_, target - committed_, MADV_POPULATE_WRITE) != 0) {
+    can_commit_ = false;  // (before Linux 5.14, or refused: the writes fault the pages in)
+    return;
+  }
+  committed_ = target;
 }
 
 bool GlBackend::Mapping::map(size_t bytes) {
@@ -362,6 +373,8 @@ bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
 void GlBackend::upload(uint64_t first, std::span<const PackedVertex> vertices,
                        std::span<const uint32_t> objects) {
   if (arena_mapped()) {
+    mapped_vertices_.commit_to((first + vertices.size()) * sizeof(PackedVertex));
+    if (!objects.empty()) mapped_objects_.commit_to((first + objects.size()) * sizeof(uint32_t));
     std::memcpy(static_cast<PackedVertex*>(mapped_vertices_.data()) + first, vertices.data(), vertices.size_bytes());
     if (!objects.empty())
       std::memcpy(static_cast<uint32_t*>(mapped_objects_.data()) + first, objects.data(), objects.size_bytes());

@@ -247,15 +247,25 @@ class GlBackend {
     ~Mapping();
     Mapping(const Mapping&) = delete;
     Mapping& operator=(const Mapping&) = delete;
-    // Reserves `bytes` of zeroed address space, backed only where written; false if refused.
+    // Reserves `bytes` of zeroed address space, backed only where written (and up to
+    // kCommitStep beyond: commit_to); false if refused.
     bool map(size_t bytes);
     void reset();  // unmaps
     void* data() const { return data_; }
     bool empty() const { return data_ == nullptr; }
+    // Before writing below `end_bytes`: backs the pages up to it at once, kCommitStep at a time
+    // (one call, not a page fault a page: on this VM 0.4 ms a MB against 0.6-1.1). The arena
+    // is allocated from its start up (residency.h: best fit, the lowest first), so what lies
+    // below the highest write is written too. Where the kernel cannot, the writes fault the
+    // pages in as before.
+    void commit_to(size_t end_bytes);
+    static constexpr size_t kCommitStep = size_t(2) << 20;
 
    private:
     void* data_ = nullptr;
     size_t bytes_ = 0;
+    size_t committed_ = 0;  // [0, committed_) backed
+    bool can_commit_ = true;
   };
   // Makes the arena's buffers from client memory, the whole budget at once: false (nothing
   // changed) where the driver or the system refuses.
