@@ -62,14 +62,17 @@ glm::vec2 OcclusionBuffer::to_cells(const glm::vec3& p) const {
 bool OcclusionBuffer::add_convex(std::span<const glm::vec3> view_points) {
   if (view_points.size() < 3) return false;
   float far_m = 0;
+  glm::vec2 bounds_lo(kFar), bounds_hi(-kFar);
+  projected_.clear();
   for (const glm::vec3& p : view_points) {
     if (-p.z <= near_m_) return false;
     far_m = std::max(far_m, -p.z);
+    projected_.push_back(to_cells(p));
+    bounds_lo = glm::min(bounds_lo, projected_.back());
+    bounds_hi = glm::max(bounds_hi, projected_.back());
   }
   // Most pieces are small on screen or off it: left before the hull, most of a piece's cost.
-  if (!may_cover(view_points)) return false;
-  projected_.clear();
-  for (const glm::vec3& p : view_points) projected_.push_back(to_cells(p));
+  if (!holds_a_cell(bounds_lo, bounds_hi)) return false;
   convex_hull(projected_, hull_);
   if (hull_.size() < 3) return false;
   float y_min = hull_[0].y, y_max = hull_[0].y;
@@ -123,8 +126,12 @@ bool OcclusionBuffer::may_cover(std::span<const glm::vec3> view_points) const {
     lo = glm::min(lo, c);
     hi = glm::max(hi, c);
   }
+  return holds_a_cell(lo, hi);
+}
+
+bool OcclusionBuffer::holds_a_cell(const glm::vec2& lo, const glm::vec2& hi) const {
   // Only a whole cell inside the silhouette is covered (add_convex), and the silhouette lies
-  // within these bounds.
+  // within its points' bounds.
   return std::max(std::ceil(lo.x), 0.0f) + 1 <= std::min(std::floor(hi.x), float(width_)) &&
          std::max(std::ceil(lo.y), 0.0f) + 1 <= std::min(std::floor(hi.y), float(height_));
 }

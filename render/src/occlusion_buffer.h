@@ -71,6 +71,8 @@ class OcclusionBuffer {
  private:
   // Buffer coordinates of a view-space point (d = -z > 0).
   glm::vec2 to_cells(const glm::vec3& p) const;
+  // Whether bounds in buffer coordinates, clipped to the buffer, hold a whole cell.
+  bool holds_a_cell(const glm::vec2& lo, const glm::vec2& hi) const;
 
   uint32_t width_ = 0, height_ = 0;
   float sx_ = 1, sy_ = 1;  // cells per unit of x / d and y / d
