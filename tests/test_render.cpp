@@ -702,6 +702,44 @@ TEST(RenderHlod, AFarRunIsOneCylinderWithoutItsFlangeAndTheTeeStays) {
   EXPECT_TRUE(ids_in(none.image).count(s.flange.id));
 }
 
+// The renderer finds a pipeline and its members by looking through the slots about the member it
+// meets first, then by the ids table: the run is the same wherever the importer put them.
+TEST(RenderHlod, ARunIsFoundWhereverThePipelineAndItsMembersLieInTheStore) {
+  const PipelineScene s = pipeline_scene();
+  // Objects far to the side of the view, none of the pipeline's: 40 of them between two slots
+  // are more than the renderer looks through.
+  int fillers = 0;
+  const auto filler = [&]() {
+    Object o = make_object("/FILL-" + std::to_string(fillers), ObjectClass::structure,
+                           {1000.0 + fillers, 0, 0}, Box{0.5f, 0.5f, 0.5f});
+    fillers += 1;
+    return o;
+  };
+  std::vector<std::pair<std::string, std::vector<Object>>> layouts;
+  layouts.push_back({"pipeline first", s.all()});
+  layouts.push_back({"pipeline last, members reversed", {s.c, s.tee, s.b, s.flange, s.a, s.pipeline}});
+  std::vector<Object> apart;
+  for (const Object* o : {&s.b, &s.pipeline, &s.tee, &s.a, &s.c, &s.flange}) {
+    for (int i = 0; i < 40; ++i) apart.push_back(filler());
+    apart.push_back(*o);
+  }
+  layouts.push_back({"each 40 slots apart, shuffled", apart});
+  for (const auto& [name, objects] : layouts) {
+    SCOPED_TRACE(name);
+    TempDir dir;
+    auto store = make_store(dir, objects);
+    auto r = make_renderer(*store);
+    Frame far = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
+    EXPECT_EQ(far.stats.hlod_merges, 1u);
+    EXPECT_EQ(far.stats.hlod_members, 3u);
+    const auto ids = ids_in(far.image);
+    EXPECT_TRUE(ids.count(s.pipeline.id));
+    EXPECT_TRUE(ids.count(s.tee.id));
+    EXPECT_FALSE(ids.count(s.flange.id));
+    EXPECT_FALSE(ids.count(s.a.id));
+  }
+}
+
 // --- the vertex arena -------------------------------------------------------------------------
 
 TEST(RenderArena, EvictsTheLargestVisibilityCounterFirst) {

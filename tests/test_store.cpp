@@ -24,6 +24,7 @@
 // The store's internal encodings, for the truncation tests below.
 #include "chunks.h"
 #include "lmdb_guard.h"
+#include "record.h"
 #include "spatial.h"
 #include "tables.h"
 #include "support/temp_dir.h"
@@ -683,6 +684,69 @@ TEST(Store, ForEachObjectVisitsLiveSlotsInOrderAndSkipsEmptiedOnes) {
   ASSERT_TRUE(view->for_each_object([&](uint32_t, Object&&) { return ++visited < 5; }, false, error));
   EXPECT_EQ(visited, 5u);
   expect_indexes_agree(*store);
+}
+
+// An object's key (id and pipeline id) read from its record's first bytes is the decoded
+// object's, for every live slot; an empty slot gives object()'s error; and a record cut short
+// anywhere before the pipeline id is refused with a message, never misread.
+TEST(Store, AnObjectsKeyIsItsRecordsIdAndPipelineAndAnEmptySlotHasNone) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::vector<Object> objects;
+  for (int i = 0; i < 70; ++i) {  // two chunks of 64 slots
+    objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+    objects.back().pipeline_id = i % 3 ? 1000u + uint64_t(i / 10) : 0u;
+  }
+  import_objects(*store, objects, "a");
+  {
+    std::string error;
+    auto import = store->begin_import(error);
+    Object changed = objects[3];  // slot 3 empties, the object moves to slot 70
+    changed.colour = {1, 1, 1, 1};
+    ASSERT_TRUE(import->put(changed, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+  }
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  for (uint32_t slot = 0; slot <= 70; ++slot) {
+    uint64_t id = 0, pipeline_id = 0;
+    if (slot == 3) {
+      EXPECT_FALSE(view->object_key(slot, id, pipeline_id, error));
+      EXPECT_NE(error.find("no object in slot 3"), std::string::npos) << error;
+      continue;
+    }
+    Object o;
+    ASSERT_TRUE(view->object(slot, o, false, error)) << error;
+    ASSERT_TRUE(view->object_key(slot, id, pipeline_id, error)) << error;
+    EXPECT_EQ(id, o.id) << slot;
+    EXPECT_EQ(pipeline_id, o.pipeline_id) << slot;
+  }
+
+  using namespace detail;
+  Object o = objects[1];
+  o.name = "/a name of some length";
+  o.source = "a source";
+  std::vector<uint8_t> record;
+  encode_object(o, record);
+  // version, class, colour, id, origin, name, source, pipeline id
+  const size_t key_bytes = 1 + 1 + 4 + 8 + 24 + 4 + o.name.size() + 4 + o.source.size() + 8;
+  for (size_t n = 0; n <= record.size(); ++n) {
+    uint64_t id = 0, pipeline_id = 0;
+    error.clear();
+    const bool read = decode_object_key(record.data(), n, id, pipeline_id, error);
+    EXPECT_EQ(read, n >= key_bytes) << n;
+    if (read) {
+      EXPECT_EQ(id, o.id);
+      EXPECT_EQ(pipeline_id, o.pipeline_id);
+    } else {
+      EXPECT_NE(error.find("truncated"), std::string::npos) << n << ": " << error;
+    }
+  }
+  record[0] += 1;  // another layout
+  uint64_t id = 0, pipeline_id = 0;
+  EXPECT_FALSE(decode_object_key(record.data(), record.size(), id, pipeline_id, error));
+  EXPECT_NE(error.find("record layout"), std::string::npos) << error;
 }
 
 // A pass over one class yields exactly that class's objects, in slot order, as they are

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cassert>
 #include <mutex>
+#include <optional>
 #include <unordered_set>
 
 #include "frame_plan.h"
@@ -65,7 +66,8 @@ bool in_pipeline(ObjectClass object_class, uint64_t pipeline_id) {
          (object_class == ObjectClass::pipe || object_class == ObjectClass::component);
 }
 
-void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<PipelineRun>& runs);
+void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
+                        std::vector<PipelineRun>& runs);
 
 }  // namespace
 
@@ -120,7 +122,7 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
         add_pipeline(k.pipeline_id, *analysed->second);
       } else {
         std::vector<PipelineRun> runs;
-        find_pipeline_runs(*view_, k.pipeline_id, runs);
+        find_pipeline_runs(*view_, k.pipeline_id, slot, runs);
         add_pipeline(k.pipeline_id, runs);
       }
       continue;
@@ -254,11 +256,52 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
 
 namespace {
 
+// A pipeline's members lie together in slot order, in branch order, and the pipeline beside
+// them (importers write them so; a generated plant puts the pipeline 1 to 18 slots after its
+// last member). So the slots about a member are looked through first, by their records' keys
+// (ReadView::object_key: their chunks are decompressed already, or soon read anyway), each way
+// until kPipelineGapSlots slots in a row are neither the pipeline nor one of its members; only
+// what that does not find is looked up in the ids table, which costs a page fault or more (the
+// x100 walkthrough met 2,100 new pipelines a frame, and looked up 4,500 ids).
+inline constexpr uint32_t kPipelineGapSlots = 24;
+
+// The slots of the pipeline `pipeline_id` and of its members found about `member_slot` (one of
+// its members), as (id, slot), sorted.
+void slots_about(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
+                 std::vector<std::pair<uint64_t, uint32_t>>& found) {
+  found.clear();
+  const int64_t end = view.slot_count();
+  std::string ignored;  // (a slot that cannot be read is left to the lookups)
+  for (const int step : {1, -1}) {
+    uint32_t gap = 0;
+    for (int64_t s = step > 0 ? member_slot : int64_t(member_slot) - 1;
+         s >= 0 && s < end && gap < kPipelineGapSlots; s += step) {
+      uint64_t id = 0, pipeline = 0;
+      if (view.object_key(uint32_t(s), id, pipeline, ignored) &&
+          (id == pipeline_id || pipeline == pipeline_id)) {
+        found.emplace_back(id, uint32_t(s));
+        gap = 0;
+      } else {
+        ++gap;
+      }
+    }
+  }
+  std::sort(found.begin(), found.end());
+}
+
 // The runs of one pipeline, read through `view` (none if the pipeline or all its members cannot
-// be read: such a pipeline is simply not merged).
-void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<PipelineRun>& runs) {
+// be read: such a pipeline is simply not merged). `member_slot`: one of its members.
+void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
+                        std::vector<PipelineRun>& runs) {
   runs.clear();
-  const auto slot = view.slot_of(pipeline_id);
+  std::vector<std::pair<uint64_t, uint32_t>> near;
+  slots_about(view, pipeline_id, member_slot, near);
+  const auto slot_of = [&](uint64_t id) -> std::optional<uint32_t> {
+    const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>(id, 0));
+    if (it != near.end() && it->first == id) return it->second;
+    return view.slot_of(id);
+  };
+  const auto slot = slot_of(pipeline_id);
   Object pipeline;
   std::string ignored;
   if (!slot || !view.object(*slot, pipeline, false, ignored)) return;
@@ -270,16 +313,8 @@ void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, std::vector<
     members.reserve(b.members.size());
     slots.clear();
     for (const uint64_t id : b.members) {
-      // Importers put a branch's members in order, so the slot after the last member's is
-      // tried first: reading it costs little (its chunk is most likely decompressed already),
-      // a lookup in the ids table a page fault or more.
       members.emplace_back();
-      if (!slots.empty() && view.object(slots.back() + 1, members.back(), false, ignored) &&
-          members.back().id == id) {
-        slots.push_back(slots.back() + 1);
-        continue;
-      }
-      const auto s = view.slot_of(id);
+      const auto s = slot_of(id);
       if (!s || !view.object(*s, members.back(), false, ignored)) {
         members.pop_back();
         continue;
@@ -344,7 +379,7 @@ void DecodedObjects::read_wave(size_t first, bool hlod) {
         if (!claimed) continue;
         it->second = runs = &analysed_runs_.emplace_back();
       }
-      find_pipeline_runs(view, o.pipeline_id, *runs);
+      find_pipeline_runs(view, o.pipeline_id, new_slots_[first + i], *runs);
     }
   });
 }

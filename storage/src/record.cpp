@@ -50,6 +50,17 @@ class Reader {
     return true;
   }
   bool get_vec3(glm::vec3& v) { return get(v.x) && get(v.y) && get(v.z); }
+  bool skip_str() {
+    uint32_t n;
+    if (!get(n) || size_t(end_ - p_) < n) return fail();
+    p_ += n;
+    return true;
+  }
+  bool skip(size_t n) {
+    if (size_t(end_ - p_) < n) return fail();
+    p_ += n;
+    return true;
+  }
   // A count of items of at least `min_item_bytes` each must fit in what is left.
   bool get_count(uint32_t& n, size_t min_item_bytes) {
     if (!get(n)) return false;
@@ -334,6 +345,22 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& err
     return false;
   }
   return true;
+}
+
+bool decode_object_key(const uint8_t* data, size_t size, uint64_t& id, uint64_t& pipeline_id,
+                       std::string& error) {
+  Reader r(data, size);
+  uint8_t version = 0, object_class = 0;
+  Colour colour;
+  glm::dvec3 origin_m;
+  const bool ok = r.get(version) && r.get(object_class) && r.get(colour) && r.get(id) &&
+                  r.skip(sizeof origin_m) && r.skip_str() && r.skip_str() && r.get(pipeline_id);
+  if (ok && version != kLayoutVersion) {
+    error = "record layout " + std::to_string(version) + " is not " + std::to_string(kLayoutVersion);
+    return false;
+  }
+  if (!ok) error = "object record is truncated";
+  return ok;
 }
 
 void encode_attributes(const std::vector<Attribute>& attributes, std::vector<uint8_t>& out) {

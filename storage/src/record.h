@@ -32,6 +32,10 @@ void encode_object(const Object& object, std::vector<uint8_t>& out);
 // Decodes an object record (attributes left empty); false with a message on a malformed
 // record.
 bool decode_object(const uint8_t* data, size_t size, Object& out, std::string& error);
+// A record's id and pipeline id alone, from its first bytes (decode_object's checks on them);
+// false with a message on a record too short to hold them or of another layout.
+bool decode_object_key(const uint8_t* data, size_t size, uint64_t& id, uint64_t& pipeline_id,
+                       std::string& error);
 
 void encode_attributes(const std::vector<Attribute>& attributes, std::vector<uint8_t>& out);
 bool decode_attributes(const uint8_t* data, size_t size, std::vector<Attribute>& out,

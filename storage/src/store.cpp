@@ -1264,6 +1264,23 @@ bool ReadView::object(uint32_t slot, Object& out, bool with_attributes, std::str
   return true;
 }
 
+bool ReadView::object_key(uint32_t slot, uint64_t& id, uint64_t& pipeline_id,
+                          std::string& error) const {
+  State& s = *state_;
+  std::span<const uint8_t> record;
+  std::string why;
+  const bool ok = s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why);
+  if (ok && record.empty()) {
+    error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
+    return false;
+  }
+  if (!ok || !detail::decode_object_key(record.data(), record.size(), id, pipeline_id, why)) {
+    error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+    return false;
+  }
+  return true;
+}
+
 namespace {
 constexpr uint32_t kLookupsPerRelease = 256;
 }

@@ -65,10 +65,16 @@ void same_objects(const Object& a, const Object& b) {
 void object_record(const uint8_t* data, size_t size) {
   Object object;
   std::string error;
+  // The key alone (ReadView::object_key): refused with a message, or the object's own.
+  uint64_t id = 0, pipeline_id = 0;
+  const bool key = decode_object_key(data, size, id, pipeline_id, error);
+  check(key || !error.empty());
+  error.clear();
   if (!decode_object(data, size, object, error)) {
     check(!error.empty());
     return;
   }
+  check(key && id == object.id && pipeline_id == object.pipeline_id);
   std::vector<uint8_t> encoded;
   encode_object(object, encoded);
   Object again;

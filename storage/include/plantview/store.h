@@ -304,6 +304,11 @@ class ReadView {
   // chunk is decompressed once. Slots follow import order, which keeps a pipe run's parts
   // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
+  // The id and pipeline id of the object in a slot, from the first bytes of its record: the
+  // same chunk as object() (so as cheap once a neighbour was read) without decoding the rest,
+  // to look through the slots about one (a pipeline's members lie together). False if there is
+  // none or the record is corrupt (error says which, as object()).
+  bool object_key(uint32_t slot, uint64_t& id, uint64_t& pipeline_id, std::string& error) const;
 
   // The slot of the object with this id: `slot` empty if there is none. One lookup in the ids
   // database; false with a message naming the store on an LMDB error or a malformed value.
