@@ -259,52 +259,65 @@ namespace {
 // A pipeline's members lie together in slot order, in branch order, and the pipeline beside
 // them (importers write them so; a generated plant puts the pipeline 1 to 18 slots after its
 // last member). So the slots about a member are looked through first, by their records' keys
-// (ReadView::object_key: their chunks are decompressed already, or soon read anyway), each way
-// until kPipelineGapSlots slots in a row are neither the pipeline nor one of its members; only
-// what that does not find is looked up in the ids table, which costs a page fault or more (the
-// x100 walkthrough met 2,100 new pipelines a frame, and looked up 4,500 ids).
+// (ReadView::object_key: their chunks are decompressed already, or soon read anyway), forward
+// then back, each way until kPipelineGapSlots slots in a row are neither the pipeline nor one
+// of its members, or until the pipeline and every member it lists are found (x100 walkthrough:
+// 56 slots a pipeline, 81 without that stop); only what that does not find is looked up in the
+// ids table, which costs a page fault or more (the x100 walkthrough met 2,100 new pipelines a
+// frame, and looked up 4,500 ids; now none).
 inline constexpr uint32_t kPipelineGapSlots = 24;
-
-// The slots of the pipeline `pipeline_id` and of its members found about `member_slot` (one of
-// its members), as (id, slot), sorted.
-void slots_about(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
-                 std::vector<std::pair<uint64_t, uint32_t>>& found) {
-  found.clear();
-  const int64_t end = view.slot_count();
-  std::string ignored;  // (a slot that cannot be read is left to the lookups)
-  for (const int step : {1, -1}) {
-    uint32_t gap = 0;
-    for (int64_t s = step > 0 ? member_slot : int64_t(member_slot) - 1;
-         s >= 0 && s < end && gap < kPipelineGapSlots; s += step) {
-      uint64_t id = 0, pipeline = 0;
-      if (view.object_key(uint32_t(s), id, pipeline, ignored) &&
-          (id == pipeline_id || pipeline == pipeline_id)) {
-        found.emplace_back(id, uint32_t(s));
-        gap = 0;
-      } else {
-        ++gap;
-      }
-    }
-  }
-  std::sort(found.begin(), found.end());
-}
 
 // The runs of one pipeline, read through `view` (none if the pipeline or all its members cannot
 // be read: such a pipeline is simply not merged). `member_slot`: one of its members.
 void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
                         std::vector<PipelineRun>& runs) {
   runs.clear();
-  std::vector<std::pair<uint64_t, uint32_t>> near;
-  slots_about(view, pipeline_id, member_slot, near);
+  std::string ignored;  // (a slot that cannot be read is left to the lookups)
+  Object pipeline;
+  std::optional<uint32_t> pipeline_slot;
+  std::vector<uint64_t> listed;  // the members the pipeline lists, sorted (once it is read)
+  size_t found = 0;              // ... of which found
+  const auto is_listed = [&](uint64_t id) {
+    return std::binary_search(listed.begin(), listed.end(), id);
+  };
+  std::vector<std::pair<uint64_t, uint32_t>> near;  // (id, slot) of its members found
+  const int64_t end = view.slot_count();
+  for (const int step : {1, -1}) {
+    uint32_t gap = 0;
+    for (int64_t s = step > 0 ? member_slot : int64_t(member_slot) - 1;
+         s >= 0 && s < end && gap < kPipelineGapSlots && !(pipeline_slot && found == listed.size());
+         s += step) {
+      uint64_t id = 0, pipeline_of = 0;
+      if (!view.object_key(uint32_t(s), id, pipeline_of, ignored)) {
+        ++gap;
+      } else if (id == pipeline_id) {
+        if (!view.object(uint32_t(s), pipeline, false, ignored)) return;
+        pipeline_slot = uint32_t(s);
+        for (const Branch& b : pipeline.branches)
+          listed.insert(listed.end(), b.members.begin(), b.members.end());
+        std::sort(listed.begin(), listed.end());
+        listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
+        for (const auto& [member, at] : near) found += is_listed(member);
+        gap = 0;
+      } else if (pipeline_of == pipeline_id) {
+        near.emplace_back(id, uint32_t(s));
+        found += pipeline_slot && is_listed(id);
+        gap = 0;
+      } else {
+        ++gap;
+      }
+    }
+  }
+  if (!pipeline_slot) {
+    const auto slot = view.slot_of(pipeline_id);
+    if (!slot || !view.object(*slot, pipeline, false, ignored)) return;
+  }
+  std::sort(near.begin(), near.end());
   const auto slot_of = [&](uint64_t id) -> std::optional<uint32_t> {
-    const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>(id, 0));
+    const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>{id, 0});
     if (it != near.end() && it->first == id) return it->second;
     return view.slot_of(id);
   };
-  const auto slot = slot_of(pipeline_id);
-  Object pipeline;
-  std::string ignored;
-  if (!slot || !view.object(*slot, pipeline, false, ignored)) return;
   std::vector<Object> members;
   std::vector<uint32_t> slots;
   std::vector<std::pair<uint32_t, const Object*>> branch;
