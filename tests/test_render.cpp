@@ -653,6 +653,20 @@ PipelineScene pipeline_scene() {
   return s;
 }
 
+// At 20 m the flange's 4 cm collar is under a pixel: A, F and B become one cylinder (picked
+// as the pipeline); the tee and the pipe after it stay.
+void expect_far_run_merged(Renderer& r, const PipelineScene& s) {
+  Frame far = render(r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
+  EXPECT_EQ(far.stats.hlod_merges, 1u);
+  EXPECT_EQ(far.stats.hlod_members, 3u);
+  const auto ids = ids_in(far.image);
+  EXPECT_TRUE(ids.count(s.pipeline.id));
+  EXPECT_TRUE(ids.count(s.tee.id));
+  EXPECT_TRUE(ids.count(s.c.id));
+  EXPECT_FALSE(ids.count(s.flange.id));
+  EXPECT_FALSE(ids.count(s.a.id));
+}
+
 TEST(RenderHlod, FindsTheStraightRunUpToTheTee) {
   const PipelineScene s = pipeline_scene();
   std::vector<std::pair<uint32_t, const Object*>> branch = {
@@ -684,17 +698,7 @@ TEST(RenderHlod, AFarRunIsOneCylinderWithoutItsFlangeAndTheTeeStays) {
   EXPECT_EQ(near.stats.hlod_merges, 0u);
   for (const Object* o : {&s.a, &s.flange, &s.b, &s.tee, &s.c})
     EXPECT_TRUE(ids_in(near.image).count(o->id)) << o->name;
-  // At 20 m the flange's 4 cm collar is under a pixel: A, F and B become one cylinder (picked
-  // as the pipeline); the tee and the pipe after it stay.
-  Frame far = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
-  EXPECT_EQ(far.stats.hlod_merges, 1u);
-  EXPECT_EQ(far.stats.hlod_members, 3u);
-  const auto ids = ids_in(far.image);
-  EXPECT_TRUE(ids.count(s.pipeline.id));
-  EXPECT_TRUE(ids.count(s.tee.id));
-  EXPECT_TRUE(ids.count(s.c.id));
-  EXPECT_FALSE(ids.count(s.flange.id));
-  EXPECT_FALSE(ids.count(s.a.id));
+  expect_far_run_merged(*r, s);
   // Policy none never merges.
   r->set_options(small(LodPolicy::none));
   Frame none = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
@@ -729,14 +733,7 @@ TEST(RenderHlod, ARunIsFoundWhereverThePipelineAndItsMembersLieInTheStore) {
     TempDir dir;
     auto store = make_store(dir, objects);
     auto r = make_renderer(*store);
-    Frame far = render(*r, look({3, -20, 0}, {3, 0, 0}), 400, 400);
-    EXPECT_EQ(far.stats.hlod_merges, 1u);
-    EXPECT_EQ(far.stats.hlod_members, 3u);
-    const auto ids = ids_in(far.image);
-    EXPECT_TRUE(ids.count(s.pipeline.id));
-    EXPECT_TRUE(ids.count(s.tee.id));
-    EXPECT_FALSE(ids.count(s.flange.id));
-    EXPECT_FALSE(ids.count(s.a.id));
+    expect_far_run_merged(*r, s);
   }
 }
 
