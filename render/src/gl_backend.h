@@ -288,6 +288,7 @@ class GlBackend {
   const Target* final_ = nullptr;
   size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch
+  std::vector<uint8_t> row_;  // read-back scratch: one row of the image
   std::vector<TableEntry> highlight_table_;
   std::vector<uint64_t> highlight_sorted_;
 };
