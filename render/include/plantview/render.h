@@ -262,7 +262,10 @@ class GpuContext {
 // outlive it.
 // Threads: every call on the thread that created it; one frame at a time.
 // Memory: the vertex arena never exceeds options.vertex_budget_bytes of GPU memory; the
-// decoded-object cache keeps the resident objects and 10,000 more.
+// decoded-object cache keeps the resident objects and 10,000 more. On a software device
+// (llvmpipe) the first renderer sets the process's malloc thresholds (glibc: up to 64 MB of
+// free heap kept instead of given back, blocks up to 32 MB from the heap), so that what the
+// driver frees draw by draw is not faulted in again at the next.
 class Renderer {
  public:
   // Errors: a budget outside 1 MB .. 64 GB, a pixel error that is not a positive number, no
