@@ -460,11 +460,13 @@ void GlBackend::release_target(Target& t) {
 }
 
 // The id attachment costs as much memory as the colour one (and clearing it, a pass over it), so
-// a target has one only once a frame has asked for ids; it keeps it for the frames after.
+// a target has one only once a frame has asked for ids; it keeps it for the frames after. Depth
+// is 32-bit float, with 8 bits of stencil (llvmpipe: 8 bytes a sample, twice the memory and the
+// clearing) only where `stencil` asks: once a frame has highlighted (begin_frame()).
 bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth,
-                              bool pick, std::string& error) {
+                              bool pick, bool stencil, std::string& error) {
   if (t.framebuffer && t.width == w && t.height == h && t.samples == samples && t.has_depth == depth &&
-      (t.has_pick || !pick))
+      (t.has_pick || !pick) && (!depth || t.has_stencil == stencil))
     return true;
   release_target(t);
   glCreateFramebuffers(1, &t.framebuffer);
@@ -473,6 +475,7 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
   t.samples = samples;
   t.has_depth = depth;
   t.has_pick = pick;
+  t.has_stencil = depth && stencil;
   const auto attach = [&](GLuint& name, GLenum format, GLenum attachment) {
     if (samples > 1) {
       glCreateRenderbuffers(1, &name);
@@ -484,16 +487,18 @@ bool GlBackend::ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t sample
       glNamedFramebufferTexture(t.framebuffer, attachment, name, 0);
     }
   };
+  const GLenum depth_format = t.has_stencil ? GL_DEPTH32F_STENCIL8 : GL_DEPTH_COMPONENT32F;
+  const GLenum depth_attachment = t.has_stencil ? GL_DEPTH_STENCIL_ATTACHMENT : GL_DEPTH_ATTACHMENT;
   attach(t.colour, GL_RGBA8, GL_COLOR_ATTACHMENT0);
   if (pick) attach(t.pick, GL_R32UI, GL_COLOR_ATTACHMENT1);
   if (depth && samples > 1) {
     // A texture, not a renderbuffer: the depth reduction reads every sample.
     glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &t.depth);
-    glTextureStorage2DMultisample(t.depth, GLsizei(samples), GL_DEPTH32F_STENCIL8, GLsizei(w),
+    glTextureStorage2DMultisample(t.depth, GLsizei(samples), depth_format, GLsizei(w),
                                   GLsizei(h), GL_TRUE);
-    glNamedFramebufferTexture(t.framebuffer, GL_DEPTH_STENCIL_ATTACHMENT, t.depth, 0);
+    glNamedFramebufferTexture(t.framebuffer, depth_attachment, t.depth, 0);
   } else if (depth) {
-    attach(t.depth, GL_DEPTH32F_STENCIL8, GL_DEPTH_STENCIL_ATTACHMENT);
+    attach(t.depth, depth_format, depth_attachment);
   }
   const GLenum buffers[] = {GL_COLOR_ATTACHMENT0, GLenum(pick ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(t.framebuffer, 2, buffers);
@@ -555,16 +560,26 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
   frame_plan_ = plan_for(look);
   const Plan& plan = frame_plan_;
   const uint32_t w = view.width, h = view.height;
-  if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, with_ids, error))
+  // Stencil once a frame highlights (the subject's pixels are marked in it), kept for the frames
+  // after; the resolved depth has the scene's format (a blit copies it).
+  const bool stencil = scene_.has_stencil || !look.highlight_ids.empty();
+  if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, with_ids, stencil,
+                     error))
     return false;
-  if (plan.samples > 1 && !ensure_target(resolved_, w, h, 1, plan.occlusion, with_ids, error))
+  if (plan.samples > 1 &&
+      !ensure_target(resolved_, w, h, 1, plan.occlusion, with_ids, stencil, error))
     return false;
-  if (plan.finish() && !ensure_target(output_, w, h, 1, false, with_ids, error)) return false;
+  if (plan.finish() && !ensure_target(output_, w, h, 1, false, with_ids, false, error)) return false;
   begin_pass(view, plan, with_ids);
   const GLuint no_pick[4] = {0, 0, 0, 0};
   glClearNamedFramebufferfv(scene_.framebuffer, GL_COLOR, 0, kBackground);
   if (with_ids) glClearNamedFramebufferuiv(scene_.framebuffer, GL_COLOR, 1, no_pick);
-  glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
+  if (scene_.has_stencil) {
+    glClearNamedFramebufferfi(scene_.framebuffer, GL_DEPTH_STENCIL, 0, 0.0f, 0);
+  } else {
+    const float far_depth = 0.0f;  // reversed depth
+    glClearNamedFramebufferfv(scene_.framebuffer, GL_DEPTH, 0, &far_depth);
+  }
   final_ = nullptr;
   return true;
 }

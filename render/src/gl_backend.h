@@ -182,6 +182,7 @@ class GlBackend {
     uint32_t width = 0, height = 0, samples = 0;
     bool has_depth = false;
     bool has_pick = false;  // an id attachment: made the first time a frame asks for ids
+    bool has_stencil = false;  // depth with stencil (else depth alone): see ensure_target()
   };
   // What a frame is drawn with, from the look and the device.
   struct Plan {
@@ -191,7 +192,7 @@ class GlBackend {
   };
   Plan plan_for(const Look& look) const;
   bool ensure_target(Target& t, uint32_t w, uint32_t h, uint32_t samples, bool depth, bool pick,
-                     std::string& error);
+                     bool stencil, std::string& error);
   static void release_target(Target& t);
   void bind_arena();
   // Binds the drawing framebuffer and sets the depth state and the programs' uniforms for the
