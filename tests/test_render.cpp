@@ -580,7 +580,8 @@ TEST(RenderLook, TheGroundIsDrawnBelowThePlantAndNotAboveTheHorizon) {
 }
 
 // A highlight: the id buffer holds the subject's id and 0 only; the subject shows through the
-// object in front of it; the others are ghosted (lighter, greyer than drawn plainly).
+// object in front of it; the others are ghosted (lighter, greyer than drawn plainly); a plain
+// frame after it is as before it.
 TEST(RenderLook, AHighlightShowsOnlyTheSubjectsIdsAndSeesThroughWhatHidesIt) {
   TempDir dir;
   const auto pump = make_object("pump", ObjectClass::equipment, {0, 10, 0}, Box{1, 1, 1}, {230, 40, 30, 255});
@@ -614,6 +615,12 @@ TEST(RenderLook, AHighlightShowsOnlyTheSubjectsIdsAndSeesThroughWhatHidesIt) {
   options.highlight_ids = {12345};
   r->set_options(options);
   EXPECT_TRUE(ids_in(render(*r, camera, w, h).image).empty());
+  // Plain again (the framebuffers keep the stencil that highlighting made): as the first.
+  options.highlight_ids.clear();
+  r->set_options(options);
+  Frame again = render(*r, camera, w, h);
+  EXPECT_EQ(again.image.object_ids, plain.image.object_ids);
+  EXPECT_EQ(again.image.rgba, plain.image.rgba);
 }
 
 // --- pipeline HLOD -----------------------------------------------------------------------------
