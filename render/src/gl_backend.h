@@ -30,9 +30,10 @@
 //     lies in front of the subject: occluders are see-through.
 //   - Framebuffers: the frame is drawn at `scale` x the output's size (2 when supersampled) with
 //     `samples` per pixel (multisampled: resolved into textures by a blit; the depth is a
-//     multisampled texture, which the depth reduction reads sample by sample), then finished into
-//     the output size by one full-screen pass when anything needs it (supersampling, the edge
-//     filter, ambient occlusion); object ids follow one sample per output pixel.
+//     multisampled texture, which the depth reduction reads sample by sample, with a stencil
+//     only once a frame highlights), then finished into the output size by one full-screen pass
+//     when anything needs it (supersampling, the edge filter, ambient occlusion); object ids
+//     follow one sample per output pixel.
 //   - Object ids are written only when read back (with_ids).
 // Units: arena offsets and sizes in vertices; buffer capacities in bytes; pixels; metres.
 // Threads: the thread whose GL context was current at init(), which must stay current for
@@ -175,8 +176,9 @@ class GlBackend {
                  std::span<const uint64_t> pick_ids, Image& out, std::string& error);
 
  private:
-  // A framebuffer with colour (RGBA8), pick (R32UI) and, optionally, depth-stencil
-  // (DEPTH32F_STENCIL8) attachments: textures when single-sampled, else renderbuffers.
+  // A framebuffer with colour (RGBA8), pick (R32UI) and, optionally, depth (DEPTH_COMPONENT32F,
+  // or DEPTH32F_STENCIL8 once a frame highlights) attachments: textures when single-sampled,
+  // else renderbuffers.
   struct Target {
     GlName framebuffer = 0, colour = 0, pick = 0, depth = 0;
     uint32_t width = 0, height = 0, samples = 0;
