@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <map>
 #include <random>
+#include <set>
 #include <unordered_map>
 
 #include "decoded_objects.h"
@@ -370,6 +371,48 @@ TEST(OutOfCore, CullOpensTheLargestNodesFirstAndReadsOnlyTheBlocksItOpens) {
                   stats.node_proxy_pixels);
       EXPECT_GT(stats.objects_in_node_proxies, 0u);
     }
+  }
+}
+
+// A snapshot's first cull reads up to kMaxFrameBlocksHeld index blocks: those it will read are
+// read ahead on the workers (FramePlan::blocks_ahead, DecodedObjects::read_blocks). The blocks
+// named are the ones the cull reads, largest first, where its bound does not stop it; later
+// culls name none; the frame is the same with them read ahead.
+TEST(OutOfCore, AFirstCullReadsAheadTheBlocksItWillRead) {
+  const Store& store = preset_c(30);
+  std::string error;
+  const auto view = store.read(error);
+  ASSERT_TRUE(view) << error;
+  RenderOptions options;
+  std::vector<Camera> cameras{default_camera(overview_boxes(*view), 16.0 / 9.0)};
+  for (const Camera& c : walk(bounds_of(store), 4)) cameras.push_back(c);
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    SCOPED_TRACE("view " + std::to_string(i));
+    const detail::FrameView fv = detail::make_frame_view(cameras[i], 1280, 720, view->spatial_origin());
+    detail::FramePlan plan, unread;
+    std::vector<uint32_t> ahead;
+    plan.blocks_ahead(*view, fv, options, ahead);
+    ASSERT_LE(ahead.size(), detail::kMaxFrameBlocksHeld);
+    detail::DecodedObjects objects;
+    objects.reset(*view);
+    objects.read_blocks(ahead);
+    FrameStats stats, unread_stats;
+    ASSERT_TRUE(plan.find_visible(*view, fv, options, stats, error)) << error;
+    ASSERT_TRUE(unread.find_visible(*view, fv, options, unread_stats, error)) << error;
+    EXPECT_EQ(stats.to_json(), unread_stats.to_json());
+    const std::span<const detail::VisibleObject> a = plan.visible(), b = unread.visible();
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t o = 0; o < a.size(); ++o) ASSERT_EQ(a[o].slot, b[o].slot) << o;
+    // Each block named is one the cull read (it holds those it took objects from); where the
+    // bound did not stop the opening (no node boxed above the proxy size), it read those alone.
+    std::set<uint32_t> named(ahead.begin(), ahead.end());
+    EXPECT_EQ(named.size(), ahead.size());
+    for (const detail::VisibleObject& v : a) EXPECT_TRUE(named.count(v.block)) << v.block;
+    if (stats.node_proxy_pixels == detail::kNodeProxyPixels * options.pixel_error) {
+      EXPECT_EQ(stats.spatial_blocks_walked, ahead.size());
+    }
+    plan.blocks_ahead(*view, fv, options, ahead);
+    EXPECT_TRUE(ahead.empty());
   }
 }
 

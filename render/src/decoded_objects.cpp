@@ -397,6 +397,15 @@ void DecodedObjects::read_wave(size_t first, bool hlod) {
   });
 }
 
+void DecodedObjects::read_blocks(std::span<const uint32_t> blocks) {
+  const size_t parts = (blocks.size() + kBlocksPerPart - 1) / kBlocksPerPart;
+  on_views(parts, [&](size_t part, const ReadView& view) {
+    std::string ignored;
+    for (size_t i = part * kBlocksPerPart; i < std::min(blocks.size(), (part + 1) * kBlocksPerPart); ++i)
+      (void)view.spatial_block(blocks[i], ignored);
+  });
+}
+
 void DecodedObjects::make_sibling_views() {
   views_.assign(1, view_);
   const unsigned workers = workers_ ? workers_->size() : 1;

@@ -66,6 +66,7 @@ inline constexpr size_t kPipelinesKept = 4096;       // analysed pipelines held 
 inline constexpr size_t kNewObjectsPerPart = 256;       // new objects read per part on the pool
 inline constexpr size_t kMinNewObjectsPerPart = 64;     // ... or fewer, to give every worker one
 inline constexpr size_t kNewObjectsPerWave = 4096;      // new objects read before they are added
+inline constexpr size_t kBlocksPerPart = 8;  // index blocks read ahead per part (read_blocks)
 inline constexpr size_t kMaxTestBoxes = 32;  // Known::test_boxes
 
 // A decoded object (or a merged pipeline run): what it takes to tessellate it and to write its
@@ -231,6 +232,11 @@ class DecodedObjects {
   // time they are asked for (from its primitives, decoded again if dropped): only objects the
   // exact test meets pay for them. Null on a read error.
   const std::vector<Aabb>* test_boxes(uint32_t slot, Known& k, std::string& error);
+
+  // Reads the spatial index's `blocks` into the store's shared cache of decoded blocks, on the
+  // workers (each through its sibling view) and this thread, so that the cull finds them
+  // there. A block that cannot be read is left for the cull, which reports it.
+  void read_blocks(std::span<const uint32_t> blocks);
 
   // Keeps the cache bounded: objects neither resident nor seen in frame `frame` go first, the
   // longest unseen first; those seen (drawn as boxes because the arena was full) only if that

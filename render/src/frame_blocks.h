@@ -58,9 +58,15 @@ class FrameBlocks {
   // Ends the cull: only the blocks cull needed stay.
   void end_cull() {
     std::erase_if(blocks_, [&](const auto& b) { return needed_.count(b.first) == 0; });
+    culled_ = true;
   }
   // Drops every block (a new snapshot of the store).
-  void reset() { begin_cull(); }
+  void reset() {
+    begin_cull();
+    culled_ = false;
+  }
+  // Whether no cull has run since the last reset() (the renderer's first frame of a snapshot).
+  bool first_cull() const { return !culled_; }
   // A block held now.
   const SpatialBlock& at(uint32_t block) const {
     const auto it = blocks_.find(block);
@@ -75,6 +81,7 @@ class FrameBlocks {
   std::unordered_map<uint32_t, std::shared_ptr<const SpatialBlock>> blocks_;
   std::unordered_set<uint32_t> needed_;
   size_t walked_ = 0;
+  bool culled_ = false;
 };
 
 }  // namespace plantview::detail

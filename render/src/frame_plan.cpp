@@ -266,6 +266,40 @@ uint64_t objects_beneath(const SpatialBlock& block, uint32_t node, std::vector<u
 
 }  // namespace
 
+void FramePlan::blocks_ahead(const ReadView& view, const FrameView& frame_view,
+                             const RenderOptions& options, std::vector<uint32_t>& blocks) {
+  blocks.clear();
+  const std::span<const SpatialNode> top = view.spatial_top();
+  // After a first frame the cull meets a few new blocks a frame, and where it stops opening
+  // (the view's items bound it) only the walk knows: read ahead, blocks it would not read cost
+  // more than reading its few in parallel saves (x100 walk, measured).
+  if (top.empty() || !blocks_.first_cull()) return;
+  // As find_visible() opens them: a top leaf drawn whole below base_px (subpixel culling),
+  // else walked whole.
+  const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
+  const double base_px = kNodeProxyPixels * options.pixel_error;
+  ahead_.clear();
+  stack_.assign(1, 0);
+  while (!stack_.empty()) {
+    const uint32_t t = stack_.back();
+    stack_.pop_back();
+    const SpatialNode& node = top[t];
+    if (frame_view.outside(node.min, node.max)) continue;
+    const double px = node_pixels(node, frame_view);
+    const bool boxable = subpixel_culling && view.spatial_top_objects()[t] > 1;
+    if (boxable && px < base_px) continue;  // drawn whole, and so is all beneath it
+    if (node.count == 0) {
+      stack_.insert(stack_.end(), {node.first, node.first + 1});
+      continue;
+    }
+    ahead_.push_back({px, node.first});
+  }
+  const size_t kept = std::min(ahead_.size(), kMaxFrameBlocksHeld);
+  std::partial_sort(ahead_.begin(), ahead_.begin() + ptrdiff_t(kept), ahead_.end(),
+                    [](const Ahead& a, const Ahead& b) { return a.px > b.px; });
+  for (size_t i = 0; i < kept; ++i) blocks.push_back(ahead_[i].block);
+}
+
 bool FramePlan::frustum_objects_at_most(const ReadView& view, const FrameView& frame_view,
                                         uint64_t limit) {
   const std::span<const SpatialNode> top = view.spatial_top();

@@ -188,6 +188,13 @@ class FramePlan {
   //    False with a message if a block of the index cannot be read.
   bool cull(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
             FrameStats& stats, std::string& error);
+  // 1a'. In the first frame of a snapshot (reset_view()), which reads up to
+  //      kMaxFrameBlocksHeld index blocks at once, those that find_visible() will most likely
+  //      read: the top's leaves in the frustum that are not drawn whole for their size, the
+  //      largest on screen first, at most kMaxFrameBlocksHeld; else none. Read ahead in
+  //      parallel (DecodedObjects::read_blocks), they are found decoded when the cull asks.
+  void blocks_ahead(const ReadView& view, const FrameView& frame_view, const RenderOptions& options,
+                    std::vector<uint32_t>& blocks);
   // 1a. The frustum and subpixel part of cull, in tree order (not ordered yet): a leaf's
   //     objects are consecutive in visible().
   bool find_visible(const ReadView& view, const FrameView& frame_view,
@@ -305,6 +312,11 @@ class FramePlan {
   std::vector<Candidate> fresh_;       // an opened node's children, before they fit
   size_t pending_items_ = 0;           // items of candidates_
   std::vector<uint32_t> stack_, count_stack_;
+  struct Ahead {
+    double px;
+    uint32_t block;
+  };
+  std::vector<Ahead> ahead_;  // blocks_ahead()'s top leaves
   std::vector<SortPair> order_keys_, order_scratch_;  // order(): (key, index in visible_)
   std::vector<VisibleObject> ordered_;
   OcclusionCulling occlusion_;

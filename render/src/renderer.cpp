@@ -33,6 +33,7 @@ struct Renderer::State {
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
   std::vector<glm::vec4> test_boxes;  // and its exact test
   std::vector<uint32_t> boxes_seen;
+  std::vector<uint32_t> blocks_ahead;  // the index blocks the cull will read, read ahead
 
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
@@ -106,6 +107,8 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 
   // Frontend: what is in the frustum, then what of it is hidden (occlusion.h), decoded where
   // new, at which level; streamed; drawn.
+  plan.blocks_ahead(*view, frame_view, options, blocks_ahead);
+  objects.read_blocks(blocks_ahead);
   if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
   times.cull = clock.lap();
   if (draw && FramePlan::two_phase(options)) {
