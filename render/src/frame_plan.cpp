@@ -264,6 +264,26 @@ uint64_t objects_beneath(const SpatialBlock& block, uint32_t node, std::vector<u
   return objects;
 }
 
+// Walks the top's nodes that meet the frustum, depth first, each with visit(t, node): kBeneath
+// goes on beneath it, kPast leaves its subtree, kStop ends the walk (and returns false).
+enum class TopStep { kBeneath, kPast, kStop };
+template <class F>
+bool walk_top_in_frustum(std::span<const SpatialNode> top, const FrameView& frame_view,
+                         std::vector<uint32_t>& stack, const F& visit) {
+  if (top.empty()) return true;
+  stack.assign(1, 0);
+  while (!stack.empty()) {
+    const uint32_t t = stack.back();
+    stack.pop_back();
+    const SpatialNode& node = top[t];
+    if (frame_view.outside(node.min, node.max)) continue;
+    const TopStep step = visit(t, node);
+    if (step == TopStep::kStop) return false;
+    if (step == TopStep::kBeneath && node.count == 0) stack.insert(stack.end(), {node.first, node.first + 1});
+  }
+  return true;
+}
+
 }  // namespace
 
 void FramePlan::blocks_ahead(const ReadView& view, const FrameView& frame_view,
@@ -279,21 +299,13 @@ void FramePlan::blocks_ahead(const ReadView& view, const FrameView& frame_view,
   const bool subpixel_culling = options.subpixel_culling && options.lod_policy == LodPolicy::screen_space;
   const double base_px = kNodeProxyPixels * options.pixel_error;
   ahead_.clear();
-  stack_.assign(1, 0);
-  while (!stack_.empty()) {
-    const uint32_t t = stack_.back();
-    stack_.pop_back();
-    const SpatialNode& node = top[t];
-    if (frame_view.outside(node.min, node.max)) continue;
+  walk_top_in_frustum(top, frame_view, stack_, [&](uint32_t t, const SpatialNode& node) {
     const double px = node_pixels(node, frame_view);
     const bool boxable = subpixel_culling && view.spatial_top_objects()[t] > 1;
-    if (boxable && px < base_px) continue;  // drawn whole, and so is all beneath it
-    if (node.count == 0) {
-      stack_.insert(stack_.end(), {node.first, node.first + 1});
-      continue;
-    }
-    ahead_.push_back({px, node.first});
-  }
+    if (boxable && px < base_px) return TopStep::kPast;  // drawn whole, and all beneath it
+    if (node.count != 0) ahead_.push_back({px, node.first});
+    return TopStep::kBeneath;
+  });
   const size_t kept = std::min(ahead_.size(), kMaxFrameBlocksHeld);
   std::partial_sort(ahead_.begin(), ahead_.begin() + ptrdiff_t(kept), ahead_.end(),
                     [](const Ahead& a, const Ahead& b) { return a.px > b.px; });
@@ -304,23 +316,15 @@ bool FramePlan::frustum_objects_at_most(const ReadView& view, const FrameView& f
                                         uint64_t limit) {
   const std::span<const SpatialNode> top = view.spatial_top();
   const std::span<const uint32_t> objects = view.spatial_top_objects();
-  if (top.empty()) return true;
   uint64_t total = 0;
-  stack_.assign(1, 0);
-  while (!stack_.empty()) {
-    const uint32_t t = stack_.back();
-    stack_.pop_back();
-    const SpatialNode& node = top[t];
-    if (frame_view.outside(node.min, node.max)) continue;
+  return walk_top_in_frustum(top, frame_view, stack_, [&](uint32_t t, const SpatialNode& node) {
     // A whole subtree that fits is counted at once (its objects bound those in the frustum).
     if (total + objects[t] <= limit) {
       total += objects[t];
-      continue;
+      return TopStep::kPast;
     }
-    if (node.count != 0) return false;  // a top leaf (a block) that does not fit
-    stack_.insert(stack_.end(), {node.first, node.first + 1});
-  }
-  return true;
+    return node.count != 0 ? TopStep::kStop : TopStep::kBeneath;  // a top leaf that does not fit
+  });
 }
 
 void FramePlan::consider_top(const ReadView& view, uint32_t t, const FrameView& frame_view,
