@@ -15,6 +15,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "frame_plan.h"
+#include "occlusion.h"
 #include "occlusion_buffer.h"
 #include "occlusion_occluders.h"
 #include "plantview/generate.h"
@@ -165,6 +167,101 @@ TEST(OcclusionBuffer, WhatItCallsHiddenIsHiddenForEveryRayThroughIt) {
   // The scenes hide some boxes and show others: the check above has something to check.
   EXPECT_GT(hidden_boxes, 100);
   EXPECT_GT(visible_boxes, 100);
+}
+
+// --- a box's place on screen ---------------------------------------------------------------------
+
+// Random cameras (kilometres from the spatial origin, as plants lie) and random boxes: the
+// projected bounds hold every corner's projection (worked out here in double precision from
+// the camera itself) and its nearest distance, and are no wider than the corners span but for
+// rounding.
+TEST(ProjectedBox, HoldsEveryCornerAndIsNoWiderThanTheCornersSpan) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const glm::dvec3 origin_m(2300.0, -1700.0, 40.0);
+  int checked = 0;
+  for (int view = 0; view < 50; ++view) {
+    Camera camera;
+    camera.eye_m = origin_m + glm::dvec3(u(rng) * 200 - 100, u(rng) * 200 - 100, u(rng) * 30);
+    camera.target_m = camera.eye_m + glm::dvec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 0.6 - 0.3);
+    camera.fov_deg = 30 + u(rng) * 60;
+    const detail::FrameView fv = detail::make_frame_view(camera, 1280, 720, origin_m);
+    const glm::dvec3 forward = glm::normalize(camera.target_m - camera.eye_m);
+    const glm::dvec3 right = glm::normalize(glm::cross(forward, camera.up));
+    const glm::dvec3 up = glm::cross(right, forward);
+    for (int b = 0; b < 40; ++b) {
+      const glm::dvec3 centre = camera.eye_m + forward * (3 + u(rng) * 60) +
+                                right * (u(rng) * 40 - 20) + up * (u(rng) * 20 - 10);
+      const glm::dvec3 half(0.05 + u(rng) * 6, 0.05 + u(rng) * 6, 0.05 + u(rng) * 3);
+      float mn[3], mx[3];
+      for (int a = 0; a < 3; ++a) {
+        mn[a] = float(centre[a] - half[a] - origin_m[a]);
+        mx[a] = float(centre[a] + half[a] - origin_m[a]);
+      }
+      // Rounding's allowance (float rotation and corners, a hair of 1e-5 of their size): a
+      // corner's x / d shifted by a hair over its distance, twice over.
+      const glm::dvec3 offset = centre - camera.eye_m;
+      const double hair = 2e-5 * (std::abs(offset.x) + std::abs(offset.y) + std::abs(offset.z) + half.x + half.y + half.z) + 2e-5;
+      double lo_x = 1e30, hi_x = -1e30, lo_y = 1e30, hi_y = -1e30, near_d = 1e30;
+      double lo_x_allowed = 1e30, hi_x_allowed = -1e30, lo_y_allowed = 1e30, hi_y_allowed = -1e30;
+      bool in_front = true;
+      for (int c = 0; c < 8; ++c) {
+        const glm::dvec3 p = origin_m + glm::dvec3(c & 1 ? mx[0] : mn[0], c & 2 ? mx[1] : mn[1], c & 4 ? mx[2] : mn[2]) -
+                             camera.eye_m;
+        const double d = glm::dot(p, forward), x = glm::dot(p, right) / d, y = glm::dot(p, up) / d;
+        in_front = in_front && d > 0.1;
+        lo_x = std::min(lo_x, x), hi_x = std::max(hi_x, x), lo_y = std::min(lo_y, y), hi_y = std::max(hi_y, y);
+        near_d = std::min(near_d, d);
+        const double sx = 2 * hair * (1 + std::abs(x)) / (d - hair) + 1e-5;
+        const double sy = 2 * hair * (1 + std::abs(y)) / (d - hair) + 1e-5;
+        lo_x_allowed = std::min(lo_x_allowed, x - sx), hi_x_allowed = std::max(hi_x_allowed, x + sx);
+        lo_y_allowed = std::min(lo_y_allowed, y - sy), hi_y_allowed = std::max(hi_y_allowed, y + sy);
+      }
+      if (!in_front) continue;
+      const detail::ProjectedBounds pb = detail::project_box(fv, mn, mx);
+      EXPECT_LE(pb.x0, lo_x);
+      EXPECT_GE(pb.x1, hi_x);
+      EXPECT_LE(pb.y0, lo_y);
+      EXPECT_GE(pb.y1, hi_y);
+      EXPECT_LE(pb.near_d, near_d);
+      EXPECT_GE(pb.x0, lo_x_allowed);
+      EXPECT_LE(pb.x1, hi_x_allowed);
+      EXPECT_GE(pb.y0, lo_y_allowed);
+      EXPECT_LE(pb.y1, hi_y_allowed);
+      EXPECT_GE(pb.near_d, near_d - hair);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 1000);
+}
+
+TEST(ProjectedBox, ABoxTurnedToTheViewIsHiddenBehindAWallItsViewBoundsOverhang) {
+  // The eye at the origin looks along (1, 1, 0) at a box 8 m x 0.4 m x 1 m along the x axis,
+  // 20 m ahead: turned 45 degrees to the view. A wall 4 m wide and 3 m tall 10 m ahead, from
+  // 2.5 m left of the view's axis to 1.5 m right of it. The box's corners lie behind the wall
+  // on screen (from 0.17 left to 0.13 right in x / d; the wall spans 0.25 left to 0.15 right),
+  // but its bounds in view space are 5.9 m wide and deep, and their near face spans 0.17 to
+  // either side.
+  Camera camera;
+  camera.eye_m = {0, 0, 0};
+  camera.target_m = glm::dvec3(1, 1, 0);
+  camera.fov_deg = 50;
+  const detail::FrameView fv = detail::make_frame_view(camera, 1280, 720, glm::dvec3(0.0));
+  OcclusionBuffer buffer;
+  buffer.begin(1280, 720, fv.focal, fv.aspect, 0.05f);
+  const ViewBox wall{{-2.5f, -1.5f, -10.2f}, {1.5f, 1.5f, -10}};
+  buffer.add_convex(wall.corners());
+  const glm::dvec3 centre = glm::normalize(glm::dvec3(1, 1, 0)) * 20.0;
+  const float mn[3] = {float(centre.x - 4), float(centre.y - 0.2), -0.5f};
+  const float mx[3] = {float(centre.x + 4), float(centre.y + 0.2), 0.5f};
+  EXPECT_TRUE(buffer.hidden(detail::project_box(fv, mn, mx)));
+  // Its bounds in view space, as the test took them before: not hidden.
+  const glm::mat3 r(fv.rotation);
+  glm::vec3 c(0.0f), e(0.0f);
+  for (int a = 0; a < 3; ++a) c += r[a] * (0.5f * (mn[a] + mx[a]));
+  for (int row = 0; row < 3; ++row)
+    for (int a = 0; a < 3; ++a) e[row] += std::abs(r[a][row]) * 0.5f * (mx[a] - mn[a]);
+  EXPECT_FALSE(buffer.hidden(c - e, c + e));
 }
 
 // Inner conservative rasterisation, cell by cell: a convex silhouette covers every cell whose

@@ -2,6 +2,7 @@
 #include "occlusion.h"
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <limits>
@@ -74,7 +75,7 @@ void OcclusionCulling::for_parts(size_t n, const F& f) const {
   else for (size_t p = 0; p < parts; ++p) part(p, 0);
 }
 
-bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
+ProjectedBounds project_box(const FrameView& frame_view, const float mn[3], const float mx[3]) {
   const glm::mat3 r(frame_view.rotation);
   glm::vec3 centre, half;
   for (int a = 0; a < 3; ++a) {
@@ -82,12 +83,44 @@ bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], co
     half[a] = 0.5f * (mx[a] - mn[a]);
   }
   const glm::vec3 c = r * centre;
-  glm::vec3 e;
-  for (int row = 0; row < 3; ++row)
-    e[row] = std::abs(r[0][row]) * half.x + std::abs(r[1][row]) * half.y + std::abs(r[2][row]) * half.z;
-  // Rounding of the rotation: grow the box by a hair so that its view bounds contain it.
-  e += glm::vec3(1e-5f * (std::abs(c.x) + std::abs(c.y) + std::abs(c.z)) + 1e-5f);
-  return buffer_.hidden(c - e, c + e);
+  const glm::vec3 ax = r[0] * half.x, ay = r[1] * half.y, az = r[2] * half.z;
+  constexpr float kFar = std::numeric_limits<float>::infinity();
+  constexpr ProjectedBounds kEverywhere{-kFar, kFar, -kFar, kFar, 0.0f};
+  // Rounding (of the rotation, the corners, the quotients): each true corner lies within a
+  // hair of its computed one in each axis, which moves its x / d by at most
+  // hair (1 + |x / d|) / (d - hair), and d - hair >= d (nearest - hair) / nearest.
+  const float hair = 1e-5f * (std::abs(c.x) + std::abs(c.y) + std::abs(c.z) + half.x + half.y + half.z) + 1e-5f;
+  std::array<glm::vec3, 8> corners;
+  float nearest_d = kFar;
+  for (int corner = 0; corner < 8; ++corner) {
+    corners[corner] = c + (corner & 1 ? ax : -ax) + (corner & 2 ? ay : -ay) + (corner & 4 ? az : -az);
+    nearest_d = std::min(nearest_d, -corners[corner].z);
+  }
+  if (!(nearest_d > 2 * hair)) return kEverywhere;  // reaching the eye's plane
+  const float grow = hair * nearest_d / (nearest_d - hair);
+  ProjectedBounds b{kFar, -kFar, kFar, -kFar, nearest_d - hair};
+  for (const glm::vec3& p : corners) {
+    const float inverse = 1.0f / -p.z;
+    const float x = p.x * inverse, y = p.y * inverse;
+    // (and a float's rounding of the quotients)
+    const float sx = grow * (1.0f + std::abs(x)) * inverse + 1e-6f * (1.0f + std::abs(x));
+    const float sy = grow * (1.0f + std::abs(y)) * inverse + 1e-6f * (1.0f + std::abs(y));
+    b.x0 = std::min(b.x0, x - sx);
+    b.x1 = std::max(b.x1, x + sx);
+    b.y0 = std::min(b.y0, y - sy);
+    b.y1 = std::max(b.y1, y + sy);
+  }
+  return b;
+}
+
+bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
+  // Most boxes that are not hidden are seen at their centre: the cell there is not nearer than
+  // the centre, so not nearer than the box's nearest point either.
+  glm::vec3 centre;
+  for (int a = 0; a < 3; ++a) centre[a] = 0.5f * (mn[a] + mx[a]) + frame_view.shift_m[a];
+  const glm::vec3 c = glm::mat3(frame_view.rotation) * centre;
+  if (!(-c.z > 0.0f) || !buffer_.nearer_at(c)) return false;
+  return buffer_.hidden(project_box(frame_view, mn, mx));
 }
 
 bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameView& frame_view,

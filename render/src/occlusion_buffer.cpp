@@ -154,22 +154,26 @@ void OcclusionBuffer::merge_nearest(const OcclusionBuffer& other) {
 
 bool OcclusionBuffer::hidden(const glm::vec3& mn, const glm::vec3& mx) const {
   const float near_d = -mx.z, far_d = -mn.z;
-  if (near_d <= near_m_ || cells_.empty()) return false;
   // The box's extreme x / d and y / d: each end over the nearer or farther face, whichever
   // makes it extreme.
-  const float x0 = mn.x / (mn.x <= 0 ? near_d : far_d), x1 = mx.x / (mx.x >= 0 ? near_d : far_d);
-  const float y0 = mn.y / (mn.y <= 0 ? near_d : far_d), y1 = mx.y / (mx.y >= 0 ? near_d : far_d);
-  const float cx0 = x0 * sx_ + 0.5f * float(width_) - spill_cells_;
-  const float cx1 = x1 * sx_ + 0.5f * float(width_) + spill_cells_;
-  const float cy0 = y0 * sy_ + 0.5f * float(height_) - spill_cells_;
-  const float cy1 = y1 * sy_ + 0.5f * float(height_) + spill_cells_;
+  return hidden(ProjectedBounds{mn.x / (mn.x <= 0 ? near_d : far_d), mx.x / (mx.x >= 0 ? near_d : far_d),
+                                mn.y / (mn.y <= 0 ? near_d : far_d), mx.y / (mx.y >= 0 ? near_d : far_d),
+                                near_d});
+}
+
+bool OcclusionBuffer::hidden(const ProjectedBounds& b) const {
+  if (!(b.near_d > near_m_) || cells_.empty()) return false;
+  const float cx0 = b.x0 * sx_ + 0.5f * float(width_) - spill_cells_;
+  const float cx1 = b.x1 * sx_ + 0.5f * float(width_) + spill_cells_;
+  const float cy0 = b.y0 * sy_ + 0.5f * float(height_) - spill_cells_;
+  const float cy1 = b.y1 * sy_ + 0.5f * float(height_) + spill_cells_;
   if (!(cx1 >= 0 && cy1 >= 0 && cx0 <= float(width_) && cy0 <= float(height_))) return false;
   const int i0 = std::max(0, int(std::floor(cx0))), i1 = std::min(int(width_) - 1, int(std::floor(cx1)));
   const int j0 = std::max(0, int(std::floor(cy0))), j1 = std::min(int(height_) - 1, int(std::floor(cy1)));
   for (int j = j0; j <= j1; ++j) {
     const float* row = cells_.data() + size_t(j) * width_;
     for (int i = i0; i <= i1; ++i)
-      if (!(row[i] < near_d)) return false;
+      if (!(row[i] < b.near_d)) return false;
   }
   return true;
 }

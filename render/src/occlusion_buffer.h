@@ -32,6 +32,13 @@
 
 namespace plantview::detail {
 
+// Where a solid lies on screen: the extremes of x / d and y / d over it (view space, d = -z),
+// and its nearest view distance d.
+struct ProjectedBounds {
+  float x0, x1, y0, y1;
+  float near_d;
+};
+
 class OcclusionBuffer {
  public:
   // Clears to +infinity at a size for an image of image_width x image_height: at most
@@ -60,6 +67,18 @@ class OcclusionBuffer {
 
   // Whether the view-space box [min, max] is hidden behind what was rasterised.
   bool hidden(const glm::vec3& min, const glm::vec3& max) const;
+  // Whether the cell that view-space point p (d = -p.z > 0) falls in holds a depth nearer than
+  // d; true off the buffer. A box is hidden only if the cell of any point of it does (its
+  // bounds' cells include that one): false here spares projecting its bounds.
+  bool nearer_at(const glm::vec3& p) const {
+    const float d = -p.z;
+    const float x = p.x / d * sx_ + 0.5f * float(width_), y = p.y / d * sy_ + 0.5f * float(height_);
+    if (!(x >= 0 && y >= 0 && x < float(width_) && y < float(height_))) return true;
+    return cells_[size_t(y) * width_ + size_t(x)] < d;
+  }
+  // Whether what projects within `bounds` is hidden (the caller's bounds must contain the
+  // projection of what it tests: conservative).
+  bool hidden(const ProjectedBounds& bounds) const;
 
   uint32_t width() const { return width_; }
   uint32_t height() const { return height_; }
