@@ -81,9 +81,10 @@ inline constexpr double kBoxTestDecodePixels = 8;
 inline constexpr double kThirdPhaseLargestShare = 0.3;
 
 // Where a box (relative to the spatial origin) lies on screen: its eight corners projected, the
-// bounds grown by what rounding may move them, so that they hold the box's projection; not its bounds in view space, which a box turned to the view grows (up to 1.4x
-// in width and depth for a plant's axis-aligned bounds seen at 45 degrees). A box reaching the
-// eye's plane gets the whole plane and a nearest distance of 0.
+// bounds grown by what rounding may move them, so that they hold the box's projection. (Not
+// its bounds in view space, which a box turned to the view grows: up to 1.4x in width and
+// depth for a plant's axis-aligned bounds seen at 45 degrees.) A box reaching the eye's plane
+// gets the whole plane and a nearest distance of 0.
 ProjectedBounds project_box(const FrameView& frame_view, const float min[3], const float max[3]);
 
 class OcclusionCulling {
