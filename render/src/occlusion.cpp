@@ -75,14 +75,28 @@ void OcclusionCulling::for_parts(size_t n, const F& f) const {
   else for (size_t p = 0; p < parts; ++p) part(p, 0);
 }
 
-ProjectedBounds project_box(const FrameView& frame_view, const float mn[3], const float mx[3]) {
-  const glm::mat3 r(frame_view.rotation);
+namespace {
+
+// A box relative to the spatial origin, in view space: its centre turned, its half extents.
+struct TurnedBox {
+  glm::mat3 rotation;
   glm::vec3 centre, half;
+};
+
+TurnedBox turn(const FrameView& frame_view, const float mn[3], const float mx[3]) {
+  TurnedBox box{glm::mat3(frame_view.rotation), {}, {}};
+  glm::vec3 centre;
   for (int a = 0; a < 3; ++a) {
     centre[a] = 0.5f * (mn[a] + mx[a]) + frame_view.shift_m[a];
-    half[a] = 0.5f * (mx[a] - mn[a]);
+    box.half[a] = 0.5f * (mx[a] - mn[a]);
   }
-  const glm::vec3 c = r * centre;
+  box.centre = box.rotation * centre;
+  return box;
+}
+
+ProjectedBounds project(const TurnedBox& box) {
+  const glm::mat3& r = box.rotation;
+  const glm::vec3 &c = box.centre, &half = box.half;
   const glm::vec3 ax = r[0] * half.x, ay = r[1] * half.y, az = r[2] * half.z;
   constexpr float kFar = std::numeric_limits<float>::infinity();
   constexpr ProjectedBounds kEverywhere{-kFar, kFar, -kFar, kFar, 0.0f};
@@ -113,14 +127,18 @@ ProjectedBounds project_box(const FrameView& frame_view, const float mn[3], cons
   return b;
 }
 
+}  // namespace
+
+ProjectedBounds project_box(const FrameView& frame_view, const float mn[3], const float mx[3]) {
+  return project(turn(frame_view, mn, mx));
+}
+
 bool OcclusionCulling::hidden(const FrameView& frame_view, const float mn[3], const float mx[3]) const {
   // Most boxes that are not hidden are seen at their centre: the cell there is not nearer than
   // the centre, so not nearer than the box's nearest point either.
-  glm::vec3 centre;
-  for (int a = 0; a < 3; ++a) centre[a] = 0.5f * (mn[a] + mx[a]) + frame_view.shift_m[a];
-  const glm::vec3 c = glm::mat3(frame_view.rotation) * centre;
-  if (!(-c.z > 0.0f) || !buffer_.nearer_at(c)) return false;
-  return buffer_.hidden(project_box(frame_view, mn, mx));
+  const TurnedBox box = turn(frame_view, mn, mx);
+  if (!(-box.centre.z > 0.0f) || !buffer_.nearer_at(box.centre)) return false;
+  return buffer_.hidden(project(box));
 }
 
 bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameView& frame_view,
