@@ -739,12 +739,22 @@ TEST(Occlusion, IdBuffersMatchWithoutOcclusionAlongARandomPath) {
   for (const OcclusionTest test : {OcclusionTest::coarse, OcclusionTest::exact}) {
   SCOPED_TRACE(std::string(occlusion_test_name(test)) + " test");
   auto on = make_renderer(*store, true, test);
+  // The same along the path with each next view expected (Renderer::expect): each frame's
+  // cull and first phase made while the one before drew give the same frames.
+  auto ahead = make_renderer(*store, true, test);
   uint64_t occluded = 0;
   for (size_t v = 0; v < cameras.size(); ++v) {
-    Image a, b;
-    FrameStats sa, sb;
+    Image a, b, c;
+    FrameStats sa, sb, sc;
     ASSERT_TRUE(on->render(cameras[v], 320, 180, true, a, sa, error)) << error;
     ASSERT_TRUE(off->render(cameras[v], 320, 180, true, b, sb, error)) << error;
+    if (v + 1 < cameras.size()) ahead->expect(cameras[v + 1]);
+    ASSERT_TRUE(ahead->render(cameras[v], 320, 180, true, c, sc, error)) << error;
+    EXPECT_EQ(sc.made_ahead, v > 0) << "view " << v;
+    EXPECT_TRUE(a.rgba == c.rgba && a.object_ids == c.object_ids) << "view " << v;
+    sa.ms = sc.ms = {};
+    sc.made_ahead = false;
+    EXPECT_EQ(sa.to_json(), sc.to_json()) << "view " << v;
     occluded += sa.objects_occluded;
     size_t same = 0;
     for (size_t p = 0; p < a.object_ids.size(); ++p) same += a.object_ids[p] == b.object_ids[p];

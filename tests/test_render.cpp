@@ -994,6 +994,58 @@ TEST(RenderStatistics, CountWhatRenderingTheSameViewDraws) {
   }
 }
 
+// Renderer::expect(): a path whose next view is known draws the same images, ids and counts as
+// one rendered view by view; the frame after takes the cull made while the one before drew,
+// unless its camera, size, policy or pixel error is not the one expected.
+TEST(RenderPath, ExpectingTheNextViewChangesNoImageAndItsCullIsTakenOnlyIfItComes) {
+  TempDir dir;
+  std::vector<Object> objects;
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j)
+      objects.push_back(make_object("C" + std::to_string(i) + "_" + std::to_string(j),
+                                    ObjectClass::equipment, {i * 3.0, j * 3.0, 0},
+                                    Cylinder{0.4f + 0.05f * float(j % 4), 2.0f}));
+  auto store = make_store(dir, objects);
+  auto ahead = make_renderer(*store);
+  auto plain = make_renderer(*store);
+  std::vector<Camera> path;
+  for (int v = 0; v < 8; ++v)
+    path.push_back(look({-6.0 + 5.0 * v, -8.0 + 2.0 * v, 2.5}, {16.0, 16.0 + v, 0}));
+  const Camera surprise = look({40, 40, 6}, {16, 16, 0});
+  std::string error;
+  for (size_t v = 0; v < path.size(); ++v) {
+    SCOPED_TRACE("view " + std::to_string(v));
+    // View 5 is expected but another comes (the expectation is dropped); at view 6 the pixel
+    // error changes after it was expected (culled again, as the options say).
+    const bool surprised = v == 5;
+    const Camera& camera = surprised ? surprise : path[v];
+    if (v == 6) {
+      RenderOptions o = small();
+      o.pixel_error = 2.0;
+      ahead->set_options(o);
+      plain->set_options(o);
+    }
+    if (v + 1 < path.size()) ahead->expect(path[v + 1]);
+    Frame a = render(*ahead, camera, 200, 150);
+    Frame b = render(*plain, camera, 200, 150);
+    EXPECT_EQ(a.image.rgba, b.image.rgba);
+    EXPECT_EQ(a.image.object_ids, b.image.object_ids);
+    EXPECT_FALSE(ids_in(a.image).empty());
+    EXPECT_EQ(a.stats.made_ahead, v > 0 && !surprised && v != 6);
+    EXPECT_FALSE(b.stats.made_ahead);
+    EXPECT_EQ(a.stats.ms.ahead > 0, v + 1 < path.size());
+    EXPECT_EQ(b.stats.ms.ahead, 0.0);
+    a.stats.ms = b.stats.ms = {};
+    EXPECT_EQ(a.stats.to_json(), b.stats.to_json());
+  }
+  // An expectation applies to the next frame alone: a statistics() frame in between spends it.
+  ahead->expect(path[0]);
+  FrameStats counted;
+  ASSERT_TRUE(ahead->statistics(path[1], 200, 150, counted, error)) << error;
+  Frame after = render(*ahead, path[0], 200, 150);
+  EXPECT_FALSE(after.stats.made_ahead);
+}
+
 TEST(RenderSnapshot, FramesAndTheReadViewSeeOneCommitUntilRefresh) {
   TempDir dir;
   const Object first = make_object("first", ObjectClass::equipment, {0, 0, 0}, Box{1, 1, 1});

@@ -11,13 +11,13 @@ std::string FrameStats::to_json() const {
   std::string levels;
   for (size_t l = 0; l < triangles_by_level.size(); ++l)
     levels += (l ? "," : "") + std::to_string(triangles_by_level[l]);
-  char times[440];
+  char times[480];
   std::snprintf(times, sizeof times,
                 "{\"cull\":%.3f,\"occlusion\":%.3f,\"depth_reduction\":%.3f,\"choose\":%.3f,"
                 "\"stream\":%.3f,\"arena_growth\":%.3f,\"cpu\":%.3f,\"draw\":%.3f,"
-                "\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
+                "\"ahead\":%.3f,\"read_back\":%.3f,\"encode\":%.3f,\"total\":%.3f}",
                 ms.cull, ms.occlusion, ms.depth_reduction, ms.choose, ms.stream, ms.arena_growth,
-                ms.cpu, ms.draw, ms.read_back, ms.encode, ms.total);
+                ms.cpu, ms.draw, ms.ahead, ms.read_back, ms.encode, ms.total);
   return "{\"objects_visible\":" + std::to_string(objects_visible) +
          ",\"objects_culled\":" + std::to_string(objects_culled) +
          ",\"objects_occluded\":" + std::to_string(objects_occluded) +
@@ -58,6 +58,7 @@ void report_times(const StageTimes& stages, double total_ms, FrameStats::Times& 
   ms.arena_growth = stages.arena_growth;
   ms.cpu = ms.cull + ms.occlusion + ms.choose + ms.stream;
   ms.draw = stages.draw;
+  ms.ahead = stages.ahead;
   ms.read_back = stages.read_back;
   ms.total = total_ms;
 }

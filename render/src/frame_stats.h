@@ -32,7 +32,7 @@ class Stopwatch {
 // The time of each stage of a frame, as measured.
 struct StageTimes {
   double cull = 0, occlusion = 0, depth_reduction = 0, decode = 0, choose = 0, stream = 0,
-         arena_growth = 0, index_lists = 0, draw = 0, read_back = 0;
+         arena_growth = 0, index_lists = 0, draw = 0, ahead = 0, read_back = 0;
 };
 // Into FrameStats::Times: decoding newly visible objects counts as streaming (reading the
 // store), and writing the index lists as choosing (the chosen levels' indices); cpu is the sum

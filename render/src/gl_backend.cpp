@@ -615,11 +615,16 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
   if (wait) glFinish();
 }
 
-void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_ids) {
+void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_ids, bool wait) {
   if (look.ground) draw_ground(view, look.model_bounds, with_ids);
   finish(view, frame_plan_, with_ids);
-  glFinish();
+  if (wait)
+    glFinish();
+  else
+    glFlush();  // so that the GPU (llvmpipe's threads) draws while the caller works
 }
+
+void GlBackend::wait() { glFinish(); }
 
 bool GlBackend::test_boxes(const FrameView& view, std::span<const glm::vec4> boxes,
                            std::vector<uint32_t>& seen, std::string& error) {

@@ -150,12 +150,13 @@ class GlBackend {
   // says, into the same framebuffer without clearing (`wait`: returns once the GPU has drawn
   // them); reduce_depth() reads what has been drawn back as a coarse depth grid;
   // finish_frame() draws the ground, finishes the image into the output's size and waits for
-  // the GPU.
+  // the GPU (`wait` false: sends it all to the GPU and returns; wait() then waits).
   bool begin_frame(const FrameView& view, const Look& look, bool with_ids, std::string& error);
   void draw_phase(const FrameView& view, const IndexCounts& counts,
                   std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
                   std::span<const uint64_t> pick_ids, const Look& look, bool with_ids, bool wait);
-  void finish_frame(const FrameView& view, const Look& look, bool with_ids);
+  void finish_frame(const FrameView& view, const Look& look, bool with_ids, bool wait = true);
+  void wait();
   // The depth drawn so far in the frame, reduced to cells_width x cells_height cells over the
   // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
   // was drawn) over every sample of every framebuffer pixel it overlaps. Between

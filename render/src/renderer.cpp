@@ -3,12 +3,15 @@
 // backend put what was chosen on the GPU, draw it and read it back. A drawn frame with
 // occlusion runs choose, stream and draw twice, or three times (occlusion.h: phases).
 #include <cmath>
+#include <optional>
+#include <utility>
 
 #include "arena_streaming.h"
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "frame_stats.h"
 #include "gl_backend.h"
+#include "plantview/camera.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -34,6 +37,26 @@ struct Renderer::State {
   std::vector<glm::vec4> test_boxes;  // and its exact test
   std::vector<uint32_t> boxes_seen;
   std::vector<uint32_t> blocks_ahead;  // the index blocks the cull will read, read ahead
+  // expect(): the next frame's camera; look_ahead() then makes that frame's start (its cull
+  // and occlusion's first phase, into `plan`, whose lists the frame drawn no longer needs) and
+  // notes for which frame, view and options, with its statistics so far.
+  std::optional<Camera> next_camera;
+  struct MadeAhead {
+    uint64_t frame = 0;
+    Camera camera;
+    uint32_t width = 0, height = 0;
+    RenderOptions options;
+    bool first_phase = false;  // occlusion's first phase made too (else the cull alone)
+    FrameStats stats;
+  };
+  std::optional<MadeAhead> made_ahead;
+  // The frame's start: the cull, and, for a two-phase frame (occlusion.h), the first phase's
+  // choice; taken from made_ahead if it was made for this frame, view and options.
+  bool start(const Camera& camera, const FrameView& frame_view, bool first_phase, bool exact,
+             FrameStats& stats, StageTimes& times, Stopwatch& clock, std::string& error);
+  // expect()'s work, once a frame's drawing is sent: the next frame's start made (made_ahead).
+  // A read error is left for that frame to meet (it starts afresh) and report.
+  void look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact);
 
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
@@ -50,6 +73,49 @@ struct Renderer::State {
              bool wait, FrameStats& stats, StageTimes& times, Stopwatch& clock,
              std::string& error);
 };
+
+void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact) {
+  const FrameView next_view = make_frame_view(next, w, h, view->spatial_origin());
+  MadeAhead made{frame_number + 1, next, w, h, options, FramePlan::two_phase(options), {}};
+  std::string ignored;
+  if (!plan.find_visible(*view, next_view, options, made.stats, ignored)) return;
+  if (made.first_phase && !plan.first_phase(objects, next_view, options, made.frame, exact,
+                                            made.stats, ignored))
+    return;
+  made_ahead = std::move(made);
+}
+
+bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, bool first_phase,
+                            bool exact, FrameStats& stats, StageTimes& times, Stopwatch& clock,
+                            std::string& error) {
+  const std::optional<MadeAhead> made = std::exchange(made_ahead, std::nullopt);
+  if (made && made->frame == frame_number && made->camera == camera &&
+      made->width == frame_view.width && made->height == frame_view.height &&
+      made->options == options && made->first_phase == first_phase) {
+    // What the cull and the first phase count.
+    stats.objects_visible = made->stats.objects_visible;
+    stats.objects_culled = made->stats.objects_culled;
+    stats.objects_subpixel = made->stats.objects_subpixel;
+    stats.objects_in_node_proxies = made->stats.objects_in_node_proxies;
+    stats.node_proxies = made->stats.node_proxies;
+    stats.node_proxy_pixels = made->stats.node_proxy_pixels;
+    stats.spatial_blocks_walked = made->stats.spatial_blocks_walked;
+    stats.spatial_blocks_held = made->stats.spatial_blocks_held;
+    stats.occluders = made->stats.occluders;
+    stats.made_ahead = true;
+    times.cull = clock.lap();
+    return true;
+  }
+  plan.blocks_ahead(*view, frame_view, options, blocks_ahead);
+  objects.read_blocks(blocks_ahead);
+  if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
+  times.cull = clock.lap();
+  if (first_phase &&
+      !plan.first_phase(objects, frame_view, options, frame_number, exact, stats, error))
+    return false;
+  times.occlusion = clock.lap();
+  return true;
+}
 
 bool Renderer::State::exact_test(const FrameView& frame_view, FrameStats& stats,
                                  StageTimes& times, Stopwatch& clock, std::string& error) {
@@ -74,6 +140,7 @@ bool Renderer::State::open_view(std::string& error) {
   bounds = statistics.bounds;
   objects.reset(*view);
   plan.reset_view();
+  made_ahead.reset();
   // A model larger than the budget at full resolution (one that will fill it) gets the whole
   // arena now: growing it later copies it, and the old and new buffers together would exceed
   // the budget for a moment. Smaller ones grow as they need (a new buffer costs zeroing it).
@@ -91,6 +158,8 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
                             bool with_ids, Image* out, FrameStats& stats, std::string& error) {
   Stopwatch clock;
   StageTimes times;
+  // expect()'s camera is for this frame's look ahead alone, drawn or not, failed or not.
+  const std::optional<Camera> next = std::exchange(next_camera, std::nullopt);
   stats = FrameStats{};
   stats.arena_bytes_budget = options.vertex_budget_bytes;
   if (w == 0 || h == 0 || w > kMaxImageSide || h > kMaxImageSide) {
@@ -107,18 +176,14 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 
   // Frontend: what is in the frustum, then what of it is hidden (occlusion.h), decoded where
   // new, at which level; streamed; drawn.
-  plan.blocks_ahead(*view, frame_view, options, blocks_ahead);
-  objects.read_blocks(blocks_ahead);
-  if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
-  times.cull = clock.lap();
-  if (draw && FramePlan::two_phase(options)) {
-    // What will mostly be visible drawn first; its depth reduced and read back; the rest
-    // tested against it and drawn into the same image.
-    // The exact test (render.h: OcclusionTest) where it pays: on a GPU unless told.
-    const bool exact = options.occlusion_test == OcclusionTest::exact ||
-                       (options.occlusion_test == OcclusionTest::automatic && !backend.software());
-    if (!plan.first_phase(objects, frame_view, options, frame_number, exact, stats, error)) return false;
-    times.occlusion = clock.lap();
+  // The exact test (render.h: OcclusionTest) where it pays: on a GPU unless told.
+  const bool exact = options.occlusion_test == OcclusionTest::exact ||
+                     (options.occlusion_test == OcclusionTest::automatic && !backend.software());
+  const bool two_phase = draw && FramePlan::two_phase(options);
+  if (!start(camera, frame_view, two_phase, exact, stats, times, clock, error)) return false;
+  if (two_phase) {
+    // What will mostly be visible drawn first (start(): the first phase's choice); its depth
+    // reduced and read back; the rest tested against it and drawn into the same image.
     if (!phase(frame_view, drawn, with_ids, false, true, stats, times, clock, error)) return false;
     const auto [cells_width, cells_height] = plan.occlusion_cells();
     if (!backend.reduce_depth(cells_width, cells_height, reduced_depth, error)) return false;
@@ -154,8 +219,15 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 
   // Backend: the ground, finishing and read back (render() only).
   if (draw) {
-    backend.finish_frame(frame_view, look, with_ids);
+    // With the next view expected, its start is made while the GPU draws this one.
+    backend.finish_frame(frame_view, look, with_ids, !next);
     times.draw += clock.lap();
+    if (next) {
+      look_ahead(*next, w, h, exact);
+      times.ahead = clock.lap();
+      backend.wait();
+      times.draw += clock.lap();
+    }
     if (!backend.read_back(w, h, with_ids, streaming.table().pick_ids(), *out, error)) return false;
     times.read_back = clock.lap();
   }
@@ -213,6 +285,11 @@ std::unique_ptr<Renderer> Renderer::create(const Store& store, const RenderOptio
 bool Renderer::render(const Camera& camera, uint32_t width, uint32_t height, bool with_ids,
                       Image& out, FrameStats& stats, std::string& error) {
   return state_->frame(camera, width, height, true, with_ids, &out, stats, error);
+}
+
+void Renderer::expect(const Camera& next) {
+  std::string ignored;
+  if (validate_camera(next, ignored)) state_->next_camera = next;
 }
 
 bool Renderer::statistics(const Camera& camera, uint32_t width, uint32_t height,

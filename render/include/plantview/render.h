@@ -175,6 +175,8 @@ struct RenderOptions {
                                                    // is drawn first (conservative: nothing
                                                    // visible is ever left out; step 1b)
   OcclusionTest occlusion_test = OcclusionTest::automatic;
+
+  bool operator==(const RenderOptions&) const = default;
 };
 
 struct FrameStats {
@@ -210,6 +212,7 @@ struct FrameStats {
   uint64_t spatial_blocks_walked = 0, spatial_blocks_held = 0;
   uint64_t objects_known = 0;
   uint64_t residency_bytes = 0;
+  bool made_ahead = false;  // this frame's start was made while the one before drew (expect)
   // cpu: the frame's CPU work, cull + occlusion + choose + stream (each part as measured, all
   // phases together; choose includes writing the index lists, stream decoding new objects;
   // occlusion is choosing the first phase and testing the rest). depth_reduction: occlusion's
@@ -218,10 +221,14 @@ struct FrameStats {
   // includes the earlier phases' drawing. arena_growth: the part of
   // stream spent growing the GPU vertex arena (a buffer twice the size, the old one copied
   // in): rare, and on a software renderer mostly the first touch of the new memory, which
-  // the operating system pays page by page.
+  // the operating system pays page by page. ahead: Renderer::expect()'s work for the next view
+  // (its cull and occlusion's first phase), done once this frame's drawing is sent, while the
+  // GPU draws it: in total (the image is read back after it), not in cpu (this frame's path to
+  // the GPU). The next frame, which takes it, then reports cull near 0 and occlusion without
+  // its first phase.
   struct Times {
     double cull = 0, occlusion = 0, depth_reduction = 0, choose = 0, stream = 0,
-           arena_growth = 0, cpu = 0, draw = 0, read_back = 0,
+           arena_growth = 0, cpu = 0, draw = 0, ahead = 0, read_back = 0,
            encode = 0, total = 0;
   } ms;
   // One JSON object (one line): the fields above, times under "ms".
@@ -281,6 +288,15 @@ class Renderer {
   // is left to the caller).
   bool render(const Camera& camera, uint32_t width, uint32_t height, bool with_ids, Image& out,
               FrameStats& stats, std::string& error);
+  // The camera of the render() after the next one, where it is known (a path, a batch of
+  // views): the next render(), once its drawing is sent, makes the start of that view's frame
+  // while the GPU draws (its cull and occlusion's first phase: FrameStats::ms.ahead), and the
+  // render() after takes it if it is for the same camera, size and options (else it starts
+  // afresh). Images and counts are the same with or without it. Applies to the next render()
+  // alone; an invalid camera is ignored. (Decoding and tessellating that view's new objects
+  // ahead as well was measured and not kept: a third to four fifths of them turn out hidden,
+  // and on a software renderer that work takes the cores the drawing needs.)
+  void expect(const Camera& next);
   // Culls and chooses levels without drawing (LOD statistics for a view). It streams like a
   // frame, so the arena is left as render() would leave it.
   bool statistics(const Camera& camera, uint32_t width, uint32_t height, FrameStats& stats,
