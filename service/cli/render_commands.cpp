@@ -362,6 +362,7 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
   ImageWriter writer(plan.format, a.quality);
   for (size_t i = plan.shard_index; i < cameras.size() && write_error.empty(); i += plan.shard_count) {
     Image image = writer.take_buffer();
+    if (i + plan.shard_count < cameras.size()) session.renderer->expect(cameras[i + plan.shard_count]);
     if (!session.renderer->render(cameras[i], plan.width, plan.height, false, image, stats, error))
       return fail("view " + std::to_string(i) + ": " + error);
     std::string file = a.out;
@@ -520,6 +521,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       FrameStats stats;
       Image image = writer.take_buffer();
       session.renderer->set_options(review_render_options(plan.options, view));
+      if (n + 1 < to_render.size()) session.renderer->expect(views[to_render[n + 1]].camera);
       bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
       const auto t_caption = std::chrono::steady_clock::now();
       ok = ok && add_review_caption(image, view, error);
