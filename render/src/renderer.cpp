@@ -92,16 +92,10 @@ bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, b
   if (made && made->frame == frame_number && made->camera == camera &&
       made->width == frame_view.width && made->height == frame_view.height &&
       made->options == options && made->first_phase == first_phase) {
-    // What the cull and the first phase count.
-    stats.objects_visible = made->stats.objects_visible;
-    stats.objects_culled = made->stats.objects_culled;
-    stats.objects_subpixel = made->stats.objects_subpixel;
-    stats.objects_in_node_proxies = made->stats.objects_in_node_proxies;
-    stats.node_proxies = made->stats.node_proxies;
-    stats.node_proxy_pixels = made->stats.node_proxy_pixels;
-    stats.spatial_blocks_walked = made->stats.spatial_blocks_walked;
-    stats.spatial_blocks_held = made->stats.spatial_blocks_held;
-    stats.occluders = made->stats.occluders;
+    // What the cull and the first phase counted (made from fresh statistics, as this frame's).
+    const uint64_t budget_bytes = stats.arena_bytes_budget;
+    stats = made->stats;
+    stats.arena_bytes_budget = budget_bytes;
     stats.made_ahead = true;
     times.cull = clock.lap();
     return true;

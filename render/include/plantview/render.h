@@ -294,7 +294,7 @@ class Renderer {
   // render() after takes it if it is for the same camera, size and options (else it starts
   // afresh). Images and counts are the same with or without it. Applies to the next render()
   // alone; an invalid camera is ignored. (Decoding and tessellating that view's new objects
-  // ahead as well was measured and not kept: a third to four fifths of them turn out hidden,
+  // ahead as well was measured and not kept: two fifths to five sixths of them went unused,
   // and on a software renderer that work takes the cores the drawing needs.)
   void expect(const Camera& next);
   // Culls and chooses levels without drawing (LOD statistics for a view). It streams like a
