@@ -7,10 +7,14 @@
 #include <gtest/gtest.h>
 #include <lmdb.h>
 
+#include <algorithm>
+#include <random>
+#include <unordered_map>
 #include <vector>
 
 #include "decoded_objects.h"
 #include "frame_plan.h"
+#include "hlod.h"
 #include "occlusion.h"
 #include "plantview/camera.h"
 #include "plantview/generate.h"
@@ -93,6 +97,67 @@ TEST_F(PipelineWorkers, RunsFoundOnWorkersAreThoseOfOneThread) {
   size_t reading_views = 0;
   EXPECT_GT(compare_runs(*view_, 3, reading_views), 1000u) << "the plant must have pipeline runs";
   EXPECT_EQ(reading_views, 3u) << "every worker reads through a view of its own";
+}
+
+// A renderer analyses only the stretch of a branch about each member it meets (up to the
+// members that end runs): meeting the plant's objects a few at a time, in any order, on the
+// workers, it finds for every member the run that its whole branch, analysed at once, gives.
+TEST_F(PipelineWorkers, RunsFoundStretchByStretchInAnyOrderAreThoseOfWholeBranches) {
+  std::string error;
+  const uint32_t slots = view_->slot_count();
+  std::unordered_map<uint32_t, std::vector<uint32_t>> expected;  // member slot -> its run
+  size_t pipelines = 0;
+  for (uint32_t slot = 0; slot < slots; ++slot) {
+    Object pipeline;
+    ASSERT_TRUE(view_->object(slot, pipeline, false, error)) << error;
+    if (pipeline.object_class != ObjectClass::pipeline) continue;
+    pipelines += 1;
+    for (const Branch& b : pipeline.branches) {
+      std::vector<Object> members(b.members.size());
+      std::vector<std::pair<uint32_t, const Object*>> branch;
+      for (size_t i = 0; i < b.members.size(); ++i) {
+        const auto s = view_->slot_of(b.members[i]);
+        ASSERT_TRUE(s) << "member " << b.members[i];
+        ASSERT_TRUE(view_->object(*s, members[i], false, error)) << error;
+        branch.emplace_back(*s, &members[i]);
+      }
+      std::vector<detail::PipelineRun> runs;
+      detail::find_runs(branch, runs);
+      for (const auto& run : runs)
+        for (const uint32_t m : run.members) expected[m] = run.members;
+    }
+  }
+  ASSERT_GT(pipelines, 10u);
+  ASSERT_GT(expected.size(), 1000u) << "the plant must have pipeline runs";
+
+  std::vector<uint32_t> order(slots);
+  for (uint32_t s = 0; s < slots; ++s) order[s] = s;
+  std::mt19937 random(7);
+  std::shuffle(order.begin(), order.end(), random);
+  detail::WorkerPool pool(3);
+  detail::DecodedObjects objects(&pool);
+  objects.reset(*view_);
+  std::vector<detail::VisibleObject> frame;
+  for (size_t i = 0; i < order.size(); ++i) {
+    frame.push_back(detail::VisibleObject{order[i], {}, {}, 0.0, 0.0, 0, 0});
+    if (frame.size() < 37 && i + 1 < order.size()) continue;
+    ASSERT_TRUE(objects.decode(frame, true, error)) << error;
+    frame.clear();
+  }
+  size_t in_runs = 0;
+  for (uint32_t slot = 0; slot < slots; ++slot) {
+    const detail::Known* k = objects.find(slot);
+    ASSERT_TRUE(k) << "slot " << slot;
+    const auto it = expected.find(slot);
+    if (it == expected.end()) {
+      EXPECT_LT(k->run, 0) << "slot " << slot << " is in no run of its branch";
+      continue;
+    }
+    ASSERT_GE(k->run, 0) << "slot " << slot << " is in a run of its branch";
+    EXPECT_EQ(objects.run(uint32_t(k->run)).members, it->second) << "slot " << slot;
+    in_runs += 1;
+  }
+  EXPECT_EQ(in_runs, expected.size());
 }
 
 TEST_F(PipelineWorkers, AfterAnImportCommittedTheRenderersThreadReadsAloneAndFindsTheSameRuns) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <deque>
 #include <cassert>
 #include <mutex>
 #include <optional>
@@ -66,9 +67,6 @@ bool in_pipeline(ObjectClass object_class, uint64_t pipeline_id) {
          (object_class == ObjectClass::pipe || object_class == ObjectClass::component);
 }
 
-void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
-                        std::vector<PipelineRun>& runs);
-
 }  // namespace
 
 Known* DecodedObjects::find(uint32_t key) { return directory_.find(key); }
@@ -98,8 +96,8 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
     if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
   }
   std::sort(new_slots_.begin(), new_slots_.end());
-  analysed_.clear();
-  analysed_runs_.clear();
+  stretches_.clear();
+  stretch_of_.clear();
   for (size_t i = 0; i < new_slots_.size(); ++i) {
     // Read in waves, on the workers, with the pipelines they meet analysed (read_wave).
     const size_t in_wave = i % kNewObjectsPerWave;
@@ -111,29 +109,21 @@ bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
     const uint32_t slot = new_slots_[i];
     Known& k = add(slot, wave_objects_[in_wave], false);
     if (!hlod || !in_pipeline(k.object_class, k.pipeline_id)) continue;
-    auto it = pipeline_runs_.find(k.pipeline_id);
-    if (it == pipeline_runs_.end()) {
-      // Met first: its runs added now, in the order pipelines are met (so run indices do not
-      // depend on the thread count), and the members known told theirs; those added after
-      // find theirs below.
-      const auto analysed = analysed_.find(k.pipeline_id);
-      assert(analysed != analysed_.end());  // (read_wave analysed every pipeline it met)
-      if (analysed != analysed_.end()) {
-        add_pipeline(k.pipeline_id, *analysed->second);
-      } else {
-        std::vector<PipelineRun> runs;
-        find_pipeline_runs(*view_, k.pipeline_id, slot, runs);
-        add_pipeline(k.pipeline_id, runs);
+    if (analysed(k.pipeline_id, slot)) {
+      for (const uint32_t r : pipeline_runs_.find(k.pipeline_id)->second.runs) {
+        const auto& members = runs_[r].members;
+        if (std::find(members.begin(), members.end(), slot) != members.end()) {
+          k.run = int32_t(r);
+          break;
+        }
       }
       continue;
     }
-    for (const uint32_t r : it->second) {
-      const auto& members = runs_[r].members;
-      if (std::find(members.begin(), members.end(), slot) != members.end()) {
-        k.run = int32_t(r);
-        break;
-      }
-    }
+    // Its stretch met first now: its runs added now, in the order stretches are met (so run
+    // indices do not depend on the thread count), and the members known told theirs (this
+    // one too); those added after find theirs above. (None: it ends runs, an elbow or a tee.)
+    const auto stretch = stretch_of_.find(slot);
+    if (stretch != stretch_of_.end() && !stretch->second->added) add_stretch(*stretch->second);
   }
   // The new ones' Known (the pool's growth moves none).
   if (!new_slots_.empty())
@@ -267,20 +257,41 @@ namespace {
 // frame, and looked up 4,500 ids; now none).
 inline constexpr uint32_t kPipelineGapSlots = 24;
 
-// The runs of one pipeline, read through `view` (none if the pipeline or all its members cannot
-// be read: such a pipeline is simply not merged). `member_slot`: one of its members.
-void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
-                        std::vector<PipelineRun>& runs) {
-  runs.clear();
-  std::string ignored;  // (a slot that cannot be read is left to the lookups)
+// The slot of member `id`: from `near` (sorted (id, slot) pairs found about the member), else
+// looked up in the ids table.
+std::optional<uint32_t> member_slot_of(const ReadView& view,
+                                       const std::vector<std::pair<uint64_t, uint32_t>>& near,
+                                       uint64_t id) {
+  const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>{id, 0});
+  if (it != near.end() && it->first == id) return it->second;
+  return view.slot_of(id);
+}
+
+// Scratch of find_stretch_runs, kept by the caller across calls (its vectors keep their room).
+struct StretchScratch {
   Object pipeline;
+  std::vector<uint64_t> listed;
+  std::vector<std::pair<uint64_t, uint32_t>> near;
+  std::deque<Object> before, after;  // the stretch's members before and after the one met
+  std::vector<uint32_t> slots_before, slots_after;
+  std::vector<std::pair<uint32_t, const Object*>> branch;
+};
+
+// Reads pipeline `pipeline_id` into scratch.pipeline, and the slots of its members found about
+// `member_slot` into scratch.near (sorted). False if it cannot be read.
+bool find_pipeline(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
+                   StretchScratch& scratch) {
+  std::string ignored;  // (a slot that cannot be read is left to the lookups)
+  Object& pipeline = scratch.pipeline;
   std::optional<uint32_t> pipeline_slot;
-  std::vector<uint64_t> listed;  // the members the pipeline lists, sorted (once it is read)
-  size_t found = 0;              // ... of which found
+  std::vector<uint64_t>& listed = scratch.listed;  // the members it lists, sorted (once read)
+  listed.clear();
+  size_t found = 0;  // ... of which found
   const auto is_listed = [&](uint64_t id) {
     return std::binary_search(listed.begin(), listed.end(), id);
   };
-  std::vector<std::pair<uint64_t, uint32_t>> near;  // (id, slot) of its members found
+  auto& near = scratch.near;
+  near.clear();
   const int64_t end = view.slot_count();
   for (const int step : {1, -1}) {
     uint32_t gap = 0;
@@ -291,13 +302,13 @@ void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t mem
       if (!view.object_key(uint32_t(s), id, pipeline_of, ignored)) {
         ++gap;
       } else if (id == pipeline_id) {
-        if (!view.object(uint32_t(s), pipeline, false, ignored)) return;
+        if (!view.object(uint32_t(s), pipeline, false, ignored)) return false;
         pipeline_slot = uint32_t(s);
         for (const Branch& b : pipeline.branches)
           listed.insert(listed.end(), b.members.begin(), b.members.end());
         std::sort(listed.begin(), listed.end());
         listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
-        for (const auto& [member, at] : near) found += is_listed(member);
+        for (const auto& [m, at] : near) found += is_listed(m);
         gap = 0;
       } else if (pipeline_of == pipeline_id) {
         near.emplace_back(id, uint32_t(s));
@@ -310,34 +321,70 @@ void find_pipeline_runs(const ReadView& view, uint64_t pipeline_id, uint32_t mem
   }
   if (!pipeline_slot) {
     const auto slot = view.slot_of(pipeline_id);
-    if (!slot || !view.object(*slot, pipeline, false, ignored)) return;
+    if (!slot || !view.object(*slot, pipeline, false, ignored)) return false;
   }
   std::sort(near.begin(), near.end());
-  const auto slot_of = [&](uint64_t id) -> std::optional<uint32_t> {
-    const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>{id, 0});
-    if (it != near.end() && it->first == id) return it->second;
-    return view.slot_of(id);
-  };
-  std::vector<Object> members;
-  std::vector<uint32_t> slots;
-  std::vector<std::pair<uint32_t, const Object*>> branch;
+  return true;
+}
+
+// The stretch of `member` (in `member_slot`, of pipeline `pipeline_id`, not ending runs: see
+// ends_runs) and its runs, read through `view`: its members from the one met back and forth
+// along its branch to the members that end runs (or the branch's ends), skipping those that
+// cannot be read. Without the pipeline, or with the member in none of its branches, the
+// stretch is the member alone, with no runs (such a pipeline is simply not merged).
+void find_stretch_runs(const ReadView& view, uint64_t pipeline_id, const Object& member,
+                       uint32_t member_slot, StretchScratch& scratch, std::vector<uint32_t>& slots,
+                       std::vector<PipelineRun>& runs) {
+  slots.assign(1, member_slot);
+  runs.clear();
+  std::string ignored;  // (a slot that cannot be read is left to the lookups)
+  Object& pipeline = scratch.pipeline;
+  auto& near = scratch.near;  // (id, slot) of its members found, sorted
+  if (!find_pipeline(view, pipeline_id, member_slot, scratch)) return;
+  // The member's place: the first branch that lists it.
+  const Branch* branch = nullptr;
+  size_t at = 0;
   for (const Branch& b : pipeline.branches) {
-    members.clear();
-    members.reserve(b.members.size());
-    slots.clear();
-    for (const uint64_t id : b.members) {
-      members.emplace_back();
-      const auto s = slot_of(id);
-      if (!s || !view.object(*s, members.back(), false, ignored)) {
-        members.pop_back();
+    const auto it = std::find(b.members.begin(), b.members.end(), member.id);
+    if (it == b.members.end()) continue;
+    branch = &b;
+    at = size_t(it - b.members.begin());
+    break;
+  }
+  if (!branch) return;
+  // Each way from it, up to a member that ends runs.
+  const auto walk = [&](std::deque<Object>& objects, std::vector<uint32_t>& object_slots, int step) {
+    objects.clear();
+    object_slots.clear();
+    for (int64_t j = int64_t(at) + step; j >= 0 && j < int64_t(branch->members.size()); j += step) {
+      const auto s = member_slot_of(view, near, branch->members[size_t(j)]);
+      if (!s) continue;
+      Object& o = objects.emplace_back();
+      if (!view.object(*s, o, false, ignored)) {
+        objects.pop_back();
         continue;
       }
-      slots.push_back(*s);
+      if (ends_runs(o)) {
+        objects.pop_back();
+        break;
+      }
+      object_slots.push_back(*s);
     }
-    branch.clear();
-    for (size_t i = 0; i < members.size(); ++i) branch.emplace_back(slots[i], &members[i]);
-    find_runs(branch, runs);
-  }
+  };
+  walk(scratch.before, scratch.slots_before, -1);
+  walk(scratch.after, scratch.slots_after, 1);
+  auto& members = scratch.branch;
+  members.clear();
+  for (size_t i = scratch.before.size(); i-- > 0;)
+    members.emplace_back(scratch.slots_before[i], &scratch.before[i]);
+  members.emplace_back(member_slot, &member);
+  for (size_t i = 0; i < scratch.after.size(); ++i)
+    members.emplace_back(scratch.slots_after[i], &scratch.after[i]);
+  find_runs(members, runs);
+  slots.clear();
+  for (const auto& [s, o] : members) slots.push_back(s);
+  std::sort(slots.begin(), slots.end());
+  slots.erase(std::unique(slots.begin(), slots.end()), slots.end());
 }
 
 }  // namespace
@@ -374,25 +421,35 @@ void DecodedObjects::read_wave(size_t first, bool hlod) {
   wave_errors_.resize(parts);
   std::mutex claims;
   on_views(parts, [&](size_t part, const ReadView& view) {
+    StretchScratch scratch;
+    std::vector<uint32_t> slots;
+    std::vector<PipelineRun> runs;
     // A part stops at its first object that cannot be read (decode() stops there).
     for (size_t i = part * per_part; i < std::min(count, (part + 1) * per_part); ++i) {
       const Object& o = wave_objects_[i];
       if (!view.object(new_slots_[first + i], wave_objects_[i], false, wave_errors_[part])) break;
       wave_read_[i] = 1;
-      // Its pipeline analysed now, through the view that just read it, if no part has taken it
-      // yet: its members lie in the slots about this one, whose chunks that view holds
-      // decompressed (analysed after the whole wave, they were decompressed again).
-      // (pipeline_runs_ is only read while the parts run.)
-      if (!hlod || !in_pipeline(o.object_class, o.pipeline_id) || pipeline_runs_.count(o.pipeline_id))
+      // Its stretch analysed now, through the view that just read it, if it may lie in a run and
+      // no part has taken it yet: its pipeline and neighbours lie in the slots about this one,
+      // whose chunks that view holds decompressed (analysed after the whole wave, they were
+      // decompressed again). (pipeline_runs_ is only read while the parts run; stretches_
+      // and stretch_of_ are written under the lock.)
+      const uint32_t slot = new_slots_[first + i];
+      if (!hlod || !in_pipeline(o.object_class, o.pipeline_id) || analysed(o.pipeline_id, slot) ||
+          ends_runs(o))
         continue;
-      std::vector<PipelineRun>* runs = nullptr;
       {
         std::lock_guard<std::mutex> lock(claims);
-        const auto [it, claimed] = analysed_.try_emplace(o.pipeline_id, nullptr);
-        if (!claimed) continue;
-        it->second = runs = &analysed_runs_.emplace_back();
+        if (stretch_of_.count(slot)) continue;  // a neighbour's stretch, found already
       }
-      find_pipeline_runs(view, o.pipeline_id, new_slots_[first + i], *runs);
+      find_stretch_runs(view, o.pipeline_id, o, slot, scratch, slots, runs);
+      std::lock_guard<std::mutex> lock(claims);
+      if (stretch_of_.count(slot)) continue;  // found meanwhile by another part
+      Stretch& stretch = stretches_.emplace_back();
+      stretch.pipeline_id = o.pipeline_id;
+      stretch.slots = slots;
+      stretch.runs = std::move(runs);
+      for (const uint32_t s : stretch.slots) stretch_of_.try_emplace(s, &stretch);
     }
   });
 }
@@ -418,17 +475,27 @@ void DecodedObjects::make_sibling_views() {
   }
 }
 
-void DecodedObjects::add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs) {
-  std::vector<uint32_t>& run_indices = pipeline_runs_[pipeline_id];
-  run_indices.clear();
-  for (PipelineRun& run : runs) {
-    run.pipeline_id = pipeline_id;
+void DecodedObjects::add_stretch(Stretch& stretch) {
+  PipelineKnown& pipeline = pipeline_runs_[stretch.pipeline_id];
+  for (PipelineRun& run : stretch.runs) {
+    run.pipeline_id = stretch.pipeline_id;
     const uint32_t r = new_run(std::move(run));
-    run_indices.push_back(r);
+    pipeline.runs.push_back(r);
     for (const uint32_t m : runs_[r].members)
       if (Known* k = directory_.find(m)) k->run = int32_t(r);
   }
-  runs.clear();
+  stretch.runs.clear();
+  const size_t before = pipeline.analysed.size();
+  pipeline.analysed.insert(pipeline.analysed.end(), stretch.slots.begin(), stretch.slots.end());
+  std::inplace_merge(pipeline.analysed.begin(), pipeline.analysed.begin() + ptrdiff_t(before),
+                     pipeline.analysed.end());
+  stretch.added = true;
+}
+
+bool DecodedObjects::analysed(uint64_t pipeline_id, uint32_t slot) const {
+  const auto it = pipeline_runs_.find(pipeline_id);
+  return it != pipeline_runs_.end() &&
+         std::binary_search(it->second.analysed.begin(), it->second.analysed.end(), slot);
 }
 
 uint32_t DecodedObjects::new_run(PipelineRun&& run) {
@@ -459,7 +526,7 @@ void DecodedObjects::forget_pipelines() {
       ++it;
       continue;
     }
-    for (const uint32_t r : it->second) {
+    for (const uint32_t r : it->second.runs) {
       runs_[r] = PipelineRun{};
       free_runs_.push_back(r);
     }

@@ -10,11 +10,15 @@
 //     always keep them, and others keep them unless the renderer drops them (models larger than
 //     the arena budget), in which case they are decoded again when tessellated again.
 //   - The cache is bounded: forget_old() keeps the resident objects and kKnownObjectsKept more.
-//   - A pipeline is analysed for runs the first time one of its pipes or components is decoded
-//     (with HLOD on), as soon as it is read, through the view that read it: its members lie in
-//     the slots about it, whose chunks that view still holds decompressed (analysed once the
-//     frame's objects were all read, they were decompressed again: x100 walk, 39% fewer chunk
-//     inflations). A pipeline that cannot be read simply has no runs.
+//   - Runs are found stretch by stretch (hlod.h: a member that ends runs, such as an elbow or a
+//     tee, parts a branch into stretches whose runs do not depend on each other). A pipe or
+//     component that may lie in a run has its stretch analysed the first time it is decoded
+//     (with HLOD on), as soon as it is read, through the view that read it: its pipeline and
+//     the stretch's members lie in the slots about it, whose chunks that view still holds
+//     decompressed (analysed once the frame's objects were all read, they were decompressed
+//     again: x100 walk, 39% fewer chunk inflations). Only that stretch's members are decoded,
+//     not the whole pipeline's (x100 walk: about 20,000 decodes a frame against 105,000; most
+//     of a pipeline lies outside the view). A stretch that cannot be read simply has no runs.
 //   - The runs are bounded too: a pipeline none of whose members or runs is known any more is
 //     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
 //     as many as the last time, are known. So a service that walks a whole site keeps the runs
@@ -28,8 +32,8 @@
 // Keys: a Known is found by its residency key: the object's slot, or kRunKeyBit | run index.
 // Threads: the renderer's thread. New objects are read and pipelines analysed on its worker
 //   pool, each worker reading the store through a view of its own and writing only its own
-//   parts' objects and the runs of the pipelines it claimed (each claimed once, under a lock);
-//   what is read is added on the renderer's thread, in slot order, and a pipeline's runs when
+//   parts' objects and the runs of the stretches it claimed (each claimed once, under a lock);
+//   what is read is added on the renderer's thread, in slot order, and a stretch's runs when
 //   its first member is added (so run indices do not depend on the thread count).
 #pragma once
 
@@ -247,8 +251,17 @@ class DecodedObjects {
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
   // A fresh Known for `key` (not known), from the pool.
   Known& insert(uint32_t key);
-  // Adds the runs found for `pipeline_id` and tells the known members which is theirs.
-  void add_pipeline(uint64_t pipeline_id, std::vector<PipelineRun>& runs);
+  // A stretch of one branch analysed this decode(): its members' slots (sorted) and its runs.
+  struct Stretch {
+    uint64_t pipeline_id = 0;
+    std::vector<uint32_t> slots;
+    std::vector<PipelineRun> runs;
+    bool added = false;
+  };
+  // Adds a stretch's runs, marks its members analysed and tells the known ones their run.
+  void add_stretch(Stretch& stretch);
+  // Whether the stretch of the member in `slot` of `pipeline_id` was analysed before.
+  bool analysed(uint64_t pipeline_id, uint32_t slot) const;
   // The worker views (views_[0] is the renderer's own); fewer than the pool's workers when
   // siblings cannot be had (the store moved on, or no reader slot left).
   void make_sibling_views();
@@ -259,8 +272,8 @@ class DecodedObjects {
   // Reads the objects of new_slots_[first..] (up to kNewObjectsPerWave) into wave_objects_,
   // setting wave_read_ for each read (a part's first failure: its wave_errors_ entry, and the
   // rest of that part left unread).
-  // hlod: also analyses the pipelines of the pipes and components read that are not analysed
-  // yet, each once, through the view that read it (into analysed_).
+  // hlod: also analyses the stretches of the pipes and components read that may lie in a run
+  // and were not analysed yet, each once, through the view that read it (into stretches_).
   void read_wave(size_t first, bool hlod);
   // A run index for a new run: a freed one, or a new one at the end.
   uint32_t new_run(PipelineRun&& run);
@@ -294,18 +307,22 @@ class DecodedObjects {
   KnownDirectory directory_;
   std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans_;  // few: per template and winding
   // Pipeline HLOD: the runs (a deque: growing it copies nothing; a forgotten pipeline's run
-  // indices go to free_runs_ and are reused), this frame's decision per run, and the pipelines
-  // analysed with their runs' indices (a member finds its run there: a pipeline has few runs,
-  // and a map by member would cost 40 bytes a member).
+  // indices go to free_runs_ and are reused), this frame's decision per run, and per pipeline
+  // the runs' indices and the members whose stretch was analysed (a member finds its run
+  // there: a pipeline has few runs, and a map by member would cost 40 bytes a member).
+  struct PipelineKnown {
+    std::vector<uint32_t> runs;
+    std::vector<uint32_t> analysed;  // slots, sorted
+  };
   std::deque<PipelineRun> runs_;
   std::vector<RunDecision> decisions_;
   std::vector<uint32_t> free_runs_;
-  std::unordered_map<uint64_t, std::vector<uint32_t>> pipeline_runs_;
+  std::unordered_map<uint64_t, PipelineKnown> pipeline_runs_;
   size_t pipelines_referenced_ = 0;  // at the last forget_pipelines()
-  // The pipelines this decode() met that were not analysed before, and their runs (read_wave;
-  // added by decode() in the order met).
-  std::unordered_map<uint64_t, std::vector<PipelineRun>*> analysed_;
-  std::deque<std::vector<PipelineRun>> analysed_runs_;
+  // The stretches this decode() analysed, and the stretch of each of their members (read_wave;
+  // added by decode() in the order their first members are added).
+  std::deque<Stretch> stretches_;
+  std::unordered_map<uint32_t, Stretch*> stretch_of_;
   std::vector<uint32_t> new_slots_;
   size_t part_size_ = kNewObjectsPerPart;  // read_wave()'s, for decode() to find a part's error
   std::vector<Object> wave_objects_;

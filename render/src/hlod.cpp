@@ -73,11 +73,59 @@ struct Open {
   PipelineRun run;
 };
 
+// What find_runs needs of a member: its axis points, its diameter, whether it may lie in a run
+// at all, and the line through its two farthest-apart points (has_own_line: false where they
+// are closer than the tolerance).
+struct MemberAxis {
+  std::vector<glm::dvec3> points;
+  float diameter_m = 0;
+  double tolerance_m = 0;
+  bool straight = false;
+  bool has_own_line = false;
+  Line3 own_line{};
+  double own_length_m = 0;
+  bool fits(const Line3& line) const {
+    for (const auto& p : points)
+      if (line.distance(p) > tolerance_m) return false;
+    return true;
+  }
+};
+
+void member_axis(const Object& o, MemberAxis& a) {
+  axis_points(o, a.points);
+  a.diameter_m = member_diameter(o);
+  a.straight = o.connections.size() <= 2 && !a.points.empty() && a.diameter_m > 0;
+  // Every connection at one diameter: a reducer changes it.
+  for (const auto& c : o.connections)
+    if (c.diameter_m > 0 && std::abs(c.diameter_m - a.diameter_m) > 0.02f * a.diameter_m)
+      a.straight = false;
+  a.tolerance_m = std::max(0.001, 0.01 * double(a.diameter_m));
+  a.has_own_line = false;
+  if (!a.straight) return;
+  glm::dvec3 p = a.points.front(), q = a.points.front();
+  for (const auto& x : a.points)
+    if (glm::length(x - p) > glm::length(q - p)) q = x;
+  if (glm::length(q - p) <= a.tolerance_m) return;
+  a.own_line = {p, glm::normalize(q - p)};
+  a.own_length_m = glm::length(q - p);
+  a.has_own_line = true;
+}
+
+// A member that ends every run: not straight, or with a line of its own that its points do
+// not fit (an elbow).
+bool ends_runs(const MemberAxis& a) { return !a.straight || (a.has_own_line && !a.fits(a.own_line)); }
+
 }  // namespace
+
+bool ends_runs(const Object& member) {
+  MemberAxis a;
+  member_axis(member, a);
+  return ends_runs(a);
+}
 
 void find_runs(const std::vector<std::pair<uint32_t, const Object*>>& branch,
                std::vector<PipelineRun>& out) {
-  std::vector<glm::dvec3> points;
+  MemberAxis axis;
   bool open = false;
   Open current;
   const auto close = [&] {
@@ -94,21 +142,14 @@ void find_runs(const std::vector<std::pair<uint32_t, const Object*>>& branch,
   };
   for (const auto& [slot, object] : branch) {
     const Object& o = *object;
-    axis_points(o, points);
-    const float diameter = member_diameter(o);
-    bool straight = o.connections.size() <= 2 && !points.empty() && diameter > 0;
-    // Every connection at one diameter: a reducer changes it.
-    for (const auto& c : o.connections)
-      if (c.diameter_m > 0 && std::abs(c.diameter_m - diameter) > 0.02f * diameter) straight = false;
-    const double tolerance = std::max(0.001, 0.01 * double(diameter));
-    const auto fits = [&](const Line3& line) {
-      for (const auto& p : points)
-        if (line.distance(p) > tolerance) return false;
-      return true;
-    };
-    if (open && straight && std::abs(diameter - current.diameter_m) <= 0.02f * current.diameter_m &&
-        fits(current.line)) {
-      for (const auto& p : points) {
+    member_axis(o, axis);
+    if (ends_runs(axis)) {
+      close();
+      continue;
+    }
+    if (open && std::abs(axis.diameter_m - current.diameter_m) <= 0.02f * current.diameter_m &&
+        axis.fits(current.line)) {
+      for (const auto& p : axis.points) {
         current.t_min = std::min(current.t_min, current.line.along(p));
         current.t_max = std::max(current.t_max, current.line.along(p));
       }
@@ -118,18 +159,13 @@ void find_runs(const std::vector<std::pair<uint32_t, const Object*>>& branch,
       continue;
     }
     close();
-    if (!straight) continue;
-    // Start a run on this member's own line: its two farthest-apart axis points.
-    glm::dvec3 a = points.front(), b = points.front();
-    for (const auto& p : points)
-      if (glm::length(p - a) > glm::length(b - a)) b = p;
-    if (glm::length(b - a) <= tolerance) continue;
-    current.line = {a, glm::normalize(b - a)};
-    if (!fits(current.line)) continue;
+    // Start a run on this member's own line.
+    if (!axis.has_own_line) continue;
     open = true;
-    current.diameter_m = diameter;
+    current.line = axis.own_line;
+    current.diameter_m = axis.diameter_m;
     current.t_min = 0;
-    current.t_max = glm::length(b - a);
+    current.t_max = axis.own_length_m;
     current.extent_m = radial_extent(o, current.line);
     current.run.members.push_back(slot);
     current.run.bounds.extend(object_bounds(o));

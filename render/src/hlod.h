@@ -37,6 +37,11 @@ struct PipelineRun {
   uint64_t pipeline_id = 0;              // the pipeline it belongs to: the merged draw's id
 };
 
+// Whether a member ends every run it meets (so never lies in one): it is not straight, or its
+// points do not lie on the line through its two farthest-apart ones (an elbow). The runs of a
+// branch are therefore found stretch by stretch between such members, each stretch alone.
+bool ends_runs(const Object& member);
+
 // One branch's members in flow order with their slots. Appends the branch's runs to `out`.
 void find_runs(const std::vector<std::pair<uint32_t, const Object*>>& branch,
                std::vector<PipelineRun>& out);
