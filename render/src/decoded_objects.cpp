@@ -248,29 +248,34 @@ namespace {
 
 // A pipeline's members lie together in slot order, in branch order, and the pipeline beside
 // them (importers write them so; a generated plant puts the pipeline 1 to 18 slots after its
-// last member). So the slots about a member are looked through first, by their records' keys
-// (ReadView::object_key: their chunks are decompressed already, or soon read anyway), forward
-// then back, each way until kPipelineGapSlots slots in a row are neither the pipeline nor one
-// of its members, or until the pipeline and every member it lists are found (x100 walkthrough:
-// 56 slots a pipeline, 81 without that stop); only what that does not find is looked up in the
-// ids table, which costs a page fault or more (the x100 walkthrough met 2,100 new pipelines a
-// frame, and looked up 4,500 ids; now none).
+// last member). So the pipeline is looked for in the slots about a member, by their records'
+// keys (ReadView::object_key: their chunks are decompressed already, or soon read anyway),
+// forward until it is found or kPipelineGapSlots slots in a row are neither it nor one of its
+// members, then back the same way, noting the members met; a stretch's member not met so is
+// looked for in the slot beside its neighbour's, and only then in the ids table, which costs a
+// page fault or more (x100 walk, first 10 views: 643,559 keys read and no id looked up; 2.1
+// million keys when the search went on both ways until every member was found).
 inline constexpr uint32_t kPipelineGapSlots = 24;
 
 // The slot of member `id`: from `near` (sorted (id, slot) pairs found about the member), else
-// looked up in the ids table.
+// `guess` if that slot holds it (a branch's members lie in consecutive slots), else looked up
+// in the ids table.
 std::optional<uint32_t> member_slot_of(const ReadView& view,
                                        const std::vector<std::pair<uint64_t, uint32_t>>& near,
-                                       uint64_t id) {
+                                       uint64_t id, int64_t guess) {
   const auto it = std::lower_bound(near.begin(), near.end(), std::pair<uint64_t, uint32_t>{id, 0});
   if (it != near.end() && it->first == id) return it->second;
+  uint64_t guessed_id = 0, pipeline_of = 0;
+  std::string ignored;
+  if (guess >= 0 && guess < int64_t(view.slot_count()) &&
+      view.object_key(uint32_t(guess), guessed_id, pipeline_of, ignored) && guessed_id == id)
+    return uint32_t(guess);
   return view.slot_of(id);
 }
 
 // Scratch of find_stretch_runs, kept by the caller across calls (its vectors keep their room).
 struct StretchScratch {
   Object pipeline;
-  std::vector<uint64_t> listed;
   std::vector<std::pair<uint64_t, uint32_t>> near;
   std::deque<Object> before, after;  // the stretch's members before and after the one met
   std::vector<uint32_t> slots_before, slots_after;
@@ -284,35 +289,21 @@ bool find_pipeline(const ReadView& view, uint64_t pipeline_id, uint32_t member_s
   std::string ignored;  // (a slot that cannot be read is left to the lookups)
   Object& pipeline = scratch.pipeline;
   std::optional<uint32_t> pipeline_slot;
-  std::vector<uint64_t>& listed = scratch.listed;  // the members it lists, sorted (once read)
-  listed.clear();
-  size_t found = 0;  // ... of which found
-  const auto is_listed = [&](uint64_t id) {
-    return std::binary_search(listed.begin(), listed.end(), id);
-  };
   auto& near = scratch.near;
   near.clear();
   const int64_t end = view.slot_count();
   for (const int step : {1, -1}) {
     uint32_t gap = 0;
     for (int64_t s = step > 0 ? member_slot : int64_t(member_slot) - 1;
-         s >= 0 && s < end && gap < kPipelineGapSlots && !(pipeline_slot && found == listed.size());
-         s += step) {
+         s >= 0 && s < end && gap < kPipelineGapSlots && !pipeline_slot; s += step) {
       uint64_t id = 0, pipeline_of = 0;
       if (!view.object_key(uint32_t(s), id, pipeline_of, ignored)) {
         ++gap;
       } else if (id == pipeline_id) {
         if (!view.object(uint32_t(s), pipeline, false, ignored)) return false;
         pipeline_slot = uint32_t(s);
-        for (const Branch& b : pipeline.branches)
-          listed.insert(listed.end(), b.members.begin(), b.members.end());
-        std::sort(listed.begin(), listed.end());
-        listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
-        for (const auto& [m, at] : near) found += is_listed(m);
-        gap = 0;
       } else if (pipeline_of == pipeline_id) {
         near.emplace_back(id, uint32_t(s));
-        found += pipeline_slot && is_listed(id);
         gap = 0;
       } else {
         ++gap;
@@ -356,9 +347,11 @@ void find_stretch_runs(const ReadView& view, uint64_t pipeline_id, const Object&
   const auto walk = [&](std::deque<Object>& objects, std::vector<uint32_t>& object_slots, int step) {
     objects.clear();
     object_slots.clear();
+    int64_t previous = member_slot;
     for (int64_t j = int64_t(at) + step; j >= 0 && j < int64_t(branch->members.size()); j += step) {
-      const auto s = member_slot_of(view, near, branch->members[size_t(j)]);
+      const auto s = member_slot_of(view, near, branch->members[size_t(j)], previous + step);
       if (!s) continue;
+      previous = *s;
       Object& o = objects.emplace_back();
       if (!view.object(*s, o, false, ignored)) {
         objects.pop_back();
