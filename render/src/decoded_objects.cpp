@@ -273,8 +273,13 @@ std::optional<uint32_t> member_slot_of(const ReadView& view,
   return view.slot_of(id);
 }
 
-// Scratch of find_stretch_runs, kept by the caller across calls (its vectors keep their room).
+// Scratch of find_stretch_runs, kept by the caller across calls (its vectors keep their room),
+// with the last pipeline it read: a part of a frame's new objects (consecutive slots) meets a
+// pipeline's stretches one after another, and reads the pipeline once (preset c's walk: 153
+// stretches analysed a frame, each reading its pipeline again, cost 0.8 ms more a frame than
+// the 15 whole pipelines before).
 struct StretchScratch {
+  uint64_t pipeline_id = 0;  // of `pipeline` and `near` (0: none)
   Object pipeline;
   std::vector<std::pair<uint64_t, uint32_t>> near;
   std::deque<Object> before, after;  // the stretch's members before and after the one met
@@ -286,6 +291,7 @@ struct StretchScratch {
 // `member_slot` into scratch.near (sorted). False if it cannot be read.
 bool find_pipeline(const ReadView& view, uint64_t pipeline_id, uint32_t member_slot,
                    StretchScratch& scratch) {
+  scratch.pipeline_id = 0;
   std::string ignored;  // (a slot that cannot be read is left to the lookups)
   Object& pipeline = scratch.pipeline;
   std::optional<uint32_t> pipeline_slot;
@@ -315,6 +321,7 @@ bool find_pipeline(const ReadView& view, uint64_t pipeline_id, uint32_t member_s
     if (!slot || !view.object(*slot, pipeline, false, ignored)) return false;
   }
   std::sort(near.begin(), near.end());
+  scratch.pipeline_id = pipeline_id;
   return true;
 }
 
@@ -331,7 +338,8 @@ void find_stretch_runs(const ReadView& view, uint64_t pipeline_id, const Object&
   std::string ignored;  // (a slot that cannot be read is left to the lookups)
   Object& pipeline = scratch.pipeline;
   auto& near = scratch.near;  // (id, slot) of its members found, sorted
-  if (!find_pipeline(view, pipeline_id, member_slot, scratch)) return;
+  if (scratch.pipeline_id != pipeline_id && !find_pipeline(view, pipeline_id, member_slot, scratch))
+    return;
   // The member's place: the first branch that lists it.
   const Branch* branch = nullptr;
   size_t at = 0;
