@@ -275,9 +275,8 @@ std::optional<uint32_t> member_slot_of(const ReadView& view,
 
 // Scratch of find_stretch_runs, kept by the caller across calls (its vectors keep their room),
 // with the last pipeline it read: a part of a frame's new objects (consecutive slots) meets a
-// pipeline's stretches one after another, and reads the pipeline once (preset c's walk: 153
-// stretches analysed a frame, each reading its pipeline again, cost 0.8 ms more a frame than
-// the 15 whole pipelines before).
+// pipeline's stretches one after another, and reads the pipeline once (preset c's 100-view
+// walk and 12 interior views: pipelines read 17,111 -> 2,972 for as many stretches).
 struct StretchScratch {
   uint64_t pipeline_id = 0;  // of `pipeline` and `near` (0: none)
   Object pipeline;
