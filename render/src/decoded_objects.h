@@ -17,8 +17,9 @@
 //     the stretch's members lie in the slots about it, whose chunks that view still holds
 //     decompressed (analysed once the frame's objects were all read, they were decompressed
 //     again: x100 walk, 39% fewer chunk inflations). Only that stretch's members are decoded,
-//     not the whole pipeline's (x100 walk: about 20,000 decodes a frame against 105,000; most
-//     of a pipeline lies outside the view). A stretch that cannot be read simply has no runs.
+//     not the whole pipeline's (x100 walk's first 10 views: 90,506 records decoded for runs
+//     against 629,407; most of a pipeline lies outside the view). A stretch that cannot be
+//     read simply has no runs.
 //   - The runs are bounded too: a pipeline none of whose members or runs is known any more is
 //     forgotten (and its run indices reused) once more than kPipelinesKept pipelines, and twice
 //     as many as the last time, are known. So a service that walks a whole site keeps the runs
