@@ -13,11 +13,13 @@
 #include <random>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "plantview/store.h"
 // Internal knobs (run bounds, commit stages, cache bound) and encodings.
 #include "chunks.h"
+#include "columns.h"
 #include "import_runs.h"
 #include "lmdb_guard.h"
 #include "spatial.h"
@@ -324,6 +326,71 @@ std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
 // read() and info() read metadata only: with a block damaged they still answer, and so do the
 // other blocks; the damaged block fails with a message naming the store and the block. With the
 // top damaged, read(), info() and objects still answer; the spatial calls that can fail name it.
+TEST(StorePaged, ViewsOfOneStateDecompressAChunkOnceWithinTheSharedBound) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  import_objects(*store, scattered("s", 64 * 64), "s");  // 64 chunks of objects
+  std::string error;
+  auto first = store->read(error);
+  ASSERT_TRUE(first) << error;
+  std::vector<Object> read(64 * 64);
+  for (uint32_t slot = 0; slot < read.size(); ++slot)
+    ASSERT_TRUE(first->object(slot, read[slot], false, error)) << error;
+  EXPECT_EQ(first->chunks_decompressed(), 64u);
+  // Another view of the state, a sibling on another thread or a later read, finds every chunk
+  // decompressed, and the same objects in it.
+  auto sibling = first->sibling(error);
+  ASSERT_TRUE(sibling) << error;
+  auto later = store->read(error);
+  ASSERT_TRUE(later) << error;
+  std::thread reader([&] {
+    Object o;
+    for (uint32_t slot = 0; slot < read.size(); slot += 7) {
+      ASSERT_TRUE(sibling->object(slot, o, false, error)) << error;
+      EXPECT_EQ(o.id, read[slot].id);
+    }
+  });
+  reader.join();
+  Object o;
+  for (uint32_t slot = 3; slot < read.size(); slot += 64) {
+    ASSERT_TRUE(later->object(slot, o, false, error)) << error;
+    EXPECT_EQ(o.name, read[slot].name);
+  }
+  EXPECT_EQ(sibling->chunks_decompressed(), 0u);
+  EXPECT_EQ(later->chunks_decompressed(), 0u);
+  EXPECT_GT(first->chunk_cache_bytes(), 0u);
+  EXPECT_LE(first->chunk_cache_bytes(), kChunkCacheBytes);
+
+  // A state read under a small bound keeps at most that much: what fell out is decompressed
+  // again, correctly.
+  const size_t chunk_bytes = first->chunk_cache_bytes() / 64;
+  const size_t bound = chunk_bytes * 10;
+  detail::set_chunk_cache_bytes(bound);
+  import_objects(*store, scattered("s", 64 * 64, 6), "s");  // a new state, the same slots
+  auto small = store->read(error);
+  ASSERT_TRUE(small) << error;
+  auto other = small->sibling(error);
+  ASSERT_TRUE(other) << error;
+  const std::vector<Object> expected = scattered("s", 64 * 64, 6);
+  std::map<uint64_t, const Object*> by_id;
+  for (const Object& e : expected) by_id[e.id] = &e;
+  const uint32_t base = small->slot_count() - 64 * 64;  // slots only grow: the new objects'
+  for (int pass = 0; pass < 2; ++pass) {
+    for (uint32_t slot = base; slot < base + 64 * 64; ++slot) {
+      // The views take turns chunk by chunk, swapping turns in the second pass.
+      ReadView& view = ((slot - base) / 64 + pass) % 2 ? *other : *small;
+      ASSERT_TRUE(view.object(slot, o, false, error)) << error;
+      ASSERT_TRUE(by_id.count(o.id)) << "slot " << slot;
+      EXPECT_EQ(o.origin_m, by_id[o.id]->origin_m);
+      EXPECT_LE(small->chunk_cache_bytes(), bound) << "after slot " << slot;
+    }
+  }
+  // In the second pass each view meets the chunks the other read, which the shared bound has
+  // long let go.
+  EXPECT_EQ(small->chunks_decompressed() + other->chunks_decompressed(), 2u * 64u);
+  detail::set_chunk_cache_bytes(kChunkCacheBytes);
+}
+
 TEST(StorePaged, InfoDoesNotDecodeTheSpatialIndex) {
   TempDir dir;
   {

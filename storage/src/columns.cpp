@@ -369,8 +369,38 @@ bool ColumnWriter::flush(MDB_txn* txn, std::string& error) {
 
 // ---------------------------------------------------------------------------------------------
 
-ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget)
-    : dbi_(dbi), shape_(shape), byte_budget_(byte_budget), entries_(capacity) {}
+std::shared_ptr<const InflatedChunk> SharedChunks::find(uint32_t chunk) {
+  std::lock_guard lock(mutex_);
+  const auto it = entries_.find(chunk);
+  if (it == entries_.end()) return nullptr;
+  lru_.splice(lru_.begin(), lru_, it->second.position);
+  return it->second.chunk;
+}
+
+void SharedChunks::insert(uint32_t chunk, const std::shared_ptr<const InflatedChunk>& inflated) {
+  const size_t bytes = inflated->memory_bytes();
+  if (bytes > bound_) return;
+  std::lock_guard lock(mutex_);
+  if (entries_.count(chunk)) return;
+  lru_.push_front(chunk);
+  entries_.emplace(chunk, Entry{inflated, bytes, lru_.begin()});
+  bytes_ += bytes;
+  while (bytes_ > bound_) {
+    const auto oldest = entries_.find(lru_.back());
+    bytes_ -= oldest->second.bytes;
+    entries_.erase(oldest);
+    lru_.pop_back();
+  }
+}
+
+size_t SharedChunks::bytes() const {
+  std::lock_guard lock(mutex_);
+  return bytes_;
+}
+
+ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget,
+                       SharedChunks* shared)
+    : dbi_(dbi), shape_(shape), byte_budget_(byte_budget), shared_(shared), entries_(capacity) {}
 
 ChunkCache::~ChunkCache() { release_touched(); }
 
@@ -390,66 +420,76 @@ void ChunkCache::release_touched() {
   reads_since_release_ = 0;
 }
 
+std::shared_ptr<const InflatedChunk> ChunkCache::inflate(MDB_txn* txn, ZSTD_DCtx* dctx,
+                                                         uint32_t slot, std::string& why) {
+  auto chunk = std::make_shared<InflatedChunk>();
+  // Through a cursor, which returns the key in place: in the leaf page that points to the
+  // value (a page of its own, for a value of more than half a page), released with it.
+  const Key32 key(shape_.block_of(slot));
+  MDB_val k = key.val(), v;
+  LmdbCursor cursor;
+  int rc = cursor.open(txn, dbi_);
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
+  if (rc == MDB_NOTFOUND) return chunk;
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+    return nullptr;
+  }
+  if (!split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, shape_.chunks_per_block(),
+                   frames_, why)) {
+    return nullptr;
+  }
+  const auto frame = frames_[shape_.chunk_in_block(slot)];
+  inflated_ += frame.empty() ? 0 : 1;
+  const bool inflated = frame.empty() || inflate_frame(dctx, frame, chunk->bytes, why);
+  // After inflating, so that the pages it brought in count.
+  const auto* value = static_cast<const uint8_t*>(v.mv_data);
+  touched(value, frame.empty() ? value + shape_.chunks_per_block() * 4 : frame.data() + frame.size(),
+          static_cast<const uint8_t*>(k.mv_data));
+  if (!inflated) return nullptr;
+  if (!frame.empty()) {
+    if (!check_chunk(chunk->bytes, shape_.chunk_slots, chunk->ends, why)) return nullptr;
+    chunk->present = true;
+  }
+  return chunk;
+}
+
 bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
                         std::string& why) {
   const uint32_t chunk = shape_.chunk_of(slot);
   Entry* entry = nullptr;
   for (Entry& e : entries_) {
-    if (e.valid && e.chunk == chunk) entry = &e;
+    if (e.inflated && e.chunk == chunk) entry = &e;
   }
   if (!entry) {
+    std::shared_ptr<const InflatedChunk> found = shared_ ? shared_->find(chunk) : nullptr;
+    if (!found) {
+      found = inflate(txn, dctx, slot, why);
+      if (!found) return false;
+      if (shared_) shared_->insert(chunk, found);
+    }
     entry = &*std::min_element(entries_.begin(), entries_.end(),
                                [](const Entry& a, const Entry& b) { return a.used < b.used; });
-    entry->valid = false;
-    // Through a cursor, which returns the key in place: in the leaf page that points to the
-    // value (a page of its own, for a value of more than half a page), released with it.
-    const Key32 key(shape_.block_of(slot));
-    MDB_val k = key.val(), v;
-    LmdbCursor cursor;
-    int rc = cursor.open(txn, dbi_);
-    if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
-    entry->present = false;
-    if (rc == MDB_SUCCESS) {
-      if (!split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, shape_.chunks_per_block(),
-                       frames_, why)) {
-        return false;
-      }
-      const auto frame = frames_[shape_.chunk_in_block(slot)];
-      const bool inflated = frame.empty() || inflate_frame(dctx, frame, entry->bytes, why);
-      // After inflating, so that the pages it brought in count.
-      const auto* value = static_cast<const uint8_t*>(v.mv_data);
-      touched(value,
-              frame.empty() ? value + shape_.chunks_per_block() * 4 : frame.data() + frame.size(),
-              static_cast<const uint8_t*>(k.mv_data));
-      if (!inflated) return false;
-      if (!frame.empty()) {
-        if (!check_chunk(entry->bytes, shape_.chunk_slots, entry->ends, why)) return false;
-        entry->present = true;
-      }
-    } else if (rc != MDB_NOTFOUND) {
-      why = mdb_strerror(rc);
-      return false;
-    }
+    if (entry->inflated) held_bytes_ -= entry->inflated->memory_bytes();
     entry->chunk = chunk;
-    entry->valid = true;
-    // Chunks of big meshes can be megabytes: keep the cache within its byte budget, least
+    entry->inflated = std::move(found);
+    held_bytes_ += entry->inflated->memory_bytes();
+    // Chunks of big meshes can be megabytes: keep the entries within the byte budget, least
     // recently used first, the chunk just read always.
-    size_t held = 0;
-    for (const Entry& e : entries_) held += e.bytes.capacity();
-    while (held > byte_budget_) {
+    while (held_bytes_ > byte_budget_) {
       Entry* oldest = nullptr;
       for (Entry& e : entries_) {
-        if (&e != entry && e.bytes.capacity() > 0 && (!oldest || e.used < oldest->used)) oldest = &e;
+        if (&e != entry && e.inflated && (!oldest || e.used < oldest->used)) oldest = &e;
       }
       if (!oldest) break;
-      held -= oldest->bytes.capacity();
-      oldest->bytes = {};
-      oldest->valid = false;
+      held_bytes_ -= oldest->inflated->memory_bytes();
+      oldest->inflated.reset();
     }
   }
   entry->used = ++clock_;
-  out = entry->present ? chunk_record(entry->bytes, entry->ends, slot % shape_.chunk_slots)
-                       : std::span<const uint8_t>();
+  const InflatedChunk& c = *entry->inflated;
+  out = c.present ? chunk_record(c.bytes, c.ends, slot % shape_.chunk_slots)
+                  : std::span<const uint8_t>();
   return true;
 }
 

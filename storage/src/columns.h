@@ -7,10 +7,13 @@
 
 #include <cstdint>
 #include <deque>
+#include <list>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "chunks.h"
@@ -102,17 +105,62 @@ class ColumnWriter {
   std::vector<uint32_t> ends_;
 };
 
+// A decompressed chunk of a column: its records (check_chunk() done), or none stored.
+// Immutable once made, so that views on several threads may read it at once.
+struct InflatedChunk {
+  bool present = false;
+  std::vector<uint8_t> bytes;
+  std::vector<uint32_t> ends;  // check_chunk()
+  size_t memory_bytes() const {
+    return sizeof(InflatedChunk) + bytes.capacity() + ends.capacity() * sizeof(uint32_t);
+  }
+};
+
+// Decompressed chunks shared by the views of one committed state, by chunk number. Keeps at
+// most `bound_bytes` of chunks, least recently used going first; a chunk a view still holds
+// lives on with it (ChunkCache). Threads: any, at once (one mutex, held for a lookup or an
+// insert, never while inflating).
+class SharedChunks {
+ public:
+  explicit SharedChunks(size_t bound_bytes) : bound_(bound_bytes) {}
+  SharedChunks(const SharedChunks&) = delete;
+  SharedChunks& operator=(const SharedChunks&) = delete;
+  std::shared_ptr<const InflatedChunk> find(uint32_t chunk);
+  // Another view's chunk inserted meanwhile wins (the two are the same bytes).
+  void insert(uint32_t chunk, const std::shared_ptr<const InflatedChunk>& inflated);
+  size_t bytes() const;
+
+ private:
+  struct Entry {
+    std::shared_ptr<const InflatedChunk> chunk;
+    size_t bytes;
+    std::list<uint32_t>::iterator position;
+  };
+  mutable std::mutex mutex_;
+  size_t bound_;
+  size_t bytes_ = 0;
+  std::list<uint32_t> lru_;  // most recently used first
+  std::unordered_map<uint32_t, Entry> entries_;
+};
+
+// The shared chunk bound of states first read after the call (kChunkCacheBytes by default);
+// tests change it.
+void set_chunk_cache_bytes(size_t bytes);
+
 // Reads records of one column in a read transaction, keeping the `capacity` most recently used
 // decompressed chunks (fewer when they hold more than `byte_budget` bytes together), so that
-// neighbouring slots cost one decompression. Belongs to one view; must be destroyed while the
-// environment is open.
+// neighbouring slots cost one decompression. A chunk not among them is looked for in `shared`
+// (when given: the chunks of every view of the same committed state) before it is inflated,
+// and one inflated is put there. Belongs to one view; must be destroyed while the environment
+// is open; `shared` must outlive it.
 // Every kReadsPerRelease chunks read from the map, and on destruction, the span of the map read
 // since is taken out of the process's resident set (release_map_pages): a view that reads the
 // whole store would otherwise end up holding the data file in its memory. (Releasing after every
 // chunk costs more than it saves: a madvise takes about as long as inflating a chunk.)
 class ChunkCache {
  public:
-  ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget);
+  ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget,
+             SharedChunks* shared = nullptr);
   ~ChunkCache();
   ChunkCache(const ChunkCache&) = delete;
   ChunkCache& operator=(const ChunkCache&) = delete;
@@ -120,16 +168,21 @@ class ChunkCache {
   // the store or slot, which the caller adds) on an LMDB error or a corrupt block or chunk.
   bool record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
               std::string& why);
+  // From now on chunks are looked for in `shared` (which must outlive this) before inflating.
+  void share(SharedChunks* shared) { shared_ = shared; }
+  // Chunks this cache read from the map and inflated (found neither among its own nor shared).
+  uint64_t inflated() const { return inflated_; }
 
  private:
   struct Entry {
     uint32_t chunk = 0;
-    bool valid = false, present = false;
     uint64_t used = 0;
-    std::vector<uint8_t> bytes;
-    std::vector<uint32_t> ends;  // check_chunk()
+    std::shared_ptr<const InflatedChunk> inflated;  // null: the entry is free
   };
   static constexpr uint32_t kReadsPerRelease = 256;
+  // The chunk read from the map and inflated (null with `why` on an error).
+  std::shared_ptr<const InflatedChunk> inflate(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot,
+                                               std::string& why);
   // Notes mapped bytes [begin, end) as read (after reading them), and the page at `leaf` (the
   // B-tree leaf that led to them: elsewhere in the file when the value has pages of its own),
   // releasing what was read when it is time.
@@ -139,7 +192,10 @@ class ChunkCache {
   MDB_dbi dbi_;
   ColumnShape shape_;
   size_t byte_budget_;
+  SharedChunks* shared_;
   std::vector<Entry> entries_;
+  size_t held_bytes_ = 0;  // of the entries' chunks
+  uint64_t inflated_ = 0;
   // The span of the mapping read since the last release (null: none).
   const uint8_t* touched_begin_ = nullptr;
   const uint8_t* touched_end_ = nullptr;

@@ -37,7 +37,7 @@ constexpr size_t kMapSizeBytes = size_t(1) << 40;  // address space only; the fi
 // and 2 x 256 objects' attributes, each column within 16 MB (chunks of big meshes are big).
 constexpr size_t kObjectChunksCached = 32;
 constexpr size_t kAttributeChunksCached = 2;
-constexpr size_t kChunkCacheBytes = size_t(16) << 20;
+constexpr size_t kViewChunkBytes = size_t(16) << 20;
 
 // The names table keys: 32 bits of FNV-1a 64 (hits are confirmed against the record's name).
 uint32_t name_hash(std::string_view name) {
@@ -367,6 +367,7 @@ class BlockCache {
 };
 
 std::atomic<size_t> g_spatial_cache_bytes{kSpatialCacheBytes};
+std::atomic<size_t> g_chunk_cache_bytes{kChunkCacheBytes};
 
 // What read views share of one committed state of the store.
 struct Snapshot {
@@ -379,6 +380,7 @@ struct Snapshot {
   detail::DecodedTop top;
   std::string top_error;
   BlockCache blocks{g_spatial_cache_bytes.load()};
+  detail::SharedChunks object_chunks{g_chunk_cache_bytes.load()};
 };
 
 // Whether the data file holds every page the environment's newest meta page says is in use.
@@ -419,6 +421,7 @@ std::string statistics_json(const ModelStatistics& statistics) {
 namespace detail {
 
 void set_spatial_cache_bytes(size_t bytes) { g_spatial_cache_bytes = bytes; }
+void set_chunk_cache_bytes(size_t bytes) { g_chunk_cache_bytes = bytes; }
 
 namespace {
 std::atomic<size_t> g_import_run_bytes{size_t(64) << 20};
@@ -1052,9 +1055,9 @@ struct ReadView::State {
 
   explicit State(const std::shared_ptr<Store::State>& s)
       : store(s),
-        objects(s->dbs.objects, detail::kObjectShape, kObjectChunksCached, kChunkCacheBytes),
+        objects(s->dbs.objects, detail::kObjectShape, kObjectChunksCached, kViewChunkBytes),
         attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
-                   kChunkCacheBytes) {}
+                   kViewChunkBytes) {}
 
   // The snapshot's spatial top, decoded on first use (by this or another view of the state).
   const detail::DecodedTop& top() {
@@ -1149,6 +1152,7 @@ std::unique_ptr<ReadView> ReadView::sibling(std::string& error) const {
     return nullptr;
   }
   other->snapshot = s.snapshot;
+  other->objects.share(&other->snapshot->object_chunks);
   return std::unique_ptr<ReadView>(new ReadView(std::move(other)));
 }
 
@@ -1383,6 +1387,8 @@ bool ReadView::visit_objects(const ObjectClass* only,
 uint32_t ReadView::slot_count() const { return state_->snapshot->next_slot; }
 
 size_t ReadView::spatial_cache_bytes() const { return state_->snapshot->blocks.bytes(); }
+size_t ReadView::chunk_cache_bytes() const { return state_->snapshot->object_chunks.bytes(); }
+uint64_t ReadView::chunks_decompressed() const { return state_->objects.inflated(); }
 // ---------------------------------------------------------------------------------------------
 
 Store::Store(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -1552,6 +1558,7 @@ std::unique_ptr<ReadView> Store::read(std::string& error) const {
   // over it): refuse the view rather than fault on its first page.
   if (!data_file_complete(state_->env.get(), state_->directory, error)) return nullptr;
   s->snapshot = state_->snapshot_for(s->txn.get());
+  s->objects.share(&s->snapshot->object_chunks);
   return std::unique_ptr<ReadView>(new ReadView(std::move(s)));
 }
 
