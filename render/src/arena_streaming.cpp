@@ -57,6 +57,8 @@ void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec
 
 bool ArenaStreaming::reset(uint64_t budget_vertices, bool drop_primitives, std::string& error) {
   drop_primitives_ = drop_primitives;
+  pending_.clear();
+  pending_vertices_.clear();
   table_.reset();
   proxy_tables_.clear();
   residency_ = Residency(budget_vertices);
@@ -194,8 +196,13 @@ bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, Decoded
   k.base = base;
   k.table = table_.acquire();
   k.arena_offset = uint32_t(*offset);
-  vertex_objects_.assign(count, k.table);
-  backend_.upload(*offset, *upload, vertex_objects_);
+  if (deferring_) {
+    pending_.push_back({*offset, k.table, pending_vertices_.size(), count});
+    pending_vertices_.insert(pending_vertices_.end(), upload->begin(), upload->end());
+  } else {
+    vertex_objects_.assign(count, k.table);
+    backend_.upload(*offset, *upload, vertex_objects_);
+  }
   stats.objects_tessellated += 1;
   stats.arena_bytes_uploaded += uint64_t(count) * kBytesPerVertex;
   if (!k.keeps_primitives && drop_primitives_) {
@@ -203,6 +210,16 @@ bool ArenaStreaming::make_resident(uint32_t key, Known& k, uint8_t base, Decoded
     k.primitives.shrink_to_fit();
   }
   return true;
+}
+
+void ArenaStreaming::flush_uploads() {
+  for (const PendingUpload& u : pending_) {
+    vertex_objects_.assign(u.count, u.table);
+    backend_.upload(u.offset, std::span<const PackedVertex>(pending_vertices_.data() + u.first, u.count),
+                    vertex_objects_);
+  }
+  pending_.clear();
+  pending_vertices_.clear();
 }
 
 void ArenaStreaming::release(uint32_t key, Known& k) {
@@ -416,14 +433,14 @@ void ArenaStreaming::add_box(const glm::dvec3& offset_m, const glm::vec3& size_m
   stats.triangles += 12;
 }
 
-bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string& error) {
+bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string& error, bool next) {
   size_t total = 0;
   std::array<size_t, kIndexListCount> first{};
   for (int list = 0; list < kIndexListCount; ++list) {
     first[list] = total;
     total += counts_[list];
   }
-  uint32_t* indices = backend_.map_indices(total, error);
+  uint32_t* indices = backend_.map_indices(total, error, next);
   if (!indices) return false;
   // Nearest first: hidden fragments then fail the depth test before they are shaded. Ties
   // broken by a key of the object's own (Known::order_key), so that the order of two objects
@@ -476,7 +493,7 @@ bool ArenaStreaming::write_index_lists(std::span<const Draw> draws, std::string&
       }
     }
   });
-  backend_.unmap_indices();
+  backend_.unmap_indices(next);
   return true;
 }
 

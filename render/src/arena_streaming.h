@@ -97,8 +97,17 @@ class ArenaStreaming {
   bool stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
               const RenderOptions& options, FrameStats& stats, std::string& error,
               bool second_phase = false);
-  // Writes the index lists of the draws streamed into the backend's index buffer.
-  bool write_index_lists(std::span<const Draw> draws, std::string& error);
+  // Writes the index lists of the draws streamed into the backend's index buffer (`next`: the
+  // one the next frame draws from, GlBackend::map_indices).
+  bool write_index_lists(std::span<const Draw> draws, std::string& error, bool next = false);
+
+  // While deferring (a frame streamed ahead, while the GPU still draws the one before from the
+  // arena), the vertices of objects made resident are kept here instead of written into the
+  // arena, where they could overwrite what an evicted object is still drawn with; they are
+  // written by flush_uploads(), which the renderer calls before it draws again. The residency,
+  // the object table and the Knowns change as if written.
+  void defer_uploads(bool on) { deferring_ = on; }
+  void flush_uploads();
 
   const Residency& residency() const { return residency_; }
   const IndexCounts& index_counts() const { return counts_; }
@@ -198,6 +207,16 @@ class ArenaStreaming {
     uint8_t list;
   };
   std::vector<Segment> segments_;
+  // Deferred uploads (defer_uploads()): where each goes in the arena, its object-table entry,
+  // and its vertices' range in pending_vertices_.
+  struct PendingUpload {
+    uint64_t offset;
+    uint32_t table;
+    size_t first, count;
+  };
+  bool deferring_ = false;
+  std::vector<PendingUpload> pending_;
+  std::vector<PackedVertex> pending_vertices_;
   std::vector<std::pair<uint32_t, uint64_t>> evicted_;
   std::vector<Job> jobs_;
   std::vector<uint32_t> job_of_draw_;

@@ -192,9 +192,10 @@ GlBackend::~GlBackend() {
   for (const auto& [key, program] : reduce_fixed_) glDeleteProgram(program);
   release_grid(occlusion_grid_);
   release_grid(reduce_grid_);
-  GLuint buffers[] = {arena_,       arena_objects_, index_buffer_, table_buffer_,
-                      proxy_buffer_, cube_indices_,  box_buffer_,   seen_buffer_};
-  glDeleteBuffers(8, buffers);
+  GLuint buffers[] = {arena_,        arena_objects_, index_buffers_[0], index_buffers_[1],
+                      table_buffer_, proxy_buffer_,  cube_indices_,     box_buffer_,
+                      seen_buffer_};
+  glDeleteBuffers(9, buffers);
   GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
   glDeleteVertexArrays(3, vaos);
   GLuint samplers[] = {linear_sampler_, nearest_sampler_};
@@ -281,7 +282,8 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
                                           {GL_FRAGMENT_SHADER, {kBoxTestFragment}}}, error);
   if (!box_test_program_) return false;
 
-  glCreateBuffers(1, &index_buffer_);
+  glCreateBuffers(1, &index_buffers_[0]);
+  glCreateBuffers(1, &index_buffers_[1]);
   glCreateBuffers(1, &table_buffer_);
   glCreateBuffers(1, &proxy_buffer_);
   glCreateBuffers(1, &cube_indices_);
@@ -312,7 +314,7 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
     glVertexArrayAttribBinding(array, 3, 0);
   };
   make_vertex_array(vao_);
-  glVertexArrayElementBuffer(vao_, index_buffer_);
+  glVertexArrayElementBuffer(vao_, index_buffers_[drawn_indices_]);
   make_vertex_array(proxy_vao_);
   glVertexArrayBindingDivisor(proxy_vao_, 1, 1);
   glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
@@ -415,21 +417,33 @@ void GlBackend::upload(uint64_t first, std::span<const PackedVertex> vertices,
                          GLsizeiptr(objects.size_bytes()), objects.data());
 }
 
-uint32_t* GlBackend::map_indices(size_t count, std::string& error) {
+uint32_t* GlBackend::map_indices(size_t count, std::string& error, bool next) {
+  const unsigned which = next ? 1 - drawn_indices_ : drawn_indices_;
+  const GLuint buffer = index_buffers_[which];
+  size_t& capacity = index_capacities_[which];
   const size_t bytes = std::max<size_t>(count, 1) * sizeof(uint32_t);
-  if (bytes > index_capacity_) {
-    index_capacity_ = std::max(bytes, index_capacity_ * 3 / 2);
-    glNamedBufferData(index_buffer_, GLsizeiptr(index_capacity_), nullptr, GL_STREAM_DRAW);
+  if (bytes > capacity) {
+    capacity = std::max(bytes, capacity * 3 / 2);
+    glNamedBufferData(buffer, GLsizeiptr(capacity), nullptr, GL_STREAM_DRAW);
   }
-  // Unsynchronised: the previous frame was finished (read back) before this one began, and
-  // invalidating would make the driver allocate (and zero) new storage every frame.
+  // Unsynchronised: nothing the GPU may still draw reads it (the drawn one: the previous frame
+  // was finished, read back, before this one began, and a frame's phases wait for each other;
+  // the next one: drawn only from the next frame on), and invalidating would make the driver
+  // allocate (and zero) new storage every frame.
   auto* indices = static_cast<uint32_t*>(glMapNamedBufferRange(
-      index_buffer_, 0, GLsizeiptr(bytes), GL_MAP_WRITE_BIT | GL_MAP_UNSYNCHRONIZED_BIT));
+      buffer, 0, GLsizeiptr(bytes), GL_MAP_WRITE_BIT | GL_MAP_UNSYNCHRONIZED_BIT));
   if (!indices) error = "renderer: cannot map " + std::to_string(bytes >> 20) + " MB of index buffer";
   return indices;
 }
 
-void GlBackend::unmap_indices() { glUnmapNamedBuffer(index_buffer_); }
+void GlBackend::unmap_indices(bool next) {
+  glUnmapNamedBuffer(index_buffers_[next ? 1 - drawn_indices_ : drawn_indices_]);
+}
+
+void GlBackend::use_next_indices() {
+  drawn_indices_ = 1 - drawn_indices_;
+  glVertexArrayElementBuffer(vao_, index_buffers_[drawn_indices_]);
+}
 
 // --- framebuffers -------------------------------------------------------------------------------
 

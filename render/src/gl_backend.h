@@ -139,9 +139,13 @@ class GlBackend {
               std::span<const uint32_t> objects);
 
   // The index buffer, mapped for writing `count` indices; unmap_indices() before drawing. Null
-  // with an error if it cannot be mapped.
-  uint32_t* map_indices(size_t count, std::string& error);
-  void unmap_indices();
+  // with an error if it cannot be mapped. There are two: the one drawn from, which a frame's
+  // phases write in turn (each waits for the one before), and the other (`next`), which the
+  // look ahead writes the next frame's first phase into while the GPU still draws from the
+  // first; use_next_indices() then makes it the one drawn from.
+  uint32_t* map_indices(size_t count, std::string& error, bool next = false);
+  void unmap_indices(bool next = false);
+  void use_next_indices();
 
   // A frame, drawn in one phase or more (occlusion culling's two phases, occlusion.h):
   // begin_frame() makes the targets for the view's size and clears them; each draw_phase()
@@ -241,7 +245,10 @@ class GlBackend {
   GlName box_buffer_ = 0, seen_buffer_ = 0;
   size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
   GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
-         index_buffer_ = 0, table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
+         table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
+  std::array<GlName, 2> index_buffers_{};  // [drawn_indices_] is drawn from
+  std::array<size_t, 2> index_capacities_{};  // bytes
+  unsigned drawn_indices_ = 0;
   GlName linear_sampler_ = 0, nearest_sampler_ = 0;
   // Client memory mapped for the arena (see the rules above): unmapped on destruction, after
   // the buffers that draw from it are deleted.
@@ -290,7 +297,7 @@ class GlBackend {
   std::vector<std::pair<std::array<uint32_t, 3>, GlName>> reduce_fixed_;
   Plan frame_plan_;  // the frame's, from begin_frame()
   const Target* final_ = nullptr;
-  size_t index_capacity_ = 0, table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
+  size_t table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch
   std::vector<uint8_t> row_;  // read-back scratch: one row of the image
   std::vector<TableEntry> highlight_table_;

@@ -38,8 +38,9 @@ struct Renderer::State {
   std::vector<uint32_t> boxes_seen;
   std::vector<uint32_t> blocks_ahead;  // the index blocks the cull will read, read ahead
   // expect(): the next frame's camera; look_ahead() then makes that frame's start (its cull
-  // and occlusion's first phase, into `plan`, whose lists the frame drawn no longer needs) and
-  // notes for which frame, view and options, with its statistics so far.
+  // and occlusion's first phase, into `plan`, whose lists the frame drawn no longer needs; the
+  // first phase streamed, into `streaming` and the backend's next index buffer) and notes for
+  // which frame, view and options, with its statistics so far.
   std::optional<Camera> next_camera;
   struct MadeAhead {
     uint64_t frame = 0;
@@ -47,15 +48,23 @@ struct Renderer::State {
     uint32_t width = 0, height = 0;
     RenderOptions options;
     bool first_phase = false;  // occlusion's first phase made too (else the cull alone)
+    bool streamed = false;     // and that phase chosen and streamed (its uploads deferred)
     FrameStats stats;
   };
   std::optional<MadeAhead> made_ahead;
+  // This frame's first phase was chosen and streamed ahead (start() took it): it is drawn as
+  // it stands. The pick ids of the frame drawn, kept for its read back while the next one is
+  // made ahead (which starts a new object table).
+  bool first_streamed = false;
+  std::vector<uint64_t> drawn_pick_ids;
   // The frame's start: the cull, and, for a two-phase frame (occlusion.h), the first phase's
   // choice; taken from made_ahead if it was made for this frame, view and options.
   bool start(const Camera& camera, const FrameView& frame_view, bool first_phase, bool exact,
              FrameStats& stats, StageTimes& times, Stopwatch& clock, std::string& error);
-  // expect()'s work, once a frame's drawing is sent: the next frame's start made (made_ahead).
-  // A read error is left for that frame to meet (it starts afresh) and report.
+  // expect()'s work, once a frame's drawing is sent: the next frame's start made (made_ahead):
+  // its cull, and for a two-phase frame its first phase chosen, decoded, tessellated and
+  // streamed, the uploads deferred until the next frame begins (the GPU still draws this one
+  // from the arena). A read error is left for that frame to meet (it starts afresh) and report.
   void look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact);
 
   bool open_view(std::string& error);
@@ -76,12 +85,25 @@ struct Renderer::State {
 
 void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact) {
   const FrameView next_view = make_frame_view(next, w, h, view->spatial_origin());
-  MadeAhead made{frame_number + 1, next, w, h, options, FramePlan::two_phase(options), {}};
+  MadeAhead made{frame_number + 1, next, w, h, options, FramePlan::two_phase(options), false, {}};
   std::string ignored;
   if (!plan.find_visible(*view, next_view, options, made.stats, ignored)) return;
   if (made.first_phase && !plan.first_phase(objects, next_view, options, made.frame, exact,
                                             made.stats, ignored))
     return;
+  if (made.first_phase) {
+    // The first phase streamed as the frame would stream it (the same calls, in the same
+    // order), so that frames and counts are the same with or without the look ahead; a read
+    // error leaves the frame to start afresh.
+    plan.order();
+    if (!objects.decode(plan.visible(), options.hlod, ignored)) return;
+    plan.choose(objects, next_view, options, made.frame, made.stats);
+    streaming.defer_uploads(true);
+    made.streamed = streaming.stream(plan, objects, next_view, options, made.stats, ignored);
+    streaming.defer_uploads(false);
+    // Its index lists into the index buffer that frame draws from (this one draws from the other).
+    if (!made.streamed || !streaming.write_index_lists(plan.draws(), ignored, true)) return;
+  }
   made_ahead = std::move(made);
 }
 
@@ -89,6 +111,7 @@ bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, b
                             bool exact, FrameStats& stats, StageTimes& times, Stopwatch& clock,
                             std::string& error) {
   const std::optional<MadeAhead> made = std::exchange(made_ahead, std::nullopt);
+  first_streamed = false;
   if (made && made->frame == frame_number && made->camera == camera &&
       made->width == frame_view.width && made->height == frame_view.height &&
       made->options == options && made->first_phase == first_phase) {
@@ -97,6 +120,7 @@ bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, b
     stats = made->stats;
     stats.arena_bytes_budget = budget_bytes;
     stats.made_ahead = true;
+    first_streamed = made->streamed;
     times.cull = clock.lap();
     return true;
   }
@@ -162,11 +186,15 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     return false;
   }
   ++frame_number;
-  backend.take_growth_ms();  // (growth outside a frame: opening a view)
+  backend.take_growth_ms();  // (growth outside a frame: opening a view or a look ahead)
   const FrameView frame_view = make_frame_view(camera, w, h, view->spatial_origin());
   const Look look = look_of(options, bounds);
   const Look* drawn = draw ? &look : nullptr;
   clock.lap();
+  // What a look ahead streamed is written into the arena now, whether its frame came or not
+  // (the residency holds it resident).
+  streaming.flush_uploads();
+  times.stream = clock.lap();
 
   // Frontend: what is in the frustum, then what of it is hidden (occlusion.h), decoded where
   // new, at which level; streamed; drawn.
@@ -216,13 +244,17 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     // With the next view expected, its start is made while the GPU draws this one.
     backend.finish_frame(frame_view, look, with_ids, !next);
     times.draw += clock.lap();
+    std::span<const uint64_t> pick_ids = streaming.table().pick_ids();
     if (next) {
+      // (The look ahead may begin the next frame's object table, whatever comes of it.)
+      drawn_pick_ids.assign(pick_ids.begin(), pick_ids.end());
+      pick_ids = drawn_pick_ids;
       look_ahead(*next, w, h, exact);
       times.ahead = clock.lap();
       backend.wait();
       times.draw += clock.lap();
     }
-    if (!backend.read_back(w, h, with_ids, streaming.table().pick_ids(), *out, error)) return false;
+    if (!backend.read_back(w, h, with_ids, pick_ids, *out, error)) return false;
     times.read_back = clock.lap();
   }
   report_times(times, clock.total(), stats.ms);
@@ -232,19 +264,26 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 bool Renderer::State::phase(const FrameView& frame_view, const Look* look, bool with_ids,
                             bool second_phase, bool wait, FrameStats& stats, StageTimes& times,
                             Stopwatch& clock, std::string& error) {
-  plan.order();
-  times.cull += clock.lap();
-  if (!objects.decode(plan.visible(), options.hlod, error)) return false;
-  times.decode += clock.lap();
-  plan.choose(objects, frame_view, options, frame_number, stats);
-  times.choose += clock.lap();
   // Streaming: the chosen levels resident in the arena (or boxes), the object table filled,
-  // then the index lists written (only when drawing).
-  if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
-    return false;
-  times.stream += clock.lap();
+  // then the index lists written (only when drawing). A first phase streamed ahead is drawn
+  // as it stands.
+  if (second_phase || !first_streamed) {
+    plan.order();
+    times.cull += clock.lap();
+    if (!objects.decode(plan.visible(), options.hlod, error)) return false;
+    times.decode += clock.lap();
+    plan.choose(objects, frame_view, options, frame_number, stats);
+    times.choose += clock.lap();
+    if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
+      return false;
+    times.stream += clock.lap();
+  }
   if (!look) return true;
-  if (!streaming.write_index_lists(plan.draws(), error)) return false;
+  if (second_phase || !first_streamed) {
+    if (!streaming.write_index_lists(plan.draws(), error)) return false;
+  } else {
+    backend.use_next_indices();
+  }
   times.index_lists += clock.lap();
   if (!second_phase && !backend.begin_frame(frame_view, *look, with_ids, error)) return false;
   backend.draw_phase(frame_view, streaming.index_counts(), streaming.table().entries(),

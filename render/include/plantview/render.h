@@ -222,10 +222,11 @@ struct FrameStats {
   // stream spent growing the GPU vertex arena (a buffer twice the size, the old one copied
   // in): rare, and on a software renderer mostly the first touch of the new memory, which
   // the operating system pays page by page. ahead: Renderer::expect()'s work for the next view
-  // (its cull and occlusion's first phase), done once this frame's drawing is sent, while the
-  // GPU draws it: in total (the image is read back after it), not in cpu (this frame's path to
-  // the GPU). The next frame, which takes it, then reports cull near 0 and occlusion without
-  // its first phase.
+  // (its cull and occlusion's first phase, chosen and streamed), done once this frame's drawing
+  // is sent, while the GPU draws it: in total (the image is read back after it), not in cpu
+  // (this frame's path to the GPU). The next frame, which takes it, then reports cull near 0,
+  // and occlusion, choose and stream without its first phase (stream: that phase's vertices
+  // written into the arena).
   struct Times {
     double cull = 0, occlusion = 0, depth_reduction = 0, choose = 0, stream = 0,
            arena_growth = 0, cpu = 0, draw = 0, ahead = 0, read_back = 0,
@@ -290,12 +291,16 @@ class Renderer {
               FrameStats& stats, std::string& error);
   // The camera of the render() after the next one, where it is known (a path, a batch of
   // views): the next render(), once its drawing is sent, makes the start of that view's frame
-  // while the GPU draws (its cull and occlusion's first phase: FrameStats::ms.ahead), and the
-  // render() after takes it if it is for the same camera, size and options (else it starts
-  // afresh). Images and counts are the same with or without it. Applies to the next render()
-  // alone; an invalid camera is ignored. (Decoding and tessellating that view's new objects
-  // ahead as well was measured and not kept: two fifths to five sixths of them went unused,
-  // and on a software renderer that work takes the cores the drawing needs.)
+  // while the GPU draws (FrameStats::ms.ahead): its cull, and with occlusion its first phase
+  // chosen, decoded, tessellated, made resident and its index lists written (the vertices
+  // written into the arena only when the render() after begins: the GPU may still draw from
+  // what they replace). The render() after takes it if it is for the same camera, size and
+  // options, else it starts afresh. Images are the same with or without it, and so are the
+  // counts while the views expected come; after one that did not, the arena also holds what
+  // its first phase needed. Applies to the next render() alone; an invalid camera is ignored.
+  // (The second phase's new objects are not made ahead: which of them are hidden is known only
+  // once the first is drawn; decoding and tessellating all the view's new objects ahead was
+  // measured and not kept, two fifths to five sixths of them went unused.)
   void expect(const Camera& next);
   // Culls and chooses levels without drawing (LOD statistics for a view). It streams like a
   // frame, so the arena is left as render() would leave it.
