@@ -309,7 +309,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
   const double none_mean = mean(steady(runs[0].frame_ms));
   struct CpuSplit {
     std::string name;
-    double walk_mean, walk_p95, interior_mean, interior_p95, ahead_mean;
+    double walk_mean, walk_p95, interior_mean, interior_p95, ahead_mean, with_ahead_mean;
   };
   std::vector<CpuSplit> cpu_split;
   for (size_t i = 0; i < runs.size(); ++i) {
@@ -363,8 +363,12 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
     j["cpu_interior_mean_ms"] = mean(interior_cpu);
     j["cpu_interior_p95_ms"] = percentile(interior_cpu, 0.95);
     j["ahead_mean_ms"] = mean(steady(r.ahead_ms));
+    // A frame's CPU work wherever it is done: what the look ahead moved off the frame's path
+    // is still work, which a GPU that draws faster than it cannot hide.
+    j["cpu_with_ahead_mean_ms"] = mean(cpu) + mean(steady(r.ahead_ms));
     cpu_split.push_back({r.name, mean(walk_cpu), percentile(walk_cpu, 0.95), mean(interior_cpu),
-                         percentile(interior_cpu, 0.95), mean(steady(r.ahead_ms))});
+                         percentile(interior_cpu, 0.95), mean(steady(r.ahead_ms)),
+                         mean(cpu) + mean(steady(r.ahead_ms))});
     if (!r.interior_seen.empty()) j["interior_mean_objects_seen"] = mean(r.interior_seen);
     if (!r.psnr.empty()) {
       j["psnr_mean_db"] = psnr_mean;
@@ -380,14 +384,16 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
               " reductions, the exact test's boxes, their read-backs; not in cpu ms); up MB/f: vertex data uploaded\n"
               " per frame; times and uploads exclude view 0.)\n");
   std::printf("\nCPU frame (ms.cpu), walkthrough views (after view 0) and interior views apart:\n");
-  std::printf("%-26s %9s %9s %9s %9s %9s\n", "policy", "walk ms", "walk p95", "inside ms", "inside p95",
-              "ahead ms");
+  std::printf("%-26s %9s %9s %9s %9s %9s %9s\n", "policy", "walk ms", "walk p95", "inside ms", "inside p95",
+              "ahead ms", "cpu+ahead");
   for (const CpuSplit& c : cpu_split)
-    std::printf("%-26s %9.2f %9.2f %9.2f %9.2f %9.2f\n", c.name.c_str(), c.walk_mean, c.walk_p95,
-                c.interior_mean, c.interior_p95, c.ahead_mean);
-  std::printf("(ahead ms: the next view's cull and occlusion's first phase, made while this one draws\n"
-              " (Renderer::expect); in the frame's total, not in its cpu ms; that view's cull ms is then\n"
-              " near 0, its occl ms the tests alone.)\n");
+    std::printf("%-26s %9.2f %9.2f %9.2f %9.2f %9.2f %9.2f\n", c.name.c_str(), c.walk_mean, c.walk_p95,
+                c.interior_mean, c.interior_p95, c.ahead_mean, c.with_ahead_mean);
+  std::printf("(ahead ms: the next view's cull and occlusion's first phase, chosen and streamed, made\n"
+              " while this one draws (Renderer::expect); in the frame's total, not in its cpu ms; that\n"
+              " view's cull ms is then near 0, its choose and stream ms the second phase's alone.\n"
+              " cpu+ahead: all views' mean ms.cpu plus ahead ms, the CPU work a frame costs wherever it\n"
+              " is done: on a GPU that draws a frame in less, frames follow each other at about that.)\n");
   return 0;
 }
 
