@@ -82,6 +82,17 @@ Camera look(glm::dvec3 eye, glm::dvec3 target) {
   return c;
 }
 
+// 400 large spheres, 20 x 20, 4 m apart: more than a small arena holds at once.
+std::vector<Object> sphere_field() {
+  std::vector<Object> objects;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j)
+      objects.push_back(make_object("S" + std::to_string(i) + "_" + std::to_string(j),
+                                    ObjectClass::equipment, {i * 4.0, j * 4.0, 0},
+                                    Sphere{1.5f + 0.1f * float(j % 5)}));
+  return objects;
+}
+
 std::set<uint64_t> ids_in(const Image& image) {
   std::set<uint64_t> ids(image.object_ids.begin(), image.object_ids.end());
   ids.erase(0);
@@ -811,13 +822,7 @@ TEST(RenderArena, BestFitAmongManyEqualFreeRangesTakesTheLowestAndAllCoalesce) {
 
 TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
   TempDir dir;
-  std::vector<Object> objects;
-  for (int i = 0; i < 20; ++i)
-    for (int j = 0; j < 20; ++j)
-      objects.push_back(make_object("S" + std::to_string(i) + "_" + std::to_string(j),
-                                    ObjectClass::equipment, {i * 4.0, j * 4.0, 0},
-                                    Sphere{1.5f + 0.1f * float(j % 5)}));
-  auto store = make_store(dir, objects);
+  auto store = make_store(dir, sphere_field());
   RenderOptions options = small(LodPolicy::none);
   options.vertex_budget_bytes = 1u << 20;  // a few dozen large spheres
   auto r = make_renderer(*store, options);
@@ -1061,13 +1066,7 @@ TEST(RenderPath, ExpectingTheNextViewChangesNoImageAndItsCullIsTakenOnlyIfItCome
 // small for the path and evicts frame after frame.
 TEST(RenderPath, ExpectingTheNextViewUnderATightBudgetChangesNoImage) {
   TempDir dir;
-  std::vector<Object> objects;
-  for (int i = 0; i < 20; ++i)
-    for (int j = 0; j < 20; ++j)
-      objects.push_back(make_object("S" + std::to_string(i) + "_" + std::to_string(j),
-                                    ObjectClass::equipment, {i * 4.0, j * 4.0, 0},
-                                    Sphere{1.5f + 0.1f * float(j % 5)}));
-  auto store = make_store(dir, objects);
+  auto store = make_store(dir, sphere_field());
   RenderOptions options = small();
   options.pixel_error = 0.25;
   options.vertex_budget_bytes = 1u << 20;

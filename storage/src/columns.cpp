@@ -369,35 +369,6 @@ bool ColumnWriter::flush(MDB_txn* txn, std::string& error) {
 
 // ---------------------------------------------------------------------------------------------
 
-std::shared_ptr<const InflatedChunk> SharedChunks::find(uint32_t chunk) {
-  std::lock_guard lock(mutex_);
-  const auto it = entries_.find(chunk);
-  if (it == entries_.end()) return nullptr;
-  lru_.splice(lru_.begin(), lru_, it->second.position);
-  return it->second.chunk;
-}
-
-void SharedChunks::insert(uint32_t chunk, const std::shared_ptr<const InflatedChunk>& inflated) {
-  const size_t bytes = inflated->memory_bytes();
-  if (bytes > bound_) return;
-  std::lock_guard lock(mutex_);
-  if (entries_.count(chunk)) return;
-  lru_.push_front(chunk);
-  entries_.emplace(chunk, Entry{inflated, bytes, lru_.begin()});
-  bytes_ += bytes;
-  while (bytes_ > bound_) {
-    const auto oldest = entries_.find(lru_.back());
-    bytes_ -= oldest->second.bytes;
-    entries_.erase(oldest);
-    lru_.pop_back();
-  }
-}
-
-size_t SharedChunks::bytes() const {
-  std::lock_guard lock(mutex_);
-  return bytes_;
-}
-
 ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget,
                        SharedChunks* shared)
     : dbi_(dbi), shape_(shape), byte_budget_(byte_budget), shared_(shared), entries_(capacity) {}

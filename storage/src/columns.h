@@ -7,16 +7,14 @@
 
 #include <cstdint>
 #include <deque>
-#include <list>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <span>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "chunks.h"
+#include "shared_cache.h"
 
 namespace plantview::detail {
 
@@ -116,31 +114,20 @@ struct InflatedChunk {
   }
 };
 
-// Decompressed chunks shared by the views of one committed state, by chunk number. Keeps at
-// most `bound_bytes` of chunks, least recently used going first; a chunk a view still holds
-// lives on with it (ChunkCache). Threads: any, at once (one mutex, held for a lookup or an
-// insert, never while inflating).
+// Decompressed chunks shared by the views of one committed state, by chunk number: at most
+// its bound of chunks, least recently used going first; a chunk a view still holds lives on
+// with it (ChunkCache).
 class SharedChunks {
  public:
-  explicit SharedChunks(size_t bound_bytes) : bound_(bound_bytes) {}
-  SharedChunks(const SharedChunks&) = delete;
-  SharedChunks& operator=(const SharedChunks&) = delete;
-  std::shared_ptr<const InflatedChunk> find(uint32_t chunk);
-  // Another view's chunk inserted meanwhile wins (the two are the same bytes).
-  void insert(uint32_t chunk, const std::shared_ptr<const InflatedChunk>& inflated);
-  size_t bytes() const;
+  explicit SharedChunks(size_t bound_bytes) : cache_(bound_bytes, false) {}
+  std::shared_ptr<const InflatedChunk> find(uint32_t chunk) { return cache_.find(chunk); }
+  void insert(uint32_t chunk, const std::shared_ptr<const InflatedChunk>& inflated) {
+    cache_.insert(chunk, inflated, inflated->memory_bytes());
+  }
+  size_t bytes() const { return cache_.bytes(); }
 
  private:
-  struct Entry {
-    std::shared_ptr<const InflatedChunk> chunk;
-    size_t bytes;
-    std::list<uint32_t>::iterator position;
-  };
-  mutable std::mutex mutex_;
-  size_t bound_;
-  size_t bytes_ = 0;
-  std::list<uint32_t> lru_;  // most recently used first
-  std::unordered_map<uint32_t, Entry> entries_;
+  SharedCache<InflatedChunk> cache_;
 };
 
 // The shared chunk bound of states first read after the call (kChunkCacheBytes by default);

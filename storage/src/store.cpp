@@ -21,6 +21,7 @@
 #include "import_runs.h"
 #include "lmdb_guard.h"
 #include "record.h"
+#include "shared_cache.h"
 #include "spatial.h"
 #include "tables.h"
 
@@ -312,58 +313,21 @@ struct IndexAppender {
   }
 };
 
-// Decoded spatial blocks of one committed state, shared by its views (thread-safe). Bounded by
-// `bound_bytes` among blocks nobody holds, least recently used first.
+// Decoded spatial blocks of one committed state, shared by its views: bounded by `bound_bytes`
+// among blocks nobody holds, least recently used first.
 class BlockCache {
  public:
-  explicit BlockCache(size_t bound_bytes) : bound_(bound_bytes) {}
-  std::shared_ptr<const SpatialBlock> find(uint32_t block) {
-    std::lock_guard lock(mutex_);
-    const auto it = entries_.find(block);
-    if (it == entries_.end()) return nullptr;
-    lru_.splice(lru_.begin(), lru_, it->second.position);
-    auto found = it->second.block;
-    evict_locked();  // blocks let go since the last call may now go
-    return found;
-  }
+  explicit BlockCache(size_t bound_bytes) : cache_(bound_bytes, true) {}
+  std::shared_ptr<const SpatialBlock> find(uint32_t block) { return cache_.find(block); }
   void insert(uint32_t block, const std::shared_ptr<const SpatialBlock>& decoded) {
-    const size_t bytes = sizeof(SpatialBlock) + decoded->nodes.capacity() * sizeof(SpatialNode) +
-                         decoded->entries.capacity() * sizeof(SpatialEntry);
-    std::lock_guard lock(mutex_);
-    if (entries_.count(block)) return;  // another view decoded it meanwhile
-    lru_.push_front(block);
-    entries_.emplace(block, Entry{decoded, bytes, lru_.begin()});
-    bytes_ += bytes;
-    evict_locked();
+    cache_.insert(block, decoded,
+                  sizeof(SpatialBlock) + decoded->nodes.capacity() * sizeof(SpatialNode) +
+                      decoded->entries.capacity() * sizeof(SpatialEntry));
   }
-  size_t bytes() const {
-    std::lock_guard lock(mutex_);
-    return bytes_;
-  }
+  size_t bytes() const { return cache_.bytes(); }
 
  private:
-  // Least recently used first, skipping blocks somebody holds (use_count > 1: the cache's
-  // pointer and theirs).
-  void evict_locked() {
-    for (auto it = lru_.end(); bytes_ > bound_ && it != lru_.begin();) {
-      --it;
-      auto e = entries_.find(*it);
-      if (e->second.block.use_count() > 1) continue;
-      bytes_ -= e->second.bytes;
-      entries_.erase(e);
-      it = lru_.erase(it);
-    }
-  }
-  struct Entry {
-    std::shared_ptr<const SpatialBlock> block;
-    size_t bytes;
-    std::list<uint32_t>::iterator position;
-  };
-  mutable std::mutex mutex_;
-  size_t bound_;
-  size_t bytes_ = 0;
-  std::list<uint32_t> lru_;  // most recently used first
-  std::unordered_map<uint32_t, Entry> entries_;
+  detail::SharedCache<SpatialBlock> cache_;
 };
 
 std::atomic<size_t> g_spatial_cache_bytes{kSpatialCacheBytes};
