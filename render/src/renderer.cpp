@@ -81,6 +81,13 @@ struct Renderer::State {
   bool phase(const FrameView& frame_view, const Look* look, bool with_ids, bool second_phase,
              bool wait, FrameStats& stats, StageTimes& times, Stopwatch& clock,
              std::string& error);
+  // A phase's objects (plan.visible()) ordered, decoded where new, chosen for frame `frame` and
+  // streamed; with `indices`, their index lists written (`next`: into the index buffer the next
+  // frame draws from). The frame's phases and the look ahead both stream through it, so that a
+  // first phase streamed ahead is the one the frame would have streamed.
+  bool stream_phase(const FrameView& frame_view, uint64_t frame, bool second_phase, bool indices,
+                    bool next, FrameStats& stats, StageTimes& times, Stopwatch& clock,
+                    std::string& error);
 };
 
 void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact) {
@@ -92,17 +99,15 @@ void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, boo
                                             made.stats, ignored))
     return;
   if (made.first_phase) {
-    // The first phase streamed as the frame would stream it (the same calls, in the same
-    // order), so that frames and counts are the same with or without the look ahead; a read
-    // error leaves the frame to start afresh.
-    plan.order();
-    if (!objects.decode(plan.visible(), options.hlod, ignored)) return;
-    plan.choose(objects, next_view, options, made.frame, made.stats);
+    // Its index lists into the index buffer that frame draws from (this one draws from the
+    // other); a read error leaves the frame to start afresh.
+    StageTimes unused;
+    Stopwatch clock;
     streaming.defer_uploads(true);
-    made.streamed = streaming.stream(plan, objects, next_view, options, made.stats, ignored);
+    made.streamed = stream_phase(next_view, made.frame, false, true, true, made.stats, unused,
+                                 clock, ignored);
     streaming.defer_uploads(false);
-    // Its index lists into the index buffer that frame draws from (this one draws from the other).
-    if (!made.streamed || !streaming.write_index_lists(plan.draws(), ignored, true)) return;
+    if (!made.streamed) return;
   }
   made_ahead = std::move(made);
 }
@@ -264,32 +269,39 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 bool Renderer::State::phase(const FrameView& frame_view, const Look* look, bool with_ids,
                             bool second_phase, bool wait, FrameStats& stats, StageTimes& times,
                             Stopwatch& clock, std::string& error) {
-  // Streaming: the chosen levels resident in the arena (or boxes), the object table filled,
-  // then the index lists written (only when drawing). A first phase streamed ahead is drawn
-  // as it stands.
-  if (second_phase || !first_streamed) {
-    plan.order();
-    times.cull += clock.lap();
-    if (!objects.decode(plan.visible(), options.hlod, error)) return false;
-    times.decode += clock.lap();
-    plan.choose(objects, frame_view, options, frame_number, stats);
-    times.choose += clock.lap();
-    if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
-      return false;
-    times.stream += clock.lap();
+  // A first phase streamed ahead is drawn as it stands, from the index buffer it was written
+  // into.
+  if (!second_phase && first_streamed) {
+    if (look) backend.use_next_indices();
+  } else if (!stream_phase(frame_view, frame_number, second_phase, look != nullptr, false, stats,
+                           times, clock, error)) {
+    return false;
   }
   if (!look) return true;
-  if (second_phase || !first_streamed) {
-    if (!streaming.write_index_lists(plan.draws(), error)) return false;
-  } else {
-    backend.use_next_indices();
-  }
-  times.index_lists += clock.lap();
   if (!second_phase && !backend.begin_frame(frame_view, *look, with_ids, error)) return false;
   backend.draw_phase(frame_view, streaming.index_counts(), streaming.table().entries(),
                      streaming.proxy_tables(), streaming.table().pick_ids(), *look, with_ids,
                      wait);
   times.draw += clock.lap();
+  return true;
+}
+
+bool Renderer::State::stream_phase(const FrameView& frame_view, uint64_t frame,
+                                   bool second_phase, bool indices, bool next, FrameStats& stats,
+                                   StageTimes& times, Stopwatch& clock, std::string& error) {
+  plan.order();
+  times.cull += clock.lap();
+  if (!objects.decode(plan.visible(), options.hlod, error)) return false;
+  times.decode += clock.lap();
+  plan.choose(objects, frame_view, options, frame, stats);
+  times.choose += clock.lap();
+  // The chosen levels resident in the arena (or boxes), the object table filled.
+  if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
+    return false;
+  times.stream += clock.lap();
+  if (!indices) return true;
+  if (!streaming.write_index_lists(plan.draws(), error, next)) return false;
+  times.index_lists += clock.lap();
   return true;
 }
 
