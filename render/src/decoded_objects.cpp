@@ -590,8 +590,14 @@ void DecodedObjects::forget_known(uint64_t frame, const Residency& residency) {
   const size_t limit = kKnownObjectsKept + residency.resident_count();
   if (known_count() <= limit) return;
   decoded_.clear();
+  // A clock hand over the pool: each call goes on from where the last stopped and stops as soon
+  // as the count is back at the limit, so a frame looks at about as many entries as it forgets
+  // (and the resident and just-seen ones it passes), never the whole pool; the entries looked at
+  // longest ago go first. A freed entry is reused by the next insert, just behind the hand.
   for (int pass = 0; pass < 2 && known_count() > limit; ++pass) {
-    for (size_t i = 0; i < pool_.size(); ++i) {
+    for (size_t n = pool_.size(); n > 0 && known_count() > limit; --n) {
+      if (forget_hand_ >= pool_.size()) forget_hand_ = 0;
+      const size_t i = forget_hand_++;
       const uint32_t key = keys_[i];
       if (key == kFreeKey) continue;
       const bool old = pass == 1 || pool_[i].last_seen < frame;

@@ -243,9 +243,10 @@ class DecodedObjects {
   // there. A block that cannot be read is left for the cull, which reports it.
   void read_blocks(std::span<const uint32_t> blocks);
 
-  // Keeps the cache bounded: objects neither resident nor seen in frame `frame` go first, the
-  // longest unseen first; those seen (drawn as boxes because the arena was full) only if that
-  // is not enough.
+  // Keeps the cache bounded (kKnownObjectsKept beyond the resident): objects neither resident
+  // nor seen in frame `frame` go first, those looked at longest ago first, only as many as the
+  // bound needs; those seen (drawn as boxes because the arena was full) only if that is not
+  // enough. Costs about what it forgets, not the number known.
   void forget_old(uint64_t frame, const Residency& residency);
 
  private:
@@ -305,6 +306,7 @@ class DecodedObjects {
   std::deque<Known> pool_;
   std::vector<uint32_t> keys_;
   std::vector<uint32_t> free_known_;
+  size_t forget_hand_ = 0;  // forget_known()'s next entry to look at
   KnownDirectory directory_;
   std::unordered_map<PlanKey, MeshPlan, PlanKeyHash> plans_;  // few: per template and winding
   // Pipeline HLOD: the runs (a deque: growing it copies nothing; a forgotten pipeline's run
