@@ -349,7 +349,7 @@ TEST(Routes, AFrameRequestBecomesARenderJobWithItsTypedCamera) {
   EXPECT_EQ(job_of(route(get("/api/frame?mode=still"), config(), false, 7)).mode, FrameMode::still);
 }
 
-TEST(Routes, DefaultsAreTheModelsViewUpZAndFifty) {
+TEST(Routes, DefaultsAreTheModelsViewFiftyAndUpZOrNorthInAPlanView) {
   const RenderJob plain = job_of(route(get("/api/frame"), config(), false, 1));
   EXPECT_EQ(plain.width, 1280u);
   EXPECT_EQ(plain.height, 720u);
@@ -361,6 +361,9 @@ TEST(Routes, DefaultsAreTheModelsViewUpZAndFifty) {
   EXPECT_EQ(partial.camera.eye_m, glm::dvec3(1, 2, 3));
   EXPECT_EQ(partial.camera.up, glm::dvec3(0, 0, 1));
   EXPECT_EQ(partial.camera.fov_deg, 50.0);
+  // A plan view without up: north (+y) at the top, as every camera form has it.
+  const RenderJob plan = job_of(route(get("/api/frame?eye=3,4,90&target=3,4,0"), config(), false, 1));
+  EXPECT_EQ(plan.camera.up, glm::dvec3(0, 1, 0));
 }
 
 TEST(Routes, UpOrFovWithoutACameraIsRefusedNotIgnored) {
@@ -457,7 +460,7 @@ TEST(Routes, CameraErrorsAreTheCameraFormsMessages) {
       // Bad numbers are found before wrong counts.
       {"eye=1,2&target=1,1,q", "camera: 'target' has a bad number 'q'"},
       {"eye=1,1,1&target=1,1,1", "camera: the eye is on the target"},
-      {"eye=0,0,5&target=0,0,0", "camera: 'up' is zero or along the view direction"},
+      {"eye=0,0,5&target=0,0,0&up=0,0,-1", "camera: 'up' is zero or along the view direction"},
       {"eye=0,-5,0&target=0,0,0&up=0,0,0", "camera: 'up' is zero or along the view direction"},
       {"eye=0,-5,0&target=0,0,0&up=", "camera: 'up' has a bad number ''"},
       {"eye=0,-5,0&target=0,0,0&fov=180", "camera: fov must be in (0, 179) degrees"},

@@ -1171,6 +1171,43 @@ TEST(RenderCamera, ParsesTheCommandLineFormAndRejectsBadOnes) {
   }
 }
 
+TEST(RenderCamera, APlanViewWithoutUpHasNorthAtTheTopOfTheImage) {
+  // A reviewer's plan view: straight down, no up given. Every camera form takes +y as up there
+  // (+z cannot orient a vertical view); an up given along the view is still refused.
+  Camera c;
+  std::string error;
+  ASSERT_TRUE(parse_camera("eye=0,0,50,target=0,0,0", c, error)) << error;
+  EXPECT_EQ(c.up, glm::dvec3(0, 1, 0));
+  ASSERT_TRUE(parse_camera("eye=0,0,-50,target=0,0,0", c, error)) << error;  // from below
+  EXPECT_EQ(c.up, glm::dvec3(0, 1, 0));
+  ASSERT_TRUE(parse_camera("eye=0,0,50,target=0,0.5,0", c, error)) << error;  // slanted: +z
+  EXPECT_EQ(c.up, glm::dvec3(0, 0, 1));
+  EXPECT_FALSE(parse_camera("eye=0,0,50,target=0,0,0,up=0,0,1", c, error));
+  std::vector<Camera> path;
+  ASSERT_TRUE(parse_camera_path("[{\"eye\":[0,0,50],\"target\":[0,0,0]}]", path, error)) << error;
+  EXPECT_EQ(path.at(0).up, glm::dvec3(0, 1, 0));
+
+  // North at the top, east on the right, as on a plot plan.
+  TempDir dir;
+  const auto north = make_object("north", ObjectClass::equipment, {0, 4, 0}, Box{2, 2, 2});
+  const auto east = make_object("east", ObjectClass::equipment, {4, 0, 0}, Sphere{1.0f});
+  auto store = make_store(dir, {north, east});
+  auto r = make_renderer(*store);
+  ASSERT_TRUE(parse_camera("eye=0,0,30,target=0,0,0", c, error)) << error;
+  Frame f = render(*r, c, 160, 120);
+  double north_y = 0, east_x = 0, north_n = 0, east_n = 0;
+  for (uint32_t y = 0; y < 120; ++y)
+    for (uint32_t x = 0; x < 160; ++x) {
+      const uint64_t id = f.image.object_ids[size_t(y) * 160 + x];
+      if (id == north.id) north_y += y, ++north_n;
+      if (id == east.id) east_x += x, ++east_n;
+    }
+  ASSERT_GT(north_n, 0);
+  ASSERT_GT(east_n, 0);
+  EXPECT_LT(north_y / north_n, 60 - 10);  // above the centre (rows count down)
+  EXPECT_GT(east_x / east_n, 80 + 10);    // right of the centre
+}
+
 TEST(RenderCamera, ValidationRejectsWhatTheRendererCannotDraw) {
   std::string error;
   Camera c = look({0, -5, 1}, {0, 0, 1});

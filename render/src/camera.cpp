@@ -48,10 +48,17 @@ bool validate_camera(const Camera& c, std::string& error) {
   return true;
 }
 
+glm::dvec3 default_up(const glm::dvec3& view_direction) {
+  const double length = glm::length(view_direction);
+  const glm::dvec3 z(0, 0, 1);
+  if (length > 0 && glm::length(glm::cross(view_direction / length, z)) >= 1e-6) return z;
+  return {0, 1, 0};
+}
+
 bool parse_camera(std::string_view text, Camera& out, std::string& error) {
   // Tokens split on commas; a token "key=number" starts a key, bare numbers continue it.
   Camera camera;
-  bool have_eye = false, have_target = false;
+  bool have_eye = false, have_target = false, have_up = false;
   std::vector<std::pair<std::string, std::vector<double>>> fields;
   size_t at = 0;
   while (at <= text.size()) {
@@ -94,6 +101,7 @@ bool parse_camera(std::string_view text, Camera& out, std::string& error) {
       have_target = true;
     } else if (key == "up") {
       if (!vec(camera.up)) return false;
+      have_up = true;
     } else if (key == "fov") {
       if (values.size() != 1) {
         error = "camera: 'fov' needs 1 number";
@@ -109,6 +117,7 @@ bool parse_camera(std::string_view text, Camera& out, std::string& error) {
     error = "camera: eye=X,Y,Z and target=X,Y,Z are required";
     return false;
   }
+  if (!have_up) camera.up = default_up(camera.target_m - camera.eye_m);
   if (!validate_camera(camera, error)) return false;
   out = camera;
   return true;
@@ -133,8 +142,7 @@ struct ViewBasis {
 ViewBasis view_basis(const glm::dvec3& forward) {
   ViewBasis b;
   b.forward = forward;
-  b.world_up = glm::dvec3(0, 0, 1);
-  if (glm::length(glm::cross(forward, b.world_up)) < 1e-6) b.world_up = glm::dvec3(0, 1, 0);
+  b.world_up = default_up(forward);
   b.right = glm::normalize(glm::cross(forward, b.world_up));
   b.up = glm::cross(b.right, forward);
   return b;
@@ -266,8 +274,10 @@ bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::str
       v = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
       return true;
     };
-    if (!vec("eye", c.eye_m, true) || !vec("target", c.target_m, true) || !vec("up", c.up, false))
+    if (!vec("eye", c.eye_m, true) || !vec("target", c.target_m, true))
       return false;
+    c.up = default_up(c.target_m - c.eye_m);
+    if (!vec("up", c.up, false)) return false;
     if (item.contains("fov")) {
       if (!item["fov"].is_number()) {
         error = where + ": 'fov' must be a number";

@@ -59,9 +59,10 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
     out = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
     return true;
   };
-  if (!point("eye", v.camera.eye_m, true) || !point("target", v.camera.target_m, true) ||
-      !point("up", v.camera.up, false))
+  if (!point("eye", v.camera.eye_m, true) || !point("target", v.camera.target_m, true))
     return false;
+  v.camera.up = default_up(v.camera.target_m - v.camera.eye_m);
+  if (!point("up", v.camera.up, false)) return false;
   if (cam.contains("fov_deg")) {
     if (!cam["fov_deg"].is_number()) return fail("'camera.fov_deg' must be a number");
     v.camera.fov_deg = cam["fov_deg"].get<double>();

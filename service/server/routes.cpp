@@ -68,14 +68,15 @@ struct CameraText {
 // Parses eye, target, up and fov into a Camera and validates it. Bad numbers are reported
 // before wrong counts, each in the order eye, target, up, fov.
 bool parse_camera_fields(const CameraText& text, Camera& camera, std::string& error) {
-  std::vector<double> eye, target, up = {0, 0, 1}, fov = {camera.fov_deg};
+  std::vector<double> eye, target, up, fov = {camera.fov_deg};
   if (!parse_numbers("eye", text.eye, eye, error) || !parse_numbers("target", text.target, target, error) ||
       (text.up && !parse_numbers("up", *text.up, up, error)) ||
       (text.fov && !parse_numbers("fov", *text.fov, fov, error)))
     return false;
-  if (!to_vector("eye", eye, camera.eye_m, error) || !to_vector("target", target, camera.target_m, error) ||
-      !to_vector("up", up, camera.up, error))
+  if (!to_vector("eye", eye, camera.eye_m, error) || !to_vector("target", target, camera.target_m, error))
     return false;
+  if (!text.up) camera.up = default_up(camera.target_m - camera.eye_m);
+  else if (!to_vector("up", up, camera.up, error)) return false;
   if (fov.size() != 1) {
     error = "camera: 'fov' needs 1 number";
     return false;

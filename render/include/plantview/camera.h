@@ -40,8 +40,14 @@ struct Camera {
 // typed fields) calls it before rendering. False with the broken rule in `error`.
 bool validate_camera(const Camera& camera, std::string& error);
 
-// Parses "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG]" (the --camera form). Rejects unknown
-// keys, missing or non-finite numbers, and cameras validate_camera rejects.
+// The up of a camera that is given none (every parser below, the HTTP query): +z, or +y (north
+// at the top of the image) where the view along `view_direction` (any length) is vertical,
+// a plan view from above or below, which +z cannot orient.
+glm::dvec3 default_up(const glm::dvec3& view_direction);
+
+// Parses "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG]" (the --camera form; without up,
+// default_up). Rejects unknown keys, missing or non-finite numbers, and cameras validate_camera
+// rejects (an up given along the view among them).
 bool parse_camera(std::string_view text, Camera& out, std::string& error);
 std::string format_camera(const Camera& camera);  // the form parse_camera reads, exactly
 // The overview of a plant for an image of `aspect` (width / height): fit_camera on its
@@ -82,7 +88,8 @@ Camera fit_camera(std::span<const DAabb> boxes, const glm::dvec3& direction, dou
                   double fov_deg, double fill);
 
 // A camera path: what `plantview path` writes and `render --path` reads. JSON: a list of
-// {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov": deg} ("up" and "fov" optional).
+// {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov": deg} ("up" and "fov" optional;
+// without up, default_up).
 // The parser rejects an empty list and names the first bad camera by its index.
 std::string camera_path_json(const std::vector<Camera>& cameras);
 bool parse_camera_path(std::string_view json, std::vector<Camera>& out, std::string& error);
