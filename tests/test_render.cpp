@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <random>
 #include <set>
 
@@ -786,6 +788,100 @@ TEST(RenderArena, EvictsTheLargestVisibilityCounterFirst) {
   EXPECT_FALSE(res.admit(6, 30, evicted));  // only visible objects are left: nothing fits
   EXPECT_TRUE(res.resident(2));
   EXPECT_LE(res.used_units(), res.capacity_units());
+}
+
+// admit() keeps its eviction order in per-frame buckets instead of sorting every resident
+// object: along random frames of marks, admissions and drops it evicts exactly what the rule
+// (longest unseen, then largest, then lowest key; never one visible this frame) picks from all
+// of them, and its bookkeeping follows the resident count however many frames pass.
+TEST(RenderArena, EvictionFollowsTheRuleOverAllResidentObjectsAlongRandomFrames) {
+  struct Reference {
+    detail::RangeAllocator allocator{5000};
+    struct Entry {
+      uint64_t offset, units, visible_frame;
+    };
+    std::map<uint32_t, Entry> entries;
+    uint64_t frame = 0;
+    std::optional<uint64_t> admit(uint32_t key, uint64_t units, std::vector<uint32_t>& evicted) {
+      auto place = allocator.allocate(units);
+      while (!place) {
+        auto best = entries.end();
+        for (auto it = entries.begin(); it != entries.end(); ++it) {
+          if (it->second.visible_frame == frame) continue;
+          if (best == entries.end() || it->second.visible_frame < best->second.visible_frame ||
+              (it->second.visible_frame == best->second.visible_frame &&
+               it->second.units > best->second.units))
+            best = it;  // keys ascend: the lowest key wins the remaining ties
+        }
+        if (best == entries.end()) return std::nullopt;
+        allocator.release(best->second.offset, best->second.units);
+        evicted.push_back(best->first);
+        entries.erase(best);
+        place = allocator.allocate(units);
+      }
+      entries[key] = {*place, units, frame};
+      return place;
+    }
+  } ref;
+  detail::Residency res(5000);
+  std::mt19937 rng(11);
+  std::vector<std::pair<uint32_t, uint64_t>> evicted;
+  std::vector<uint32_t> ref_evicted;
+  uint32_t next_key = 0;
+  size_t evictions = 0;
+  for (int frame = 0; frame < 400; ++frame) {
+    res.begin_frame();
+    ++ref.frame;
+    // Mark a random share of the resident objects visible (some twice).
+    std::vector<uint32_t> keys;
+    for (const auto& [k, e] : ref.entries) keys.push_back(k);
+    for (const uint32_t k : keys)
+      if (rng() % 3 == 0) {
+        res.mark_visible(k);
+        ref.entries[k].visible_frame = ref.frame;
+        if (rng() % 4 == 0) res.mark_visible(k);
+      }
+    // Admit new objects (and now and then one dropped earlier this frame), drop a few.
+    const int admits = int(rng() % 40);
+    for (int i = 0; i < admits; ++i) {
+      const uint32_t key = next_key++;
+      const uint64_t units = 1 + rng() % 120;
+      evicted.clear();
+      ref_evicted.clear();
+      const auto got = res.admit(key, units, evicted);
+      const auto want = ref.admit(key, units, ref_evicted);
+      ASSERT_EQ(got, want) << "frame " << frame << " key " << key;
+      ASSERT_EQ(evicted.size(), ref_evicted.size()) << "frame " << frame;
+      for (size_t j = 0; j < evicted.size(); ++j) ASSERT_EQ(evicted[j].first, ref_evicted[j]);
+      evictions += evicted.size();
+      if (got && rng() % 10 == 0) {  // dropped (its data could not be written), then again
+        res.drop(key);
+        ref.allocator.release(ref.entries[key].offset, ref.entries[key].units);
+        ref.entries.erase(key);
+        evicted.clear();
+        ref_evicted.clear();
+        ASSERT_EQ(res.admit(key, units, evicted), ref.admit(key, units, ref_evicted));
+        ASSERT_EQ(evicted.size(), ref_evicted.size());
+      }
+    }
+    res.end_frame();
+    ASSERT_EQ(res.resident_count(), ref.entries.size());
+    for (const auto& [k, e] : ref.entries) ASSERT_EQ(res.offset(k), std::optional<uint64_t>(e.offset));
+  }
+  EXPECT_GT(evictions, 1000u) << "the arena must have been full most of the time";
+
+  // Without evictions, every object seen every frame: the records do not pile up.
+  detail::Residency roomy(1u << 20);
+  roomy.begin_frame();
+  for (uint32_t k = 0; k < 2000; ++k) ASSERT_TRUE(roomy.admit(k, 10, evicted));
+  roomy.end_frame();
+  const size_t bytes_at_start = roomy.bookkeeping_bytes();
+  for (int frame = 0; frame < 1000; ++frame) {
+    roomy.begin_frame();
+    for (uint32_t k = 0; k < 2000; ++k) roomy.mark_visible(k);
+    roomy.end_frame();
+  }
+  EXPECT_LE(roomy.bookkeeping_bytes(), 2 * bytes_at_start + 64 * 1024);
 }
 
 TEST(RenderArena, FreedRangesCoalesce) {

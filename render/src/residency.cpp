@@ -72,42 +72,83 @@ uint32_t Residency::counter(uint32_t key) const {
   return uint32_t(ended_ - e->visible_frame);
 }
 
+size_t Residency::bookkeeping_bytes() const {
+  // A map node: the bucket and about four pointers of the tree.
+  size_t bytes = entries_.bytes() + buckets_.size() * (sizeof(Bucket) + 48);
+  for (const auto& [frame, b] : buckets_)
+    bytes += b.keys.capacity() * sizeof(uint32_t) + b.sorted.capacity() * sizeof(Candidate);
+  return bytes;
+}
+
+void Residency::add_record(uint64_t frame, uint32_t key) {
+  buckets_[frame].keys.push_back(key);
+  if (++records_ > 2 * entries_.size() + 1024) compact();
+}
+
+void Residency::compact() {
+  buckets_.clear();
+  entries_.for_each([&](uint32_t key, const Entry& e) { buckets_[e.visible_frame].keys.push_back(key); });
+  records_ = entries_.size();
+}
+
+std::optional<uint32_t> Residency::next_victim() {
+  while (!buckets_.empty() && buckets_.begin()->first != frame_) {
+    const auto it = buckets_.begin();
+    const uint64_t frame = it->first;
+    Bucket& b = it->second;
+    // A record whose object was seen since goes to the bucket of that frame (a newer one:
+    // visible_frame only grows); one whose object is gone is dropped.
+    const auto current = [&](uint32_t key) {
+      const Entry* e = entries_.find(key);
+      if (e && e->visible_frame != frame) buckets_[e->visible_frame].keys.push_back(key);
+      else if (!e) --records_;
+      return e && e->visible_frame == frame;
+    };
+    if (!b.is_sorted) {
+      for (const uint32_t k : b.keys)
+        if (current(k)) b.sorted.push_back({entries_.find(k)->units, k});
+      // Best last: the largest (fewer evictions make the room), then the lowest key.
+      std::sort(b.sorted.begin(), b.sorted.end(), [](const Candidate& x, const Candidate& y) {
+        if (x.units != y.units) return x.units < y.units;
+        return x.key > y.key;
+      });
+      // An object dropped and admitted again has two records.
+      const auto end = std::unique(b.sorted.begin(), b.sorted.end(),
+                                   [](const Candidate& x, const Candidate& y) { return x.key == y.key; });
+      records_ -= size_t(b.sorted.end() - end);
+      b.sorted.erase(end, b.sorted.end());
+      b.keys = {};
+      b.is_sorted = true;
+    }
+    while (!b.sorted.empty()) {
+      const uint32_t key = b.sorted.back().key;
+      b.sorted.pop_back();
+      if (current(key)) {
+        --records_;
+        return key;
+      }
+    }
+    buckets_.erase(it);
+  }
+  return std::nullopt;
+}
+
 std::optional<uint64_t> Residency::admit(uint32_t key, uint64_t units,
                                          std::vector<std::pair<uint32_t, uint64_t>>& evicted) {
   assert(!resident(key));
   if (units == 0 || units > allocator_.capacity()) return std::nullopt;
   auto place = allocator_.allocate(units);
   while (!place) {
-    if (!candidates_built_) {
-      candidates_.clear();
-      entries_.for_each([&](uint32_t k, const Entry& e) {
-        if (e.visible_frame != frame_) candidates_.push_back({e.visible_frame, e.units, k});
-      });
-      // Best candidate last: largest counter (the longest unseen), then largest size, then key
-      // for determinism.
-      std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
-        if (a.visible_frame != b.visible_frame) return a.visible_frame > b.visible_frame;
-        if (a.units != b.units) return a.units < b.units;
-        return a.key > b.key;
-      });
-      candidates_built_ = true;
-    }
-    // Candidates made visible or dropped since the list was built are skipped.
-    while (!candidates_.empty()) {
-      const Entry* e = entries_.find(candidates_.back().key);
-      if (e && e->visible_frame != frame_) break;
-      candidates_.pop_back();
-    }
-    if (candidates_.empty()) return std::nullopt;
-    const uint32_t victim = candidates_.back().key;
-    candidates_.pop_back();
-    const Entry e = *entries_.find(victim);
+    const std::optional<uint32_t> victim = next_victim();
+    if (!victim) return std::nullopt;
+    const Entry e = *entries_.find(*victim);
     allocator_.release(e.offset, e.units);
-    entries_.erase(victim);
-    evicted.emplace_back(victim, e.units);
+    entries_.erase(*victim);
+    evicted.emplace_back(*victim, e.units);
     place = allocator_.allocate(units);
   }
   entries_.insert(key, Entry{*place, units, frame_});
+  add_record(frame_, key);
   return place;
 }
 
@@ -117,7 +158,5 @@ void Residency::drop(uint32_t key) {
   allocator_.release(e->offset, e->units);
   entries_.erase(key);
 }
-
-
 
 }  // namespace plantview::detail

@@ -147,7 +147,7 @@ class Residency {
  public:
   explicit Residency(uint64_t capacity_units) : allocator_(capacity_units) {}
 
-  void begin_frame() { ++frame_; candidates_built_ = false; }
+  void begin_frame() { ++frame_; }
   // Marks a resident object visible in this frame (resets its counter at end_frame).
   void mark_visible(uint32_t key);
   bool resident(uint32_t key) const { return entries_.find(key) != nullptr; }
@@ -155,7 +155,9 @@ class Residency {
   uint32_t counter(uint32_t key) const;
 
   // Room for `units` for `key` (not yet resident), visible this frame. Evicted keys are appended
-  // to `evicted` with their sizes; the caller frees what it kept for them.
+  // to `evicted` with their sizes; the caller frees what it kept for them. Cost: the evictions
+  // it makes, and a sort of the objects last seen in one frame the first time it evicts from
+  // them; never a walk of every resident object.
   std::optional<uint64_t> admit(uint32_t key, uint64_t units,
                                 std::vector<std::pair<uint32_t, uint64_t>>& evicted);
   // Drops a resident object (e.g. when its data could not be written).
@@ -168,28 +170,41 @@ class Residency {
   uint64_t capacity_units() const { return allocator_.capacity(); }
   size_t resident_count() const { return entries_.size(); }
   // Bytes of the per-object bookkeeping (follows the resident count, not the plant).
-  size_t bookkeeping_bytes() const {
-    return entries_.bytes() + candidates_.capacity() * sizeof(Candidate);
-  }
+  size_t bookkeeping_bytes() const;
 
  private:
   struct Entry {
     uint64_t offset = 0, units = 0;
     uint64_t visible_frame = 0;
   };
-  RangeAllocator allocator_;
-  FlatKeyMap<Entry> entries_;
-  uint64_t frame_ = 0, ended_ = 0;
-  // This frame's eviction candidates, best last (popped from the back).
-  // Eviction candidates of this frame, sorted by what admit() orders them by (copied, so that
-  // sorting needs no lookup).
   struct Candidate {
-    uint64_t visible_frame;
     uint64_t units;
     uint32_t key;
   };
-  std::vector<Candidate> candidates_;
-  bool candidates_built_ = false;
+  // Eviction order without a walk of every resident object: each entry has a record (its key)
+  // in the bucket of the frame it was admitted in, or of its visible_frame as last seen by
+  // next_victim(), which takes the oldest bucket, moves its records whose object was seen
+  // since to the bucket of that frame (at most once per pass of eviction over them), and sorts
+  // the rest (all the objects last seen in that frame), best last. mark_visible() only sets
+  // visible_frame. Records of dropped objects are found stale and skipped.
+  struct Bucket {
+    std::vector<uint32_t> keys;
+    std::vector<Candidate> sorted;
+    bool is_sorted = false;
+  };
+  // The next object to evict (the longest unseen, then the largest, then the lowest key),
+  // its record removed; none when only objects visible this frame are left.
+  std::optional<uint32_t> next_victim();
+  void add_record(uint64_t frame, uint32_t key);
+  // Files every resident object's record again, dropping the stale: when stale records
+  // (dropped objects') outnumber the resident ones.
+  void compact();
+
+  RangeAllocator allocator_;
+  FlatKeyMap<Entry> entries_;
+  uint64_t frame_ = 0, ended_ = 0;
+  std::map<uint64_t, Bucket> buckets_;  // by frame
+  size_t records_ = 0;                  // keys and sorted candidates in all buckets
 };
 
 }  // namespace plantview::detail
