@@ -65,7 +65,12 @@ bool write_rgb(const uint8_t* rgba, uint32_t width, uint32_t height, int format,
   }
   OIIO::ImageSpec spec(int(width), int(height), 3, OIIO::TypeDesc::UINT8);
   if (png) {
-    spec.attribute("png:compressionLevel", 3);  // fast; review images are large
+    // Fast, for review images that are large: zlib level 3, rows unfiltered (libpng's
+    // PNG_FILTER_NONE). Its adaptive choice of a filter per row took twice the time for about
+    // the same size on rendered frames (1280x720, 2026-12-04: 37-67 -> 22-38 ms; -22% to +20%
+    // in bytes, sky and ground compressing better unfiltered, textured views worse).
+    spec.attribute("png:compressionLevel", 3);
+    spec.attribute("png:filter", 0x08);
   } else {
     spec.attribute("Compression", "jpeg:" + std::to_string(jpeg_quality));
     spec.attribute("CompressionQuality", jpeg_quality);
