@@ -309,7 +309,9 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& err
   for (int i = 0; ok && i < 3; ++i) ok = r.get(o.origin_m[i]);
   ok = ok && r.get_str(o.name) && r.get_str(o.source) && r.get(o.pipeline_id);
   uint32_t n = 0;
+  // Each count is checked against the bytes left before anything is reserved for it.
   ok = ok && r.get_count(n, 14);  // kind, code, translation at least
+  if (ok) o.primitives.reserve(n);
   for (uint32_t i = 0; ok && i < n; ++i) {
     Primitive p;
     ok = decode_primitive(r, p, error);
@@ -317,22 +319,26 @@ bool decode_object(const uint8_t* data, size_t size, Object& o, std::string& err
     o.primitives.push_back(std::move(p));
   }
   ok = ok && r.get_count(n, 28);
+  if (ok) o.connections.reserve(n);
   for (uint32_t i = 0; ok && i < n; ++i) {
     ConnectionPoint c;
     ok = r.get_vec3(c.position_m) && r.get_vec3(c.direction) && r.get(c.diameter_m);
     o.connections.push_back(c);
   }
   ok = ok && r.get_count(n, 28);
+  if (ok) o.centreline.reserve(n);
   for (uint32_t i = 0; ok && i < n; ++i) {
     CentrelineSegment s;
     ok = r.get_vec3(s.start_m) && r.get_vec3(s.end_m) && r.get(s.diameter_m);
     o.centreline.push_back(s);
   }
   ok = ok && r.get_count(n, 8);
+  if (ok) o.branches.reserve(n);
   for (uint32_t i = 0; ok && i < n; ++i) {
     Branch br;
     uint32_t m = 0;
     ok = r.get_str(br.name) && r.get_count(m, 8);
+    if (ok) br.members.reserve(m);
     for (uint32_t k = 0; ok && k < m; ++k) {
       uint64_t id = 0;
       ok = r.get(id);
