@@ -197,6 +197,7 @@ class ArenaStreaming {
   std::vector<PackedVertex> vertices_, compacted_;
   std::vector<uint32_t> vertex_objects_, remap_, draw_order_;
   std::vector<SortPair> sort_keys_, sort_scratch_;  // (distance, order key), draw
+  std::vector<SortPair> box_keys_;  // (nearest distance, index), node box
   // This frame's index ranges to write, drawn objects' parts in draw order (Draw::segment_*):
   // a plan's level at a base vertex, into a list; lines: `plan` null, `count` line vertices.
   struct Segment {
