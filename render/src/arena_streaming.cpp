@@ -351,15 +351,14 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
   }
   // Node boxes nearest first, as the objects are drawn: a far field of thousands of boxes
   // overlaps itself, and what a nearer box hides then fails the depth test before it is
-  // shaded. Ties by the cull's order, which the camera alone fixes.
+  // shaded. Ties keep the cull's order (the sort is stable), which the camera alone fixes.
   const glm::vec3 eye = glm::vec3(view.eye_m - view.spatial_origin_m);
   box_keys_.clear();
   for (uint32_t i = 0; i < plan.node_boxes().size(); ++i) {
     const NodeBox& b = plan.node_boxes()[i];
     const glm::vec3 nearest = glm::clamp(eye, glm::vec3(b.min[0], b.min[1], b.min[2]),
                                          glm::vec3(b.max[0], b.max[1], b.max[2]));
-    const uint64_t distance_bits = std::bit_cast<uint32_t>(glm::distance(nearest, eye));
-    box_keys_.push_back({distance_bits << 32 | i, i});
+    box_keys_.push_back({std::bit_cast<uint32_t>(glm::distance(nearest, eye)), i});
   }
   radix_sort(box_keys_, sort_scratch_);
   for (const auto& [key, i] : box_keys_) {

@@ -96,17 +96,19 @@ std::optional<uint32_t> Residency::next_victim() {
     const auto it = buckets_.begin();
     const uint64_t frame = it->first;
     Bucket& b = it->second;
-    // A record whose object was seen since goes to the bucket of that frame (a newer one:
-    // visible_frame only grows); one whose object is gone is dropped.
-    const auto current = [&](uint32_t key) {
+    // The entry of a record current in this bucket; else null, the record gone: to the bucket
+    // of the frame its object was seen in since (a newer one: visible_frame only grows), or
+    // dropped with its object.
+    const auto current = [&](uint32_t key) -> const Entry* {
       const Entry* e = entries_.find(key);
-      if (e && e->visible_frame != frame) buckets_[e->visible_frame].keys.push_back(key);
-      else if (!e) --records_;
-      return e && e->visible_frame == frame;
+      if (e && e->visible_frame == frame) return e;
+      if (e) buckets_[e->visible_frame].keys.push_back(key);
+      else --records_;
+      return nullptr;
     };
     if (!b.is_sorted) {
       for (const uint32_t k : b.keys)
-        if (current(k)) b.sorted.push_back({entries_.find(k)->units, k});
+        if (const Entry* e = current(k)) b.sorted.push_back({e->units, k});
       // Best last: the largest (fewer evictions make the room), then the lowest key.
       std::sort(b.sorted.begin(), b.sorted.end(), [](const Candidate& x, const Candidate& y) {
         if (x.units != y.units) return x.units < y.units;
