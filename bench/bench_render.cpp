@@ -4,7 +4,7 @@
 // Usage: bench_render [--quick] [--preset P] [--scale K] [--frames N] [--size WxH]
 //                     [--vertex-budget MB] [--store DIR] [--out-of-core] [--samples S]
 //                     [--interior N] [--pixel-error PX] [--extra-pixel-error PX]...
-//                     [--occlusion-test automatic|coarse|exact]
+//                     [--occlusion-test automatic|coarse|exact] [--no-images]
 //   default        preset c, 1280x720, 4 samples (antialiased stills), a 100-view walkthrough
 //                  then 12 views from inside the plant; policies none, distance and
 //                  screen-space (--pixel-error, 1 px), each with occlusion off and on (and
@@ -25,6 +25,9 @@
 //                  overview, images written), arena bytes, uploads and evictions per frame,
 //                  frame times, the renderer's per-object memory (blocks held, objects known).
 //   --quick        preset a, 320x180, 6 + 2 views, 1 sample (the CTest smoke run).
+//   --no-images    no image files written and no PSNR (both need the image module, which a
+//                  machine may lack: a GPU machine lent for a timing run, scripts/device_check.sh);
+//                  every frame is still rendered and read back, ids included.
 // The store is generated (in a child process, so that its memory does not count) into a
 // temporary directory unless --store names one. Prints tables, then "json: " lines.
 #include <sys/resource.h>
@@ -181,7 +184,7 @@ std::vector<Camera> interior_views(const DAabb& bounds, int count) {
 int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, uint32_t h,
              uint64_t budget_bytes, uint64_t full_triangles, uint32_t samples,
              double pixel_error, const std::vector<double>& extra_pixel_errors, int interior,
-             OcclusionTest occlusion_test) {
+             OcclusionTest occlusion_test, bool images) {
   std::vector<PolicyRun> runs;
   for (const LodPolicy policy : {LodPolicy::none, LodPolicy::distance, LodPolicy::screen_space}) {
     for (const bool occlusion : {false, true}) {
@@ -250,7 +253,7 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
       r.occluded += stats.objects_occluded;
       (is_interior ? r.interior_triangles : r.walk_triangles).push_back(double(stats.triangles));
       if (is_interior) r.interior_drawn.push_back(double(stats.objects_visible));
-      if (i != 0) {
+      if (i != 0 && images) {
         ImageComparison c;
         if (!compare_images(runs[0].image, r.image, c, error)) return 1;
         r.psnr.push_back(std::isinf(c.psnr_db) ? 99.0 : c.psnr_db);
@@ -322,11 +325,12 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
     const double id_min = r.id_match.empty() ? 100 : *std::min_element(r.id_match.begin(), r.id_match.end());
     const double inside_ratio = mean(runs[r.reference].interior_triangles) / std::max(mean(r.interior_triangles), 1.0);
     const double uploaded_mb = mean(steady(r.uploaded)) / 1048576.0;
-    std::printf("%-26s %9.0f %9.0f %6.2fx %8.1f %8.1f %7.2f %7.2f %7.2f %7.2f %7.2f %7.1f %7.1f %7.3f%% %7llu %6.1fx\n",
+    char psnr_text[32] = "      -       -";  // not measured (--no-images)
+    if (images) std::snprintf(psnr_text, sizeof psnr_text, "%7.1f %7.1f", psnr_mean, psnr_min);
+    std::printf("%-26s %9.0f %9.0f %6.2fx %8.1f %8.1f %7.2f %7.2f %7.2f %7.2f %7.2f %s %7.3f%% %7llu %6.1fx\n",
                 r.name.c_str(), mean(r.walk_triangles), mean(r.interior_triangles), inside_ratio,
                 mean(ms), percentile(ms, 0.95), mean(cpu), percentile(cpu, 0.95), mean(occlusion),
-                mean(depth), uploaded_mb,
-                psnr_mean, psnr_min,
+                mean(depth), uploaded_mb, psnr_text,
                 id_min, (unsigned long long)r.missing, none_mean / std::max(mean(ms), 1e-9));
     nlohmann::json j = {{"bench", "render_policies"}, {"policy", lod_policy_name(r.options.lod_policy)},
                         {"occlusion_test", occlusion_test_name(r.options.occlusion_test)},
@@ -376,7 +380,8 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
     }
     std::printf("json: %s\n", j.dump().c_str());
   }
-  std::printf("(PSNR against none with occlusion off, 99 dB standing for identical images; id match: the\n"
+  std::printf("(PSNR against none with occlusion off, 99 dB standing for identical images, - for not\n"
+              " measured (--no-images); id match: the\n"
               " worst view's share of pixels whose object id equals the same policy's without occlusion;\n"
               " missing: objects shown without occlusion and not with it, summed over views; in off/on:\n"
               " interior views' triangles without occlusion over with it; occl ms: occlusion culling's\n"
@@ -398,7 +403,8 @@ int policies(const Store& store, const std::vector<Camera>& walk, uint32_t w, ui
 }
 
 // The out-of-core run (see the usage above). The walkthrough is computed first, in a child.
-int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_t budget_bytes) {
+int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_t budget_bytes,
+                bool images) {
   const auto cameras = walkthrough_in_child(dir, frames);
   if (cameras.empty()) return 1;
   const fs::path out = fs::temp_directory_path() / ("plantview-bench-ooc-" + std::to_string(::getpid()));
@@ -413,7 +419,7 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
   const auto context_start = Clock::now();
   auto context = GpuContext::create(-1, error);
   if (!context) return fail(error);
-  preload_image_io();
+  if (images) preload_image_io();
   const double context_s = seconds_since(context_start);
   std::printf("device: %s\n", context->description().c_str());
 
@@ -439,7 +445,7 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
   Image image;
   FrameStats overview_stats;
   if (!renderer->render(overview, w, h, false, image, overview_stats, error) ||
-      !write_image((out / "overview.png").string(), image, 90, error))
+      (images && !write_image((out / "overview.png").string(), image, 90, error)))
     return fail(error);
   const double overview_s = seconds_since(open_start);
 
@@ -453,7 +459,7 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
     std::snprintf(name, sizeof name, "%06zu.png", v);
     if (v + 1 < cameras.size()) renderer->expect(cameras[v + 1]);
     if (!renderer->render(cameras[v], w, h, false, image, stats, error) ||
-        !write_image((out / name).string(), image, 90, error))
+        (images && !write_image((out / name).string(), image, 90, error)))
       return fail("view " + std::to_string(v) + ": " + error);
     ms.push_back(stats.ms.total);
     uploaded.push_back(double(stats.arena_bytes_uploaded));
@@ -481,16 +487,17 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
               dir.c_str(), (unsigned long long)objects, double(full_triangles) / 1e6);
   std::printf("  GPU context and image libraries             %.2f s\n", context_s);
   std::printf("  Store::open + first read + info             %.3f s\n", open_s);
-  std::printf("  ... + overview rendered and written (PNG)   %.2f s  (frame %.0f ms, cull %.0f ms)\n",
-              overview_s, overview_stats.ms.total, overview_stats.ms.cull);
+  std::printf("  ... + overview rendered%s %.2f s  (frame %.0f ms, cull %.0f ms)\n",
+              images ? " and written (PNG)  " : " (not written)     ", overview_s,
+              overview_stats.ms.total, overview_stats.ms.cull);
   std::printf("  overview at %ux%u: %.2f M triangles, %llu objects, %llu node boxes (nodes under "
               "%.0f px, %llu objects)\n",
               w, h, double(overview_stats.triangles) / 1e6,
               (unsigned long long)overview_stats.objects_visible,
               (unsigned long long)overview_stats.node_proxies, overview_stats.node_proxy_pixels,
               (unsigned long long)overview_stats.objects_in_node_proxies);
-  std::printf("  walkthrough: %zu views at %ux%u, budget %llu MB, images written\n", cameras.size(),
-              w, h, (unsigned long long)(budget_bytes >> 20));
+  std::printf("  walkthrough: %zu views at %ux%u, budget %llu MB, images %s\n", cameras.size(),
+              w, h, (unsigned long long)(budget_bytes >> 20), images ? "written" : "not written");
   std::printf("  peak resident memory of the process  %.0f MB (overview + walkthrough)\n",
               peak / 1048576.0);
   std::printf("  arena resident: mean %.0f MB, max %.0f MB (never over budget)\n",
@@ -517,7 +524,7 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
                       {"mean_ms", mean(ms)}, {"p95_ms", percentile(ms, 0.95)},
                       {"blocks_held_max", max_blocks_held}, {"objects_known_max", max_known},
                       {"residency_bytes_max", max_residency_bytes},
-                      {"full_triangles", full_triangles}};
+                      {"full_triangles", full_triangles}, {"images_written", images}};
   std::printf("json: %s\n", j.dump().c_str());
   return 0;
 }
@@ -526,7 +533,7 @@ int out_of_core(const fs::path& dir, int frames, uint32_t w, uint32_t h, uint64_
 
 int main(int argc, char** argv) {
   const auto process_start = Clock::now();
-  bool quick = false, ooc = false, frames_given = false;
+  bool quick = false, ooc = false, frames_given = false, images = true;
   char preset = 'c';
   uint32_t scale = 0, w = 1280, h = 720;
   int frames = 100, interior = 12;
@@ -541,6 +548,7 @@ int main(int argc, char** argv) {
     const auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
     if (a == "--quick") quick = true;
     else if (a == "--out-of-core") ooc = true;
+    else if (a == "--no-images") images = false;
     else if (a == "--preset") preset = next().c_str()[0];
     else if (a == "--scale") scale = uint32_t(std::stoul(next()));
     else if (a == "--frames") frames = std::stoi(next()), frames_given = true;
@@ -592,7 +600,7 @@ int main(int argc, char** argv) {
     remove_after = true;
   }
   if (ooc) {
-    const int status = out_of_core(dir, frames, w, h, uint64_t(budget_mb) << 20);
+    const int status = out_of_core(dir, frames, w, h, uint64_t(budget_mb) << 20, images);
     if (remove_after) fs::remove_all(dir);
     return status;
   }
@@ -619,7 +627,7 @@ int main(int argc, char** argv) {
     }
     std::printf("device: %s\n", context->description().c_str());
     // As `plantview render` does, once the context exists.
-    preload_image_io();
+    if (images) preload_image_io();
     {
       RenderOptions options;
       options.vertex_budget_bytes = uint64_t(budget_mb) << 20;
@@ -629,21 +637,21 @@ int main(int argc, char** argv) {
       const fs::path png = fs::temp_directory_path() / ("plantview-bench-first-" + std::to_string(::getpid()) + ".png");
       if (!renderer ||
           !renderer->render(default_camera(renderer->model_bounds(), double(w) / h), w, h, false, image, stats, error) ||
-          !write_image(png.string(), image, 90, error)) {
+          (images && !write_image(png.string(), image, 90, error))) {
         std::fprintf(stderr, "bench_render: %s\n", error.c_str());
         return 1;
       }
       fs::remove(png);
-      std::printf("first image (default view, %ux%u, PNG written): %.2f s from opening the store "
+      std::printf("first image (default view, %ux%u, %s): %.2f s from opening the store "
                   "(%.2f s from process start; render %.0f ms, %llu triangles)\n",
-                  w, h, seconds_since(start), seconds_since(process_start), stats.ms.total,
-                  (unsigned long long)stats.triangles);
+                  w, h, images ? "PNG written" : "not written", seconds_since(start),
+                  seconds_since(process_start), stats.ms.total, (unsigned long long)stats.triangles);
       std::printf("json: {\"bench\":\"render_first_image\",\"seconds\":%.3f}\n", seconds_since(start));
     }
     const auto cameras = walkthrough(*store, frames);
     if (cameras.empty()) return 1;
     const int status = policies(*store, cameras, w, h, uint64_t(budget_mb) << 20, full_triangles,
-                                samples, pixel_error, extra_pixel_errors, interior, occlusion_test);
+                                samples, pixel_error, extra_pixel_errors, interior, occlusion_test, images);
     if (status != 0) return status;
   }
   store.reset();
