@@ -292,6 +292,51 @@ TEST_F(Cli, RenderIntoAMissingDirectoryFailsBeforeRendering) {
   EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
 }
 
+// An operator picks --device from `devices`: the default it names is the device `render` uses
+// without --device, each usable index renders on that device, and one past the list is refused.
+TEST_F(Cli, DevicesNamesTheDeviceRenderUsesAndTheIndicesItTakes) {
+  const Outcome listed = run("devices --json");
+  ASSERT_EQ(listed.status, 0) << listed.err;
+  const auto j = nlohmann::json::parse(listed.out, nullptr, false);
+  ASSERT_TRUE(j.is_object() && j["devices"].is_array()) << listed.out;
+  const auto& devices = j["devices"];
+  std::string default_description;
+  if (j["default"].is_number()) {
+    const int chosen = j["default"].get<int>();
+    ASSERT_GE(chosen, 0);
+    ASSERT_LT(size_t(chosen), devices.size());
+    EXPECT_TRUE(devices[size_t(chosen)]["usable"].get<bool>());
+    default_description = devices[size_t(chosen)]["description"].get<std::string>();
+  } else {
+    default_description = j.value("surfaceless", "");
+  }
+  ASSERT_FALSE(default_description.empty()) << listed.out;
+  for (size_t i = 0; i < devices.size(); ++i) EXPECT_EQ(devices[i]["index"].get<size_t>(), i);
+
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  const std::string render = "render --store " + store.string() + " --size 64x36 --out ";
+  Outcome r = run(render + (dir_ / "default.png").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("rendering on " + default_description + "\n"), std::string::npos)
+      << "devices said " << default_description << "; render said " << r.err;
+  for (const auto& d : devices) {
+    if (!d["usable"].get<bool>()) continue;
+    const std::string index = std::to_string(d["index"].get<int>());
+    r = run(render + (dir_ / ("device" + index + ".png")).string() + " --device " + index);
+    EXPECT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("rendering on " + d["description"].get<std::string>() + "\n"), std::string::npos)
+        << r.err;
+  }
+  r = run(render + (dir_ / "none.png").string() + " --device " + std::to_string(devices.size()));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("no device " + std::to_string(devices.size())), std::string::npos) << r.err;
+
+  const Outcome text = run("devices");
+  EXPECT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find(default_description), std::string::npos) << text.out;
+}
+
 }  // namespace
 
 namespace {

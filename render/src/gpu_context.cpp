@@ -131,15 +131,40 @@ struct Attempt {
   }
 };
 
-// What EGL says a device is: its DRM node or "software".
+// What EGL says a device is: its DRM node, its CUDA device (NVIDIA's driver where the machine
+// has no DRM nodes, as in containers) or "software".
 std::string device_name(EGLDeviceEXT device) {
   const char* extensions = eglQueryDeviceStringEXT(device, EGL_EXTENSIONS);
   if (has_extension(extensions, "EGL_EXT_device_drm")) {
     const char* node = eglQueryDeviceStringEXT(device, EGL_DRM_DEVICE_FILE_EXT);
     if (node) return node;
   }
+  if (has_extension(extensions, "EGL_NV_device_cuda")) {
+    EGLAttrib cuda = -1;
+    if (eglQueryDeviceAttribEXT(device, EGL_CUDA_DEVICE_NV, &cuda))
+      return "CUDA device " + std::to_string(cuda);
+  }
   if (has_extension(extensions, "EGL_MESA_device_software")) return "software";
   return "unnamed";
+}
+
+// The devices of EGL_EXT_platform_device, where EGL offers it.
+std::vector<EGLDeviceEXT> platform_devices(const char* client_extensions) {
+  std::vector<EGLDeviceEXT> devices;
+  if (!has_extension(client_extensions, "EGL_EXT_platform_device") ||
+      !has_extension(client_extensions, "EGL_EXT_device_enumeration"))
+    return devices;
+  EGLint count = 0;
+  if (eglQueryDevicesEXT(0, nullptr, &count) && count > 0) {
+    devices.resize(size_t(count));
+    if (!eglQueryDevicesEXT(count, devices.data(), &count)) count = 0;
+    devices.resize(size_t(count));
+  }
+  return devices;
+}
+
+std::string device_what(const std::vector<EGLDeviceEXT>& devices, size_t i) {
+  return "EGL device " + std::to_string(i) + " (" + device_name(devices[i]) + ")";
 }
 
 bool is_software(EGLDeviceEXT device) {
@@ -184,18 +209,7 @@ std::unique_ptr<GpuContext> GpuContext::create(int device_index, std::string& er
   }
   auto state = std::make_unique<State>();
   std::vector<std::string> failures;
-
-  const bool device_platform = has_extension(client_extensions, "EGL_EXT_platform_device") &&
-                               has_extension(client_extensions, "EGL_EXT_device_enumeration");
-  std::vector<EGLDeviceEXT> devices;
-  if (device_platform) {
-    EGLint count = 0;
-    if (eglQueryDevicesEXT(0, nullptr, &count) && count > 0) {
-      devices.resize(size_t(count));
-      eglQueryDevicesEXT(count, devices.data(), &count);
-      devices.resize(size_t(count));
-    }
-  }
+  const std::vector<EGLDeviceEXT> devices = platform_devices(client_extensions);
 
   if (device_index >= 0) {
     if (size_t(device_index) >= devices.size()) {
@@ -203,8 +217,7 @@ std::unique_ptr<GpuContext> GpuContext::create(int device_index, std::string& er
               std::to_string(devices.size()) + " found through EGL_EXT_platform_device)";
       return nullptr;
     }
-    const std::string what = "EGL device " + std::to_string(device_index) + " (" +
-                             device_name(devices[size_t(device_index)]) + ")";
+    const std::string what = device_what(devices, size_t(device_index));
     if (!state->attempt.open(EGL_PLATFORM_DEVICE_EXT, devices[size_t(device_index)], what)) {
       error = state->attempt.error;
       return nullptr;
@@ -217,8 +230,7 @@ std::unique_ptr<GpuContext> GpuContext::create(int device_index, std::string& er
   for (int pass = 0; pass < 2; ++pass) {
     for (size_t i = 0; i < devices.size(); ++i) {
       if (is_software(devices[i]) != (pass == 1)) continue;
-      const std::string what = "EGL device " + std::to_string(i) + " (" +
-                               device_name(devices[i]) + ")";
+      const std::string what = device_what(devices, i);
       if (state->attempt.open(EGL_PLATFORM_DEVICE_EXT, devices[i], what)) {
         state->description = what + ": " + gl_description();
         return std::unique_ptr<GpuContext>(new GpuContext(std::move(state)));
@@ -239,6 +251,30 @@ std::unique_ptr<GpuContext> GpuContext::create(int device_index, std::string& er
   error = "EGL: no OpenGL 4.5 core context could be created";
   for (const auto& f : failures) error += "; " + f;
   return nullptr;
+}
+
+std::vector<GpuDeviceInfo> GpuContext::list_devices() {
+  std::vector<GpuDeviceInfo> list;
+  const char* client_extensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  if (!client_extensions) return list;
+  const std::vector<EGLDeviceEXT> devices = platform_devices(client_extensions);
+  // The context current on this thread, if any, is current again afterwards.
+  const EGLDisplay display = eglGetCurrentDisplay();
+  const EGLContext context = eglGetCurrentContext();
+  const EGLSurface draw = eglGetCurrentSurface(EGL_DRAW), read = eglGetCurrentSurface(EGL_READ);
+  for (size_t i = 0; i < devices.size(); ++i) {
+    GpuDeviceInfo& info = list.emplace_back();
+    info.index = int(i);
+    info.name = device_name(devices[i]);
+    info.software = is_software(devices[i]);
+    const std::string what = device_what(devices, i);
+    Attempt attempt;
+    info.usable = attempt.open(EGL_PLATFORM_DEVICE_EXT, devices[i], what);
+    info.description = info.usable ? what + ": " + gl_description() : attempt.error;
+    attempt.release();
+  }
+  if (context != EGL_NO_CONTEXT) eglMakeCurrent(display, draw, read, context);
+  return list;
 }
 
 }  // namespace plantview

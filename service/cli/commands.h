@@ -44,4 +44,7 @@ Action add_farm_command(CLI::App& app);
 // `plantview serve`: the HTTP service (plantview/server.h).
 Action add_serve_command(CLI::App& app);
 
+// `plantview devices [--json]`: the EGL devices (the --device indices) and the default one.
+Action add_devices_command(CLI::App& app);
+
 }  // namespace plantview::cli

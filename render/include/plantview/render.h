@@ -241,11 +241,25 @@ struct FrameStats {
 
 // An OpenGL 4.5 core context with no display: EGL_EXT_platform_device first (hardware devices
 // before software ones), then Mesa's surfaceless platform (llvmpipe on machines without a GPU).
+// One device of EGL_EXT_platform_device's list, as GpuContext::create(index) finds it.
+struct GpuDeviceInfo {
+  int index = 0;             // for create(index), and the programs' --device
+  std::string name;          // its DRM node, "CUDA device N", "software" or "unnamed"
+  bool software = false;     // EGL_MESA_device_software (llvmpipe)
+  bool usable = false;       // an OpenGL 4.5 core context was made on it
+  std::string description;   // what description() says of a context on it, or why none was made
+};
+
 class GpuContext {
  public:
   // device_index < 0: the first hardware device, else the first that works; >= 0: that device
   // of EGL_EXT_platform_device's list (error if there is none such).
   static std::unique_ptr<GpuContext> create(int device_index, std::string& error);
+  // Every device EGL_EXT_platform_device lists, in its order, each opened and closed once (tens
+  // of milliseconds each; a device that a context of this process holds stays open). Empty
+  // where EGL lists none: then create(-1) tries Mesa's surfaceless platform alone. create(-1)
+  // takes the first usable device that is not software, else the first usable one.
+  static std::vector<GpuDeviceInfo> list_devices();
   ~GpuContext();
   GpuContext(const GpuContext&) = delete;
   GpuContext& operator=(const GpuContext&) = delete;
