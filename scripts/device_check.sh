@@ -7,10 +7,10 @@
 #
 # What it checks and writes into $OUT (./device-check-out when OUT is unset), six files:
 #   check.log          everything below as it ran
-#   summary.json       the EGL device plantview picked and whether it is hardware, each test
-#                      binary's counts and failures (first line of each message; those that
-#                      need the image module, which the kit leaves out, marked so), and every
-#                      "json:" line of the benchmarks
+#   summary.json       the EGL devices (`plantview devices`), the one picked and whether it is
+#                      hardware, each test binary's counts and failures (first line of each
+#                      message; those that need the image module, which the kit leaves out,
+#                      marked so), and every "json:" line of the benchmarks
 #   bench_render.txt   bench_render's default run on preset c (100-view walk and 12 interior
 #                      views, every policy with occlusion off and on; on a GPU the occlusion
 #                      test is automatically the exact one), no image files and no PSNR
@@ -62,7 +62,7 @@ if [ ! -x "$kit/bin/plantview" ]; then
   echo "device_check: no kit in $kit: run scripts/device_kit.sh here and carry .device-kit" >&2
   exit 1
 fi
-note "kit: $(sed -n 2,3p "$kit/MANIFEST" | tr '\n' ';')"
+note "kit: $(sed -n 2,3p "$kit/MANIFEST" | paste -sd ' ')"
 
 # OpenGL's dispatch libraries where the machine has none, and NVIDIA's EGL vendor file where
 # its driver is mounted but not registered (the device tool's README).
@@ -86,7 +86,10 @@ for b in "$kit"/bin/*; do
   fi
 done
 
-# 1. The device: bench_render's smoke run names it.
+# 1. The devices EGL offers, and the one taken: bench_render's smoke run names it.
+note "plantview devices"
+run_limited 60 "$kit/bin/plantview" devices --json >"$work/devices.json" || status=1
+cat "$work/devices.json"
 note "device (bench_render --quick --no-images)"
 run_limited 120 "$kit/bin/bench_render" --quick --no-images >"$work/quick.txt" 2>&1
 cat "$work/quick.txt"
@@ -148,6 +151,10 @@ import glob, json, os, sys
 work, out, device = sys.argv[1:4]
 software = (not device) or "(software)" in device or "llvmpipe" in device or "surfaceless" in device
 summary = {"device": device, "hardware": not software, "tests": {}, "bench": []}
+try:
+    summary["devices"] = json.load(open(os.path.join(work, "devices.json")))
+except (OSError, ValueError) as e:
+    summary["devices"] = "plantview devices gave no JSON: %s" % e
 merged = {}
 failed_elsewhere = 0
 for path in sorted(glob.glob(os.path.join(work, "plantview_*_tests.json"))):
