@@ -33,7 +33,7 @@ using test::TempDir;
 // --- the residency key map ------------------------------------------------------------------
 
 TEST(ResidencyKeyMap, MemoryFollowsTheKeysPresentNotHowLargeTheyAre) {
-  // Slots of a 40-million-object plant, merged runs and the proxy cube's key: an array indexed
+  // Slots of a 40-million-object plant, merged runs and the largest key: an array indexed
   // by slot would hold 160 MB here.
   FlatKeyMap<uint64_t> map;
   const uint32_t keys[] = {0u, 39'999'999u, 20'000'000u, 0x80000000u | 5u, 0x80ffffffu, UINT32_MAX};

@@ -55,35 +55,13 @@ void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec
 
 // --- residency ----------------------------------------------------------------------------------
 
-bool ArenaStreaming::reset(uint64_t budget_vertices, bool drop_primitives, std::string& error) {
+void ArenaStreaming::reset(uint64_t budget_vertices, bool drop_primitives) {
   drop_primitives_ = drop_primitives;
   pending_.clear();
   pending_vertices_.clear();
   table_.reset();
   proxy_tables_.clear();
   residency_ = Residency(budget_vertices);
-  residency_.begin_frame();
-  if (residency_.admit(kProxyKey, kProxyVertices, evicted_) != 0u) {
-    error = "renderer: the vertex budget is too small";
-    return false;
-  }
-  PackedVertex cube[kProxyVertices];
-  const glm::vec3 normals[6] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-  for (int f = 0; f < 6; ++f) {
-    const int axis = f / 2;
-    const float side = float(f % 2);
-    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-    const float corners[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-    for (int c = 0; c < 4; ++c) {
-      glm::vec3 p;
-      p[axis] = side;
-      p[u] = corners[c][0];
-      p[v] = corners[c][1];
-      cube[f * 4 + c] = {p, pack_normal(normals[f])};
-    }
-  }
-  backend_.upload(0, cube, {});
-  return true;
 }
 
 const ArenaStreaming::Compaction& ArenaStreaming::compaction(const MeshPlan& plan, uint8_t base) {
@@ -233,7 +211,6 @@ void ArenaStreaming::release(uint32_t key, Known& k) {
 void ArenaStreaming::begin_frame(const FramePlan& plan, bool second_phase) {
   if (!second_phase) {
     residency_.begin_frame();
-    residency_.mark_visible(kProxyKey);
     for (const uint32_t t : proxy_tables_) table_.release(t);  // the last frame's boxes
     proxy_tables_.clear();
     table_.begin_frame();
@@ -368,7 +345,7 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
             stats);
   }
   residency_.end_frame();
-  stats.objects_resident = residency_.resident_count() - 1;  // not the proxy cube
+  stats.objects_resident = residency_.resident_count();
   stats.arena_bytes_resident = residency_.used_units() * kBytesPerVertex;
   if (!second_phase) stats.draw_commands = 0;
   stats.draw_commands += proxy_tables().empty() ? 0 : 1;

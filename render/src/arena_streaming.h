@@ -4,8 +4,7 @@
 // lists.
 //
 // Rules
-//   - The arena never exceeds its budget (Residency's capacity, in vertices). It holds the
-//     proxy cube at offset 0 (kProxyVertices) from reset() on.
+//   - The arena never exceeds its budget (Residency's capacity, in vertices).
 //   - An object is made resident from resident_base() of its chosen level (frame_plan.h): the
 //     vertices of that level serve every coarser one. Refining below the resident base
 //     tessellates it again (objects_refined). Over budget, it is made resident at its coarsest
@@ -53,8 +52,6 @@ struct Known;
 class DecodedObjects;
 class FramePlan;
 
-inline constexpr uint32_t kProxyKey = UINT32_MAX;  // the proxy cube's residency key
-
 // The per-frame object table the vertex shader reads, and the frame's pick ids (the value a
 // pixel's pick p stands for is pick_ids[p - 1]).
 class ObjectTable {
@@ -82,10 +79,9 @@ class ArenaStreaming {
   // `backend` and `pool` must outlive it.
   ArenaStreaming(GlBackend& backend, WorkerPool& pool) : backend_(backend), pool_(pool) {}
 
-  // Forgets everything resident (a new snapshot): an empty arena of budget_vertices holding
-  // only the proxy cube. drop_primitives: resident objects give up their primitives (models
-  // larger than the budget). False if the budget cannot hold the cube.
-  bool reset(uint64_t budget_vertices, bool drop_primitives, std::string& error);
+  // Forgets everything resident (a new snapshot): an empty arena of budget_vertices.
+  // drop_primitives: resident objects give up their primitives (models larger than the budget).
+  void reset(uint64_t budget_vertices, bool drop_primitives);
 
   // Makes the plan's draws resident (or boxes), fills each drawn one's arena_first and level,
   // the object table, the proxy boxes (over-budget objects and the plan's node boxes) and the

@@ -302,7 +302,7 @@ class DecodedObjects {
   std::vector<const ReadView*> views_;  // per worker; empty until first needed
   // Known objects and runs: the pool (an entry is in use while keys_[i] != kFreeKey), the free
   // entries, and the directory that finds them by key.
-  static constexpr uint32_t kFreeKey = UINT32_MAX - 1;  // UINT32_MAX is the proxy cube's key
+  static constexpr uint32_t kFreeKey = UINT32_MAX - 1;  // no slot or run has it
   std::deque<Known> pool_;
   std::vector<uint32_t> keys_;
   std::vector<uint32_t> free_known_;

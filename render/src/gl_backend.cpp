@@ -185,7 +185,7 @@ GlBackend::~GlBackend() {
   // The driver draws from the mapped arena until its buffers are gone (the mappings are
   // unmapped after this body).
   if (arena_mapped()) glFinish();
-  for (const GLuint program : {surface_program_, centreline_program_, ground_program_,
+  for (const GLuint program : {surface_program_, proxy_program_, centreline_program_, ground_program_,
                                occlusion_program_, finish_program_, reduce_program_,
                                reduce_multisampled_program_, box_test_program_})
     if (program) glDeleteProgram(program);
@@ -193,11 +193,10 @@ GlBackend::~GlBackend() {
   release_grid(occlusion_grid_);
   release_grid(reduce_grid_);
   GLuint buffers[] = {arena_,        arena_objects_, index_buffers_[0], index_buffers_[1],
-                      table_buffer_, proxy_buffer_,  cube_indices_,     box_buffer_,
-                      seen_buffer_};
-  glDeleteBuffers(9, buffers);
-  GLuint vaos[] = {vao_, proxy_vao_, empty_vao_};
-  glDeleteVertexArrays(3, vaos);
+                      table_buffer_, proxy_buffer_,  box_buffer_,       seen_buffer_};
+  glDeleteBuffers(8, buffers);
+  GLuint vaos[] = {vao_, empty_vao_};
+  glDeleteVertexArrays(2, vaos);
   GLuint samplers[] = {linear_sampler_, nearest_sampler_};
   glDeleteSamplers(2, samplers);
   release_target(scene_);
@@ -254,6 +253,11 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
                                       {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
                                       {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
   if (surface_program_)
+    proxy_program_ = link("proxy", {{GL_VERTEX_SHADER, {kProxyVertex}},
+                                    {GL_VERTEX_SHADER, {kVersion, kBoxFace}},
+                                    {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
+                                    {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
+  if (proxy_program_)
     centreline_program_ = link("centreline", {{GL_VERTEX_SHADER, {kCentrelineVertex}},
                                               {GL_GEOMETRY_SHADER, {kCentrelineGeometry}},
                                               {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
@@ -279,6 +283,7 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
              error);
   if (reduce_multisampled_program_)
     box_test_program_ = link("box test", {{GL_VERTEX_SHADER, {kBoxTestVertex}},
+                                          {GL_VERTEX_SHADER, {kVersion, kBoxFace}},
                                           {GL_FRAGMENT_SHADER, {kBoxTestFragment}}}, error);
   if (!box_test_program_) return false;
 
@@ -286,39 +291,27 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
   glCreateBuffers(1, &index_buffers_[1]);
   glCreateBuffers(1, &table_buffer_);
   glCreateBuffers(1, &proxy_buffer_);
-  glCreateBuffers(1, &cube_indices_);
   glCreateBuffers(1, &box_buffer_);
   glCreateBuffers(1, &seen_buffer_);
-  static constexpr uint32_t kCube[36] = {0,  2,  1,  0,  3,  2,  4,  5,  6,  4,  6,  7,
-                                         8,  10, 9,  8,  11, 10, 12, 13, 14, 12, 14, 15,
-                                         16, 18, 17, 16, 19, 18, 20, 21, 22, 20, 22, 23};
-  glNamedBufferStorage(cube_indices_, sizeof kCube, kCube, 0);
 
-  // Both vertex arrays read position and normal from the arena (binding 0) and the object-table
-  // index from binding 1: per vertex for objects (the arena's second buffer), per instance for
-  // proxies (the cube's vertices are shared). Attribute 3 is the normal word as an integer: a
-  // centreline's diameter.
-  const auto make_vertex_array = [](GLuint& array) {
-    glCreateVertexArrays(1, &array);
-    glEnableVertexArrayAttrib(array, 0);
-    glVertexArrayAttribFormat(array, 0, 3, GL_FLOAT, GL_FALSE, 0);
-    glVertexArrayAttribBinding(array, 0, 0);
-    glEnableVertexArrayAttrib(array, 1);
-    glVertexArrayAttribFormat(array, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
-    glVertexArrayAttribBinding(array, 1, 0);
-    glEnableVertexArrayAttrib(array, 2);
-    glVertexArrayAttribIFormat(array, 2, 1, GL_UNSIGNED_INT, 0);
-    glVertexArrayAttribBinding(array, 2, 1);
-    glEnableVertexArrayAttrib(array, 3);
-    glVertexArrayAttribIFormat(array, 3, 1, GL_UNSIGNED_INT, 12);
-    glVertexArrayAttribBinding(array, 3, 0);
-  };
-  make_vertex_array(vao_);
+  // The objects' vertex array reads position and normal from the arena (binding 0) and the
+  // object-table index from binding 1 (the arena's second buffer). Attribute 3 is the normal
+  // word as an integer: a centreline's diameter. Proxy boxes and the box test read no vertices
+  // (empty_vao_).
+  glCreateVertexArrays(1, &vao_);
+  glEnableVertexArrayAttrib(vao_, 0);
+  glVertexArrayAttribFormat(vao_, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribBinding(vao_, 0, 0);
+  glEnableVertexArrayAttrib(vao_, 1);
+  glVertexArrayAttribFormat(vao_, 1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, 12);
+  glVertexArrayAttribBinding(vao_, 1, 0);
+  glEnableVertexArrayAttrib(vao_, 2);
+  glVertexArrayAttribIFormat(vao_, 2, 1, GL_UNSIGNED_INT, 0);
+  glVertexArrayAttribBinding(vao_, 2, 1);
+  glEnableVertexArrayAttrib(vao_, 3);
+  glVertexArrayAttribIFormat(vao_, 3, 1, GL_UNSIGNED_INT, 12);
+  glVertexArrayAttribBinding(vao_, 3, 0);
   glVertexArrayElementBuffer(vao_, index_buffers_[drawn_indices_]);
-  make_vertex_array(proxy_vao_);
-  glVertexArrayBindingDivisor(proxy_vao_, 1, 1);
-  glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
-  glVertexArrayElementBuffer(proxy_vao_, cube_indices_);
   glCreateVertexArrays(1, &empty_vao_);
 
   glCreateSamplers(1, &linear_sampler_);
@@ -368,7 +361,6 @@ bool GlBackend::map_arena() {
 void GlBackend::bind_arena() {
   glVertexArrayVertexBuffer(vao_, 0, arena_, 0, sizeof(PackedVertex));
   glVertexArrayVertexBuffer(vao_, 1, arena_objects_, 0, sizeof(uint32_t));
-  glVertexArrayVertexBuffer(proxy_vao_, 0, arena_, 0, sizeof(PackedVertex));
 }
 
 bool GlBackend::grow_arena(uint64_t vertices, std::string& error) {
@@ -608,7 +600,6 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
   upload_stream(table_buffer_, table_capacity_, table.size_bytes(), {{table.data(), table.size_bytes()}});
   upload_stream(proxy_buffer_, proxy_capacity_, proxy_tables.size_bytes(),
                 {{proxy_tables.data(), proxy_tables.size_bytes()}});
-  glVertexArrayVertexBuffer(proxy_vao_, 1, proxy_buffer_, 0, sizeof(uint32_t));
   begin_pass(view, frame_plan_, with_ids);
   if (!highlight) {
     draw_lists(counts, proxy_tables.size(), 0, 1.0f, with_ids);
@@ -773,7 +764,7 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                         glm::mat3(glm::vec3(view.aspect / view.focal, 0, 0),
                                   glm::vec3(0, 1.0f / view.focal, 0), glm::vec3(0, 0, 1));
   const float focal_px = float(view.focal_px * plan.scale);
-  for (const GLuint program : {surface_program_, centreline_program_, ground_program_}) {
+  for (const GLuint program : {surface_program_, proxy_program_, centreline_program_, ground_program_}) {
     glProgramUniformMatrix4fv(program, at(program, "u_view_projection"), 1, GL_FALSE,
                               glm::value_ptr(view.view_projection));
     glProgramUniform3fv(program, at(program, "u_key"), 1, glm::value_ptr(key));
@@ -810,7 +801,7 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   const size_t n_opaque = n_closed + n_open, n_transparent = counts[kTransparent],
                n_lines = counts[kLines];
   const bool see_through = alpha < 1.0f;
-  for (const GLuint program : {surface_program_, centreline_program_}) {
+  for (const GLuint program : {surface_program_, proxy_program_, centreline_program_}) {
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
   }
@@ -833,12 +824,13 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   }
   if (n_open) draw_triangles(n_closed, n_open);
   if (proxies) {
-    // Boxes are closed, their faces counter-clockwise outward.
-    glEnable(GL_CULL_FACE);
-    glBindVertexArray(proxy_vao_);
-    glDrawElementsInstanced(GL_TRIANGLES, 36, GL_UNSIGNED_INT, nullptr, GLsizei(proxies));
+    // Only the faces the eye sees are drawn (kProxyVertex).
+    glUseProgram(proxy_program_);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, proxy_buffer_);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLES, 0, GLsizei(18 * proxies));
     glBindVertexArray(vao_);
-    glDisable(GL_CULL_FACE);
+    glUseProgram(surface_program_);
   }
   if (n_lines) {
     // Centrelines blend their coverage; they write depth like the pipes they stand for.

@@ -20,10 +20,11 @@
 //   - The index buffer holds the frame's lists one after the other in IndexList order; it is
 //     written through an unsynchronised mapping, which is safe because every frame is finished
 //     (read back) before the next begins.
-//   - Draw order: closed opaque solids (back faces culled), open opaque meshes, centrelines
-//     (quads as wide as the pipe, blended), proxy boxes (instanced unit cubes at arena offset 0,
-//     one object-table entry each), the ground (where nothing else is), then the see-through
-//     triangles blended without writing depth. Depth is reversed (greater wins).
+//   - Draw order: closed opaque solids (back faces culled), open opaque meshes, proxy boxes
+//     (one object-table entry each, the faces the eye sees drawn from it in one draw: no arena
+//     vertices), centrelines (quads as wide as the pipe, blended), the ground (where nothing
+//     else is), then the see-through triangles blended without writing depth. Depth is
+//     reversed (greater wins).
 //   - Highlight (Look::highlight_ids non-empty): the subject is drawn first, marking its pixels
 //     in the stencil; the context (every other object, ghosted: lighter, desaturated, pick 0)
 //     then where the subject is not, and once more, blended faintly and without depth, where it
@@ -81,7 +82,6 @@ inline constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32
 // With bounded drawing on a software renderer, triangles drawn at a time at most (see
 // GlBackend::draw_triangles).
 inline constexpr size_t kSoftwarePieceTriangles = size_t(1) << 17;
-inline constexpr uint32_t kProxyVertices = 24;  // the unit cube of proxy boxes, at arena offset 0
 
 using GlName = uint32_t;  // a GLuint: the name of a GL object (0: none)
 
@@ -239,13 +239,13 @@ class GlBackend {
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
   bool bounded_drawing_ = false;
-  GlName surface_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
+  GlName surface_program_ = 0, proxy_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
          occlusion_program_ = 0, finish_program_ = 0, reduce_program_ = 0,
          reduce_multisampled_program_ = 0, box_test_program_ = 0;
   GlName box_buffer_ = 0, seen_buffer_ = 0;
   size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
-  GlName vao_ = 0, proxy_vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0,
-         table_buffer_ = 0, proxy_buffer_ = 0, cube_indices_ = 0;
+  GlName vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0, table_buffer_ = 0,
+         proxy_buffer_ = 0;
   std::array<GlName, 2> index_buffers_{};  // [drawn_indices_] is drawn from
   std::array<size_t, 2> index_capacities_{};  // bytes
   unsigned drawn_indices_ = 0;

@@ -1,7 +1,8 @@
 // GLSL sources of the GL backend (gl_backend.cpp compiles and links them).
 //
 // Programs
-//   - surfaces: every triangle (objects, proxy boxes), lit per fragment;
+//   - surfaces: every triangle of the objects, lit per fragment;
+//   - proxy boxes: the faces the eye sees of each, lit as surfaces;
 //   - centrelines: pipes drawn as their centreline, expanded by a geometry shader into a
 //     screen-aligned quad as wide as the pipe's projected diameter (at least a pixel, feathered
 //     by a pixel), its coverage the diameter when that is under a pixel, and lit like the pipe's
@@ -43,6 +44,25 @@ vec3 lit_colour(vec3 base, vec3 n, vec3 to_eye) {
 }
 )";
 
+// The faces the eye (the origin) sees of a box lo..hi, for a draw of 18 vertices a box:
+// per axis, the face on the eye's side if the eye is not between its two planes (else the face
+// is collapsed to a point), two triangles (0 1 2, 0 2 3) of its quad. Vector selects, not
+// variable indices: llvmpipe compiles an index into a vector or an array as a trip through
+// memory, which cost proxy boxes about 130 ns a vertex.
+inline constexpr const char* kBoxFace = R"(
+vec3 box_face_corner(vec3 lo, vec3 hi, int corner, out vec3 normal) {
+  int face = corner / 6, k = corner % 6;
+  int q = k < 3 ? k : (k == 3 ? 0 : k - 2);  // the quad's corner: 0 1 2, 0 2 3
+  vec3 along = vec3(equal(ivec3(face), ivec3(0, 1, 2)));
+  vec3 sees_high = vec3(lessThan(hi, vec3(0.0)));  // per axis: the eye beyond the high face
+  normal = along * (2.0 * sees_high - 1.0);
+  if (dot(along, vec3(lessThanEqual(lo, vec3(0.0))) * vec3(greaterThanEqual(hi, vec3(0.0)))) > 0.5)
+    return lo;  // not seen: collapsed
+  return along * mix(lo, hi, sees_high) + along.zxy * (q == 1 || q == 2 ? hi : lo) +
+         along.yzx * (q >= 2 ? hi : lo);
+}
+)";
+
 // TableEntry::pick's fields and the tie-break's step (gl_backend.h: kTieBits).
 #define PLANTVIEW_TIE_CONSTANTS \
   "const uint kPickMask = 0x3ffffffu;\nconst uint kTieShift = 26u;\nconst float kTieStep = 1.0 / 4194304.0;\n"
@@ -70,6 +90,36 @@ void main() {
   }
   vec3 p = a_position * b.xyz + a.xyz;
   v_normal = a_normal.xyz;
+  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  gl_Position = u_view_projection * vec4(p, 1.0);
+  gl_Position.z *= 1.0 - float(word >> kTieShift) * kTieStep;  // TableEntry::pick
+}
+)";
+
+// Proxy boxes (far-field proxies, node boxes), lit like surfaces (kSurfaceFragment): each box
+// an object-table entry (its camera-relative lower corner and colour, its size and pick word)
+// named by the proxy table, drawn as the faces the eye sees (kBoxFace) in one draw.
+inline constexpr const char* kProxyVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
+layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+layout(std430, binding = 3) readonly buffer Proxies { uint proxies[]; };
+uniform mat4 u_view_projection;
+uniform int u_mode;
+out vec3 v_normal;
+flat out vec4 v_colour;
+flat out uint v_pick;
+vec3 box_face_corner(vec3 lo, vec3 hi, int corner, out vec3 normal);
+void main() {
+  uint object = proxies[gl_VertexID / 18];
+  int corner = gl_VertexID % 18;
+  vec4 a = objects[2u * object];
+  vec4 b = objects[2u * object + 1u];
+  uint word = floatBitsToUint(b.w);
+  v_pick = word & kPickMask;
+  if ((u_mode == 1 && v_pick == 0u) || (u_mode == 2 && v_pick != 0u)) {
+    gl_Position = vec4(0.0, 0.0, -1.0, 1.0);  // outside: clipped
+    return;
+  }
+  vec3 p = box_face_corner(a.xyz, a.xyz + b.xyz, corner, v_normal);
   v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
   gl_Position = u_view_projection * vec4(p, 1.0);
   gl_Position.z *= 1.0 - float(word >> kTieShift) * kTieStep;  // TableEntry::pick
@@ -453,26 +503,17 @@ void main() {
 }
 )";
 
-// Occlusion's box test (GlBackend::test_boxes): boxes from eye-relative (min, max) pairs, each
-// drawn as the faces the eye sees (the eye is outside every box): per axis, the face on the
-// eye's side, if the eye is not between the two; two triangles each, 18 vertices a box in one
-// draw (not instanced: llvmpipe runs its vertex pipeline once per instance), a face not seen
-// collapsed to a point.
+// Occlusion's box test (GlBackend::test_boxes): boxes from eye-relative (min, max) pairs (the
+// eye is outside every box), each drawn as the faces the eye sees (kBoxFace), in one draw.
 inline constexpr const char* kBoxTestVertex = R"(#version 450 core
 layout(std430, binding = 1) readonly buffer Boxes { vec4 boxes[]; };
 uniform mat4 u_view_projection;
 flat out uint v_box;
-const int kQuad[6] = int[6](0, 1, 2, 0, 2, 3);
+vec3 box_face_corner(vec3 lo, vec3 hi, int corner, out vec3 normal);
 void main() {
-  int box = gl_VertexID / 18, corner = gl_VertexID % 18;
-  vec3 lo = boxes[2 * box].xyz, hi = boxes[2 * box + 1].xyz;
-  int a = corner / 6, b = (a + 1) % 3, c = (a + 2) % 3;
-  int q = kQuad[corner % 6];
-  vec3 p;
-  p[a] = hi[a] < 0.0 ? hi[a] : lo[a];
-  p[b] = q == 1 || q == 2 ? hi[b] : lo[b];
-  p[c] = q >= 2 ? hi[c] : lo[c];
-  if (lo[a] <= 0.0 && hi[a] >= 0.0) p = lo;  // not seen: collapsed
+  int box = gl_VertexID / 18;
+  vec3 normal;
+  vec3 p = box_face_corner(boxes[2 * box].xyz, boxes[2 * box + 1].xyz, gl_VertexID % 18, normal);
   v_box = uint(box);
   gl_Position = u_view_projection * vec4(p, 1.0);
 }

@@ -172,7 +172,7 @@ bool Renderer::State::open_view(std::string& error) {
   // smaller one keeps them and is drawn at once, for speed.
   const uint64_t budget_vertices = options.vertex_budget_bytes / kBytesPerVertex;
   const bool larger_than_budget = statistics.triangles > budget_vertices;
-  if (!streaming.reset(budget_vertices, larger_than_budget, error)) return false;
+  streaming.reset(budget_vertices, larger_than_budget);
   backend.set_bounded_drawing(larger_than_budget);
   return !larger_than_budget || backend.grow_arena(budget_vertices, error);
 }

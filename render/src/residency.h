@@ -44,9 +44,8 @@ class RangeAllocator {
   std::set<std::pair<uint64_t, uint64_t>> by_size_;
 };
 
-// Values by residency key (any uint32_t, the proxy cube's UINT32_MAX included) in a dense
-// array, found through an open-addressing hash table (linear probing, at most half full,
-// backward-shift deletion: no tombstones). Memory follows the keys present at most at once (the
+// Values by residency key (any uint32_t) in a dense array, found through an open-addressing
+// hash table (linear probing, at most half full, backward-shift deletion: no tombstones). Memory follows the keys present at most at once (the
 // working set: what is resident), never the slot numbers: 8 bytes a table cell (2 to 4 per key)
 // plus the dense entry. Lookups are a multiply, a probe or two and an array read. Pointers stay
 // valid until the next insert.
