@@ -249,19 +249,20 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
 
   using namespace shaders;
   constexpr const char* kVersion = "#version 450 core\n";
-  surface_program_ = link("surface", {{GL_VERTEX_SHADER, {kSurfaceVertex}},
+  surface_program_ = link("surface", {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kSurfaceVertex}},
                                       {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
                                       {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
   if (surface_program_)
-    proxy_program_ = link("proxy", {{GL_VERTEX_SHADER, {kProxyVertex}},
+    proxy_program_ = link("proxy", {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kProxyVertex}},
                                     {GL_VERTEX_SHADER, {kVersion, kBoxFace}},
                                     {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
                                     {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
   if (proxy_program_)
-    centreline_program_ = link("centreline", {{GL_VERTEX_SHADER, {kCentrelineVertex}},
-                                              {GL_GEOMETRY_SHADER, {kCentrelineGeometry}},
-                                              {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
-                                              {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
+    centreline_program_ = link("centreline",
+                               {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kCentrelineVertex}},
+                                {GL_GEOMETRY_SHADER, {kCentrelineGeometry}},
+                                {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
+                                {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
   if (centreline_program_)
     ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kGroundVertex}},
                                       {GL_FRAGMENT_SHADER, {kGroundFragment}}}, error);

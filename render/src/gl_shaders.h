@@ -67,62 +67,75 @@ vec3 box_face_corner(vec3 lo, vec3 hi, int corner, out vec3 normal) {
 #define PLANTVIEW_TIE_CONSTANTS \
   "const uint kPickMask = 0x3ffffffu;\nconst uint kTieShift = 26u;\nconst float kTieStep = 1.0 / 4194304.0;\n"
 
-inline constexpr const char* kSurfaceVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
+// The object table as the vertex shaders of objects, proxy boxes and centrelines read it
+// (gl_backend.h: TableEntry): an entry's camera-relative offset and colour, its scale, its pick
+// value, the factor its tie-break applies to clip-space z, and whether the highlight mode
+// (u_mode) draws it. Compiled ahead of each of those shaders' source, in the same shader.
+inline constexpr const char* kObjectTable = PLANTVIEW_TIE_CONSTANTS R"(
+layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+uniform int u_mode;
+struct Entry { vec3 offset; vec3 scale; vec4 colour; uint pick; float tie; bool drawn; };
+Entry object_entry(uint object) {
+  vec4 a = objects[2u * object];
+  vec4 b = objects[2u * object + 1u];
+  uint word = floatBitsToUint(b.w);
+  Entry e;
+  e.offset = a.xyz;
+  e.scale = b.xyz;
+  e.colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  e.pick = word & kPickMask;
+  e.tie = 1.0 - float(word >> kTieShift) * kTieStep;
+  e.drawn = !((u_mode == 1 && e.pick == 0u) || (u_mode == 2 && e.pick != 0u));
+  return e;
+}
+)";
+
+inline constexpr const char* kSurfaceVertex = R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec4 a_normal;
 layout(location = 2) in uint a_object;
-layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
 uniform mat4 u_view_projection;
-uniform int u_mode;
 // Per-object values are flat, and the view direction is rebuilt per fragment from its window
 // position: fewer interpolated values make each triangle cheaper to set up and to bin.
 out vec3 v_normal;
 flat out vec4 v_colour;
 flat out uint v_pick;
 void main() {
-  vec4 a = objects[2u * a_object];
-  vec4 b = objects[2u * a_object + 1u];
-  uint word = floatBitsToUint(b.w);
-  v_pick = word & kPickMask;
-  if ((u_mode == 1 && v_pick == 0u) || (u_mode == 2 && v_pick != 0u)) {
+  Entry e = object_entry(a_object);
+  v_pick = e.pick;
+  if (!e.drawn) {
     gl_Position = vec4(0.0, 0.0, -1.0, 1.0);  // outside: clipped
     return;
   }
-  vec3 p = a_position * b.xyz + a.xyz;
+  vec3 p = a_position * e.scale + e.offset;
   v_normal = a_normal.xyz;
-  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  v_colour = e.colour;
   gl_Position = u_view_projection * vec4(p, 1.0);
-  gl_Position.z *= 1.0 - float(word >> kTieShift) * kTieStep;  // TableEntry::pick
+  gl_Position.z *= e.tie;
 }
 )";
 
 // Proxy boxes (far-field proxies, node boxes), lit like surfaces (kSurfaceFragment): each box
 // an object-table entry (its camera-relative lower corner and colour, its size and pick word)
 // named by the proxy table, drawn as the faces the eye sees (kBoxFace) in one draw.
-inline constexpr const char* kProxyVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
-layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
+inline constexpr const char* kProxyVertex = R"(
 layout(std430, binding = 3) readonly buffer Proxies { uint proxies[]; };
 uniform mat4 u_view_projection;
-uniform int u_mode;
 out vec3 v_normal;
 flat out vec4 v_colour;
 flat out uint v_pick;
 vec3 box_face_corner(vec3 lo, vec3 hi, int corner, out vec3 normal);
 void main() {
-  uint object = proxies[gl_VertexID / 18];
-  int corner = gl_VertexID % 18;
-  vec4 a = objects[2u * object];
-  vec4 b = objects[2u * object + 1u];
-  uint word = floatBitsToUint(b.w);
-  v_pick = word & kPickMask;
-  if ((u_mode == 1 && v_pick == 0u) || (u_mode == 2 && v_pick != 0u)) {
+  Entry e = object_entry(proxies[gl_VertexID / 18]);
+  v_pick = e.pick;
+  if (!e.drawn) {
     gl_Position = vec4(0.0, 0.0, -1.0, 1.0);  // outside: clipped
     return;
   }
-  vec3 p = box_face_corner(a.xyz, a.xyz + b.xyz, corner, v_normal);
-  v_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  vec3 p = box_face_corner(e.offset, e.offset + e.scale, gl_VertexID % 18, v_normal);
+  v_colour = e.colour;
   gl_Position = u_view_projection * vec4(p, 1.0);
-  gl_Position.z *= 1.0 - float(word >> kTieShift) * kTieStep;  // TableEntry::pick
+  gl_Position.z *= e.tie;
 }
 )";
 
@@ -147,12 +160,10 @@ void main() {
 }
 )";
 
-inline constexpr const char* kCentrelineVertex = "#version 450 core\n" PLANTVIEW_TIE_CONSTANTS R"(
+inline constexpr const char* kCentrelineVertex = R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 2) in uint a_object;
 layout(location = 3) in uint a_diameter;  // float bits: the pipe's outside diameter, metres
-layout(std430, binding = 0) readonly buffer Objects { vec4 objects[]; };
-uniform int u_mode;
 out vec3 g_position;  // camera-relative
 flat out vec4 g_colour;
 flat out uint g_pick;
@@ -160,13 +171,12 @@ flat out float g_diameter;
 flat out float g_tie;
 flat out int g_drawn;
 void main() {
-  vec4 a = objects[2u * a_object];
-  vec4 b = objects[2u * a_object + 1u];
-  g_pick = floatBitsToUint(b.w) & kPickMask;
-  g_tie = 1.0 - float(floatBitsToUint(b.w) >> kTieShift) * kTieStep;  // TableEntry::pick
-  g_drawn = (u_mode == 1 && g_pick == 0u) || (u_mode == 2 && g_pick != 0u) ? 0 : 1;
-  g_position = a_position * b.xyz + a.xyz;
-  g_colour = unpackUnorm4x8(floatBitsToUint(a.w));
+  Entry e = object_entry(a_object);
+  g_pick = e.pick;
+  g_tie = e.tie;
+  g_drawn = e.drawn ? 1 : 0;
+  g_position = a_position * e.scale + e.offset;
+  g_colour = e.colour;
   g_diameter = uintBitsToFloat(a_diameter);
 }
 )";
