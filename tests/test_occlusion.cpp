@@ -652,7 +652,8 @@ TEST(Occlusion, WhatWasDrawnLastFrameHidesWhatComesIntoViewBehindItUntilItIsUnco
 
 // The exact test: an object of two parts, each behind a wall of its own, with a gap between
 // the walls that its bounds span. The coarse test sees the gap through its bounds; the exact
-// one tests its parts' bounds against the depth drawn, sample by sample, and drops it.
+// one tests its parts' bounds against the depth drawn, sample by sample, and drops it; also
+// where a part reaches past the eye's plane, out of view.
 TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
   const Colour grey{120, 120, 120, 255};
   const std::vector<Object> objects = {
@@ -699,6 +700,28 @@ TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
     ASSERT_TRUE(near_off->render(view, 320, 180, true, a, stats, error)) << error;
     ASSERT_TRUE(ids_in(a).count(with_near[2].id)) << "the near part shows";
     ASSERT_TRUE(near_on->render(view, 320, 180, true, b, stats, error)) << error;
+    EXPECT_EQ(b.object_ids, a.object_ids);
+  }
+
+  // A part beside the eye, reaching from behind its plane to in front of it (the eye at
+  // x = 0, y = -12): out of view, it is tested as any other (the test draws its faces
+  // unclipped at the near plane, depth clamped), and the object, hidden elsewhere, is dropped;
+  // in view, the object is kept.
+  for (const float part_x : {-3.0f, -1.0f}) {
+    SCOPED_TRACE("a part beside the eye at x = " + std::to_string(part_x));
+    std::vector<Object> beside = objects;
+    beside[2].primitives[1] =
+        Primitive{Placement{glm::mat3(1.0f), {part_x, -18.0f, 0.5f}}, Box{0.5f, 4.0f, 0.5f}};
+    TempDir beside_dir;
+    auto beside_store = make_store(beside_dir, beside);
+    auto beside_off = make_renderer(*beside_store, false);
+    auto beside_on = make_renderer(*beside_store, true, OcclusionTest::exact);
+    Image a, b;
+    ASSERT_TRUE(beside_off->render(view, 320, 180, true, a, stats, error)) << error;
+    const bool in_view = part_x > -2;
+    ASSERT_EQ(ids_in(a).count(beside[2].id), in_view ? 1u : 0u);
+    ASSERT_TRUE(beside_on->render(view, 320, 180, true, b, stats, error)) << error;
+    EXPECT_EQ(stats.objects_occluded, in_view ? 0u : 1u);
     EXPECT_EQ(b.object_ids, a.object_ids);
   }
 

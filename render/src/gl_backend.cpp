@@ -655,6 +655,7 @@ bool GlBackend::test_boxes(const FrameView& view, std::span<const glm::vec4> box
   glDepthMask(GL_FALSE);
   glDisable(GL_CULL_FACE);  // only the faces the eye sees are drawn
   glDisablei(GL_BLEND, 0);
+  glEnable(GL_DEPTH_CLAMP);
   glProgramUniformMatrix4fv(box_test_program_, at(box_test_program_, "u_view_projection"), 1,
                             GL_FALSE, glm::value_ptr(view.view_projection));
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, box_buffer_);
@@ -664,6 +665,7 @@ bool GlBackend::test_boxes(const FrameView& view, std::span<const glm::vec4> box
   glDrawArrays(GL_TRIANGLES, 0, GLsizei(18 * count));
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
   glGetNamedBufferSubData(seen_buffer_, 0, GLsizeiptr(seen_bytes), seen.data());
+  glDisable(GL_DEPTH_CLAMP);
   glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   glColorMaski(1, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   glDepthMask(GL_TRUE);

@@ -165,10 +165,13 @@ class GlBackend {
   // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
   // was drawn) over every sample of every framebuffer pixel it overlaps. Between
   // begin_frame() and finish_frame(); waits for the GPU. `depth` is resized to the cells.
-  // Occlusion's exact test: which of `boxes` (eye-relative {min, max} pairs, metres; each
-  // wholly beyond the near plane) have a sample of their front faces that is not behind what
-  // has been drawn so far in the frame (reversed depth greater or equal). seen[i] is non-zero
-  // for those. Nothing is drawn. Between begin_frame() and finish_frame(); waits for the GPU.
+  // Occlusion's exact test: which of `boxes` (eye-relative {min, max} pairs, metres; none
+  // holding the eye) have a sample of their front faces that is not behind what has been
+  // drawn so far in the frame (reversed depth greater or equal). seen[i] is non-zero for
+  // those. The faces are not clipped at the near plane: their depth is clamped to it (depth
+  // clamping), so that a box reaching past it, or past the eye's plane, is seen wherever a
+  // ray of the view meets it (where it enters the box, at the near plane or beyond). Nothing
+  // is drawn. Between begin_frame() and finish_frame(); waits for the GPU.
   bool test_boxes(const FrameView& view, std::span<const glm::vec4> boxes,
                   std::vector<uint32_t>& seen, std::string& error);
   // A software renderer (llvmpipe and the like: fragments are the cost).

@@ -30,6 +30,17 @@ std::pair<float, float> depth_range(const glm::mat3& rotation, const glm::vec3& 
   return {nearest, farthest};
 }
 
+// Whether the bounds of `v` reach within 2 x the near plane of the eye's plane (a view depth):
+// its size on screen, taken at its nearest point, says nothing of what of it is in view.
+bool reaches_eye_plane(const FrameView& frame_view, const VisibleObject& v) {
+  glm::vec3 lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = v.min[a] + frame_view.shift_m[a];
+    hi[a] = v.max[a] + frame_view.shift_m[a];
+  }
+  return depth_range(glm::mat3(frame_view.rotation), lo, hi).first <= 2 * kNearPlaneM;
+}
+
 // Removes from `items` (order kept) those whose index `hidden` holds for; returns how many.
 template <class T, class F>
 size_t remove_hidden(std::vector<T>& items, const F& hidden) {
@@ -250,8 +261,9 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
   bool any = false;
   if (!rasterise_occluders(objects, frame_view, options, visible, any, stats, error)) return false;
   // Of the largest, with the exact test, the nearer half is drawn first (the farther are left
-  // to the tests, where the nearer most likely hide them); none with the eye within its bounds
-  // (its size on screen says nothing: it may well draw nothing, seen from inside).
+  // to the tests, where the nearer most likely hide them), and none reaching the eye's plane
+  // (the exact test can drop what of it is out of view or hidden); none with the eye within its
+  // bounds (its size on screen says nothing: it may well draw nothing, seen from inside).
   double near_cut_m = std::numeric_limits<double>::infinity();
   if (exact && !candidates_.empty()) {
     distances_.clear();
@@ -275,7 +287,8 @@ bool OcclusionCulling::split(DecodedObjects& objects, const FrameView& frame_vie
                               !(hidden_drawn_frame_ + 1 == frame &&
                                 std::binary_search(hidden_drawn_.begin(), hidden_drawn_.end(), v.slot));
       const bool largest = v.px_per_m * v.extent_m() >= smallest_candidate_px_ &&
-                           v.distance_m <= near_cut_m && v.distance_m > 2 * kNearPlaneM;
+                           v.distance_m <= near_cut_m && v.distance_m > 2 * kNearPlaneM &&
+                           !(exact && reaches_eye_plane(frame_view, v));
       flags_[i] = (drawn_last || largest) && k && drawn_opaque(objects, *k, v, frame_view, options) &&
                   !(any && hidden(frame_view, v.min, v.max));
     }
@@ -318,8 +331,12 @@ bool OcclusionCulling::defer_smaller(DecodedObjects& objects, const FrameView& f
   later.clear();
   deferred = rest.size() >= kThirdPhaseObjects;
   if (!deferred) return true;
-  // The size on screen above which the largest share lies (ties at it drawn now too).
-  const auto pixels = [](const VisibleObject& v) { return v.px_per_m * v.extent_m(); };
+  // The key above which the largest share lies (ties at it drawn now too): pixels spanned
+  // over distance (measured on preset c's interior views: 4% fewer triangles drawn than by
+  // pixels alone with the coarse test, 1.5% with the exact test).
+  const auto pixels = [](const VisibleObject& v) {
+    return v.px_per_m * v.extent_m() / std::max(v.distance_m, 1.0);
+  };
   distances_.resize(rest.size());
   for (size_t i = 0; i < rest.size(); ++i) distances_[i] = -pixels(rest[i]);
   const size_t cut = size_t(kThirdPhaseLargestShare * double(rest.size() - 1));
@@ -360,7 +377,10 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   boxes.clear();
   tested_.clear();
   // `spill_px`: image pixels of drawing that may reach past the bounds (occlusion_buffer.h).
-  // False (nothing added) for a box reaching within 2 x the near plane: its object is kept.
+  // False (nothing added) for a box that holds the eye, or comes within the near plane's
+  // distance of it: no face of it faces the eye, so its object is kept. (One reaching past
+  // the near plane, or the eye's plane, elsewhere is tested as any other: GlBackend::test_boxes
+  // draws without clipping at the near plane.)
   const auto add = [&](const float mn[3], const float mx[3], uint32_t index, double spill_px) {
     glm::vec3 lo, hi;
     for (int a = 0; a < 3; ++a) {
@@ -368,15 +388,17 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
       hi[a] = mx[a] + frame_view.shift_m[a];
     }
     const auto [nearest_m, farthest_m] = depth_range(rotation, lo, hi);
-    if (nearest_m <= 2 * kNearPlaneM) return false;
     // The spill in metres where the box is farthest (a pixel spans the most metres there), and
     // a hair for rounding (of the shift, of the drawn vertices and depths).
-    const float spill_m = float(spill_px * farthest_m / frame_view.focal_px);
+    const float spill_m = float(spill_px * std::max(farthest_m, 0.0f) / frame_view.focal_px);
     for (int a = 0; a < 3; ++a) {
       const float grow = spill_m + 1e-5f * std::max(std::abs(lo[a]), std::abs(hi[a])) + 1e-4f;
       lo[a] -= grow;
       hi[a] += grow;
     }
+    const glm::vec3 near_m = glm::vec3(float(kNearPlaneM));
+    if (glm::all(glm::lessThanEqual(lo, near_m)) && glm::all(glm::greaterThanEqual(hi, -near_m)))
+      return false;
     boxes.emplace_back(lo, 0.0f);
     boxes.emplace_back(hi, 0.0f);
     tested_.push_back(index);

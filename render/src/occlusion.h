@@ -7,7 +7,8 @@
 //     the previous frame that are still in the frustum (temporal coherence; less those its own
 //     first phase's depth hid), and the nearer half of this frame's largest on screen (of up
 //     to kMaxOccluders spanning kOccluderMinPixels; for a first frame that is all there is;
-//     none with the eye within its bounds); less what the largest, rasterised on the CPU as
+//     none with the eye within its bounds, nor, with the exact test, reaching the eye's
+//     plane); less what the largest, rasterised on the CPU as
 //     below, hide; and only objects drawn as opaque triangles: see-through objects and
 //     centrelines blend, and are drawn after the opaque surfaces behind them, as in a frame
 //     drawn at once (so the image equals the one without occlusion). The GL backend reduces
@@ -18,8 +19,9 @@
 //     sample by sample; an object of several primitives by the bounds of up to kMaxTestBoxes
 //     groups of them, Known::test_boxes). Phase 2 draws what is left into the same
 //     framebuffer, without clearing. Where that is kThirdPhaseObjects or more (a view cut
-//     to), phase 2 draws its largest on screen only, and the rest is tested again (coarse and
-//     exact) against the depth of both and drawn in phase 3. Correct by construction: what a
+//     to), phase 2 draws only those largest on screen for their distance, and the rest is
+//     tested again (coarse, and exact where the exact test is on) against the depth of both
+//     and drawn in phase 3. Correct by construction: what a
 //     phase drew is in the image, so whatever it hides is hidden at every sample; an object
 //     seen for the first time is drawn in the frame it appears (a later phase draws it).
 //   - Occluders rasterised on the CPU (frames not drawn: Renderer::statistics). Of the objects
@@ -70,9 +72,9 @@ inline constexpr size_t kOccludersPerPart = 32;  // occluders rasterised per par
 // The first phase's largest: the nearer kFirstPhaseNearShare of the kMaxOccluders largest.
 inline constexpr double kFirstPhaseNearShare = 0.5;
 // A third phase is taken when the second holds at least kThirdPhaseObjects objects (a view
-// cut to, with little drawn the frame before): the second then draws the largest
-// kThirdPhaseLargestShare of them on screen, and the rest is tested against both. Measured on
-// preset c's interior views (README, occlusion culling).
+// cut to, with little drawn the frame before): the second then draws the
+// kThirdPhaseLargestShare of them largest on screen for their distance, and the rest is
+// tested against both. Measured on preset c's interior views (README, occlusion culling).
 inline constexpr size_t kThirdPhaseObjects = 256;
 // Triangles the exact test draws a box with (the faces the eye sees, GlBackend::test_boxes):
 // an object is tested only where it draws more than its boxes would.
@@ -124,9 +126,11 @@ class OcclusionCulling {
 
   // A third phase, where the second is large: when `rest` (tested, tree order) holds at least
   // kThirdPhaseObjects objects, moves out of it into `later` (order kept) every object that is
-  // not among the largest kThirdPhaseLargestShare of rest on screen or is not drawn as opaque
-  // triangles of its own (`deferred` true); else changes nothing (`later` empty). The largest
-  // are decoded here to know that (they are drawn next anyway). Once rest is drawn,
+  // not among the kThirdPhaseLargestShare of rest largest on screen for their distance (the
+  // pixels it spans over its distance, under a metre counted as one: the large and near,
+  // which hide the most and are the least hidden) or is not drawn as opaque triangles of its
+  // own (`deferred` true); else changes nothing (`later` empty). Those chosen are decoded
+  // here to know that (they are drawn next anyway). Once rest is drawn,
   // test_later() drops what of `later` and the node boxes the depth drawn by then hides.
   // False with an error if an object cannot be decoded.
   bool defer_smaller(DecodedObjects& objects, const FrameView& frame_view,
@@ -146,7 +150,7 @@ class OcclusionCulling {
   // bounds grown by kSpillPixels (what is drawn of it may reach past them). New objects are
   // decoded for it only where they span kBoxTestDecodePixels (few, and drawn most likely:
   // decoding what turns out hidden costs, and out of core it is decoded again frame after
-  // frame). Not those reaching within 2 x the near plane (kept). Node boxes are not tested (a
+  // frame). Not one of which a box holds the eye (kept). Node boxes are not tested (a
   // box costs what testing it would). False on a decode error.
   bool box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
                        const RenderOptions& options, std::span<const VisibleObject> rest,
