@@ -30,14 +30,21 @@ std::pair<float, float> depth_range(const glm::mat3& rotation, const glm::vec3& 
   return {nearest, farthest};
 }
 
+// A box relative to the spatial origin, relative to the eye: {min, max}.
+std::pair<glm::vec3, glm::vec3> eye_relative(const FrameView& frame_view, const float mn[3],
+                                             const float mx[3]) {
+  glm::vec3 lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = mn[a] + frame_view.shift_m[a];
+    hi[a] = mx[a] + frame_view.shift_m[a];
+  }
+  return {lo, hi};
+}
+
 // Whether the bounds of `v` reach within 2 x the near plane of the eye's plane (a view depth):
 // its size on screen, taken at its nearest point, says nothing of what of it is in view.
 bool reaches_eye_plane(const FrameView& frame_view, const VisibleObject& v) {
-  glm::vec3 lo, hi;
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = v.min[a] + frame_view.shift_m[a];
-    hi[a] = v.max[a] + frame_view.shift_m[a];
-  }
+  const auto [lo, hi] = eye_relative(frame_view, v.min, v.max);
   return depth_range(glm::mat3(frame_view.rotation), lo, hi).first <= 2 * kNearPlaneM;
 }
 
@@ -382,11 +389,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   // the near plane, or the eye's plane, elsewhere is tested as any other: GlBackend::test_boxes
   // draws without clipping at the near plane.)
   const auto add = [&](const float mn[3], const float mx[3], uint32_t index, double spill_px) {
-    glm::vec3 lo, hi;
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = mn[a] + frame_view.shift_m[a];
-      hi[a] = mx[a] + frame_view.shift_m[a];
-    }
+    auto [lo, hi] = eye_relative(frame_view, mn, mx);
     const float farthest_m = depth_range(rotation, lo, hi).second;
     // The spill in metres where the box is farthest (a pixel spans the most metres there), and
     // a hair for rounding (of the shift, of the drawn vertices and depths).
