@@ -235,7 +235,9 @@ class DecodedObjects {
 
   // The exact test's boxes of the object in `slot` (known; Known::test_boxes), built the first
   // time they are asked for (from its primitives, decoded again if dropped): only objects the
-  // exact test meets pay for them. Null on a read error.
+  // exact test meets pay for them. Null on a read error. Threads: for different objects at
+  // once where each is built already or keeps its primitives (no read; the reads share one
+  // buffer).
   const std::vector<Aabb>* test_boxes(uint32_t slot, Known& k, std::string& error);
 
   // Reads the spatial index's `blocks` into the store's shared cache of decoded blocks, on the

@@ -372,6 +372,90 @@ void OcclusionCulling::test_later(const FrameBlocks& blocks, const FrameView& fr
   drop_hidden(blocks, frame_view, later, node_boxes, stats);
 }
 
+namespace {
+
+// Adds the box (relative to the spatial origin) of rest[index] to `out`, eye-relative and grown
+// by `spill_px` image pixels of drawing that may reach past it (occlusion_buffer.h) and a hair
+// for rounding (of the shift, of the drawn vertices and depths). False (nothing added) for a
+// box that holds the eye, or comes within the near plane's distance of it: no face of it faces
+// the eye, so its object is kept. (One reaching past the near plane, or the eye's plane,
+// elsewhere is tested as any other: GlBackend::test_boxes draws without clipping at the near
+// plane.)
+bool add_box(const FrameView& frame_view, const glm::mat3& rotation, const float mn[3],
+             const float mx[3], uint32_t index, double spill_px, TestBoxes& out) {
+  auto [lo, hi] = eye_relative(frame_view, mn, mx);
+  const float farthest_m = depth_range(rotation, lo, hi).second;
+  // The spill in metres where the box is farthest (a pixel spans the most metres there).
+  const float spill_m = float(spill_px * std::max(farthest_m, 0.0f) / frame_view.focal_px);
+  for (int a = 0; a < 3; ++a) {
+    const float grow = spill_m + 1e-5f * std::max(std::abs(lo[a]), std::abs(hi[a])) + 1e-4f;
+    lo[a] -= grow;
+    hi[a] += grow;
+  }
+  const glm::vec3 near_m = glm::vec3(float(kNearPlaneM));
+  if (glm::all(glm::lessThanEqual(lo, near_m)) && glm::all(glm::greaterThanEqual(hi, -near_m)))
+    return false;
+  out.boxes.emplace_back(lo, 0.0f);
+  out.boxes.emplace_back(hi, 0.0f);
+  out.tested.push_back(index);
+  return true;
+}
+
+}  // namespace
+
+bool OcclusionCulling::object_boxes(DecodedObjects& objects, const FrameView& frame_view,
+                                    const RenderOptions& options, const VisibleObject& v,
+                                    uint32_t index, bool may_read, TestBoxes& out,
+                                    std::string& error) {
+  const glm::mat3 rotation(frame_view.rotation);
+  Known* k = objects.find(v.slot);
+  // Not decoded yet (nor to be, if hidden), drawn as a centreline, with lines, or a member of
+  // a merged run: its own bounds, grown by what is drawn of it past them.
+  if (!k || k->has_lines || drawn_as_centreline(*k, options, v.distance_m, v.px_per_m) ||
+      (k->run >= 0 && decide_run(objects.run(uint32_t(k->run)), frame_view, options).merged)) {
+    add_box(frame_view, rotation, v.min, v.max, index, OcclusionBuffer::kSpillPixels, out);
+    return true;
+  }
+  // A solid of its own: tested only where drawing it costs more triangles than testing its
+  // boxes (the bounds of groups of its primitives, else its own).
+  const uint32_t level = chosen_level(*k, options, v.distance_m, v.px_per_m, v.extent_m());
+  size_t triangles = 0;
+  for (const Known::Part& part : k->parts)
+    triangles += part.plan->index_count(part.plan->clamp_level(level)) / 3;
+  if (triangles <= kBoxTestTriangles) return true;  // (whatever its boxes: none built for it)
+  // Its groups are built from its primitives the first time, which reads the store where they
+  // were dropped: that only where `may_read`.
+  if (!k->test_boxes_built && !may_read && k->primitives.empty() && !k->parts.empty()) {
+    out.waiting.push_back(index);
+    return true;
+  }
+  const std::vector<Aabb>* test_boxes = objects.test_boxes(v.slot, *k, error);
+  if (!test_boxes) return false;
+  if (triangles <= kBoxTestTriangles * std::max<size_t>(1, test_boxes->size())) return true;
+  if (test_boxes->empty()) {
+    add_box(frame_view, rotation, v.min, v.max, index, 0, out);
+    return true;
+  }
+  // Each clipped to the object's bounds, which hold all it draws too. One reaching the near
+  // plane keeps the object: none of its boxes is tested.
+  const glm::vec3 origin(k->origin_m - frame_view.spatial_origin_m);
+  const size_t boxes_before = out.boxes.size(), tested_before = out.tested.size();
+  for (const Aabb& b : *test_boxes) {
+    float mn[3], mx[3];
+    for (int a = 0; a < 3; ++a) {
+      mn[a] = std::max(v.min[a], origin[a] + b.min[a]);
+      mx[a] = std::min(v.max[a], origin[a] + b.max[a]);
+    }
+    if (mn[0] <= mx[0] && mn[1] <= mx[1] && mn[2] <= mx[2] &&
+        !add_box(frame_view, rotation, mn, mx, index, 0, out)) {
+      out.boxes.resize(boxes_before);
+      out.tested.resize(tested_before);
+      break;
+    }
+  }
+  return true;
+}
+
 bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
                                        const RenderOptions& options,
                                        std::span<const VisibleObject> rest,
@@ -380,73 +464,30 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   for (const VisibleObject& v : rest)
     if (v.px_per_m * v.extent_m() >= kBoxTestDecodePixels && !objects.find(v.slot)) candidates_.push_back(v);
   if (!candidates_.empty() && !objects.decode(candidates_, options.hlod, error)) return false;
-  const glm::mat3 rotation(frame_view.rotation);
+  // In parts on the pool, each into lists of its own, joined in order; an object whose groups
+  // must be built from primitives read again from the store waits for this thread, after.
+  const size_t parts = (rest.size() + kObjectsPerPart - 1) / kObjectsPerPart;
+  if (part_boxes_.size() < parts) part_boxes_.resize(parts);
+  for_parts(rest.size(), [&](size_t first, size_t end) {
+    TestBoxes& out = part_boxes_[first / kObjectsPerPart];
+    out.boxes.clear();
+    out.tested.clear();
+    out.waiting.clear();
+    std::string unused;  // (no read: nothing to fail)
+    for (size_t i = first; i < end; ++i) {
+      if (i + kPrefetchAhead < end)
+        if (const Known* ahead = objects.find(rest[i + kPrefetchAhead].slot)) prefetch(ahead);
+      object_boxes(objects, frame_view, options, rest[i], uint32_t(i), false, out, unused);
+    }
+  });
   boxes.clear();
   tested_.clear();
-  // `spill_px`: image pixels of drawing that may reach past the bounds (occlusion_buffer.h).
-  // False (nothing added) for a box that holds the eye, or comes within the near plane's
-  // distance of it: no face of it faces the eye, so its object is kept. (One reaching past
-  // the near plane, or the eye's plane, elsewhere is tested as any other: GlBackend::test_boxes
-  // draws without clipping at the near plane.)
-  const auto add = [&](const float mn[3], const float mx[3], uint32_t index, double spill_px) {
-    auto [lo, hi] = eye_relative(frame_view, mn, mx);
-    const float farthest_m = depth_range(rotation, lo, hi).second;
-    // The spill in metres where the box is farthest (a pixel spans the most metres there), and
-    // a hair for rounding (of the shift, of the drawn vertices and depths).
-    const float spill_m = float(spill_px * std::max(farthest_m, 0.0f) / frame_view.focal_px);
-    for (int a = 0; a < 3; ++a) {
-      const float grow = spill_m + 1e-5f * std::max(std::abs(lo[a]), std::abs(hi[a])) + 1e-4f;
-      lo[a] -= grow;
-      hi[a] += grow;
-    }
-    const glm::vec3 near_m = glm::vec3(float(kNearPlaneM));
-    if (glm::all(glm::lessThanEqual(lo, near_m)) && glm::all(glm::greaterThanEqual(hi, -near_m)))
-      return false;
-    boxes.emplace_back(lo, 0.0f);
-    boxes.emplace_back(hi, 0.0f);
-    tested_.push_back(index);
-    return true;
-  };
-  for (size_t i = 0; i < rest.size(); ++i) {
-    const VisibleObject& v = rest[i];
-    Known* k = objects.find(v.slot);
-    // Not decoded yet (nor to be, if hidden), drawn as a centreline, with lines, or a member of
-    // a merged run: its own bounds, grown by what is drawn of it past them.
-    if (!k || k->has_lines || drawn_as_centreline(*k, options, v.distance_m, v.px_per_m) ||
-        (k->run >= 0 && decide_run(objects.run(uint32_t(k->run)), frame_view, options).merged)) {
-      add(v.min, v.max, uint32_t(i), OcclusionBuffer::kSpillPixels);
-      continue;
-    }
-    // A solid of its own: tested only where drawing it costs more triangles than testing its
-    // boxes (the bounds of groups of its primitives, else its own).
-    const uint32_t level = chosen_level(*k, options, v.distance_m, v.px_per_m, v.extent_m());
-    size_t triangles = 0;
-    for (const Known::Part& part : k->parts)
-      triangles += part.plan->index_count(part.plan->clamp_level(level)) / 3;
-    if (triangles <= kBoxTestTriangles) continue;  // (whatever its boxes: none built for it)
-    const std::vector<Aabb>* test_boxes = objects.test_boxes(v.slot, *k, error);
-    if (!test_boxes) return false;
-    if (triangles <= kBoxTestTriangles * std::max<size_t>(1, test_boxes->size())) continue;
-    if (test_boxes->empty()) {
-      add(v.min, v.max, uint32_t(i), 0);
-      continue;
-    }
-    // Each clipped to the object's bounds, which hold all it draws too. One reaching the near
-    // plane keeps the object: none of its boxes is tested.
-    const glm::vec3 origin(k->origin_m - frame_view.spatial_origin_m);
-    const size_t boxes_before = boxes.size(), tested_before = tested_.size();
-    for (const Aabb& b : *test_boxes) {
-      float mn[3], mx[3];
-      for (int a = 0; a < 3; ++a) {
-        mn[a] = std::max(v.min[a], origin[a] + b.min[a]);
-        mx[a] = std::min(v.max[a], origin[a] + b.max[a]);
-      }
-      if (mn[0] <= mx[0] && mn[1] <= mx[1] && mn[2] <= mx[2] && !add(mn, mx, uint32_t(i), 0)) {
-        boxes.resize(boxes_before);
-        tested_.resize(tested_before);
-        break;
-      }
-    }
+  for (size_t p = 0; p < parts; ++p) {
+    TestBoxes& part = part_boxes_[p];
+    for (const uint32_t i : part.waiting)
+      if (!object_boxes(objects, frame_view, options, rest[i], i, true, part, error)) return false;
+    boxes.insert(boxes.end(), part.boxes.begin(), part.boxes.end());
+    tested_.insert(tested_.end(), part.tested.begin(), part.tested.end());
   }
   return true;
 }

@@ -65,6 +65,14 @@ struct VisibleObject;
 
 class WorkerPool;
 
+// One part's boxes for the exact test (OcclusionCulling::box_test_inputs): two corners a box,
+// the index in `rest` of each box's object, and the objects left for the calling thread.
+struct TestBoxes {
+  std::vector<glm::vec4> boxes;
+  std::vector<uint32_t> tested;
+  std::vector<uint32_t> waiting;
+};
+
 inline constexpr size_t kMaxOccluders = 384;
 inline constexpr size_t kObjectsPerPart = 2048;  // objects tested per part on the pool
 inline constexpr double kOccluderMinPixels = 24;
@@ -151,7 +159,8 @@ class OcclusionCulling {
   // decoded for it only where they span kBoxTestDecodePixels (few, and drawn most likely:
   // decoding what turns out hidden costs, and out of core it is decoded again frame after
   // frame). Not one of which a box holds the eye (kept). Node boxes are not tested (a
-  // box costs what testing it would). False on a decode error.
+  // box costs what testing it would). In parts on the pool, joined in order: the same boxes
+  // in the same order whatever the core count. False on a decode error.
   bool box_test_inputs(DecodedObjects& objects, const FrameView& frame_view,
                        const RenderOptions& options, std::span<const VisibleObject> rest,
                        std::vector<glm::vec4>& boxes, std::string& error);
@@ -175,6 +184,13 @@ class OcclusionCulling {
   // Whether the box (relative to the spatial origin) is hidden.
   bool hidden(const FrameView& frame_view, const float min[3], const float max[3]) const;
 
+  // box_test_inputs() for one object of `rest` (its index), into `out`: false on a read error.
+  // Without `may_read`, one whose groups would be built from primitives read again from the
+  // store is left in out.waiting instead (the workers share no read buffer).
+  static bool object_boxes(DecodedObjects& objects, const FrameView& frame_view,
+                           const RenderOptions& options, const VisibleObject& v, uint32_t index,
+                           bool may_read, TestBoxes& out, std::string& error);
+
   // Runs f(first, end) over [0, n) in runs of kObjectsPerPart, on the pool if there is one.
   template <class F>
   void for_parts(size_t n, const F& f) const;
@@ -185,7 +201,8 @@ class OcclusionCulling {
   mutable std::vector<uint8_t> flags_;  // per object: kept (split) or hidden (drops)
   std::vector<VisibleObject> candidates_;
   std::vector<double> distances_;  // split() and defer_smaller(): sort keys
-  std::vector<uint32_t> tested_;   // box_test_inputs(): per box, its index (objects, then boxes)
+  std::vector<uint32_t> tested_;   // box_test_inputs(): per box, its index in `rest`
+  std::vector<TestBoxes> part_boxes_;  // box_test_inputs(): per part
   double smallest_candidate_px_ = 0;  // of the last rasterise_occluders()
   // Slots of the first phase's objects found hidden in frame hidden_drawn_frame_ (sorted).
   std::vector<uint32_t> hidden_drawn_;
