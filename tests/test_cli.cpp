@@ -262,6 +262,7 @@ TEST_F(Cli, RenderAndPathUsageErrorsExitTwoNamingTheOption) {
       {"render --store " + store + " --format gif --path " + camera_path.string() + " --out d", "--format"},
       {"render --store " + store + " --shard 4/4 --path " + camera_path.string() + " --out d", "--shard"},
       {"render --store " + store + " --lod-policy fast --out x.png", "--lod-policy"},
+      {"render --store " + store + " --occlusion-test fast --out x.png", "--occlusion-test"},
       {"render --store " + store + " --path " + camera_path.string() + " --camera eye=1,2,3,target=0,0,0 --out d",
        "one of --camera, --path"},
       {"render --store " + store + " --path " + camera_path.string() + " --out " + (dir_ / "walk.png").string(),
@@ -276,6 +277,19 @@ TEST_F(Cli, RenderAndPathUsageErrorsExitTwoNamingTheOption) {
     EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
   }
   EXPECT_FALSE(fs::exists(dir_ / "walk.png")) << "no directory named like an image";
+}
+
+// Each occlusion test renders (the renderer's tests compare their images with occlusion off).
+TEST_F(Cli, RenderTakesEachOcclusionTest) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  for (const char* test : {"automatic", "coarse", "exact"}) {
+    const fs::path image = dir_ / (std::string(test) + ".png");
+    const Outcome r = run("render --store " + store.string() + " --size 320x180 --occlusion-test " +
+                          test + " --out " + image.string());
+    EXPECT_EQ(r.status, 0) << test << ": " << r.err;
+    EXPECT_GT(fs::exists(image) ? fs::file_size(image) : 0, 0u) << test;
+  }
 }
 
 // An image into a directory that does not exist fails before anything is rendered.

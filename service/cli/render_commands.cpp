@@ -110,7 +110,8 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 
 struct RenderArgs {
   std::string store, camera, path, views, out, size = "1280x720", lod_policy = "screen-space",
-                                               shard = "0/1", format = "png", occlusion = "on";
+                                               shard = "0/1", format = "png", occlusion = "on",
+                                               occlusion_test = "automatic";
   double pixel_error = kStillPixelError;  // render.h: stills are read closely
   uint64_t vertex_budget_mb = 512;
   int device = -1, quality = 90;
@@ -131,6 +132,17 @@ bool parse_antialias(const std::string& name, RenderOptions& options) {
     if (name == antialias_method_name(m)) {
       options.antialias = true;
       options.antialias_method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+// An OcclusionTest's name.
+bool parse_occlusion_test(const std::string& name, OcclusionTest& test) {
+  for (OcclusionTest t : {OcclusionTest::automatic, OcclusionTest::coarse, OcclusionTest::exact}) {
+    if (name == occlusion_test_name(t)) {
+      test = t;
       return true;
     }
   }
@@ -180,6 +192,8 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   plan.options.hlod = !a.no_hlod;
   plan.options.subpixel_culling = !a.no_subpixel;
   plan.options.occlusion = a.occlusion == "on";
+  if (!parse_occlusion_test(a.occlusion_test, plan.options.occlusion_test))
+    return usage_error("--occlusion-test: '" + a.occlusion_test + "' is not one of automatic, coarse, exact");
   plan.options.samples = a.samples;
   if (!parse_antialias(a.antialias, plan.options))
     return usage_error("--antialias: '" + a.antialias +
@@ -642,6 +656,10 @@ Action add_render_commands(CLI::App& app) {
       ->capture_default_str();
   render->add_option("--occlusion", args->occlusion, "Leave out objects hidden behind large ones: on or off")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  render->add_option("--occlusion-test", args->occlusion_test,
+                     "How what the first phase did not draw is tested: automatic (exact on a GPU, "
+                     "coarse on a software renderer), coarse or exact")
+      ->capture_default_str();
   render->add_option("--samples", args->samples,
                      "Multisampling samples per pixel (1: none; default 4 where multisampling is used)")
       ->check(CLI::Range(1u, 16u));
