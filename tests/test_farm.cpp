@@ -267,6 +267,17 @@ TEST_F(Farm, BadInputIsRefusedBeforeAnyImage) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("id 123456789"), std::string::npos) << r.err;
   EXPECT_TRUE(!fs::exists(out) || images_in(out).empty());
+  // A render option every shard would refuse: a usage error naming it, before anything is
+  // written.
+  for (const std::string& option : {std::string("--lod-policy fast"), std::string("--samples 99"),
+                                    std::string("--occlusion-test best"), std::string("--size 0x0")}) {
+    const fs::path fresh = scratch_.path() / "out-options";
+    r = run("farm submit --scheduler local --tasks 2 --views " + views_.string() + " --store " +
+            store_.string() + " --out " + fresh.string() + " " + option);
+    EXPECT_EQ(r.status, 2) << option << "\n" << r.err;
+    EXPECT_NE(r.err.find(option.substr(0, option.find(' '))), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(fresh)) << option;
+  }
   // A store that does not open.
   r = run("render --store " + (scratch_.path() / "nowhere").string() + " --views " + views_.string() +
           " --out " + out.string());
@@ -317,7 +328,8 @@ TEST_F(Farm, BadInputIsRefusedBeforeAnyImage) {
 TEST_F(Farm, DryRunPrintsAnArrayScriptWithOneShardPerTask) {
   const Outcome r = run("farm submit --dry-run --tasks 4 --partition debug --time 10:00 --views " +
                         views_.string() + " --store " + store_.string() + " --out " +
-                        (scratch_.path() / "out").string() + " --size 640x360 --format jpeg");
+                        (scratch_.path() / "out").string() +
+                        " --size 640x360 --format jpeg --antialias supersampling --no-ground");
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.out.find("#SBATCH --array=0-3\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("#SBATCH --partition=debug\n"), std::string::npos) << r.out;
@@ -325,6 +337,8 @@ TEST_F(Farm, DryRunPrintsAnArrayScriptWithOneShardPerTask) {
   EXPECT_NE(r.out.find("\"${SLURM_ARRAY_TASK_ID}/4\""), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("'--size' '640x360'"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("'--format' 'jpeg'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("'--antialias' 'supersampling'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("'--no-ground'"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(scratch_.path() / "out")) << "a dry run writes nothing";
 }
 

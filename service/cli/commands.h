@@ -7,6 +7,7 @@
 #include <functional>
 #include <iostream>
 #include <string>
+#include <vector>
 
 namespace plantview::cli {
 
@@ -31,6 +32,12 @@ Action add_import_command(CLI::App& app);
 
 // `plantview render` and `path`: review images and camera paths.
 Action add_render_commands(CLI::App& app);
+
+// Render options as `farm submit` passes them on to its shards (each name followed by its
+// value, or a flag alone), checked as `render --views VIEWS --out OUT` checks them, before
+// anything is read or written: 0, or 2 with the usage error on stderr.
+int check_render_options(const std::vector<std::string>& passed, const std::string& views,
+                         const std::string& out);
 
 // `plantview views --store DIR --per KIND --out VIEWS.json`: named, fitted review views.
 Action add_views_command(CLI::App& app);

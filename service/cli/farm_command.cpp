@@ -54,6 +54,9 @@ int run_submit(const SubmitArgs& a) {
   job.partition = a.partition;
   job.time_limit = a.time_limit;
   job.render_args = passed_render_args(a);
+  // A render option every shard would refuse is refused here, before anything is written.
+  if (const int status = check_render_options(job.render_args, a.views, a.out); status != 0)
+    return status;
   std::error_code ec;
   job.program = fs::read_symlink("/proc/self/exe", ec).string();
   if (ec) return fail("cannot find this program's path (/proc/self/exe): " + ec.message());
@@ -185,6 +188,9 @@ Action add_farm_command(CLI::App& app) {
       {"--pixel-error", "Allowed screen-space error (pixels)"},
       {"--vertex-budget", "GPU vertex arena (MB)"},
       {"--samples", "Multisampling per pixel"},
+      {"--antialias", "automatic, multisampling, supersampling, edge-filter or off"},
+      {"--occlusion", "on or off"},
+      {"--occlusion-test", "automatic, coarse or exact"},
       {"--device", "EGL device index"}};
   size_t i = 0;
   for (const auto& [name, help] : values) {
@@ -192,7 +198,8 @@ Action add_farm_command(CLI::App& app) {
     a->render_values.emplace_back(option, std::string());
     ++i;
   }
-  for (const char* name : {"--force", "--no-centrelines", "--no-hlod", "--no-subpixel-culling"})
+  for (const char* name : {"--force", "--no-centrelines", "--no-hlod", "--no-subpixel-culling",
+                           "--no-ground", "--no-ambient-occlusion"})
     a->render_flags.push_back(submit->add_flag(name)->description("Passed on to render"));
 
   auto status_dir = std::make_shared<std::string>();

@@ -621,11 +621,8 @@ int run_path(const std::string& store_dir, const std::string& kind_name, int fra
   return 0;
 }
 
-}  // namespace
-
-Action add_render_commands(CLI::App& app) {
-  auto args = std::make_shared<RenderArgs>();
-  auto* render = app.add_subcommand("render", "Render review images of a store");
+// The options of `plantview render` onto `render`, into `args`.
+void add_render_options(CLI::App* render, RenderArgs* args) {
   render->add_option("--store", args->store, "Store directory")->required();
   render->add_option("--camera", args->camera,
                      "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG] (default: the whole plant)");
@@ -668,6 +665,31 @@ Action add_render_commands(CLI::App& app) {
   render->add_option("--highlight", args->highlight,
                      "ID,...: draw these objects in their colours and the rest ghosted, see-through "
                      "where it hides them (with --views: each view's subject)");
+}
+
+}  // namespace
+
+int check_render_options(const std::vector<std::string>& passed, const std::string& views,
+                         const std::string& out) {
+  CLI::App render("render options");
+  RenderArgs args;
+  add_render_options(&render, &args);
+  std::vector<std::string> words = {"--store", "-", "--views", views, "--out", out};
+  words.insert(words.end(), passed.begin(), passed.end());
+  std::reverse(words.begin(), words.end());  // (CLI11 takes the words last first)
+  try {
+    render.parse(words);
+  } catch (const CLI::ParseError& e) {
+    return usage_error(e.what());
+  }
+  RenderPlan plan;
+  return plan_render(args, plan);
+}
+
+Action add_render_commands(CLI::App& app) {
+  auto args = std::make_shared<RenderArgs>();
+  auto* render = app.add_subcommand("render", "Render review images of a store");
+  add_render_options(render, args.get());
 
   auto path_store = std::make_shared<std::string>(), path_kind = std::make_shared<std::string>("walkthrough"),
        path_out = std::make_shared<std::string>();
