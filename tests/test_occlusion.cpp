@@ -512,6 +512,7 @@ std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>&
   std::string error;
   auto store = Store::open(dir.str(), Store::Mode::read_write, error);
   EXPECT_TRUE(store) << error;
+  if (!store) return nullptr;  // (the caller asserts)
   const IngestResult result = ingest_objects(*store, objects);
   EXPECT_TRUE(result) << result.error().message;
   return store;
@@ -561,6 +562,7 @@ TEST(Occlusion, AWallHidesARowOfPumpsUntilItIsOutOfTheWay) {
   }
   TempDir dir;
   auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
   auto r = make_renderer(*store, true);
   std::string error;
   Image image;
@@ -598,6 +600,7 @@ TEST(Occlusion, WhatWasDrawnLastFrameHidesWhatComesIntoViewBehindItUntilItIsUnco
   const uint64_t column = objects[0].id, pump = objects[1].id;
   TempDir dir;
   auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
   test::gl_context();
   RenderOptions options;
   options.vertex_budget_bytes = 16u << 20;
@@ -664,6 +667,7 @@ TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
                    Primitive{Placement{glm::mat3(1.0f), {3, 0, 0}}, Box{1.5f, 1.5f, 1.5f}}})};
   TempDir dir;
   auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
   std::string error;
   const Camera view = look({0, -12, 1.5}, {0, 6, 1.5});
   // Through the gap the ground shows: nothing of E-301 (each part lies behind its wall).
@@ -691,6 +695,7 @@ TEST(Occlusion, AnObjectWhosePartsAreHiddenIsDroppedThoughItsBoundsSpanAGap) {
                                   FrameStats& b_stats) {
     TempDir variant_dir;
     auto variant_store = make_store(variant_dir, variant);
+    ASSERT_TRUE(variant_store);
     FrameStats a_stats;
     ASSERT_TRUE(make_renderer(*variant_store, false)->render(view, 320, 180, true, a, a_stats, error))
         << error;
@@ -801,6 +806,7 @@ TEST(Occlusion, CpuTimeIsTheSumOfItsParts) {
                                             {Primitive{Placement{}, Box{20, 0.4f, 6}}}),
                                 make_object("pump", ObjectClass::equipment, {0, 4, 1},
                                             {Primitive{Placement{}, Cylinder{0.4f, 1.0f}}})});
+  ASSERT_TRUE(store);
   auto r = make_renderer(*store, true);
   std::string error;
   Image image;
@@ -825,6 +831,7 @@ TEST(Occlusion, ArenaGrowthIsReportedAsPartOfStreamAndNotInAFrameThatStreamsNoth
                                   {2.0 * (i % 40), 2.0 * (i / 40), 0.5},
                                   {Primitive{Placement{}, Cylinder{0.4f, 1.0f}}}));
   auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
   test::gl_context();
   RenderOptions options;
   options.lod_policy = LodPolicy::none;
