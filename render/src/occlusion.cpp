@@ -404,10 +404,9 @@ bool add_box(const FrameView& frame_view, const glm::mat3& rotation, const float
 }  // namespace
 
 bool OcclusionCulling::object_boxes(DecodedObjects& objects, const FrameView& frame_view,
-                                    const RenderOptions& options, const VisibleObject& v,
-                                    uint32_t index, bool may_read, TestBoxes& out,
-                                    std::string& error) {
-  const glm::mat3 rotation(frame_view.rotation);
+                                    const glm::mat3& rotation, const RenderOptions& options,
+                                    const VisibleObject& v, uint32_t index, bool may_read,
+                                    TestBoxes& out, std::string& error) {
   Known* k = objects.find(v.slot);
   // Not decoded yet (nor to be, if hidden), drawn as a centreline, with lines, or a member of
   // a merged run: its own bounds, grown by what is drawn of it past them.
@@ -466,6 +465,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   if (!candidates_.empty() && !objects.decode(candidates_, options.hlod, error)) return false;
   // In parts on the pool, each into lists of its own, joined in order; an object whose groups
   // must be built from primitives read again from the store waits for this thread, after.
+  const glm::mat3 rotation(frame_view.rotation);
   const size_t parts = (rest.size() + kObjectsPerPart - 1) / kObjectsPerPart;
   if (part_boxes_.size() < parts) part_boxes_.resize(parts);
   for_parts(rest.size(), [&](size_t first, size_t end) {
@@ -477,7 +477,7 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
     for (size_t i = first; i < end; ++i) {
       if (i + kPrefetchAhead < end)
         if (const Known* ahead = objects.find(rest[i + kPrefetchAhead].slot)) prefetch(ahead);
-      object_boxes(objects, frame_view, options, rest[i], uint32_t(i), false, out, unused);
+      object_boxes(objects, frame_view, rotation, options, rest[i], uint32_t(i), false, out, unused);
     }
   });
   boxes.clear();
@@ -485,7 +485,8 @@ bool OcclusionCulling::box_test_inputs(DecodedObjects& objects, const FrameView&
   for (size_t p = 0; p < parts; ++p) {
     TestBoxes& part = part_boxes_[p];
     for (const uint32_t i : part.waiting)
-      if (!object_boxes(objects, frame_view, options, rest[i], i, true, part, error)) return false;
+      if (!object_boxes(objects, frame_view, rotation, options, rest[i], i, true, part, error))
+        return false;
     boxes.insert(boxes.end(), part.boxes.begin(), part.boxes.end());
     tested_.insert(tested_.end(), part.tested.begin(), part.tested.end());
   }

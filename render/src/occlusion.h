@@ -184,12 +184,14 @@ class OcclusionCulling {
   // Whether the box (relative to the spatial origin) is hidden.
   bool hidden(const FrameView& frame_view, const float min[3], const float max[3]) const;
 
-  // box_test_inputs() for one object of `rest` (its index), into `out`: false on a read error.
-  // Without `may_read`, one whose groups would be built from primitives read again from the
-  // store is left in out.waiting instead (the workers share no read buffer).
+  // box_test_inputs() for one object of `rest` (its index), into `out` (`rotation`: the
+  // view's): false on a read error. Without `may_read`, one whose groups would be built from
+  // primitives read again from the store is left in out.waiting instead (the workers share no
+  // read buffer).
   static bool object_boxes(DecodedObjects& objects, const FrameView& frame_view,
-                           const RenderOptions& options, const VisibleObject& v, uint32_t index,
-                           bool may_read, TestBoxes& out, std::string& error);
+                           const glm::mat3& rotation, const RenderOptions& options,
+                           const VisibleObject& v, uint32_t index, bool may_read,
+                           TestBoxes& out, std::string& error);
 
   // Runs f(first, end) over [0, n) in runs of kObjectsPerPart, on the pool if there is one.
   template <class F>
