@@ -16,6 +16,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev            # tests and benchmarks
   chromium chromium-driver python3                      # the browser test (tests/browser)
   libtinygltf-dev libmeshoptimizer-dev                  # glTF export (render)
+  glslang-tools                                         # shaders checked by the reference compiler (CI)
   nodejs                                                # the Khronos glTF validator (npm, below)
   f3d xvfb xauth                                        # the glTF viewer test (renders a GLB headless)
   slurm-wlm munge                                       # the render-farm test (a one-node Slurm)
