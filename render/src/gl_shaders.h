@@ -374,8 +374,11 @@ float occlusion(ivec2 q, ivec2 out_px) {
   radius_px = min(radius_px, 20.0 * float(u_scale));  // longer reaches streak behind edges
   radius_px = max(radius_px, float(u_step));
   const int kSamples = 12;
-  int cell = (out_px.x & 3) + 4 * (out_px.y & 3);
-  float turn = float((cell * 5) & 15) * (6.2831853 / 16.0);
+  // Every 2x2 block holds four turns a quarter turn apart (and the 4x4 all 16): a blur that
+  // keeps only some taps (a small or curved surface) still averages directions spread evenly.
+  int quarter = (out_px.x & 1) + 2 * (out_px.y & 1);
+  int block = ((out_px.x >> 1) & 1) + 2 * ((out_px.y >> 1) & 1);
+  float turn = float(4 * quarter + block) * (6.2831853 / 16.0);
   // Sample i at i x the golden angle + turn: constant directions, turned once (a sine and a
   // cosine a pixel, not a sample: measured 29 -> 25 ms a frame for this pass on llvmpipe).
   const vec2 kDirections[kSamples] = vec2[](
@@ -480,6 +483,19 @@ vec3 edge_filtered(ivec2 q) {
   return (lb < lo || lb > hi) ? a : b;
 }
 
+// The change of depth per framebuffer pixel along `step` at p, from the neighbour on the side
+// whose depth is nearer p's (the surface's side at a silhouette), or the one drawn; 0 where
+// neither is.
+float depth_slope(ivec2 p, ivec2 step, float depth) {
+  float before = texelFetch(u_depth, clamp(p - step, ivec2(0), frame_size - 1), 0).r;
+  float after = texelFetch(u_depth, clamp(p + step, ivec2(0), frame_size - 1), 0).r;
+  bool has_before = before > 0.0, has_after = after > 0.0;
+  float s = !has_before ? (has_after ? after - depth : 0.0)
+          : !has_after || abs(depth - before) <= abs(after - depth) ? depth - before
+          : after - depth;
+  return s / float(max(abs(step.x), abs(step.y)));
+}
+
 void main() {
   frame_size = textureSize(u_depth, 0);
   ivec2 out_px = ivec2(gl_FragCoord.xy);
@@ -492,16 +508,28 @@ void main() {
   else
     c = texelFetch(u_colour, q, 0).rgb;
   if (u_occlusion_on) {
-    // The occlusion of the 4x4 occlusion pixels around, those at about this pixel's depth
-    // (within 5%): the 4x4 pattern of turns averages out, edges stay sharp.
+    // The occlusion of the 4x4 occlusion pixels around, weighted by a tent over their distance
+    // (so that it changes smoothly from one output pixel to the next: a window that jumped
+    // every second pixel left steps) and kept where they lie on this pixel's surface: within 5%
+    // of the depth this pixel's tangent plane predicts there (reversed depth is affine in screen
+    // space over a plane; its own depth rejected most taps where a surface turns away from the
+    // eye). The patterns of turns average out; edges stay sharp.
     ivec2 ao_size = textureSize(u_occlusion, 0);
-    ivec2 ao_px = (out_px + 1) / 2;  // the 4x4 around the output pixel: -2..+1 about this
-    float depth = texelFetch(u_depth, q + ivec2(u_scale - 1), 0).r;
+    vec2 ao_at = (vec2(out_px) + 0.5) * 0.5;  // in occlusion pixels (each 2x2 output pixels)
+    ivec2 base = ivec2(floor(ao_at - 0.5)) - 1;
+    ivec2 at = q + ivec2(u_scale - 1);
+    float depth = texelFetch(u_depth, at, 0).r;
+    vec2 slope = vec2(depth_slope(at, ivec2(u_scale, 0), depth),
+                      depth_slope(at, ivec2(0, u_scale), depth)) * float(u_scale);
     float sum = 0.0, weight = 0.0;
-    for (int y = -2; y < 2; ++y)
-      for (int x = -2; x < 2; ++x) {
-        vec2 t = texelFetch(u_occlusion, clamp(ao_px + ivec2(x, y), ivec2(0), ao_size - 1), 0).rg;
-        float w = abs(t.g - depth) <= 0.05 * depth ? 1.0 : 0.0;
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 4; ++x) {
+        ivec2 tap = clamp(base + ivec2(x, y), ivec2(0), ao_size - 1);
+        vec2 t = texelFetch(u_occlusion, tap, 0).rg;
+        vec2 d = min(abs(vec2(tap) + 0.5 - ao_at), vec2(2.0));
+        // The tap's depth was read at output pixel 2 tap + 1 (kOcclusionFragment).
+        float expected = depth + dot(slope, vec2(2 * tap + 1 - out_px));
+        float w = abs(t.g - expected) <= 0.05 * depth ? (2.0 - d.x) * (2.0 - d.y) : 0.0;
         sum += w * t.r;
         weight += w;
       }
