@@ -554,9 +554,12 @@ std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> t
   std::sort(highlight_sorted_.begin(), highlight_sorted_.end());
   highlight_table_.assign(table.begin(), table.end());
   for (TableEntry& e : highlight_table_) {
-    const uint64_t id = e.pick && e.pick <= pick_ids.size() ? pick_ids[e.pick - 1] : 0;
+    // The pick word's low bits index the pick table; its high bits are the tie-break, kept for
+    // the context too (it only orders coinciding depths).
+    const uint32_t pick = e.pick & (kPickLimit - 1);
+    const uint64_t id = pick && pick <= pick_ids.size() ? pick_ids[pick - 1] : 0;
     if (id && std::binary_search(highlight_sorted_.begin(), highlight_sorted_.end(), id)) continue;
-    e.pick = 0;
+    e.pick &= ~(kPickLimit - 1);
     e.colour = ghost(e.colour);
   }
   return highlight_table_;

@@ -1,0 +1,232 @@
+// The looks a reviewer sees, as golden images: preset c's default overview, a still inside the
+// plant and an equipment item's highlighted review view, each rendered by a fresh renderer with
+// the stills' defaults (antialiasing, ambient occlusion, ground) and compared with a reference
+// PNG in tests/data/reference/looks/ (PSNR >= 30 dB and at most 2% of pixels differing; on
+// failure the actual image and a difference image are written to the temporary directory and
+// named). PLANTVIEW_UPDATE_REFERENCES=1 rewrites the references: look at them before committing.
+// And what a highlight means, checked on the pixels: the subject keeps its own hue, in the
+// first frame of a renderer and in every frame after, whatever came before; the rest is
+// desaturated.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "plantview/camera.h"
+#include "plantview/generate.h"
+#include "plantview/image.h"
+#include "plantview/ingest.h"
+#include "plantview/render.h"
+#include "plantview/store.h"
+#include "support/gl_context.h"
+#include "support/temp_dir.h"
+
+namespace plantview {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr uint32_t kWidth = 320, kHeight = 180;
+
+// Preset c (40,746 objects), generated once for every test of this file.
+class Looks : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir;
+    std::string error;
+    store_ = Store::open(dir_->str(), Store::Mode::read_write, error).release();
+    ASSERT_TRUE(store_) << error;
+    GenerateOptions options;
+    options.preset = 'c';
+    const IngestResult result = ingest_generated(*store_, options);
+    ASSERT_TRUE(result) << result.error().message;
+  }
+  static void TearDownTestSuite() {
+    delete store_;
+    delete dir_;
+  }
+
+  static std::unique_ptr<Renderer> renderer(const RenderOptions& options = RenderOptions{}) {
+    test::gl_context();
+    std::string error;
+    auto r = Renderer::create(*store_, options, error);
+    EXPECT_TRUE(r) << error;
+    return r;
+  }
+
+  static Image render(Renderer& r, const Camera& camera) {
+    Image image;
+    FrameStats stats;
+    std::string error;
+    EXPECT_TRUE(r.render(camera, kWidth, kHeight, true, image, stats, error)) << error;
+    return image;
+  }
+
+  // The review view of one equipment item (as `plantview views --per equipment` fits it).
+  static ReviewView equipment_view(const std::string& tag) {
+    ReviewViewOptions options;
+    options.per = "equipment";
+    options.select = tag;
+    options.aspect = double(kWidth) / kHeight;
+    std::vector<ReviewView> views;
+    ReviewViewsSummary summary;
+    std::string error;
+    EXPECT_TRUE(make_review_views(*store_, options, views, summary, error)) << error;
+    EXPECT_EQ(views.size(), 1u) << tag;
+    return views.empty() ? ReviewView{} : views.front();
+  }
+
+  static Colour colour_of(uint64_t id) {
+    std::string error;
+    auto view = store_->read(error);
+    EXPECT_TRUE(view) << error;
+    std::optional<uint32_t> slot;
+    EXPECT_TRUE(view->slot_of(id, slot, error)) << error;
+    Object o;
+    EXPECT_TRUE(slot && view->object(*slot, o, false, error)) << error;
+    return o.colour;
+  }
+
+  static test::TempDir* dir_;
+  static Store* store_;
+};
+test::TempDir* Looks::dir_ = nullptr;
+Store* Looks::store_ = nullptr;
+
+// Compares with the reference (or writes it, with PLANTVIEW_UPDATE_REFERENCES set).
+void expect_matches_reference(const Image& actual, const std::string& name) {
+  const std::string reference = std::string(PLANTVIEW_TEST_DATA) + "/reference/looks/" + name + ".png";
+  std::string error;
+  if (std::getenv("PLANTVIEW_UPDATE_REFERENCES")) {
+    fs::create_directories(fs::path(reference).parent_path());
+    ASSERT_TRUE(write_image(reference, actual, 90, error)) << error;
+  }
+  Image expected;
+  ASSERT_TRUE(read_image(reference, expected, error)) << error;
+  ImageComparison c;
+  ASSERT_TRUE(compare_images(actual, expected, c, error)) << error;
+  if (c.psnr_db < 30.0 || c.differing_share > 0.02) {
+    const fs::path out = fs::temp_directory_path() / ("plantview-look-" + name + "-actual.png");
+    const fs::path diff = fs::temp_directory_path() / ("plantview-look-" + name + "-diff.png");
+    write_image(out.string(), actual, 90, error);
+    write_difference_image(actual, expected, diff.string(), error);
+    ADD_FAILURE() << name << ": PSNR " << c.psnr_db << " dB, " << 100 * c.differing_share
+                  << "% differing from " << reference << "; actual " << out << ", difference "
+                  << diff;
+  }
+}
+
+// Hue (degrees) and saturation (HSV, 0..1) of an RGB colour.
+struct Hsv {
+  double hue_deg = 0, saturation = 0;
+};
+Hsv hsv(double r, double g, double b) {
+  const double hi = std::max({r, g, b}), lo = std::min({r, g, b}), d = hi - lo;
+  Hsv out;
+  out.saturation = hi > 0 ? d / hi : 0;
+  if (d <= 0) return out;
+  double h = hi == r ? std::fmod((g - b) / d, 6.0) : hi == g ? (b - r) / d + 2 : (r - g) / d + 4;
+  out.hue_deg = std::fmod(60 * h + 360, 360);
+  return out;
+}
+double hue_distance_deg(double a, double b) {
+  const double d = std::fabs(a - b);
+  return std::min(d, 360 - d);
+}
+
+// The mean colour of the pixels `where` selects, as hue and saturation.
+template <class Where>
+Hsv mean_hsv(const Image& image, Where where, size_t& count) {
+  double r = 0, g = 0, b = 0;
+  count = 0;
+  for (size_t i = 0; i < size_t(image.width) * image.height; ++i) {
+    if (!where(i)) continue;
+    r += image.rgba[4 * i];
+    g += image.rgba[4 * i + 1];
+    b += image.rgba[4 * i + 2];
+    ++count;
+  }
+  return count ? hsv(r / count, g / count, b / count) : Hsv{};
+}
+
+TEST_F(Looks, TheDefaultOverviewMatchesItsReference) {
+  auto r = renderer();
+  std::string error;
+  auto view = store_->read(error);
+  ASSERT_TRUE(view) << error;
+  const Camera camera = default_camera(overview_boxes(*view), double(kWidth) / kHeight);
+  expect_matches_reference(render(*r, camera), "overview");
+}
+
+TEST_F(Looks, AStillInsideThePlantMatchesItsReference) {
+  // Among the pumps and exchangers of unit 01, under the pipe rack: curved shells, elbows and
+  // contact shadows, where half-resolution ambient occlusion once left blocks.
+  auto r = renderer();
+  Camera camera;
+  camera.eye_m = {8.0, 16.0, 3.0};
+  camera.target_m = {16.0, 24.0, 1.0};
+  expect_matches_reference(render(*r, camera), "interior");
+}
+
+TEST_F(Looks, AHighlightedReviewViewMatchesItsReference) {
+  const ReviewView view = equipment_view("P-01-001A");
+  ASSERT_FALSE(view.subject.empty());
+  RenderOptions options;
+  options.highlight_ids = view.subject;
+  auto r = renderer(options);
+  expect_matches_reference(render(*r, view.camera), "highlight");
+}
+
+// The subject's pixels (where a plain frame of the same view draws it) keep its stored hue and
+// most of its saturation; the pixels of other objects lose most of their saturation. Checked in
+// a fresh renderer's first frame, in the frame after it, and after a plain frame.
+TEST_F(Looks, AHighlightedSubjectKeepsItsHueAndTheRestIsDesaturated) {
+  const ReviewView view = equipment_view("P-01-001A");
+  ASSERT_EQ(view.subject.size(), 1u);
+  const uint64_t subject = view.subject.front();
+  const Colour stored = colour_of(subject);
+  const Hsv own = hsv(stored.r, stored.g, stored.b);
+  ASSERT_GT(own.saturation, 0.3) << "the check needs a subject of a saturated colour";
+
+  const Image plain = render(*renderer(), view.camera);
+  const auto on_subject = [&](size_t i) { return plain.object_ids[i] == subject; };
+  const auto on_other = [&](size_t i) { return plain.object_ids[i] != 0 && plain.object_ids[i] != subject; };
+  size_t n = 0;
+  const Hsv plain_other = mean_hsv(plain, on_other, n);
+  ASSERT_GT(n, 1000u);
+  size_t subject_pixels = 0;
+  ASSERT_GT(mean_hsv(plain, on_subject, subject_pixels).saturation, 0.3);
+  ASSERT_GT(subject_pixels, 500u) << "the subject must be in view";
+
+  RenderOptions options;
+  options.highlight_ids = view.subject;
+  auto lit = renderer(options);
+  const auto expect_highlighted = [&](const Image& image, const char* when) {
+    size_t count = 0;
+    const Hsv s = mean_hsv(image, on_subject, count);
+    EXPECT_LT(hue_distance_deg(s.hue_deg, own.hue_deg), 15.0) << when;
+    EXPECT_GT(s.saturation, 0.6 * own.saturation) << when;
+    const Hsv o = mean_hsv(image, on_other, count);
+    EXPECT_LT(o.saturation, 0.6 * plain_other.saturation) << when;
+    // The id buffer names the subject wherever the plain frame drew it (and where it is seen
+    // through what hides it), and nothing else.
+    size_t subject_ids = 0, others = 0;
+    for (const uint64_t id : image.object_ids) {
+      subject_ids += id == subject;
+      others += id != 0 && id != subject;
+    }
+    EXPECT_GE(subject_ids, subject_pixels) << when;
+    EXPECT_EQ(others, 0u) << when;
+  };
+  expect_highlighted(render(*lit, view.camera), "a fresh renderer's first frame");
+  expect_highlighted(render(*lit, view.camera), "the frame after");
+  RenderOptions plain_options;
+  lit->set_options(plain_options);
+  render(*lit, view.camera);
+  lit->set_options(options);
+  expect_highlighted(render(*lit, view.camera), "after a plain frame");
+}
+
+}  // namespace
+}  // namespace plantview
