@@ -14,6 +14,7 @@
 #include <filesystem>
 
 #include "plantview/camera.h"
+#include "plantview/review.h"
 #include "plantview/generate.h"
 #include "plantview/image.h"
 #include "plantview/ingest.h"

@@ -16,9 +16,9 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "frame_plan.h"
-#include "occlusion.h"
-#include "occlusion_buffer.h"
-#include "occlusion_occluders.h"
+#include "occlusion/occlusion.h"
+#include "occlusion/occlusion_buffer.h"
+#include "occlusion/occlusion_occluders.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
 #include "plantview/render.h"

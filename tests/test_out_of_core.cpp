@@ -20,7 +20,7 @@
 #include "plantview/ingest.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
-#include "residency.h"
+#include "streaming/residency.h"
 #include "support/gl_context.h"
 #include "support/temp_dir.h"
 

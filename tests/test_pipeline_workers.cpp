@@ -15,7 +15,7 @@
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "hlod.h"
-#include "occlusion.h"
+#include "occlusion/occlusion.h"
 #include "plantview/camera.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "plantview/camera.h"
+#include "plantview/review.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
 #include "plantview/render.h"

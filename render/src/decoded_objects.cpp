@@ -11,7 +11,7 @@
 
 #include "frame_plan.h"
 #include "plantview/store.h"
-#include "residency.h"
+#include "streaming/residency.h"
 #include "worker_pool.h"
 
 namespace plantview::detail {

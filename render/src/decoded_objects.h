@@ -51,7 +51,7 @@
 #include <vector>
 
 #include "hlod.h"
-#include "occlusion_occluders.h"
+#include "occlusion/occlusion_occluders.h"
 #include "plantview/model.h"
 #include "plantview/primitives.h"
 

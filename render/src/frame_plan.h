@@ -50,7 +50,7 @@
 #include <glm/glm.hpp>
 
 #include "frame_blocks.h"
-#include "occlusion.h"
+#include "occlusion/occlusion.h"
 #include "radix_sort.h"
 #include "plantview/render.h"
 

@@ -6,7 +6,7 @@
 #include <optional>
 #include <utility>
 
-#include "arena_streaming.h"
+#include "streaming/arena_streaming.h"
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "frame_stats.h"

@@ -22,6 +22,7 @@
 #include "cli/ordered_tasks.h"
 #include "cli/progress.h"
 #include "plantview/render.h"
+#include "plantview/review.h"
 #include "plantview/store.h"
 
 namespace plantview::cli {

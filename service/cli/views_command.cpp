@@ -13,6 +13,7 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "plantview/camera.h"
+#include "plantview/review.h"
 #include "plantview/store.h"
 
 namespace plantview::cli {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "plantview/camera.h"
+#include "plantview/review.h"
 
 namespace {
 

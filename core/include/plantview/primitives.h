@@ -325,6 +325,13 @@ struct MeshPlan {
   uint32_t index_count(uint32_t level) const {
     return static_cast<uint32_t>(indices[clamp_level(level)].size());
   }
+  // The coarsest level whose error_m is at most max_error_m (levels coarsen in order; 0 when
+  // none is): the renderer's screen-space rule with the error in metres, as exports use it.
+  uint32_t coarsest_level_within(double max_error_m) const {
+    uint32_t level = 0;
+    while (level + 1u < level_count && double(error_m[level + 1]) <= max_error_m) ++level;
+    return level;
+  }
 };
 
 MeshPlan plan_mesh(const Primitive& primitive);

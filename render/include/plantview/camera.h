@@ -1,9 +1,9 @@
-// plantview/camera.h: cameras, their text and JSON forms, camera fitting, review views (the
-// views file) and camera paths through a plant.
+// plantview/camera.h: cameras, their text and JSON forms, camera fitting and camera paths
+// through a plant. (Review views, the views file: plantview/review.h.)
 //
 // Units: metres (model space, double precision), angles in degrees where the name says _deg.
 // Threads: plain values and pure functions, callable from any thread; make_camera_path(store)
-// and make_review_views read the store through a view of their own on the calling thread.
+// reads the store through a view of its own on the calling thread.
 // Errors: fallible calls return false and fill `error` with what is wrong and where ("camera:
 // 'fov' needs 1 number", "camera path: camera 3: 'eye' is missing").
 #pragma once
@@ -64,6 +64,10 @@ Camera default_camera(const DAabb& bounds, double aspect);
 // objects', read from the resident top in milliseconds. Model space, metres; empty for a
 // store without geometry. Valid independently of the view.
 std::vector<DAabb> overview_boxes(const ReadView& view, size_t max_boxes = 4096);
+// Boxes merged into at most about `max_cells` (>= 1): each the union of the boxes whose centre
+// lies in one cell of a grid of cubic cells over their union. Fewer boxes than that come back as
+// they are. Keeps what fit_camera projects to a few thousand boxes.
+std::vector<DAabb> merge_boxes_on_grid(std::vector<DAabb> boxes, size_t max_cells);
 // From eye to target: the isometric direction (35.3 degrees down, from the -x, -y corner).
 inline glm::dvec3 isometric_direction() { return {1.0, 1.0, -1.0}; }
 // How much of the binding axis the subject's box fills: review views, overviews.
@@ -112,81 +116,5 @@ std::vector<Camera> make_camera_path(PathKind kind, int frames, const DAabb& pla
 // with a message if the store cannot be read or holds no geometry.
 bool make_camera_path(PathKind kind, int frames, const Store& store, std::vector<Camera>& out,
                       std::string& error, const std::function<void(double fraction)>& progress = {});
-
-// A review view: a named, fitted camera on one subject of the plant (an equipment item, a
-// pipeline, an area, or the whole plant), what `plantview views` writes and `render --views`
-// reads. `name` is unique in its file and safe as a file name ([A-Za-z0-9._-], not starting with
-// '.'); `kind` is overview|equipment|pipeline|area; `aspect` is the width / height the camera was
-// fitted for; `subject` lists the subject's store object ids (empty for an overview: the whole
-// plant, nothing highlighted); `attributes` are the caption lines, in order (tag, type, ...).
-struct ReviewView {
-  std::string name, title, kind;
-  Camera camera;
-  double aspect = 16.0 / 9.0;
-  std::vector<uint64_t> subject;
-  std::vector<std::pair<std::string, std::string>> attributes;
-};
-
-// The views file. JSON:
-//   {"version": 1, "per": "equipment",
-//    "views": [{"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
-//               "camera": {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov_deg": 50},
-//               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...}}]}
-// `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
-// (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
-// bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other
-// than 1, an unknown `per` or `kind`, a missing or mistyped field, an unknown key (a misspelt
-// field is an error, not a default), an unsafe or repeated name, a camera validate_camera
-// rejects, an aspect that is not a positive number, and an empty list. The error names the
-// view by index and name and the field: "views file: view 3 ('P-101A'): 'camera.eye' must be a
-// list of 3 numbers". On failure `out` is unchanged.
-std::string review_views_json(const std::vector<ReviewView>& views, std::string_view per);
-bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error);
-// Review views of a store's model (what `plantview views` writes):
-//   per overview:  the whole plant (subject empty), as default_camera frames it;
-//   per equipment: each object of class equipment; named by its Tag attribute, else its name;
-//   per pipeline:  each pipeline object with every object that names it (pipes, components,
-//                  supports): the whole line; named by its "Line number", else its name;
-//   per area:      the objects of one RVM zone (the importer's "Zone" attribute), of one unit
-//                  of a generated plant ("Unit 01", from the names' area field), else of one RVM
-//                  site, else of one source file.
-// Each subject's camera is fit_camera on its bounds (kReviewFill), from the isometric
-// direction, or with sides = 4 from each side (4 views, names suffixed -N, -E, -S, -W by where
-// the eye is). Where that eye would stand inside another object's bounds or a large object (a
-// wall, a column, a vessel: 1 m across both ways and a third of the subject's size) lies between
-// it and the subject, the other isometric quadrants (or, for a side, nearby directions) are
-// tried, then the eye is moved in front of the obstacle with a field of view widened up to 90
-// degrees to keep the fill; failing all, the first fit stays (highlighting shows the subject
-// through what is in front).
-// Names: the subject's name made safe (runs of other characters become '-', leading '-' and
-// '.' dropped); repeats get -2, -3... in the order of the subjects' names and first ids, so the
-// same store gives the same names. `select` (a shell glob, fnmatch) keeps the subjects whose
-// view name or model name matches.
-struct ReviewViewOptions {
-  std::string per = "equipment";  // overview|equipment|pipeline|area
-  std::string select;             // empty: every subject
-  int sides = 1;                  // 1 or 4
-  double aspect = 16.0 / 9.0;     // width / height of the images to come
-  double fov_deg = 50.0;
-  double fill = kReviewFill;      // (the overview uses kOverviewFill)
-};
-struct ReviewViewsSummary {
-  uint64_t subjects = 0;    // of the kind, before `select`
-  uint64_t moved = 0;       // views whose eye left the first fit to stand clear
-  uint64_t obstructed = 0;  // views left at the first fit with no clear place found
-};
-// False with a message when the store cannot be read, holds no subject of the kind ("the store
-// has no pipelines"), or `select` matches none. Preconditions (asserted): a known `per`, sides 1
-// or 4, aspect > 0, fov_deg in (0, 179), fill in (0, 1]. `progress` (may be empty) gets the
-// fraction done, on the calling thread.
-bool make_review_views(const Store& store, const ReviewViewOptions& options,
-                       std::vector<ReviewView>& out, ReviewViewsSummary& summary,
-                       std::string& error,
-                       const std::function<void(double fraction)>& progress = {});
-
-// True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area.
-bool is_review_kind(std::string_view kind);
-// True if `name` is safe as a file name: 1..200 of [A-Za-z0-9._-], not starting with '.'.
-bool is_safe_view_name(std::string_view name);
 
 }  // namespace plantview

@@ -338,4 +338,33 @@ class Renderer {
   std::unique_ptr<State> state_;
 };
 
+// What a renderer draws for a view, planned without GL: the frustum cull, the level choice and
+// the pipeline runs merged into one cylinder (hlod), exactly as render() chooses them for the
+// same camera, size and options (occlusion is not applied: nothing is drawn to test against).
+// glTF export writes what a view shows from it.
+struct PlannedObject {
+  uint32_t slot = 0;
+  uint8_t level = 0;         // chosen level
+  uint8_t level_count = 1;   // of the object's mesh plan
+  bool centreline = false;   // drawn as its centreline
+};
+struct PlannedRun {          // a straight pipeline run drawn as one cylinder
+  uint32_t first_member = 0;  // slot of its first member, in flow order
+  uint64_t pipeline_id = 0;
+  uint8_t level = 0, level_count = 1;
+  bool centreline = false;
+  Primitive cylinder;         // relative to origin_m
+  glm::dvec3 origin_m{0.0};
+  Colour colour;
+  DAabb bounds;               // of the members, model space
+};
+struct ViewPlan {
+  std::vector<PlannedObject> objects;  // in draw order
+  std::vector<PlannedRun> runs;
+};
+// Reads through `view` on the calling thread. False with a message if the store cannot be
+// read. Preconditions as for Renderer::render (a valid camera, sizes 1..kMaxImageSide).
+bool plan_view(const ReadView& view, const Camera& camera, uint32_t width, uint32_t height,
+               const RenderOptions& options, ViewPlan& out, std::string& error);
+
 }  // namespace plantview

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "plantview/camera.h"
+#include "plantview/review.h"
 
 namespace plantview {
 class ReadView;

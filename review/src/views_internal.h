@@ -1,4 +1,4 @@
-// Private parts of review views (camera.h: make_review_views): the subjects a store's model
+// Private parts of review views (review.h: make_review_views): the subjects a store's model
 // offers, and where a fitted eye may stand among the other objects.
 //
 // Units: metres, model space. Threads: a ReadView and what is made from it stay on its thread.
@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "plantview/camera.h"
+#include "plantview/review.h"
 #include "plantview/store.h"
 
 namespace plantview::views {
@@ -28,7 +28,7 @@ struct Subject {
   std::vector<uint32_t> slots;  // the same objects' store slots, ascending
   DAabb bounds;                 // of their geometry; never empty
   std::vector<DAabb> boxes;     // what cameras are fitted to: the objects' bounds, merged on a
-                                // grid when there are many (merge_on_grid)
+                                // grid when there are many (merge_boxes_on_grid)
   std::vector<std::pair<std::string, std::string>> attributes;  // caption lines, in order
 };
 
@@ -38,22 +38,7 @@ struct Subject {
 bool read_subjects(const ReadView& view, std::string_view per, std::vector<Subject>& out,
                    std::string& error, const std::function<void(double)>& progress);
 
-// Boxes merged into at most about `max_cells` (>= 1): each the union of the boxes whose centre
-// lies in one cell of a grid over `bounds` (their union) with cubic cells. Fewer boxes than that
-// come back as they are.
-std::vector<DAabb> merge_on_grid(std::vector<DAabb> boxes, size_t max_cells);
-// The grid merge_on_grid merges on: cubic cells over `all`, at most `max_cells` (>= 1) of them.
-struct MergeGrid {
-  DAabb all;
-  double cell_m = 1;
-  glm::ivec3 cells{1};
-  static MergeGrid over(const DAabb& all, size_t max_cells);
-  size_t size() const { return size_t(cells.x) * size_t(cells.y) * size_t(cells.z); }
-  // The cell of the box's centre (clamped into the grid).
-  size_t cell_of(const DAabb& b) const;
-};
-
-// `key` made safe as a view name (camera.h: is_safe_view_name): every run of other characters
+// `key` made safe as a view name (review.h: is_safe_view_name): every run of other characters
 // becomes one '-', leading '-' and '.' go, at most `max_chars`; "view" if nothing is left.
 std::string safe_name(std::string_view key, size_t max_chars);
 

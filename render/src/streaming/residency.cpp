@@ -1,4 +1,4 @@
-#include "residency.h"
+#include "streaming/residency.h"
 
 #include <algorithm>
 #include <cassert>

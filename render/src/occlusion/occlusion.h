@@ -47,7 +47,7 @@
 #include <string>
 #include <vector>
 
-#include "occlusion_buffer.h"
+#include "occlusion/occlusion_buffer.h"
 #include "plantview/render.h"
 
 namespace plantview {

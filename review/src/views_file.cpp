@@ -4,7 +4,7 @@
 #include <set>
 #include <string>
 
-#include "plantview/camera.h"
+#include "plantview/review.h"
 
 namespace plantview {
 

@@ -8,7 +8,6 @@
 
 #include <meshoptimizer.h>
 
-#include "lod.h"
 
 namespace plantview::detail::gltf {
 
@@ -117,8 +116,7 @@ void levels_for_tolerance(const CanonicalObject& object, double tolerance_m, Pri
   if (!(tolerance_m > 0)) return;
   for (size_t i = 0; i < object.plans.size(); ++i) {
     const MeshPlan& plan = object.plans[i];
-    // The renderer's rule with one "pixel" per metre: the coarsest level under the bound.
-    out[i] = uint8_t(choose_level_screen_space(plan.error_m.data(), plan.level_count, 1.0, tolerance_m));
+    out[i] = uint8_t(plan.coarsest_level_within(tolerance_m));
   }
 }
 

@@ -1,6 +1,6 @@
 // Occlusion buffer: inner-conservative rasterisation of convex silhouettes and bounds tests
 // (rules in occlusion_buffer.h).
-#include "occlusion_buffer.h"
+#include "occlusion/occlusion_buffer.h"
 
 #include <algorithm>
 #include <cassert>

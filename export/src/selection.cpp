@@ -9,8 +9,7 @@
 #include <unordered_map>
 #include <unordered_set>
 
-#include "decoded_objects.h"
-#include "frame_plan.h"
+#include "plantview/render.h"
 #include "plantview/store.h"
 
 namespace plantview::detail::gltf {
@@ -51,26 +50,16 @@ bool choose_as_renderer(const ReadView& view, const GltfExportOptions& options, 
   render.lod_policy = LodPolicy::screen_space;
   render.pixel_error = options.pixel_error;
   render.hlod = options.hlod;
-  DecodedObjects objects;
-  objects.reset(view);
-  FramePlan plan;
-  FrameStats stats;
-  const FrameView frame_view = make_frame_view(*options.camera, options.width, options.height, view.spatial_origin());
-  if (!plan.cull(view, frame_view, render, stats, error)) return false;
-  if (!objects.decode(plan.visible(), render.hlod, error)) return false;
-  plan.choose(objects, frame_view, render, 1, stats);
-  for (const Draw& d : plan.draws()) {
-    // A pipe drawn as its centreline is written at its coarsest level.
-    const uint8_t level = d.centreline ? uint8_t(d.known->level_count - 1) : d.level;
-    if ((d.key & kRunKeyBit) == 0) {
-      out.levels[d.key] = level;
-      continue;
-    }
-    const PipelineRun& run = objects.run(d.key & ~kRunKeyBit);
-    if (run.members.empty() || d.known->primitives.empty()) continue;
-    out.runs.push_back({run.members.front(), d.known->id, level, d.known->primitives.front(),
-                        d.known->origin_m, d.known->colour});
-    out.run_bounds.push_back(run.bounds);
+  ViewPlan plan;
+  if (!plan_view(view, *options.camera, options.width, options.height, render, plan, error))
+    return false;
+  // A pipe drawn as its centreline is written at its coarsest level.
+  for (const PlannedObject& o : plan.objects)
+    out.levels[o.slot] = o.centreline ? uint8_t(o.level_count - 1) : o.level;
+  for (const PlannedRun& r : plan.runs) {
+    const uint8_t level = r.centreline ? uint8_t(r.level_count - 1) : r.level;
+    out.runs.push_back({r.first_member, r.pipeline_id, level, r.cylinder, r.origin_m, r.colour});
+    out.run_bounds.push_back(r.bounds);
   }
   return true;
 }

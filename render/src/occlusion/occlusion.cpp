@@ -1,5 +1,5 @@
 // Occlusion culling: occluder selection, rasterisation and the tests (rules in occlusion.h).
-#include "occlusion.h"
+#include "occlusion/occlusion.h"
 
 #include <algorithm>
 #include <array>

@@ -1,5 +1,5 @@
 // Occluder shapes from primitives (rules in occlusion_occluders.h).
-#include "occlusion_occluders.h"
+#include "occlusion/occlusion_occluders.h"
 
 #include <algorithm>
 #include <array>

@@ -1,6 +1,6 @@
 // Arena streaming: residency, tessellation into the arena, the object table and the index
 // lists (rules in arena_streaming.h).
-#include "arena_streaming.h"
+#include "streaming/arena_streaming.h"
 
 #include <algorithm>
 #include <bit>

@@ -41,7 +41,7 @@
 #include "gl_backend.h"
 #include "plantview/render.h"
 #include "radix_sort.h"
-#include "residency.h"
+#include "streaming/residency.h"
 #include "worker_pool.h"
 
 namespace plantview::detail {

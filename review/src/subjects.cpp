@@ -96,35 +96,6 @@ void describe_pipeline(Subject& s, const Object& o) {
 
 }  // namespace
 
-std::vector<DAabb> merge_on_grid(std::vector<DAabb> boxes, size_t max_cells) {
-  if (boxes.size() <= max_cells) return boxes;
-  DAabb all;
-  for (const DAabb& b : boxes) all.extend(b);
-  const MergeGrid grid = MergeGrid::over(all, max_cells);
-  std::vector<DAabb> merged(grid.size());
-  for (const DAabb& b : boxes) merged[grid.cell_of(b)].extend(b);
-  std::erase_if(merged, [](const DAabb& b) { return b.empty(); });
-  return merged;
-}
-
-MergeGrid MergeGrid::over(const DAabb& all, size_t max_cells) {
-  MergeGrid g;
-  g.all = all;
-  const glm::dvec3 extent = glm::max(all.max - all.min, glm::dvec3(1e-3));
-  g.cell_m = std::cbrt(extent.x * extent.y * extent.z / double(max_cells));
-  for (;; g.cell_m *= 1.1) {
-    g.cells = glm::ivec3(glm::ceil(extent / g.cell_m));
-    if (uint64_t(g.cells.x) * uint64_t(g.cells.y) * uint64_t(g.cells.z) <= max_cells) break;
-  }
-  return g;
-}
-
-size_t MergeGrid::cell_of(const DAabb& b) const {
-  const glm::ivec3 c = glm::clamp(glm::ivec3((0.5 * (b.min + b.max) - all.min) / cell_m),
-                                  glm::ivec3(0), cells - 1);
-  return (size_t(c.z) * size_t(cells.y) + size_t(c.y)) * size_t(cells.x) + size_t(c.x);
-}
-
 std::string safe_name(std::string_view key, size_t max_chars) {
   std::string out;
   for (const char c : key) {
@@ -217,7 +188,7 @@ bool read_subjects(const ReadView& view, std::string_view per, std::vector<Subje
     for (Subject& s : subjects) s.attributes.emplace_back("description", std::to_string(s.ids.size()) + " objects");
   }
   std::erase_if(subjects, [](const Subject& s) { return s.bounds.empty(); });
-  for (Subject& s : subjects) s.boxes = merge_on_grid(std::move(s.boxes), kMaxFitBoxes);
+  for (Subject& s : subjects) s.boxes = merge_boxes_on_grid(std::move(s.boxes), kMaxFitBoxes);
   std::sort(subjects.begin(), subjects.end(), [](const Subject& a, const Subject& b) {
     return a.key != b.key ? a.key < b.key : a.ids.front() < b.ids.front();
   });

@@ -1,0 +1,103 @@
+// plantview/review.h: review views — what to look at. A review view is a named, fitted camera on
+// one subject of a plant (an equipment item, a pipeline, an area, or the whole plant), what
+// `plantview views` writes to a views file and `render --views`, the farm and the viewer read.
+// The module chooses subjects from a store, places cameras that see them (clear of walls and
+// columns where it can) and reads and writes the views file; it uses the renderer's cameras
+// (plantview/camera.h) and is not used by the renderer.
+//
+// Units: metres (model space), degrees where the name says _deg.
+// Threads: plain values and pure functions, callable from any thread; make_review_views reads
+// the store through a view of its own on the calling thread.
+// Errors: fallible calls return false and fill `error` with what is wrong and where.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "plantview/camera.h"
+
+namespace plantview {
+
+class Store;
+
+// A review view: a named, fitted camera on one subject of the plant (an equipment item, a
+// pipeline, an area, or the whole plant), what `plantview views` writes and `render --views`
+// reads. `name` is unique in its file and safe as a file name ([A-Za-z0-9._-], not starting with
+// '.'); `kind` is overview|equipment|pipeline|area; `aspect` is the width / height the camera was
+// fitted for; `subject` lists the subject's store object ids (empty for an overview: the whole
+// plant, nothing highlighted); `attributes` are the caption lines, in order (tag, type, ...).
+struct ReviewView {
+  std::string name, title, kind;
+  Camera camera;
+  double aspect = 16.0 / 9.0;
+  std::vector<uint64_t> subject;
+  std::vector<std::pair<std::string, std::string>> attributes;
+};
+
+// The views file. JSON:
+//   {"version": 1, "per": "equipment",
+//    "views": [{"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
+//               "camera": {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov_deg": 50},
+//               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...}}]}
+// `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
+// (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
+// bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other
+// than 1, an unknown `per` or `kind`, a missing or mistyped field, an unknown key (a misspelt
+// field is an error, not a default), an unsafe or repeated name, a camera validate_camera
+// rejects, an aspect that is not a positive number, and an empty list. The error names the
+// view by index and name and the field: "views file: view 3 ('P-101A'): 'camera.eye' must be a
+// list of 3 numbers". On failure `out` is unchanged.
+std::string review_views_json(const std::vector<ReviewView>& views, std::string_view per);
+bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error);
+// Review views of a store's model (what `plantview views` writes):
+//   per overview:  the whole plant (subject empty), as default_camera frames it;
+//   per equipment: each object of class equipment; named by its Tag attribute, else its name;
+//   per pipeline:  each pipeline object with every object that names it (pipes, components,
+//                  supports): the whole line; named by its "Line number", else its name;
+//   per area:      the objects of one RVM zone (the importer's "Zone" attribute), of one unit
+//                  of a generated plant ("Unit 01", from the names' area field), else of one RVM
+//                  site, else of one source file.
+// Each subject's camera is fit_camera on its bounds (kReviewFill), from the isometric
+// direction, or with sides = 4 from each side (4 views, names suffixed -N, -E, -S, -W by where
+// the eye is). Where that eye would stand inside another object's bounds or a large object (a
+// wall, a column, a vessel: 1 m across both ways and a third of the subject's size) lies between
+// it and the subject, the other isometric quadrants (or, for a side, nearby directions) are
+// tried, then the eye is moved in front of the obstacle with a field of view widened up to 90
+// degrees to keep the fill; failing all, the first fit stays (highlighting shows the subject
+// through what is in front).
+// Names: the subject's name made safe (runs of other characters become '-', leading '-' and
+// '.' dropped); repeats get -2, -3... in the order of the subjects' names and first ids, so the
+// same store gives the same names. `select` (a shell glob, fnmatch) keeps the subjects whose
+// view name or model name matches.
+struct ReviewViewOptions {
+  std::string per = "equipment";  // overview|equipment|pipeline|area
+  std::string select;             // empty: every subject
+  int sides = 1;                  // 1 or 4
+  double aspect = 16.0 / 9.0;     // width / height of the images to come
+  double fov_deg = 50.0;
+  double fill = kReviewFill;      // (the overview uses kOverviewFill)
+};
+struct ReviewViewsSummary {
+  uint64_t subjects = 0;    // of the kind, before `select`
+  uint64_t moved = 0;       // views whose eye left the first fit to stand clear
+  uint64_t obstructed = 0;  // views left at the first fit with no clear place found
+};
+// False with a message when the store cannot be read, holds no subject of the kind ("the store
+// has no pipelines"), or `select` matches none. Preconditions (asserted): a known `per`, sides 1
+// or 4, aspect > 0, fov_deg in (0, 179), fill in (0, 1]. `progress` (may be empty) gets the
+// fraction done, on the calling thread.
+bool make_review_views(const Store& store, const ReviewViewOptions& options,
+                       std::vector<ReviewView>& out, ReviewViewsSummary& summary,
+                       std::string& error,
+                       const std::function<void(double fraction)>& progress = {});
+
+// True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area.
+bool is_review_kind(std::string_view kind);
+// True if `name` is safe as a file name: 1..200 of [A-Za-z0-9._-], not starting with '.'.
+bool is_safe_view_name(std::string_view name);
+
+}  // namespace plantview
