@@ -335,6 +335,23 @@ bool crosses(const DAabb& box, const glm::dvec3& a, const glm::dvec3& b) {
   return false;
 }
 
+// An RVM equipment item without a tag ("/-ART1105BA-", as PDMS names it) has one name in its
+// view's file name, title and caption: the plant's name without the path's '/'.
+TEST(ReviewViews, AnUntaggedItemIsNamedAsThePlantNamesItEverywhere) {
+  TempDir dir;
+  auto store = make_store(dir, {box_object("/-ART1105BA-", ObjectClass::equipment, {0, 0, 1}, {1, 1, 2}),
+                                box_object("/PS/WD1/E 7", ObjectClass::equipment, {9, 0, 1}, {1, 1, 2})});
+  ASSERT_TRUE(store);
+  const auto views = views_of(*store, per("equipment"));
+  ASSERT_EQ(views.size(), 2u);
+  EXPECT_EQ(views[0].name, "-ART1105BA-");
+  EXPECT_EQ(views[0].title, "Equipment -ART1105BA-");
+  EXPECT_EQ(views[0].attributes[0], (std::pair<std::string, std::string>{"tag", "-ART1105BA-"}));
+  EXPECT_TRUE(is_safe_view_name(views[0].name));
+  EXPECT_EQ(views[1].name, "PS-WD1-E-7");
+  EXPECT_EQ(views[1].attributes[0], (std::pair<std::string, std::string>{"tag", "PS/WD1/E 7"}));
+}
+
 TEST(ReviewViews, NamesAreSafeUniqueAndTheSameOnEveryRun) {
   TempDir dir;
   std::vector<Object> objects;
@@ -348,11 +365,13 @@ TEST(ReviewViews, NamesAreSafeUniqueAndTheSameOnEveryRun) {
   const auto views = views_of(*store, per("equipment"));
   std::vector<std::string> names;
   for (const auto& v : views) names.push_back(v.name);
-  // Sorted by tag: "../etc/passwd" < "/V-1" < "P 101" < "P-101" < "P/101".
-  EXPECT_EQ(names, (std::vector<std::string>{"etc-passwd", "V-1", "P-101", "P-101-2", "P-101-3"}));
-  EXPECT_EQ(views[2].title, "Pump P 101");
-  EXPECT_EQ(views[2].attributes[0], (std::pair<std::string, std::string>{"tag", "P 101"}));
-  EXPECT_EQ(views[1].title, "Equipment /V-1");
+  // Sorted by tag (a name without a tag as the plant names it, without the path's '/'):
+  // "../etc/passwd" < "P 101" < "P-101" < "P/101" < "V-1".
+  EXPECT_EQ(names, (std::vector<std::string>{"etc-passwd", "P-101", "P-101-2", "P-101-3", "V-1"}));
+  EXPECT_EQ(views[1].title, "Pump P 101");
+  EXPECT_EQ(views[1].attributes[0], (std::pair<std::string, std::string>{"tag", "P 101"}));
+  EXPECT_EQ(views[4].title, "Equipment V-1");
+  EXPECT_EQ(views[4].attributes[0], (std::pair<std::string, std::string>{"tag", "V-1"}));
   EXPECT_EQ(views_of(*store, per("equipment"))[3].camera, views[3].camera);
 
   const auto sides = views_of(*store, per("equipment", 4));
@@ -364,7 +383,7 @@ TEST(ReviewViews, NamesAreSafeUniqueAndTheSameOnEveryRun) {
   }
   EXPECT_EQ(unique.size(), sides.size());
   EXPECT_EQ(sides[0].name, "etc-passwd-N");
-  EXPECT_EQ(sides[7].name, "V-1-W");
+  EXPECT_EQ(sides[19].name, "V-1-W");
   // What the file says reads back.
   std::vector<ReviewView> read;
   std::string error;

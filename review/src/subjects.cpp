@@ -68,10 +68,17 @@ void add_object(Subject& s, uint32_t slot, uint64_t id, const DAabb& bounds) {
 // Cameras are fitted to at most about this many boxes per subject.
 constexpr size_t kMaxFitBoxes = 1024;
 
+// An object's name as the plant names it, without the path's leading '/' ("/-ART1105BA-" ->
+// "-ART1105BA-"): what a subject without a tag is called in its view's name, title and caption.
+std::string plant_name(std::string_view name) {
+  if (!name.empty() && name.front() == '/') name.remove_prefix(1);
+  return std::string(name);
+}
+
 Subject equipment_subject(const Object& o) {
   Subject s;
   s.kind = "equipment";
-  s.key = attribute_or(o, "Tag", o.name);
+  s.key = attribute_or(o, "Tag", plant_name(o.name));
   const std::string type = attribute_or(o, "Type", "");
   s.title = (type.empty() || is_type_code(type) ? std::string("Equipment") : type) + " " + s.key;
   s.attributes.emplace_back("tag", s.key);
@@ -82,7 +89,7 @@ Subject equipment_subject(const Object& o) {
 }
 
 void describe_pipeline(Subject& s, const Object& o) {
-  s.key = attribute_or(o, "Line number", o.name);
+  s.key = attribute_or(o, "Line number", plant_name(o.name));
   s.title = "Pipeline " + s.key;
   s.attributes.emplace_back("tag", s.key);
   s.attributes.emplace_back("type", "Pipeline");
@@ -97,17 +104,32 @@ void describe_pipeline(Subject& s, const Object& o) {
 }  // namespace
 
 std::string safe_name(std::string_view key, size_t max_chars) {
+  // Each run of characters a file name cannot hold becomes one '-', marked as made here: such a
+  // '-' is dropped at either end, and so are leading '.' (no hidden files, no ".."); a '-' of
+  // the key itself stays ("-ART1105BA-" keeps its name).
   std::string out;
+  std::vector<bool> made;
+  bool pending = false;
   for (const char c : key) {
     const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
                     c == '.' || c == '_' || c == '-';
-    if (ok) out += c;
-    else if (!out.empty() && out.back() != '-') out += '-';
+    if (!ok) {
+      pending = true;
+      continue;
+    }
+    if (pending && !out.empty()) {
+      out += '-';
+      made.push_back(true);
+    }
+    pending = false;
+    out += c;
+    made.push_back(false);
   }
-  const size_t start = out.find_first_not_of("-.");
-  out = start == std::string::npos ? std::string() : out.substr(start);
-  if (out.size() > max_chars) out.resize(max_chars);
-  while (!out.empty() && out.back() == '-') out.pop_back();
+  size_t start = 0;
+  while (start < out.size() && (out[start] == '.' || made[start])) ++start;
+  size_t end = std::min(out.size(), start + max_chars);
+  while (end > start && made[end - 1]) --end;
+  out = out.substr(start, end - start);
   return out.empty() ? "view" : out;
 }
 

@@ -39,7 +39,8 @@ bool read_subjects(const ReadView& view, std::string_view per, std::vector<Subje
                    std::string& error, const std::function<void(double)>& progress);
 
 // `key` made safe as a view name (review.h: is_safe_view_name): every run of other characters
-// becomes one '-', leading '-' and '.' go, at most `max_chars`; "view" if nothing is left.
+// becomes one '-' (none at either end), leading '.' go, the key's own '-' stay; at most
+// `max_chars`; "view" if nothing is left.
 std::string safe_name(std::string_view key, size_t max_chars);
 
 // Other objects' bounds near a camera, from the store's spatial index (the top, then the blocks

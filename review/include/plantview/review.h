@@ -55,9 +55,12 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
 bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std::string& error);
 // Review views of a store's model (what `plantview views` writes):
 //   per overview:  the whole plant (subject empty), as default_camera frames it;
-//   per equipment: each object of class equipment; named by its Tag attribute, else its name;
+//   per equipment: each object of class equipment; named by its Tag attribute, else its name
+//                  as the plant names it (without the path's leading '/': "/-ART1105BA-" is
+//                  "-ART1105BA-" in the view's name, title and caption alike);
 //   per pipeline:  each pipeline object with every object that names it (pipes, components,
-//                  supports): the whole line; named by its "Line number", else its name;
+//                  supports): the whole line; named by its "Line number", else its name
+//                  (without the leading '/');
 //   per area:      the objects of one RVM zone (the importer's "Zone" attribute), of one unit
 //                  of a generated plant ("Unit 01", from the names' area field), else of one RVM
 //                  site, else of one source file.
@@ -69,8 +72,8 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
 // tried, then the eye is moved in front of the obstacle with a field of view widened up to 90
 // degrees to keep the fill; failing all, the first fit stays (highlighting shows the subject
 // through what is in front).
-// Names: the subject's name made safe (runs of other characters become '-', leading '-' and
-// '.' dropped); repeats get -2, -3... in the order of the subjects' names and first ids, so the
+// Names: the subject's name made safe (each run of other characters becomes one '-', none at
+// either end; leading '.' dropped; the name's own '-' kept); repeats get -2, -3... in the order of the subjects' names and first ids, so the
 // same store gives the same names. `select` (a shell glob, fnmatch) keeps the subjects whose
 // view name or model name matches.
 struct ReviewViewOptions {
