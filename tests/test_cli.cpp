@@ -292,6 +292,32 @@ TEST_F(Cli, RenderTakesEachOcclusionTest) {
   }
 }
 
+// --highlight takes ids and tags; one that matches no object is a usage error naming it, found
+// before any file is written; the same subject by tag and by id gives the same image.
+TEST_F(Cli, RenderHighlightTakesIdsAndTagsAndRefusesOneThatMatchesNothing) {
+  const fs::path store = dir_ / "store";
+  ASSERT_EQ(run("gen --preset a --store " + store.string()).status, 0);
+  const Outcome views = run("views --store " + store.string() + " --per equipment --out " +
+                            (dir_ / "v.json").string());
+  ASSERT_EQ(views.status, 0) << views.err;
+  const auto file = nlohmann::json::parse(slurp(dir_ / "v.json"));
+  const std::string tag = file["views"][0]["attributes"]["tag"];
+  const std::string id = std::to_string(file["views"][0]["subject"][0].get<uint64_t>());
+  const std::string render = "render --store " + store.string() + " --size 160x90 ";
+  for (const std::string& word : {std::string("12345"), std::string("NO-SUCH-TAG")}) {
+    const fs::path image = dir_ / "none.png";
+    const Outcome r = run(render + "--highlight " + tag + "," + word + " --out " + image.string());
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find("--highlight: no object has the id or the tag '" + word + "'"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(image));
+  }
+  ASSERT_EQ(run(render + "--highlight " + tag + " --out " + (dir_ / "by-tag.png").string()).status, 0);
+  ASSERT_EQ(run(render + "--highlight " + id + " --out " + (dir_ / "by-id.png").string()).status, 0);
+  ASSERT_EQ(run(render + "--out " + (dir_ / "plain.png").string()).status, 0);
+  EXPECT_EQ(slurp(dir_ / "by-tag.png"), slurp(dir_ / "by-id.png"));
+  EXPECT_NE(slurp(dir_ / "by-tag.png"), slurp(dir_ / "plain.png"));
+}
+
 // An image into a directory that does not exist fails before anything is rendered.
 TEST_F(Cli, RenderIntoAMissingDirectoryFailsBeforeRendering) {
   const fs::path store = dir_ / "store";

@@ -1,0 +1,112 @@
+// `plantview render`: writing image files, the renderer's session, timings (render_run.h).
+#include <time.h>
+#include <unistd.h>
+
+#include <charconv>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "cli/farm/output_dir.h"
+#include "cli/render_run.h"
+
+namespace plantview::cli::rendering {
+
+bool read_text(const std::string& path, std::string& out, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = "cannot read " + path;
+    return false;
+  }
+  std::ostringstream s;
+  s << in.rdbuf();
+  out = s.str();
+  return true;
+}
+
+int fail(const std::string& message) {
+  std::cerr << "plantview: " << message << "\n";
+  return 1;
+}
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The directory a single image goes into must exist and take files, checked before rendering.
+bool check_image_destination(const std::string& out, std::string& error) {
+  const fs::path parent = fs::path(out).parent_path().empty() ? fs::path(".") : fs::path(out).parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(parent, ec)) {
+    error = "--out: the directory " + parent.string() + " (of " + out + ") does not exist";
+    return false;
+  }
+  return farm::prepare_output_dir(parent, error);
+}
+
+// Encodes `image` and writes it atomically (farm/output_dir.h); stats.ms.encode gets the time.
+bool write_image_file(const fs::path& path, const Image& image, ImageFormat format, int quality,
+                      FrameStats& stats, std::string& error) {
+  const auto t_encode = std::chrono::steady_clock::now();
+  std::vector<uint8_t> bytes;
+  if (!encode_image(image, format, quality, bytes, error)) return false;
+  if (!farm::write_file_atomically(
+          path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), error))
+    return false;
+  stats.ms.encode = ms_since(t_encode);
+  return true;
+}
+
+namespace {
+
+// Seconds since this process was created, or a negative number when /proc cannot be read. The
+// kernel's start time (/proc/self/stat, field 22) is taken at fork, in clock ticks (10 ms) of
+// CLOCK_BOOTTIME, rounded down; so this includes exec, loading the program's libraries and
+// their constructors (the user's wait before main), and reads up to one tick too much.
+double seconds_since_process_start() {
+  std::ifstream in("/proc/self/stat");
+  std::string stat;
+  std::getline(in, stat);
+  // Field 2, the command name, is in parentheses and may hold spaces: count from its end.
+  const size_t name_end = stat.rfind(')');
+  if (name_end == std::string::npos) return -1;
+  std::istringstream fields(stat.substr(name_end + 1));
+  std::string field;
+  for (int i = 3; i <= 22 && fields >> field; ++i) {}  // fields 3 (state) .. 22 (starttime)
+  unsigned long long start_ticks = 0;
+  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), start_ticks);
+  const long ticks_per_s = ::sysconf(_SC_CLK_TCK);
+  timespec now{};
+  if (ec != std::errc() || end != field.data() + field.size() || ticks_per_s <= 0 ||
+      ::clock_gettime(CLOCK_BOOTTIME, &now) != 0)
+    return -1;
+  return double(now.tv_sec) + double(now.tv_nsec) * 1e-9 -
+         double(start_ticks) / double(ticks_per_s);
+}
+
+}  // namespace
+
+bool start_rendering(int device, const Store& store, const RenderOptions& options,
+                     RenderSession& session, std::string& error) {
+  session.context = GpuContext::create(device, error);
+  if (!session.context) return false;
+  // Images are needed from here on. Not before the context: EGL loads its drivers (libLLVM for
+  // llvmpipe) under the dynamic loader's lock, which loading the module holds throughout. So
+  // does libepoxy at the first call of each GL function: those calls wait for the load too.
+  preload_image_io();
+  std::cerr << "plantview: rendering on " << session.context->description() << "\n";
+  session.renderer = Renderer::create(store, options, error);
+  return session.renderer != nullptr;
+}
+
+void report_first_image(std::chrono::steady_clock::time_point t_start) {
+  const double since_process = seconds_since_process_start();
+  if (since_process >= 0) {
+    std::cerr << "plantview: first image written " << since_process << " s after start\n";
+  } else {
+    std::cerr << "plantview: first image written " << ms_since(t_start) / 1000.0
+              << " s after the command started (no process start time in /proc)\n";
+  }
+}
+
+}  // namespace plantview::cli::rendering

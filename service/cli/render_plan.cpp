@@ -1,0 +1,222 @@
+// `plantview render`'s command line: its options, typed and checked before anything is read or
+// written (render_run.h); --highlight's words resolved against the store.
+#include <charconv>
+
+#include "cli/commands.h"
+#include "cli/render_run.h"
+
+namespace plantview::cli::rendering {
+
+namespace {
+
+bool parse_size(const std::string& text, uint32_t& w, uint32_t& h, std::string& error) {
+  const size_t x = text.find('x');
+  const auto number = [](std::string_view s, uint32_t& v) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && end == s.data() + s.size();
+  };
+  if (x == std::string::npos || !number(std::string_view(text).substr(0, x), w) ||
+      !number(std::string_view(text).substr(x + 1), h)) {
+    error = "--size: expected WxH, got '" + text + "'";
+    return false;
+  }
+  if (w == 0 || h == 0 || w > kMaxImageSide || h > kMaxImageSide) {
+    error = "--size: " + text + " is outside 1.." + std::to_string(kMaxImageSide) + " per side";
+    return false;
+  }
+  return true;
+}
+
+bool parse_shard(const std::string& text, uint32_t& index, uint32_t& count, std::string& error) {
+  const size_t slash = text.find('/');
+  const auto number = [](std::string_view s, uint32_t& v) {
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && end == s.data() + s.size();
+  };
+  if (slash == std::string::npos || !number(std::string_view(text).substr(0, slash), index) ||
+      !number(std::string_view(text).substr(slash + 1), count) || count == 0 || index >= count) {
+    error = "--shard: expected I/N with 0 <= I < N, got '" + text + "'";
+    return false;
+  }
+  return true;
+}
+
+// "off" or an AntialiasMethod's name.
+bool parse_antialias(const std::string& name, RenderOptions& options) {
+  if (name == "off") {
+    options.antialias = false;
+    return true;
+  }
+  for (AntialiasMethod m : {AntialiasMethod::automatic, AntialiasMethod::multisampling,
+                            AntialiasMethod::supersampling, AntialiasMethod::edge_filter}) {
+    if (name == antialias_method_name(m)) {
+      options.antialias = true;
+      options.antialias_method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+// An OcclusionTest's name.
+bool parse_occlusion_test(const std::string& name, OcclusionTest& test) {
+  for (OcclusionTest t : {OcclusionTest::automatic, OcclusionTest::coarse, OcclusionTest::exact}) {
+    if (name == occlusion_test_name(t)) {
+      test = t;
+      return true;
+    }
+  }
+  return false;
+}
+
+// "WORD,WORD,...": ids or tags, none empty.
+bool split_highlight(const std::string& text, std::vector<std::string>& words, std::string& error) {
+  size_t begin = 0;
+  while (begin <= text.size()) {
+    const size_t end = std::min(text.find(',', begin), text.size());
+    if (end == begin) {
+      error = "--highlight: expected object ids or tags separated by commas, got '" + text + "'";
+      return false;
+    }
+    words.push_back(text.substr(begin, end - begin));
+    begin = end + 1;
+  }
+  return true;
+}
+
+}  // namespace
+
+int plan_render(const RenderArgs& a, RenderPlan& plan) {
+  std::string error;
+  if (!parse_size(a.size, plan.width, plan.height, error) ||
+      !parse_shard(a.shard, plan.shard_index, plan.shard_count, error))
+    return usage_error(error);
+  if (!parse_lod_policy(a.lod_policy, plan.options.lod_policy))
+    return usage_error("--lod-policy: '" + a.lod_policy + "' is not one of screen-space, distance, none");
+  if (a.quality < 1 || a.quality > 100)
+    return usage_error("--quality: " + std::to_string(a.quality) + " is outside 1..100");
+  plan.options.pixel_error = a.pixel_error;
+  plan.options.vertex_budget_bytes = a.vertex_budget_mb << 20;
+  plan.options.centrelines = !a.no_centrelines;
+  plan.options.hlod = !a.no_hlod;
+  plan.options.subpixel_culling = !a.no_subpixel;
+  plan.options.occlusion = a.occlusion == "on";
+  if (!parse_occlusion_test(a.occlusion_test, plan.options.occlusion_test))
+    return usage_error("--occlusion-test: '" + a.occlusion_test + "' is not one of automatic, coarse, exact");
+  plan.options.samples = a.samples;
+  if (!parse_antialias(a.antialias, plan.options))
+    return usage_error("--antialias: '" + a.antialias +
+                       "' is not one of automatic, multisampling, supersampling, edge-filter, off");
+  plan.options.ground = !a.no_ground;
+  plan.options.ambient_occlusion = !a.no_ambient_occlusion;
+  if (!a.highlight.empty() && !split_highlight(a.highlight, plan.highlight, error))
+    return usage_error(error);
+  if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
+    return usage_error("give one of --camera, --path and --views");
+  if (!a.camera.empty()) {
+    Camera camera;
+    if (!parse_camera(a.camera, camera, error)) return usage_error("--camera: " + error);
+    plan.camera = camera;
+  }
+  plan.mode = !a.path.empty()    ? RenderPlan::Mode::path
+              : !a.views.empty() ? RenderPlan::Mode::views
+                                 : RenderPlan::Mode::single;
+  if (plan.mode == RenderPlan::Mode::single) {
+    if (!image_format_from_name(a.out, plan.format))
+      return usage_error("--out: " + a.out +
+                         ": use a .png, .jpg or .jpeg name (or a directory with --path or --views)");
+    return 0;
+  }
+  // Many images: --out is a directory, never an image file's name.
+  const char* with = plan.mode == RenderPlan::Mode::path ? "--path" : "--views";
+  if (!image_format_from_name(a.format, plan.format))
+    return usage_error("--format: '" + a.format + "' is not png or jpeg");
+  ImageFormat named;
+  const std::string extension = fs::path(a.out).extension().string();
+  if (!extension.empty() && image_format_from_name(extension, named))
+    return usage_error("--out: " + a.out + " names an image file; with " + std::string(with) +
+                       " give the directory the images go into");
+  std::error_code ec;
+  if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec))
+    return usage_error("--out: " + a.out + " is a file; with " + std::string(with) +
+                       " give the directory the images go into");
+  return 0;
+}
+
+bool resolve_highlight(const ReadView& view, const std::vector<std::string>& words,
+                       std::vector<uint64_t>& ids, std::string& error, bool& usage) {
+  usage = false;
+  for (const std::string& word : words) {
+    uint64_t id = 0;
+    const auto [last, ec] = std::from_chars(word.data(), word.data() + word.size(), id);
+    if (ec == std::errc() && last == word.data() + word.size()) {
+      std::optional<uint32_t> slot;
+      if (!view.slot_of(id, slot, error)) return false;
+      if (slot) {
+        ids.push_back(id);
+        continue;
+      }
+    }
+    std::vector<uint32_t> slots;
+    if (!view.slots_named(word, slots, error)) return false;
+    if (slots.empty() && word.front() != '/' && !view.slots_named("/" + word, slots, error)) return false;
+    if (slots.empty()) {
+      error = "--highlight: no object has the id or the tag '" + word + "'";
+      usage = true;
+      return false;
+    }
+    for (const uint32_t slot : slots) {
+      Object o;
+      if (!view.object(slot, o, false, error)) return false;
+      ids.push_back(o.id);
+    }
+  }
+  return true;
+}
+
+void add_render_options(CLI::App* render, RenderArgs* args) {
+  render->add_option("--store", args->store, "Store directory")->required();
+  render->add_option("--camera", args->camera,
+                     "eye=X,Y,Z,target=X,Y,Z[,up=X,Y,Z][,fov=DEG] (default: the whole plant)");
+  render->add_option("--path", args->path, "Camera path JSON (from `plantview path`)");
+  render->add_option("--views", args->views,
+                     "Views file (from `plantview views`): named review images, a manifest and a "
+                     "contact sheet into the --out directory");
+  render->add_option("--out", args->out, "Image file (.png/.jpg), or a directory with --path or --views")
+      ->required();
+  render->add_option("--size", args->size, "Image size WxH")->capture_default_str();
+  render->add_option("--lod-policy", args->lod_policy, "screen-space, distance or none")->capture_default_str();
+  render->add_option("--pixel-error", args->pixel_error, "Allowed screen-space error (pixels)")->capture_default_str();
+  render->add_option("--vertex-budget", args->vertex_budget_mb, "GPU vertex arena (MB)")->capture_default_str();
+  render->add_option("--shard", args->shard, "Render views I, I+N, I+2N... of a path or views file")
+      ->capture_default_str();
+  render->add_option("--format", args->format, "Image format with --path or --views: png or jpeg")
+      ->capture_default_str();
+  render->add_flag("--force", args->force,
+                   "With --views: render every view again, also those done with the same settings");
+  render->add_option("--quality", args->quality, "JPEG quality 1..100")->capture_default_str();
+  render->add_option("--device", args->device, "EGL device index (default: the first GPU, else software)");
+  render->add_flag("--no-centrelines", args->no_centrelines, "Never draw thin pipes as lines");
+  render->add_flag("--no-hlod", args->no_hlod, "Never merge pipeline runs");
+  render->add_flag("--no-subpixel-culling", args->no_subpixel, "Draw objects under the pixel error too");
+  render->add_option("--antialias", args->antialias,
+                     "automatic (multisampling on a GPU, 2x2 supersampling on a software renderer), "
+                     "multisampling, supersampling, edge-filter or off")
+      ->capture_default_str();
+  render->add_option("--occlusion", args->occlusion, "Leave out objects hidden behind large ones: on or off")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  render->add_option("--occlusion-test", args->occlusion_test,
+                     "How what the first phase did not draw is tested: automatic (exact on a GPU, "
+                     "coarse on a software renderer), coarse or exact")
+      ->capture_default_str();
+  render->add_option("--samples", args->samples,
+                     "Multisampling samples per pixel (1: none; default 4 where multisampling is used)")
+      ->check(CLI::Range(1u, 16u));
+  render->add_flag("--no-ground", args->no_ground, "No ground grid under the plant");
+  render->add_flag("--no-ambient-occlusion", args->no_ambient_occlusion, "No screen-space ambient occlusion");
+  render->add_option("--highlight", args->highlight,
+                     "ID or TAG,...: draw these objects in their colours and the rest ghosted, "
+                     "see-through where it hides them (with --views: each view's subject)");
+}
+
+}  // namespace plantview::cli::rendering

@@ -1,0 +1,207 @@
+// `plantview render --views`: the farm's shard (farm/scheduler.h states the contract): named,
+// captioned review images, a manifest part, and the job's merged manifest and contact sheet.
+#include <cctype>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "cli/farm/job_inputs.h"
+#include "cli/farm/manifest.h"
+#include "cli/farm/output_dir.h"
+#include "cli/progress.h"
+#include "cli/render_run.h"
+#include "plantview/review.h"
+
+namespace plantview::cli::rendering {
+
+namespace {
+
+
+// The caption lines of a view: each attribute as "Key value" ("Tag P-101A", "Type PUMP").
+std::vector<std::string> caption_lines(const ReviewView& view) {
+  std::vector<std::string> lines;
+  for (const auto& [key, value] : view.attributes) {
+    if (value.empty()) continue;
+    std::string label = key;
+    if (!label.empty()) label[0] = char(std::toupper(static_cast<unsigned char>(label[0])));
+    lines.push_back(label + " " + value);
+  }
+  return lines;
+}
+
+// The options one view renders with: its subject highlighted, the rest ghosted (an overview's
+// empty subject highlights nothing).
+RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
+  RenderOptions options = base;
+  options.highlight_ids = view.subject;
+  return options;
+}
+
+// Draws the view's caption strip (title, then caption_lines) into the image.
+bool add_review_caption(Image& image, const ReviewView& view, std::string& error) {
+  return add_caption(image, view.title, caption_lines(view), error);
+}
+
+// What, besides the view and the store's content, an image depends on (the settings hash).
+std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
+  const nlohmann::json settings = {
+      {"program", PLANTVIEW_VERSION},
+      {"size", std::to_string(plan.width) + "x" + std::to_string(plan.height)},
+      {"format", plan.format == ImageFormat::png ? "png" : "jpeg"},
+      {"quality", plan.format == ImageFormat::jpeg ? a.quality : 0},
+      {"lod_policy", std::string(lod_policy_name(plan.options.lod_policy))},
+      {"pixel_error", plan.options.pixel_error},
+      {"vertex_budget_bytes", plan.options.vertex_budget_bytes},
+      {"centrelines", plan.options.centrelines},
+      {"hlod", plan.options.hlod},
+      {"subpixel_culling", plan.options.subpixel_culling},
+      {"samples", plan.options.samples},
+      {"antialias", plan.options.antialias},
+      {"antialias_method", std::string(antialias_method_name(plan.options.antialias_method))},
+      {"ground", plan.options.ground},
+      {"ambient_occlusion", plan.options.ambient_occlusion},
+      {"caption", true}};
+  return settings.dump();
+}
+
+nlohmann::json vec3_json(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
+
+nlohmann::json view_record(const ReviewView& view, const std::string& file, const std::string& hash,
+                           const RenderPlan& plan) {
+  return {{"name", view.name},
+          {"title", view.title},
+          {"kind", view.kind},
+          {"file", file},
+          {"camera",
+           {{"eye", vec3_json(view.camera.eye_m)},
+            {"target", vec3_json(view.camera.target_m)},
+            {"up", vec3_json(view.camera.up)},
+            {"fov_deg", view.camera.fov_deg}}},
+          {"aspect", view.aspect},
+          {"subject", view.subject},
+          {"settings_hash", hash},
+          {"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)}};
+}
+
+}  // namespace
+
+int render_views(const RenderArgs& a, const RenderPlan& plan) {
+  std::string error, text;
+  const fs::path out = a.out;
+  std::vector<ReviewView> views;
+  // Everything that can be refused is checked before the first image.
+  if (!farm::read_views_file(a.views, views, text, error)) return fail(error);
+  if (!farm::prepare_output_dir(out, error)) return fail(error);
+  const auto t_open = std::chrono::steady_clock::now();
+  auto store = Store::open(a.store, Store::Mode::read_only, error);
+  if (!store) return fail(error);
+  auto read = store->read(error);
+  if (!read) return fail(error);
+  const double store_open_ms = ms_since(t_open);
+  if (!farm::check_subjects(views, *read, error)) return fail(a.views + ": " + error);
+  std::error_code ec;
+  if (!fs::equivalent(a.views, out / farm::kViewsCopyName, ec) &&
+      !farm::write_file_atomically(out / farm::kViewsCopyName, text, error))
+    return fail(error);
+
+  // Which of this shard's views are done already with the same settings.
+  std::map<std::string, nlohmann::json> previous;
+  if (!farm::read_newest_records(out, previous, error)) return fail(error);
+  const std::string identity = farm::store_identity(*read) + "\n" + render_settings_text(a, plan) + "\n";
+  read.reset();
+  const char* extension = plan.format == ImageFormat::png ? ".png" : ".jpg";
+  std::vector<nlohmann::json> records;
+  std::vector<size_t> to_render;
+  std::vector<std::string> hashes(views.size());
+  for (size_t i = plan.shard_index; i < views.size(); i += plan.shard_count) {
+    hashes[i] = farm::hash_hex(identity + review_views_json({views[i]}, views[i].kind));
+    const auto found = previous.find(views[i].name);
+    if (!a.force && found != previous.end() && found->second.value("status", "") == "done" &&
+        found->second.value("settings_hash", "") == hashes[i] &&
+        fs::is_regular_file(out / found->second.value("file", ""), ec)) {
+      records.push_back(found->second);  // kept in this shard's part when it is written again
+    } else {
+      to_render.push_back(i);
+    }
+  }
+  const size_t skipped = records.size();
+
+  size_t failed = 0;
+  if (!to_render.empty()) {
+    const auto t_context = std::chrono::steady_clock::now();
+    RenderSession session;
+    if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
+    const double context_ms = ms_since(t_context);
+    Progress progress("render");
+    // Each view's image is encoded and written while the next renders; its record follows in
+    // the shard's order once written.
+    std::string manifest_error;
+    ImageWriter writer(plan.format, a.quality);
+    for (size_t n = 0; n < to_render.size() && manifest_error.empty(); ++n) {
+      const ReviewView& view = views[to_render[n]];
+      const auto t_view = std::chrono::steady_clock::now();
+      const std::string file = view.name + extension;
+      auto record = std::make_shared<nlohmann::json>(view_record(view, file, hashes[to_render[n]], plan));
+      FrameStats stats;
+      Image image = writer.take_buffer();
+      session.renderer->set_options(review_render_options(plan.options, view));
+      if (n + 1 < to_render.size()) session.renderer->expect(views[to_render[n + 1]].camera);
+      bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
+      const auto t_caption = std::chrono::steady_clock::now();
+      ok = ok && add_review_caption(image, view, error);
+      const double caption_ms = ms_since(t_caption);
+      // Recorded once written (or at once, failed).
+      const auto finish_view = [&, n, t_view, caption_ms, record](bool written, const std::string& why,
+                                                                 const FrameStats& frame) {
+        (*record)["status"] = written ? "done" : "failed";
+        if (!written) {
+          (*record)["error"] = why;
+          std::cerr << "plantview: view '" << views[to_render[n]].name << "': " << why << "\n";
+          ++failed;
+        }
+        (*record)["stats"] = nlohmann::json::parse(frame.to_json());
+        (*record)["ms"] = {{"store_open", store_open_ms},  {"context", context_ms},
+                           {"first_in_process", n == 0}, {"frame", frame.ms.total},
+                           {"caption", caption_ms},       {"encode", frame.ms.encode},
+                           {"total", ms_since(t_view)}};
+        (*record)["finished_unix_ms"] = farm::unix_ms_now();
+        records.push_back(std::move(*record));
+        // The part lists every view this shard finished, so a killed task loses only the
+        // views it was rendering and writing.
+        if (manifest_error.empty() &&
+            !farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, manifest_error) &&
+            manifest_error.empty())
+          manifest_error = "cannot write the manifest part";
+        progress.update(double(n + 1) / double(to_render.size()),
+                        std::to_string(n + 1) + "/" + std::to_string(to_render.size()) + " " +
+                            views[to_render[n]].name);
+      };
+      if (!ok) {
+        writer.finish();  // the views before it first, in order
+        finish_view(false, error, stats);
+        continue;
+      }
+      writer.write(out / file, std::move(image), stats, [finish_view](ImageToWrite& written) {
+        finish_view(written.ok, written.error, written.stats);
+      });
+    }
+    writer.finish();
+    progress.finish();
+    if (!manifest_error.empty()) return fail(manifest_error);
+  } else if (!farm::write_manifest_part(out, plan.shard_index, plan.shard_count, records, error)) {
+    return fail(error);
+  }
+  farm::FarmSummary summary;
+  if (!farm::merge_manifests(out, summary, error)) return fail(error);
+  std::cout << nlohmann::json{{"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)},
+                              {"views", to_render.size() + skipped},
+                              {"rendered", to_render.size() - failed},
+                              {"skipped", skipped},
+                              {"failed", failed},
+                              {"job", farm::summary_json(summary)}}
+                   .dump()
+            << "\n";
+  return failed == 0 ? 0 : 1;
+}
+
+}  // namespace plantview::cli::rendering
