@@ -4,7 +4,8 @@
 # for a browser until Ctrl-C.
 # Idempotent: re-running rebuilds only what changed and reuses the store.
 # The first run compiles the whole program (minutes): on a terminal the build shows its progress
-# ([done/total] steps); in a pipe it is quiet, and its log (build-release/build.log) is printed
+# ([done/total] steps); in a pipe or a log it prints a line at every tenth of the build naming
+# the step that runs, keeps the build's output in build-release/build.log and prints its end
 # when it fails.
 # Environment: PLANTVIEW_LISTEN (default 127.0.0.1:8080); PLANTVIEW_DEMO_NO_SERVE=1 stops after
 # the review image (for scripted runs).
@@ -21,7 +22,23 @@ cmake -S . -B build-release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPLANTVIEW_BUIL
 if [ -t 1 ]; then
   cmake --build build-release -j "$jobs" --target plantview  # ninja: one status line, [done/total]
 else
-  cmake --build build-release -j "$jobs" --target plantview >build-release/build.log 2>&1 || {
+  # In a log (nohup, CI, a service manager): a line at the start and at every tenth of the
+  # build, saying which step runs; the whole output goes to build-release/build.log.
+  build_progress() {
+    local shown=-1 line done_steps total tenth
+    while IFS= read -r line; do
+      printf '%s\n' "$line" >>build-release/build.log
+      [[ $line =~ ^\[([0-9]+)/([0-9]+)\]\ (.*)$ ]] || continue
+      done_steps=${BASH_REMATCH[1]} total=${BASH_REMATCH[2]}
+      tenth=$((10 * done_steps / total))
+      if ((tenth > shown)); then
+        shown=$tenth
+        echo "demo: build $((10 * tenth))% ($done_steps/$total steps, ${SECONDS} s): ${BASH_REMATCH[3]}" >&2
+      fi
+    done
+  }
+  : >build-release/build.log
+  cmake --build build-release -j "$jobs" --target plantview 2>&1 | build_progress || {
     tail -n 40 build-release/build.log >&2
     echo "demo: the build failed; its log: build-release/build.log" >&2
     exit 1
