@@ -1,4 +1,6 @@
-// The views file: what `plantview views` writes and `render --views` reads (see camera.h).
+// The views file: what `plantview views` writes and `render --views` reads, and what a view's
+// caption says (plantview/review.h).
+#include <cctype>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -193,6 +195,17 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
   }
   out = std::move(views);
   return true;
+}
+
+std::vector<std::string> caption_lines(const ReviewView& view) {
+  std::vector<std::string> lines;
+  for (const auto& [key, value] : view.attributes) {
+    if (value.empty()) continue;
+    std::string label = key;
+    if (!label.empty()) label[0] = char(std::toupper(static_cast<unsigned char>(label[0])));
+    lines.push_back(label + " " + value);
+  }
+  return lines;
 }
 
 }  // namespace plantview

@@ -1,6 +1,5 @@
 // `plantview render --views`: the farm's shard (farm/scheduler.h states the contract): named,
 // captioned review images, a manifest part, and the job's merged manifest and contact sheet.
-#include <cctype>
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -17,18 +16,6 @@ namespace plantview::cli::rendering {
 namespace {
 
 
-// The caption lines of a view: each attribute as "Key value" ("Tag P-101A", "Type PUMP").
-std::vector<std::string> caption_lines(const ReviewView& view) {
-  std::vector<std::string> lines;
-  for (const auto& [key, value] : view.attributes) {
-    if (value.empty()) continue;
-    std::string label = key;
-    if (!label.empty()) label[0] = char(std::toupper(static_cast<unsigned char>(label[0])));
-    lines.push_back(label + " " + value);
-  }
-  return lines;
-}
-
 // The options one view renders with: its subject highlighted, the rest ghosted (an overview's
 // empty subject highlights nothing).
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
@@ -37,7 +24,7 @@ RenderOptions review_render_options(const RenderOptions& base, const ReviewView&
   return options;
 }
 
-// Draws the view's caption strip (title, then caption_lines) into the image.
+// Draws the view's caption strip (review.h: caption_lines) into the image.
 bool add_review_caption(Image& image, const ReviewView& view, std::string& error) {
   return add_caption(image, view.title, caption_lines(view), error);
 }

@@ -1,4 +1,4 @@
-// Fuzz harness for the views file (plantview/camera.h: parse_review_views). For any input:
+// Fuzz harness for the views file (plantview/review.h: parse_review_views). For any input:
 //   - a failure leaves the output alone and says "views file" and what is wrong;
 //   - whatever is accepted holds the file's rules (safe, unique names; known kinds; cameras
 //     validate_camera accepts; a positive aspect), and written back it reads back the same, bit

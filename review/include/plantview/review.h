@@ -98,6 +98,11 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
                        std::string& error,
                        const std::function<void(double fraction)>& progress = {});
 
+// The lines of a view's caption strip under its title: each attribute with a value, as "Key
+// value" with the key capitalised ("Tag P-101A", "Type PUMP"), in the view's order. (The strip
+// itself is drawn by add_caption, plantview/image.h.)
+std::vector<std::string> caption_lines(const ReviewView& view);
+
 // True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area.
 bool is_review_kind(std::string_view kind);
 // True if `name` is safe as a file name: 1..200 of [A-Za-z0-9._-], not starting with '.'.

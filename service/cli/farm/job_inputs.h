@@ -15,7 +15,7 @@ class ReadView;
 
 namespace plantview::cli::farm {
 
-// Reads and parses a views file (camera.h: parse_review_views); `text` gets its bytes.
+// Reads and parses a views file (review.h: parse_review_views); `text` gets its bytes.
 bool read_views_file(const std::string& path, std::vector<ReviewView>& views, std::string& text,
                      std::string& error);
 
