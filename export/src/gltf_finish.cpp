@@ -1,8 +1,9 @@
 // GltfFile::finish(): the nodes held back until the end, the document and the file, from what
 // the parts on disk hold (rules in gltf_file.h, "Document" and "Files").
 //
-// Errors: every stage returns false with `error` naming the file and the system's reason; the
-// file is then not in place (its temporary files stay until abandon() or the destructor).
+// Errors: a stage that fails returns false with `error` naming the file (and the system's
+// reason, where a system call failed); nothing is then in place, and the temporary files stay
+// until abandon() or the destructor removes them.
 #include <unistd.h>
 
 #include <algorithm>
