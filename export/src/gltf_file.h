@@ -15,14 +15,21 @@
 //     JSON text to temporary files as they come. An object's node is written when it is added
 //     (4 bytes stay, its number in its parent's children); group nodes (sites, zones,
 //     pipelines, which learn their children as they come) and, with GPU instancing, every
-//     object's node (80 bytes each: instances are grouped at the end) wait for finish(); tinygltf writes the rest (asset, materials, buffer views, scene,
-//     extensions) and finish() splices the arrays in. (tinygltf's Model keeps every node and
-//     accessor as an object of its own, about 8 kB an object of a plant with its extras: 350 MB
-//     for preset c, far too much for plants a hundred times larger.)
+//     object's node (80 bytes each: instances are grouped at the end) wait for finish();
+//     tinygltf writes the rest (asset, materials, buffer views, scene, extensions) and
+//     finish() splices the arrays in. (tinygltf's Model keeps every node and accessor as an
+//     object of its own, about 8 kB an object of a plant with its extras: 350 MB for preset c,
+//     far too much for plants a hundred times larger.)
 //   - Files: everything is written beside the destination under temporary names; finish()
-//     renames into place, abandon() (and the destructor, unless finished) removes them all.
+//     renames into place (a .gltf's .bin first), abandon() (and the destructor, unless
+//     finished) removes them all.
+//   - Errors: a failed write is reported by the next add_mesh() or finish(), naming the
+//     temporary file and the system's reason (the first failure's); after one, finish() fails.
 // Ownership: holds copies of what it writes; Objects passed in need live only for the call.
 // Threads: one thread.
+// Code: gltf_file.cpp (open, meshes, objects, runs, nodes), gltf_buffers.cpp (vertex and index
+// data, quantization, accessors), gltf_finish.cpp (finish() in stages); what they share, the
+// file's state, in gltf_file_state.h.
 #pragma once
 
 #include <cstdint>
@@ -40,6 +47,8 @@
 #include "plantview/model.h"
 
 namespace plantview::detail::gltf {
+
+struct GltfFileState;  // gltf_file_state.h
 
 class GltfFile {
  public:
@@ -89,8 +98,7 @@ class GltfFile {
   void abandon();
 
  private:
-  struct State;
-  std::unique_ptr<State> state_;
+  std::unique_ptr<GltfFileState> state_;
 };
 
 }  // namespace plantview::detail::gltf
