@@ -20,7 +20,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "frame_plan.h"
-#include "gl_shaders.h"
+#include "gl/program_sources.h"
 #include "lod.h"
 
 namespace plantview {
@@ -57,9 +57,19 @@ constexpr GLfloat kBackground[4] = {0.80f, 0.84f, 0.88f, 1.0f};
 constexpr float kSeeThroughAlpha = 0.22f;  // occluders of a highlighted subject
 constexpr double kOcclusionRadiusM = 0.6;  // ambient occlusion's reach
 
-GLuint compile(GLenum type, std::initializer_list<const char*> sources, std::string& error) {
-  const GLuint shader = glCreateShader(type);
-  std::vector<const char*> texts(sources);
+GLenum gl_stage(ShaderStage stage) {
+  switch (stage) {
+    case ShaderStage::vertex: return GL_VERTEX_SHADER;
+    case ShaderStage::geometry: return GL_GEOMETRY_SHADER;
+    case ShaderStage::fragment: return GL_FRAGMENT_SHADER;
+  }
+  return GL_NONE;
+}
+
+GLuint compile(const ShaderSource& source, std::string& error) {
+  const GLuint shader = glCreateShader(gl_stage(source.stage));
+  std::vector<const char*> texts;
+  for (const ShaderPart& part : source.parts) texts.push_back(part.text.c_str());
   glShaderSource(shader, GLsizei(texts.size()), texts.data(), nullptr);
   glCompileShader(shader);
   GLint ok = 0;
@@ -74,13 +84,13 @@ GLuint compile(GLenum type, std::initializer_list<const char*> sources, std::str
   return shader;
 }
 
-// Links shaders of (type, sources) into a program; 0 with the log in `error`.
-GLuint link(const char* name, std::initializer_list<std::pair<GLenum, std::initializer_list<const char*>>> stages,
-            std::string& error) {
+// Links the shaders of `source` into a program; 0 with the log in `error`.
+GLuint link(const ProgramSource& source, std::string& error) {
+  const std::string name(source.name);
   std::vector<GLuint> shaders;
   bool ok = true;
-  for (const auto& [type, sources] : stages) {
-    const GLuint shader = compile(type, sources, error);
+  for (const ShaderSource& s : source.shaders) {
+    const GLuint shader = compile(s, error);
     if (!shader) {
       ok = false;
       break;
@@ -97,12 +107,12 @@ GLuint link(const char* name, std::initializer_list<std::pair<GLenum, std::initi
     if (!linked) {
       char log[2048] = {};
       glGetProgramInfoLog(program, sizeof log, nullptr, log);
-      error = std::string("renderer: the ") + name + " shaders do not link: " + log;
+      error = "renderer: the " + name + " shaders do not link: " + log;
       glDeleteProgram(program);
       program = 0;
     }
   } else {
-    error = std::string("renderer: ") + name + ": " + error.substr(std::string("renderer: ").size());
+    error = "renderer: " + name + ": " + error.substr(std::string("renderer: ").size());
   }
   for (const GLuint shader : shaders) glDeleteShader(shader);
   return program;
@@ -247,46 +257,12 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
               name.find("SwiftShader") != std::string::npos;
   if (software_) keep_freed_heap_memory();
 
-  using namespace shaders;
-  constexpr const char* kVersion = "#version 450 core\n";
-  surface_program_ = link("surface", {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kSurfaceVertex}},
-                                      {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
-                                      {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
-  if (surface_program_)
-    proxy_program_ = link("proxy", {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kProxyVertex}},
-                                    {GL_VERTEX_SHADER, {kVersion, kBoxFace}},
-                                    {GL_FRAGMENT_SHADER, {kSurfaceFragment}},
-                                    {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
-  if (proxy_program_)
-    centreline_program_ = link("centreline",
-                               {{GL_VERTEX_SHADER, {kVersion, kObjectTable, kCentrelineVertex}},
-                                {GL_GEOMETRY_SHADER, {kCentrelineGeometry}},
-                                {GL_FRAGMENT_SHADER, {kCentrelineFragment}},
-                                {GL_FRAGMENT_SHADER, {kVersion, kLighting}}}, error);
-  if (centreline_program_)
-    ground_program_ = link("ground", {{GL_VERTEX_SHADER, {kGroundVertex}},
-                                      {GL_FRAGMENT_SHADER, {kGroundFragment}}}, error);
-  if (ground_program_)
-    occlusion_program_ = link("ambient occlusion", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
-                                                    {GL_FRAGMENT_SHADER, {kOcclusionFragment}}}, error);
-  if (occlusion_program_)
-    finish_program_ = link("finishing", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
-                                         {GL_FRAGMENT_SHADER, {kFinishFragment}}}, error);
-  if (finish_program_)
-    reduce_program_ = link("depth reduction", {{GL_VERTEX_SHADER, {kFullScreenVertex}},
-                                               {GL_FRAGMENT_SHADER, {kVersion, kDepthReduceFragment}}},
-                           error);
-  if (reduce_program_)
-    reduce_multisampled_program_ =
-        link("multisampled depth reduction",
-             {{GL_VERTEX_SHADER, {kFullScreenVertex}},
-              {GL_FRAGMENT_SHADER, {kVersion, kMultisampled, kDepthReduceFragment}}},
-             error);
-  if (reduce_multisampled_program_)
-    box_test_program_ = link("box test", {{GL_VERTEX_SHADER, {kBoxTestVertex}},
-                                          {GL_VERTEX_SHADER, {kVersion, kBoxFace}},
-                                          {GL_FRAGMENT_SHADER, {kBoxTestFragment}}}, error);
-  if (!box_test_program_) return false;
+  GLuint* const programs[kProgramCount] = {
+      &surface_program_,        &proxy_program_,  &centreline_program_,
+      &ground_program_,         &occlusion_program_, &finish_program_,
+      &reduce_program_,         &reduce_multisampled_program_, &box_test_program_};
+  for (size_t i = 0; i < kProgramCount; ++i)
+    if (!(*programs[i] = link(program_source(ProgramId(i)), error))) return false;
 
   glCreateBuffers(1, &index_buffers_[0]);
   glCreateBuffers(1, &index_buffers_[1]);
@@ -694,16 +670,7 @@ bool GlBackend::reduce_depth(uint32_t cells_width, uint32_t cells_height,
     auto it = std::find_if(reduce_fixed_.begin(), reduce_fixed_.end(),
                            [&](const auto& e) { return e.first == key; });
     if (it == reduce_fixed_.end()) {
-      const std::string defines = "#define STEP_X " + std::to_string(key[0]) + "\n#define STEP_Y " +
-                                  std::to_string(key[1]) + "\n#define SAMPLES " +
-                                  std::to_string(key[2]) + "\n";
-      const GLuint fixed = link("depth reduction",
-                                {{GL_VERTEX_SHADER, {shaders::kFullScreenVertex}},
-                                 {GL_FRAGMENT_SHADER, {"#version 450 core\n",
-                                                       multisampled ? shaders::kMultisampled : "",
-                                                       defines.c_str(),
-                                                       shaders::kDepthReduceFragment}}},
-                                error);
+      const GLuint fixed = link(depth_reduction_source(multisampled, key), error);
       if (!fixed) return false;
       it = reduce_fixed_.insert(reduce_fixed_.end(), {key, fixed});
     }

@@ -1,4 +1,4 @@
-// GL backend: every OpenGL call of the renderer. Shaders (gl_shaders.h), the vertex arena's GPU
+// GL backend: every OpenGL call of the renderer. Shaders (gl/program_sources.h), the vertex arena's GPU
 // buffers (grown on demand up to the budget), the index, object-table and proxy buffers, the
 // framebuffers, drawing the frame's index lists, the ground, finishing the image (antialiasing,
 // ambient occlusion) and reading it back.
@@ -73,7 +73,9 @@ struct TableEntry {
   uint32_t pick;
 };
 static_assert(sizeof(TableEntry) == 32);
-inline constexpr uint32_t kTieBits = 6;  // gl_shaders.h: PLANTVIEW_TIE_CONSTANTS agrees
+// gl/shaders/tie_constants.glsl agrees (checked when compiled: gl/program_sources.cpp).
+inline constexpr uint32_t kTieBits = 6;
+inline constexpr uint32_t kTieStepInverse = 1u << 22;  // 1 / kTieStep
 inline constexpr uint32_t kPickLimit = 1u << (32 - kTieBits);  // picks in a frame, at most
 // The tie-break of an object from its order key (Known::order_key: its slot), spread.
 inline uint32_t tie_of(uint32_t order_key) { return (order_key * 2654435761u) >> (32 - kTieBits); }
@@ -209,7 +211,7 @@ class GlBackend {
   // view.
   void begin_pass(const FrameView& view, const Plan& plan, bool with_ids);
   // One draw call per non-empty list, and the proxy boxes (instanced), in the order of the
-  // rules, in highlight mode `mode` (gl_shaders.h). see_through: every list blended at
+  // rules, in highlight mode `mode` (gl/shaders/object_table.glsl). see_through: every list blended at
   // `alpha`, depth not written, ids not written.
   void draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                   bool with_ids);
