@@ -5,7 +5,7 @@
 #include <initializer_list>
 
 #include "gl/shader_files.h"  // generated from gl/shaders/*.glsl (embed_shaders.cmake)
-#include "gl_backend.h"
+#include "gl/backend.h"
 
 namespace plantview::detail {
 
@@ -30,14 +30,14 @@ constexpr uint64_t glsl_constant(std::string_view text, std::string_view key, un
   return value;
 }
 
-// tie_constants.glsl and TableEntry::pick (gl_backend.h) agree.
+// tie_constants.glsl and TableEntry::pick (gl/backend.h) agree.
 constexpr std::string_view kTieText = kTieConstants.text;
 static_assert(glsl_constant(kTieText, "const uint kPickMask = 0x", 16) == kPickLimit - 1,
-              "tie_constants.glsl: kPickMask disagrees with kTieBits (gl_backend.h)");
+              "tie_constants.glsl: kPickMask disagrees with kTieBits (gl/backend.h)");
 static_assert(glsl_constant(kTieText, "const uint kTieShift = ", 10) == 32 - kTieBits,
-              "tie_constants.glsl: kTieShift disagrees with kTieBits (gl_backend.h)");
+              "tie_constants.glsl: kTieShift disagrees with kTieBits (gl/backend.h)");
 static_assert(glsl_constant(kTieText, "const float kTieStep = 1.0 / ", 10) == kTieStepInverse,
-              "tie_constants.glsl: kTieStep disagrees with kTieStepInverse (gl_backend.h)");
+              "tie_constants.glsl: kTieStep disagrees with kTieStepInverse (gl/backend.h)");
 
 const ShaderPart kVersion{"(version)", "#version 450 core\n"};
 
