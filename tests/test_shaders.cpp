@@ -55,16 +55,25 @@ std::string origin(const ShaderSource& shader, int line) {
   return "line " + std::to_string(line) + " (past the end)";
 }
 
-// glslangValidator's messages with each "ERROR: 0:<line>:" followed by the file and line of the
-// part it lies in.
-std::string with_origins(const std::string& output, const ShaderSource& shader) {
-  static const std::regex kLocation(R"(^(ERROR|WARNING): [0-9]+:([0-9]+):)");
+// glslangValidator's messages with each "ERROR: <file>:<line>:" (the file as its index when it
+// is the only one) followed by the .glsl file and line of the part it lies in. The compiler names
+// each file (`files`: path, shader) before its messages.
+std::string with_origins(const std::string& output,
+                         const std::vector<std::pair<std::string, const ShaderSource*>>& files) {
+  static const std::regex kLocation(R"(^(ERROR|WARNING): (\S+):([0-9]+):)");
   std::istringstream in(output);
   std::string line, out;
+  const ShaderSource* shader = nullptr;
   while (std::getline(in, line)) {
+    for (const auto& [path, s] : files)
+      if (line == path) shader = s;
     std::smatch m;
-    if (std::regex_search(line, m, kLocation))
-      line = m.str(1) + ": " + origin(shader, std::stoi(m.str(2))) + ":" + m.suffix().str();
+    if (std::regex_search(line, m, kLocation)) {
+      for (const auto& [path, s] : files)
+        if (m.str(2) == path) shader = s;
+      if (shader)
+        line = m.str(1) + ": " + origin(*shader, std::stoi(m.str(3))) + ":" + m.suffix().str();
+    }
     out += line + "\n";
   }
   return out;
@@ -102,43 +111,33 @@ TEST_F(ShaderCheck, EveryProgramCompilesAndLinksUnderTheReferenceCompiler) {
   if (!have_glslang())
     GTEST_SKIP() << "glslangValidator is missing (Debian: glslang-tools, scripts/deps.sh): the "
                     "shaders are not checked";
+  // One run a stage of each program: every shader compiled on its own (as glCompileShader sees
+  // it), then the stage's shaders linked (-l).
   int file_index = 0;
   for (const ProgramSource& program : every_program()) {
-    SCOPED_TRACE("program: " + std::string(program.name));
-    // Each shader on its own (as glCompileShader sees it), then each stage's shaders linked.
-    std::vector<std::pair<ShaderStage, std::string>> files;
-    bool compiled = true;
-    for (const ShaderSource& shader : program.shaders) {
-      std::string text;
-      for (const ShaderPart& part : shader.parts) {
-        ASSERT_TRUE(part.text.ends_with('\n')) << part.name << " does not end with a newline";
-        text += part.text;
-      }
-      const fs::path path = dir_ / ("shader" + std::to_string(file_index++) + "." +
-                                    std::string(stage_name(shader.stage)) + ".glsl");
-      std::ofstream(path) << text;
-      std::string output;
-      const int status = run("glslangValidator -S " + std::string(stage_name(shader.stage)) +
-                                 " '" + path.string() + "'", output);
-      EXPECT_EQ(status, 0) << "the " << stage_name(shader.stage) << " shader of "
-                           << parts_of(shader) << " does not compile:\n"
-                           << with_origins(output, shader);
-      compiled = compiled && status == 0;
-      files.emplace_back(shader.stage, path.string() + " (" + parts_of(shader) + ")");
-    }
-    if (!compiled) continue;  // (the link would repeat the messages)
     for (const ShaderStage stage : {ShaderStage::vertex, ShaderStage::geometry, ShaderStage::fragment}) {
+      std::vector<std::pair<std::string, const ShaderSource*>> files;
       std::string command = "glslangValidator -l -S " + std::string(stage_name(stage));
-      std::string shaders;
-      for (const auto& [s, path] : files)
-        if (s == stage) {
-          command += " '" + path.substr(0, path.find(' ')) + "'";
-          shaders += "  " + path + "\n";
+      std::string listing;
+      for (const ShaderSource& shader : program.shaders) {
+        if (shader.stage != stage) continue;
+        std::string text;
+        for (const ShaderPart& part : shader.parts) {
+          ASSERT_TRUE(part.text.ends_with('\n')) << part.name << " does not end with a newline";
+          text += part.text;
         }
-      if (shaders.empty()) continue;
+        const fs::path path = dir_ / ("shader" + std::to_string(file_index++) + "." +
+                                      std::string(stage_name(stage)) + ".glsl");
+        std::ofstream(path) << text;
+        files.emplace_back(path.string(), &shader);
+        command += " '" + path.string() + "'";
+        listing += "  " + path.string() + ": " + parts_of(shader) + "\n";
+      }
+      if (files.empty()) continue;
       std::string output;
       EXPECT_EQ(run(command, output), 0)
-          << "the " << stage_name(stage) << " shaders do not link:\n" << shaders << output;
+          << "the " << program.name << " program's " << stage_name(stage)
+          << " shaders do not compile or link:\n" << listing << with_origins(output, files);
     }
   }
 }
