@@ -10,7 +10,7 @@
 #include <random>
 #include <set>
 
-#include "gl_backend.h"
+#include "gl/backend.h"
 #include "hlod.h"
 #include "lod.h"
 #include "plantview/ingest.h"

@@ -10,7 +10,7 @@
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "frame_stats.h"
-#include "gl_backend.h"
+#include "gl/backend.h"
 #include "plantview/camera.h"
 #include "plantview/render.h"
 #include "plantview/store.h"

@@ -38,7 +38,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "gl_backend.h"
+#include "gl/backend.h"
 #include "plantview/render.h"
 #include "radix_sort.h"
 #include "streaming/residency.h"

@@ -1,7 +1,15 @@
-// GL backend: every OpenGL call of the renderer. Shaders (gl_shaders.h), the vertex arena's GPU
-// buffers (grown on demand up to the budget), the index, object-table and proxy buffers, the
-// framebuffers, drawing the frame's index lists, the ground, finishing the image (antialiasing,
-// ambient occlusion) and reading it back.
+// GL backend: every OpenGL call of the renderer, a pass per unit of render/src/gl:
+//   backend.cpp         init, the frame's order of passes (begin_frame, draw_phase, finish_frame)
+//   arena.cpp           the vertex arena's buffers (grown or mapped), the index buffers
+//   programs.{h,cpp}    compiling and linking, uniforms, stream buffers; the programs' sources
+//                       in program_sources.h, the shaders in shaders/*.glsl
+//   targets.cpp         the framebuffers, and how a look chooses them (Plan)
+//   objects.cpp         surfaces, proxy boxes, centrelines, see-through triangles; highlight
+//   ground.cpp          the ground
+//   finish.cpp          multisampling resolved, ambient occlusion, the finishing pass
+//   occlusion_test.cpp  the depth reduction and the box test (occlusion culling)
+//   readback.cpp        the image and object ids read back
+//   gpu_context.cpp     the EGL context (plantview/render.h: GpuContext)
 //
 // Rules
 //   - The arena is two GPU buffers indexed alike: vertices (PackedVertex) and the object-table
@@ -22,9 +30,9 @@
 //     (read back) before the next begins.
 //   - Draw order: closed opaque solids (back faces culled), open opaque meshes, proxy boxes
 //     (one object-table entry each, the faces the eye sees drawn from it in one draw: no arena
-//     vertices), centrelines (quads as wide as the pipe, blended), the ground (where nothing
-//     else is), then the see-through triangles blended without writing depth. Depth is
-//     reversed (greater wins).
+//     vertices), centrelines (quads as wide as the pipe, blended), then the see-through
+//     triangles blended without writing depth; after the frame's last phase, the ground (where
+//     nothing that writes depth is). Depth is reversed (greater wins).
 //   - Highlight (Look::highlight_ids non-empty): the subject is drawn first, marking its pixels
 //     in the stencil; the context (every other object, ghosted: lighter, desaturated, pick 0)
 //     then where the subject is not, and once more, blended faintly and without depth, where it
@@ -55,6 +63,8 @@
 #include "plantview/primitives.h"
 #include "plantview/render.h"
 
+#include "gl/program_sources.h"
+
 namespace plantview::detail {
 
 struct FrameView;
@@ -73,7 +83,9 @@ struct TableEntry {
   uint32_t pick;
 };
 static_assert(sizeof(TableEntry) == 32);
-inline constexpr uint32_t kTieBits = 6;  // gl_shaders.h: PLANTVIEW_TIE_CONSTANTS agrees
+// gl/shaders/tie_constants.glsl agrees (checked when compiled: gl/program_sources.cpp).
+inline constexpr uint32_t kTieBits = 6;
+inline constexpr uint32_t kTieStepInverse = 1u << 22;  // 1 / kTieStep
 inline constexpr uint32_t kPickLimit = 1u << (32 - kTieBits);  // picks in a frame, at most
 // The tie-break of an object from its order key (Known::order_key: its slot), spread.
 inline uint32_t tie_of(uint32_t order_key) { return (order_key * 2654435761u) >> (32 - kTieBits); }
@@ -209,7 +221,7 @@ class GlBackend {
   // view.
   void begin_pass(const FrameView& view, const Plan& plan, bool with_ids);
   // One draw call per non-empty list, and the proxy boxes (instanced), in the order of the
-  // rules, in highlight mode `mode` (gl_shaders.h). see_through: every list blended at
+  // rules, in highlight mode `mode` (gl/shaders/object_table.glsl). see_through: every list blended at
   // `alpha`, depth not written, ids not written.
   void draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                   bool with_ids);
@@ -242,9 +254,8 @@ class GlBackend {
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
   bool bounded_drawing_ = false;
-  GlName surface_program_ = 0, proxy_program_ = 0, centreline_program_ = 0, ground_program_ = 0,
-         occlusion_program_ = 0, finish_program_ = 0, reduce_program_ = 0,
-         reduce_multisampled_program_ = 0, box_test_program_ = 0;
+  std::array<GlName, kProgramCount> programs_{};  // linked at init(), by ProgramId
+  GlName gl_program(ProgramId id) const { return programs_[size_t(id)]; }
   GlName box_buffer_ = 0, seen_buffer_ = 0;
   size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
   GlName vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0, table_buffer_ = 0,
