@@ -973,7 +973,7 @@ TEST(RenderArena, AModelLargerThanTheBudgetIsDrawnInPiecesToTheSameImage) {
   EXPECT_EQ(pieces.image.object_ids, whole.image.object_ids);
 }
 
-// The arena's two kinds of memory (gl_backend.h): grown GPU buffers report the time each
+// The arena's two kinds of memory (gl/backend.h): grown GPU buffers report the time each
 // growth took; on a software renderer that can draw from client memory, the whole budget is
 // mapped at once and never grows.
 TEST(RenderArena, AGrownArenaAtLeastDoublesAndReportsTheTimeItTook) {

@@ -107,7 +107,7 @@ void ArenaStreaming::tessellate(const std::vector<Primitive>& primitives, Known&
                    std::span<PackedVertex>(scratch.data() + part.first_vertex, part.plan->vertex_count));
   }
   for (size_t s = 0; s < k.centreline.size(); ++s) {
-    // A centreline's normal word is its diameter (gl_backend.h).
+    // A centreline's normal word is its diameter (gl/backend.h).
     const uint32_t diameter = std::bit_cast<uint32_t>(k.centreline[s].diameter_m);
     scratch[k.centreline_first + 2 * s] = {k.centreline[s].start_m, diameter};
     scratch[k.centreline_first + 2 * s + 1] = {k.centreline[s].end_m, diameter};
