@@ -592,6 +592,34 @@ TEST(RenderLook, TheGroundIsDrawnBelowThePlantAndNotAboveTheHorizon) {
   EXPECT_TRUE(is_sky(below, 2, 3));
 }
 
+// A see-through object (alpha under 255) standing on the ground is seen: its colour blends
+// over the ground behind it, and the ground is not drawn over it.
+TEST(RenderLook, ASeeThroughObjectOverTheGroundKeepsItsColour) {
+  TempDir dir;
+  const auto pad = make_object("pad", ObjectClass::structure, {0, 0, 0.05}, Box{20, 20, 0.1f}, {120, 120, 120, 255});
+  const auto glass = make_object("glass", ObjectClass::equipment, {0, 0, 2}, Box{3, 3, 3}, {30, 60, 230, 128});
+  auto store = make_store(dir, {pad, glass});
+  RenderOptions options = small();
+  options.ambient_occlusion = false;
+  const uint32_t w = 160, h = 120;
+  // From above and beside: the glass box's upper part is seen against the ground beyond the pad.
+  const Camera camera = look({0, -14, 6}, {0, 0, 1.5});
+  for (const bool ground : {false, true}) {
+    options.ground = ground;
+    auto r = make_renderer(*store, options);
+    Frame f = render(*r, camera, w, h);
+    size_t blue = 0, glass_pixels = 0;
+    for (size_t i = 0; i < size_t(w) * h; ++i) {
+      if (f.image.object_ids[i] != glass.id) continue;
+      ++glass_pixels;
+      const uint8_t* p = &f.image.rgba[4 * i];
+      blue += p[2] > p[0] + 40;
+    }
+    EXPECT_GT(glass_pixels, 200u) << "ground " << ground;
+    EXPECT_GT(blue, glass_pixels * 9 / 10) << "ground " << ground;
+  }
+}
+
 // A highlight: the id buffer holds the subject's id and 0 only; the subject shows through the
 // object in front of it; the others are ghosted (lighter, greyer than drawn plainly); a plain
 // frame after it is as before it.

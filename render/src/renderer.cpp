@@ -247,7 +247,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   // Backend: the ground, finishing and read back (render() only).
   if (draw) {
     // With the next view expected, its start is made while the GPU draws this one.
-    backend.finish_frame(frame_view, look, with_ids, !next);
+    backend.finish_frame(frame_view, with_ids, !next);
     times.draw += clock.lap();
     std::span<const uint64_t> pick_ids = streaming.table().pick_ids();
     if (next) {

@@ -188,12 +188,14 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
     const float far_depth = 0.0f;  // reversed depth
     glClearNamedFramebufferfv(scene_.framebuffer, GL_DEPTH, 0, &far_depth);
   }
+  // The ground first: what stands on it is drawn over it, and what is blended (see-through
+  // triangles, centrelines' feathered edges) blends over it rather than being painted over.
+  if (look.ground) draw_ground(view, look.model_bounds, with_ids);
   final_ = nullptr;
   return true;
 }
 
-void GlBackend::finish_frame(const FrameView& view, const Look& look, bool with_ids, bool wait) {
-  if (look.ground) draw_ground(view, look.model_bounds, with_ids);
+void GlBackend::finish_frame(const FrameView& view, bool with_ids, bool wait) {
   finish(view, frame_plan_, with_ids);
   if (wait)
     glFinish();

@@ -28,11 +28,12 @@
 //   - The index buffer holds the frame's lists one after the other in IndexList order; it is
 //     written through an unsynchronised mapping, which is safe because every frame is finished
 //     (read back) before the next begins.
-//   - Draw order: closed opaque solids (back faces culled), open opaque meshes, proxy boxes
+//   - Draw order: the ground first (seen from above only; its depth is written a little farther
+//     than its plane, so that what stands on it is drawn over it and what is blended blends
+//     over it), then closed opaque solids (back faces culled), open opaque meshes, proxy boxes
 //     (one object-table entry each, the faces the eye sees drawn from it in one draw: no arena
 //     vertices), centrelines (quads as wide as the pipe, blended), then the see-through
-//     triangles blended without writing depth; after the frame's last phase, the ground (where
-//     nothing that writes depth is). Depth is reversed (greater wins).
+//     triangles blended without writing depth. Depth is reversed (greater wins).
 //   - Highlight (Look::highlight_ids non-empty): the subject is drawn first, marking its pixels
 //     in the stencil; the context (every other object, ghosted: lighter, desaturated, pick 0)
 //     then where the subject is not, and once more, blended faintly and without depth, where it
@@ -160,18 +161,18 @@ class GlBackend {
   void use_next_indices();
 
   // A frame, drawn in one phase or more (occlusion culling's two phases, occlusion.h):
-  // begin_frame() makes the targets for the view's size and clears them; each draw_phase()
+  // begin_frame() makes the targets for the view's size, clears them and draws the ground (as
+  // `look` says); each draw_phase()
   // draws its lists (counts per list, as written) and its proxy boxes, one per entry of
   // `proxy_tables`, with the object table `table` (its pick values index `pick_ids`), as `look`
   // says, into the same framebuffer without clearing (`wait`: returns once the GPU has drawn
   // them); reduce_depth() reads what has been drawn back as a coarse depth grid;
-  // finish_frame() draws the ground, finishes the image into the output's size and waits for
-  // the GPU (`wait` false: sends it all to the GPU and returns; wait() then waits).
+  // finish_frame() finishes the image into the output's size and waits for the GPU (`wait` false: sends it all to the GPU and returns; wait() then waits).
   bool begin_frame(const FrameView& view, const Look& look, bool with_ids, std::string& error);
   void draw_phase(const FrameView& view, const IndexCounts& counts,
                   std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
                   std::span<const uint64_t> pick_ids, const Look& look, bool with_ids, bool wait);
-  void finish_frame(const FrameView& view, const Look& look, bool with_ids, bool wait = true);
+  void finish_frame(const FrameView& view, bool with_ids, bool wait = true);
   void wait();
   // The depth drawn so far in the frame, reduced to cells_width x cells_height cells over the
   // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
