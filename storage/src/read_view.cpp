@@ -27,8 +27,9 @@ using detail::data_file_complete;
 
 namespace {
 
-// Decompressed chunks a read view keeps: 32 x 64 objects (about 0.5 MB for generated plants)
-// and 2 x 256 objects' attributes, each column within 16 MB (chunks of big meshes are big).
+// Decompressed chunks a read view keeps: 32 chunks of about 150 objects (about 1 MB for
+// generated plants) and 2 chunks of attributes, each column within 16 MB (chunks of big meshes
+// are big).
 constexpr size_t kObjectChunksCached = 32;
 constexpr size_t kAttributeChunksCached = 2;
 constexpr size_t kViewChunkBytes = size_t(16) << 20;
@@ -61,9 +62,8 @@ struct ReadView::State {
 
   explicit State(const std::shared_ptr<Store::State>& s)
       : store(s),
-        objects(s->dbs.objects, detail::kObjectShape, kObjectChunksCached, kViewChunkBytes),
-        attributes(s->dbs.attributes, detail::kAttributeShape, kAttributeChunksCached,
-                   kViewChunkBytes) {}
+        objects(s->dbs.objects, kObjectChunksCached, kViewChunkBytes),
+        attributes(s->dbs.attributes, kAttributeChunksCached, kViewChunkBytes) {}
 
   // The snapshot's spatial top, decoded on first use (by this or another view of the state).
   const detail::DecodedTop& top() {

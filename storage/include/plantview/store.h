@@ -1,24 +1,28 @@
 // plantview/store.h: the plant store. A plant model kept as parameters only, in one LMDB
 // environment (a directory), read by renderers and services while imports write.
 //
-// Schema, format 4 (LMDB named databases; integers in keys are big-endian so that keys sort
+// Schema, format 5 (LMDB named databases; integers in keys are big-endian so that keys sort
 // numerically):
 //   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
-//                                else, and a store of another version is refused (a format 3
-//                                store: "import or generate it again")
+//                                else, and a store of another version is refused (a format 3 or
+//                                4 store: "import or generate it again")
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
 //               "next_slot"   -> u32, the slot the next object gets
 //               "spatial_top" -> zstd: the top of the spatial hierarchy (spatial.h): the spatial
 //                                origin, the entry and block counts, each block's count and grid
 //                                bounds, and the far-field proxy of every top node
-//   objects     chunk (u32)   -> the object records of slots [chunk * 64, chunk * 64 + 64), one
-//                                zstd frame: id, class, colour, origin, name, source,
-//                                primitives, piping topology (layouts in chunks.h and record.h).
-//                                Format 3 kept 32 chunks a value; format 4 keeps values to a
-//                                page or two, which bounds an import's memory (below)
-//   attributes  chunk (u32)   -> the same for the objects' key/value attributes: chunks of 256
-//                                slots
+//   objects     first slot (u32) -> a chunk: the object records of consecutive slots from that
+//                                one, as one zstd frame (id, class, colour, origin, name, source,
+//                                primitives, piping topology; layouts in chunks.h and record.h).
+//                                Chunks are cut by compressed bytes, so that each value fills
+//                                two pages of the data file (about 150 generated objects): the
+//                                slot of a record is found by the greatest key not above it.
+//                                Format 4 cut a chunk every 64 slots, and LMDB's rounding of
+//                                each value to whole pages made preset c half as big again;
+//                                format 3 kept 32 chunks a value, which left an import's memory
+//                                unbounded (below)
+//   attributes  first slot (u32) -> the same for the objects' key/value attributes
 //   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
 //                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
 //                                an object on disk)
@@ -31,8 +35,9 @@
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
-// the chunk it is in; every import writes the spatial blocks and the top again (the ids and
-// names are updated key by key).
+// the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
+// every import writes the spatial blocks and the top again (the ids and names are updated key
+// by key).
 //
 // Transactions and lifetimes
 //   - An Import is one LMDB write transaction: until commit() nothing is visible, and a failed,
@@ -43,8 +48,8 @@
 //     into free pages of the data file beyond it, never over a page a committed state uses, and
 //     the meta page that makes them the store's state is written only by the commit. The limit
 //     counts values, not bytes (131071 dirty entries: a page, or one value of several pages):
-//     so every value an import writes is a page or a few (a chunk of records, an index page, a
-//     spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed
+//     so every value an import writes is a page or a few (a chunk of records of two pages, an
+//     index page, a spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed
 //     process's pages are unreachable, and the next writer reuses them. (No MDB_WRITEMAP: the
 //     guarantee does not need it, and it would write dirty pages in place through the map,
 //     where they count in the process's memory until written back.)
@@ -80,8 +85,8 @@
 //     resident set once decoded, and a view drops the pages of the chunks it has decompressed
 //     every 256 chunks and when destroyed (the kernel's page cache keeps them all: reading them
 //     again costs a minor fault).
-//   - object() decompresses the 64-slot chunk holding the slot and keeps the view's 32 most
-//     recently used chunks: fetching neighbouring slots costs one decompression per chunk.
+//   - object() decompresses the chunk holding the slot (about 150 generated objects, found by a
+//     cursor lookup) and keeps the view's 32 most recently used chunks: fetching neighbouring slots costs one decompression per chunk.
 //     Decompressed chunks are also shared by the views of one committed state, up to
 //     kChunkCacheBytes (least recently used go first; a chunk a view keeps stays alive with it):
 //     a chunk another view, or an earlier one, decompressed is not decompressed again. (Preset c
@@ -130,7 +135,7 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 4;
+inline constexpr uint32_t kStoreFormatVersion = 5;
 // Objects in a spatial block (the last block of a store may hold fewer).
 inline constexpr uint32_t kSpatialBlockObjects = 2048;
 // Boxes in a top node's far-field proxy, at most.
@@ -311,11 +316,11 @@ class ReadView {
   uint64_t chunks_decompressed() const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
-  // its record is corrupt (error says which). Cost: decompressing the slot's chunk of 64 slots
-  // (about 10 microseconds) unless it is one of the view's 32 most recently used; so fetch a
+  // its record is corrupt (error says which). Cost: decompressing the slot's chunk (two
+  // pages compressed, a few hundred slots: tens of microseconds) unless it is one of the view's 32 most recently used; so fetch a
   // batch of slots in ascending order (a renderer's newly visible objects, sorted), and each
   // chunk is decompressed once. Slots follow import order, which keeps a pipe run's parts
-  // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
+  // together but is only loosely spatial: a leaf of the hierarchy spans one to a few chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
   // The id and pipeline id of the object in a slot, from the first bytes of its record: the
   // same chunk as object() (so as cheap once a neighbour was read) without decoding the rest,
