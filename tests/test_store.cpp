@@ -26,6 +26,7 @@
 #include "lmdb_guard.h"
 #include "record.h"
 #include "spatial.h"
+#include "store_internal.h"
 #include "tables.h"
 #include "support/temp_dir.h"
 
@@ -1517,6 +1518,122 @@ TEST(Store, AnImportKilledPartWayLeavesExactlyTheEarlierContents) {
     const std::string source = "b" + std::to_string(attempt);
     import_objects(*store, {sample_object(source, "/B" + std::to_string(attempt), {})}, source);
   }
+}
+
+uint32_t index_key_bits_of(const std::string& dir) {
+  MDB_env* env = nullptr;
+  EXPECT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 12);
+  EXPECT_EQ(mdb_env_open(env, dir.c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  uint32_t bits = 0;
+  if (mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn) == MDB_SUCCESS) {
+    MDB_val k{14, const_cast<char*>("index_key_bits")}, v;
+    if (mdb_dbi_open(txn, "meta", 0, &dbi) == MDB_SUCCESS &&
+        mdb_get(txn, dbi, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
+      std::memcpy(&bits, v.mv_data, 4);
+    }
+    mdb_txn_abort(txn);
+  }
+  mdb_env_close(env);
+  return bits;
+}
+
+// meta/"index_key_bits" of the store in `dir` (0 when absent). LMDB must not have an environment
+// open twice in one process: `store` is closed meanwhile and opened again.
+uint32_t index_key_bits_of(const std::string& dir, std::unique_ptr<Store>& store) {
+  store.reset();
+  const uint32_t bits = index_key_bits_of(dir);
+  store = open_store(dir);
+  return bits;
+}
+TEST(StoreIndexes, TheKeyWidthFollowsTheObjectCountAndChangesOnlyWhenItDoublesOrHalves) {
+  using detail::index_key_bits;
+  // Empty indexes take the width of about 32 entries a key (preset c, its x100 and x1000).
+  EXPECT_EQ(index_key_bits(0, 0), 8u);
+  EXPECT_EQ(index_key_bits(40746, 0), 10u);
+  EXPECT_EQ(index_key_bits(4074822, 0), 17u);
+  EXPECT_EQ(index_key_bits(40746000, 0), 20u);
+  EXPECT_EQ(index_key_bits(uint64_t(1) << 40, 0), detail::kMaxIndexKeyBits);
+  // A width is kept while its keys hold 16 to 64 entries on average.
+  EXPECT_EQ(index_key_bits(16 * 1024, 10), 10u);
+  EXPECT_EQ(index_key_bits(16 * 1024 - 1, 10), 9u);
+  EXPECT_EQ(index_key_bits(64 * 1024 - 1, 10), 10u);
+  EXPECT_EQ(index_key_bits(64 * 1024, 10), 11u);
+  EXPECT_EQ(index_key_bits(300 * 1024, 10), 13u);
+  // At the bounds whatever the count.
+  EXPECT_EQ(index_key_bits(1, 8), 8u);
+  EXPECT_EQ(index_key_bits(uint64_t(1) << 40, 24), 24u);
+}
+
+// The ids and names are written again with another key width when an import doubles the store
+// or takes most of it away; every lookup answers as before, in the same import as a replacement
+// (looked up with the old width) and afterwards.
+TEST(StoreIndexes, TheIndexesAreReKeyedAsTheStoreGrowsAndShrinksAndEveryLookupFollows) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::map<uint64_t, Object> expected;
+  std::vector<Object> a, b;
+  for (int i = 0; i < 1000; ++i) a.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  for (int i = 0; i < 20000; ++i) b.push_back(box_object("b", i, {i * 1.0, 5, 0}));
+  // (Box names are "/BOX-<i>" in every source: a's 1,000 names are also b's first 1,000.)
+  import_objects(*store, a, "a");
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 8u);
+  for (const Object& o : a) expected.emplace(o.id, o);
+  expect_indexes_agree(*store);
+
+  // 21,000 objects: 82 a key at 8 bits, so 9 (41 a key). One of a's objects is replaced in the
+  // same import.
+  {
+    std::string error;
+    auto import = store->begin_import(error);
+    ASSERT_TRUE(import) << error;
+    for (const Object& o : b) ASSERT_TRUE(import->put(o, error)) << error;
+    Object again = a[500];
+    again.colour = {1, 2, 3, 4};
+    ASSERT_TRUE(import->put(again, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+    for (const Object& o : b) expected.emplace(o.id, o);
+    expected[again.id] = again;
+  }
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 9u);
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
+  expect_indexes_agree(*store);
+
+  // Within the width's band nothing is written again: 19,000 objects are 37 a key.
+  import_objects(*store, std::vector<Object>(b.begin(), b.begin() + 18000), "b");
+  for (size_t i = 18000; i < b.size(); ++i) expected.erase(b[i].id);
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 9u);
+  expect_indexes_agree(*store);
+
+  // Back to 1,000: 2 a key at 9 bits, so 8 again.
+  import_objects(*store, {}, "b");
+  for (size_t i = 0; i < 18000; ++i) expected.erase(b[i].id);
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 8u);
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
+  expect_indexes_agree(*store);
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_FALSE(view->slot_of(b[0].id));
+  EXPECT_EQ(view->slots_named(b[5000].name).size(), 0u);
+  EXPECT_EQ(view->slots_named(a[1].name).size(), 1u);
+}
+
+TEST(StoreIndexes, ADamagedKeyWidthIsRefusedNamingTheKey) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+  }
+  const uint32_t too_wide = 25;
+  const uint8_t three_bytes[3] = {8, 0, 0};
+  put_raw(dir.str(), "meta", "index_key_bits",
+          std::span(reinterpret_cast<const uint8_t*>(&too_wide), 4));
+  expect_refused_untouched(dir.str(), {dir.str(), "meta/\"index_key_bits\" is damaged"});
+  put_raw(dir.str(), "meta", "index_key_bits", three_bytes);
+  expect_refused_untouched(dir.str(), {dir.str(), "meta/\"index_key_bits\" is damaged"});
 }
 
 }  // namespace

@@ -107,12 +107,12 @@ bool Import::State::remove_slot(uint32_t slot, std::string& error) {
   std::vector<detail::SlotRun>* unused;
   if (!source_runs(old.source, unused, error)) return false;
   if (slot < first_new_slot) {
-    const IdEntry id(old.id, slot);
+    const IdEntry id(old.id, slot, index_key_bits);
     MDB_val k = id.key_val(), v = id.value_val();
     int rc = mdb_del(txn.get(), store->dbs.ids, &k, &v);
     if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;  // the id is another slot's (or nobody's)
     if (rc == MDB_SUCCESS) {
-      const NameEntry name(name_hash(old.name), slot);
+      const NameEntry name(name_hash(old.name), slot, index_key_bits);
       MDB_val nk = name.key_val(), nv = name.value_val();
       rc = mdb_del(txn.get(), store->dbs.names, &nk, &nv);
       if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
@@ -188,7 +188,8 @@ bool Import::put(const Object& object, std::string& error) {
   // An object committed with the same id is replaced (one put twice in this import is resolved
   // at commit: the later wins).
   {
-    const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, object.id, s.slots, 1);
+    const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, s.index_key_bits, object.id,
+                                   s.slots, 1);
     if (rc != MDB_SUCCESS) {
       error = s.fail("looking up id " + std::to_string(object.id), rc);
       return false;
@@ -264,6 +265,10 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
     return nullptr;
   }
   s->next_slot = read_next_slot(txn, state_->dbs.meta);
+  if (!detail::read_index_key_bits(txn, state_->dbs.meta, s->index_key_bits)) {
+    error = "store " + state_->directory + ": meta/\"index_key_bits\" is damaged";
+    return nullptr;
+  }
   s->first_new_slot = s->next_slot;
   // The spatial origin, fixed by the first objects with geometry ever imported.
   detail::DecodedTop top;

@@ -23,6 +23,80 @@ using detail::HashSlot;
 using detail::SpatialItem;
 using detail::SpatialItemLess;
 
+bool Import::State::rekey_indexes(std::string& error) {
+  const Databases& dbs = store->dbs;
+  bool ids_empty, names_empty;
+  if (!database_empty(dbs.ids, ids_empty, error) ||
+      !database_empty(dbs.names, names_empty, error)) {
+    return false;
+  }
+  const bool empty = ids_empty && names_empty;
+  const unsigned bits = detail::index_key_bits(totals.objects, empty ? 0 : index_key_bits);
+  if (bits == index_key_bits) return true;
+  if (empty) {
+    index_key_bits = bits;
+    return true;
+  }
+  // Entries read in place from the map count in the resident set (at 40 million objects the
+  // indexes are about 0.8 GB): the span of the map read is given back every so many entries.
+  // Pages this transaction changed are in the heap, not the map, and are never given back.
+  MDB_envinfo env_info;
+  mdb_env_info(store->env.get(), &env_info);
+  const auto* map_begin = static_cast<const uint8_t*>(env_info.me_mapaddr);
+  const uint8_t* map_end = map_begin + env_info.me_mapsize;
+  const uint8_t *read_begin = nullptr, *read_end = nullptr;
+  const auto release = [&] {
+    if (read_begin) detail::release_map_pages(read_begin, size_t(read_end - read_begin));
+    read_begin = read_end = nullptr;
+  };
+  const auto move = [&](MDB_dbi dbi, const char* what, auto decode_add) {
+    detail::LmdbCursor cursor;
+    int rc = cursor.open(txn.get(), dbi);
+    MDB_val k, v;
+    uint64_t entries = 0;
+    if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_FIRST);
+    while (rc == MDB_SUCCESS) {
+      const auto* p = static_cast<const uint8_t*>(v.mv_data);
+      if (p >= map_begin && p < map_end) {
+        read_begin = read_begin ? std::min(read_begin, p) : p;
+        read_end = std::max(read_end, p + v.mv_size);
+      }
+      if (++entries % (uint64_t(1) << 16) == 0) release();
+      std::string why;
+      if (!decode_add(k, v, why)) {
+        error = message(std::string("re-keying the ") + what + ": " + why);
+        return false;
+      }
+      rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
+    }
+    release();
+    if (rc == MDB_NOTFOUND) rc = mdb_drop(txn.get(), dbi, 0);
+    if (rc != MDB_SUCCESS) error = fail(std::string("re-keying the ") + what, rc);
+    return rc == MDB_SUCCESS;
+  };
+  const unsigned old_bits = index_key_bits;
+  const auto malformed = [&](std::string& why) {
+    why = "an entry of another size than keys of " + std::to_string(old_bits) + " bits make";
+    return false;
+  };
+  const bool moved =
+      move(dbs.ids, "ids",
+           [&](const MDB_val& k, const MDB_val& v, std::string& why) {
+             IdSlot e{};
+             if (!IdEntry::decode(k, v, old_bits, e.id, e.slot)) return malformed(why);
+             return new_ids.add(e, why);
+           }) &&
+      move(dbs.names, "names", [&](const MDB_val& k, const MDB_val& v, std::string& why) {
+        HashSlot e{};
+        uint64_t hash;
+        if (!NameEntry::decode(k, v, old_bits, hash, e.slot)) return malformed(why);
+        e.hash = uint32_t(hash);
+        return new_names.add(e, why);
+      });
+  if (moved) index_key_bits = bits;
+  return moved;
+}
+
 // The ids: this import's (id, slot) in id order; of an id put more than once the latest slot
 // wins and the earlier ones are removed now. Appended when the database was empty.
 bool Import::State::merge_ids(std::string& error) {
@@ -39,7 +113,7 @@ bool Import::State::merge_ids(std::string& error) {
   IndexAppender<64> out{txn.get(), store->dbs.ids, empty};
   const auto write = [&](const IdSlot& e) {
     if (is_removed(e.slot)) return true;
-    const int rc = out.put(IdEntry(e.id, e.slot));
+    const int rc = out.put(IdEntry(e.id, e.slot, index_key_bits));
     if (rc != MDB_SUCCESS) error = fail("writing the ids", rc);
     return rc == MDB_SUCCESS;
   };
@@ -76,7 +150,7 @@ bool Import::State::merge_names(std::string& error) {
   IndexAppender<32> out{txn.get(), store->dbs.names, empty};
   while (merger.next(e, done, why)) {
     if (is_removed(e.slot)) continue;
-    const int rc = out.put(NameEntry(e.hash, e.slot));
+    const int rc = out.put(NameEntry(e.hash, e.slot, index_key_bits));
     if (rc != MDB_SUCCESS) {
       error = fail("writing the names", rc);
       return false;
@@ -259,7 +333,7 @@ bool Import::State::commit(std::string& error) {
   State& s = *this;
   const Databases& dbs = s.store->dbs;
   // Ids first: resolving an id put twice removes slots, which the other merges then leave out.
-  if (!s.merge_ids(error)) return false;
+  if (!s.rekey_indexes(error) || !s.merge_ids(error)) return false;
   detail::import_stage("ids merged");
   if (!s.objects.flush(s.txn.get(), error) || !s.attributes.flush(s.txn.get(), error)) return false;
   if (!s.merge_names(error) || !s.write_sources(error) || !s.write_spatial(error)) return false;
@@ -272,9 +346,11 @@ bool Import::State::commit(std::string& error) {
   };
   const std::string stats = statistics_json(s.totals);
   const uint32_t version = kStoreFormatVersion;
+  const uint32_t key_bits = s.index_key_bits;
   const uint64_t commit_id = mix_digest(read_commit_id(s.txn.get(), dbs.meta), s.changes_digest);
   if (!put_meta("statistics", stats.data(), stats.size()) ||
       !put_meta("next_slot", &s.next_slot, sizeof s.next_slot) ||
+      !put_meta("index_key_bits", &key_bits, sizeof key_bits) ||
       !put_meta("format", &version, sizeof version) ||
       !put_meta("commit_id", &commit_id, sizeof commit_id)) {
     return false;
@@ -284,6 +360,10 @@ bool Import::State::commit(std::string& error) {
     error = s.fail("committing the import", rc);
     return false;
   }
+  // The commit stands whatever this says (Import::commit() is false only for a store left as it
+  // was): a file it could not extend is refused by the next open(), naming the size it needs.
+  std::string ignored;
+  detail::cover_free_tail(s.store->env.get(), s.store->directory, ignored);
   return true;
 }
 

@@ -54,6 +54,9 @@ struct Import::State {
   uint32_t next_slot = 0;
   uint32_t first_new_slot = 0;   // this import's objects are in [first_new_slot, next_slot)
   bool has_origin = false;       // the spatial origin is fixed (committed, or by this import)
+  // The key width of ids/ and names/ as they are in this transaction (the committed one until
+  // the commit re-keys them; see rekey_indexes()).
+  unsigned index_key_bits = detail::kMinIndexKeyBits;
   glm::dvec3 origin{0.0};
   // Every slot this import removed, one bit a slot (slots are never reused): the import's only
   // memory per slot.
@@ -118,6 +121,10 @@ struct Import::State {
 
   bool database_empty(MDB_dbi dbi, bool& empty, std::string& error);
 
+  // Chooses the key width of ids/ and names/ for the store's count after this import
+  // (index_key_bits()); when it differs from theirs, moves their entries into this import's
+  // runs and empties them, so that the merges write everything again with the new width.
+  bool rekey_indexes(std::string& error);
   bool merge_ids(std::string& error);
   bool merge_names(std::string& error);
   bool write_sources(std::string& error);

@@ -125,10 +125,22 @@ struct ReadView::State {
     return out;
   }
 
+  // Whether the snapshot knows the key width of the ids and names (else `error` says why).
+  bool index_readable(const std::string& what, std::string& error) const {
+    if (snapshot->index_key_bits != 0) return true;
+    error = "store " + store->directory + ": " + what +
+            ": meta/\"index_key_bits\" is damaged (not a u32 from " +
+            std::to_string(detail::kMinIndexKeyBits) + " to " +
+            std::to_string(detail::kMaxIndexKeyBits) + ")";
+    return false;
+  }
+
   // The slots under the hash of `name` in the names database, in slot order (unconfirmed).
   bool name_candidates(std::string_view name, std::vector<uint32_t>& candidates,
                        std::string& error) {
-    const int rc = index_slots<32>(txn.get(), store->dbs.names, name_hash(name), candidates);
+    if (!index_readable("reading the names", error)) return false;
+    const int rc = index_slots<32>(txn.get(), store->dbs.names, snapshot->index_key_bits,
+                                   name_hash(name), candidates);
     if (rc != MDB_SUCCESS) {
       error = lmdb_message(store->directory, "reading the names", rc);
       return false;
@@ -300,7 +312,9 @@ bool ReadView::slot_of(uint64_t id, std::optional<uint32_t>& slot, std::string& 
   slot.reset();
   std::vector<uint32_t> slots;
   const void* value = nullptr;
-  const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, id, slots, 1, &value);
+  if (!s.index_readable("looking up id " + std::to_string(id), error)) return false;
+  const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, s.snapshot->index_key_bits, id,
+                                 slots, 1, &value);
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(s.store->directory, "looking up id " + std::to_string(id), rc);
     return false;

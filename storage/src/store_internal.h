@@ -6,6 +6,7 @@
 #include <lmdb.h>
 
 #include <atomic>
+#include <cassert>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -58,11 +59,28 @@ bool read_top(MDB_txn* txn, MDB_dbi meta, bool read_once, ZSTD_DCtx* dctx, detai
 
 uint32_t read_next_slot(MDB_txn* txn, MDB_dbi meta);
 
-// ids/ and names/ are MDB_DUPSORT | MDB_DUPFIXED databases: a short key (the top 16 bits of the
-// id or name hash, big-endian) and, under it, sorted fixed-size values packed into pages (the
-// rest of the id or hash, then the slot, big-endian): about 11 and 7 bytes an object on disk
-// where a key and value per object would take 22 and 18.
+// ids/ and names/ are MDB_DUPSORT | MDB_DUPFIXED databases: a short key (the top `bits` bits of
+// the id or name hash, big-endian in (bits + 7) / 8 bytes) and, under it, sorted fixed-size
+// values packed into pages (the rest of the id or hash, big-endian in as few bytes as hold it,
+// then the slot, big-endian). LMDB costs a key about 28 bytes (node, sub-page header and index)
+// and keeps up to about 200 of its values in a sub-page of the leaf (beyond that a B-tree of its
+// own, of whole pages), so a key should hold tens of values: the width follows the store's
+// object count (index_key_bits()), kept in meta/"index_key_bits".
 constexpr unsigned kIndexFlags = MDB_DUPSORT | MDB_DUPFIXED;
+inline constexpr unsigned kMinIndexKeyBits = 8;
+inline constexpr unsigned kMaxIndexKeyBits = 24;
+
+// The key width for a store of `objects` objects whose indexes have keys of `current` bits (0:
+// the indexes are empty, any width will do): about 32 values a key (measured on preset c and
+// its x100: the ids take 15.3 and 13.3 bytes an object, the names 9.5 and 7.9; 16 bits took
+// 19.9 and 14.3, 14.6 and 7.8). A width is kept while its keys hold 16 to 64 values on
+// average, so that the indexes are written again (re-keyed) only after the count has doubled
+// or halved.
+unsigned index_key_bits(uint64_t objects, unsigned current);
+
+// meta/"index_key_bits" as committed in `txn` (kMinIndexKeyBits when absent: the indexes are
+// empty). False when the value is not a u32 within [kMinIndexKeyBits, kMaxIndexKeyBits].
+bool read_index_key_bits(MDB_txn* txn, MDB_dbi meta, unsigned& bits);
 
 inline void put_be(unsigned char* out, uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) out[i] = static_cast<unsigned char>(v >> (8 * (bytes - 1 - i)));
@@ -74,41 +92,57 @@ inline uint64_t get_be(const void* in, int bytes) {
   return v;
 }
 
-// An entry of ids/ (id, slot) or of names/ (32-bit name hash, slot): key and value bytes.
+// An entry of ids/ (id, slot: KeyBits 64) or of names/ (32-bit name hash, slot: KeyBits 32)
+// with keys of `bits` bits: key and value bytes.
 template <int KeyBits>
 struct IndexEntry {
-  static constexpr int kRestBytes = (KeyBits - 16) / 8;
-  static constexpr int kValueBytes = kRestBytes + 4;
-  unsigned char key[2];
-  unsigned char value[kValueBytes];
-  IndexEntry(uint64_t k, uint32_t slot) {
-    put_be(key, k >> (KeyBits - 16), 2);
-    put_be(value, k, kRestBytes);
-    put_be(value + kRestBytes, slot, 4);
+  static_assert(KeyBits - int(kMaxIndexKeyBits) >= 8, "the rest needs a byte at least");
+  int key_bytes, rest_bytes;
+  unsigned char key[(kMaxIndexKeyBits + 7) / 8];
+  unsigned char value[(KeyBits - kMinIndexKeyBits + 7) / 8 + 4];
+  IndexEntry(uint64_t k, uint32_t slot, unsigned bits)
+      : key_bytes(int(bits + 7) / 8), rest_bytes((KeyBits - int(bits) + 7) / 8) {
+    assert(bits >= kMinIndexKeyBits && bits <= kMaxIndexKeyBits);
+    const int rest_bits = KeyBits - int(bits);
+    put_be(key, k >> rest_bits, key_bytes);
+    put_be(value, k & ((uint64_t(1) << rest_bits) - 1), rest_bytes);
+    put_be(value + rest_bytes, slot, 4);
   }
-  MDB_val key_val() const { return as_val(key, 2); }
-  MDB_val value_val() const { return as_val(value, kValueBytes); }
-  uint16_t top() const { return uint16_t(get_be(key, 2)); }
+  int value_bytes() const { return rest_bytes + 4; }
+  MDB_val key_val() const { return as_val(key, size_t(key_bytes)); }
+  MDB_val value_val() const { return as_val(value, size_t(value_bytes())); }
+  uint32_t top() const { return uint32_t(get_be(key, key_bytes)); }
+  // The id or hash and the slot of an entry read from a database with keys of `bits` bits:
+  // false when the key or value has another size.
+  static bool decode(const MDB_val& k, const MDB_val& v, unsigned bits, uint64_t& out,
+                     uint32_t& slot) {
+    const int kb = int(bits + 7) / 8, rb = (KeyBits - int(bits) + 7) / 8;
+    if (k.mv_size != size_t(kb) || v.mv_size != size_t(rb + 4)) return false;
+    out = get_be(k.mv_data, kb) << (KeyBits - int(bits)) | get_be(v.mv_data, rb);
+    slot = uint32_t(get_be(static_cast<const unsigned char*>(v.mv_data) + rb, 4));
+    return true;
+  }
 };
 using IdEntry = IndexEntry<64>;
 using NameEntry = IndexEntry<32>;
 
-// The slots stored under `k` (an id, or a name hash) in ids/ or names/, in slot order: an LMDB
-// error code, or MDB_BAD_VALSIZE for a value of the wrong size.
+// The slots stored under `k` (an id, or a name hash) in ids/ or names/ with keys of `bits` bits,
+// in slot order: an LMDB error code, or MDB_BAD_VALSIZE for a value of the wrong size.
 template <int KeyBits>
-int index_slots(MDB_txn* txn, MDB_dbi dbi, uint64_t k, std::vector<uint32_t>& slots,
+int index_slots(MDB_txn* txn, MDB_dbi dbi, unsigned bits, uint64_t k, std::vector<uint32_t>& slots,
                 size_t at_most = SIZE_MAX, const void** last_value = nullptr) {
   using Entry = IndexEntry<KeyBits>;
   slots.clear();
   detail::LmdbCursor cursor;
   int rc = cursor.open(txn, dbi);
-  const Entry first(k, 0);
+  const Entry first(k, 0, bits);
   MDB_val key = first.key_val(), value = first.value_val();
   if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &key, &value, MDB_GET_BOTH_RANGE);
   while (rc == MDB_SUCCESS && slots.size() < at_most) {
-    if (value.mv_size != size_t(Entry::kValueBytes)) return MDB_BAD_VALSIZE;
-    if (std::memcmp(value.mv_data, first.value, Entry::kRestBytes) != 0) break;
-    slots.push_back(uint32_t(get_be(static_cast<const unsigned char*>(value.mv_data) + Entry::kRestBytes, 4)));
+    if (value.mv_size != size_t(first.value_bytes())) return MDB_BAD_VALSIZE;
+    if (std::memcmp(value.mv_data, first.value, size_t(first.rest_bytes)) != 0) break;
+    slots.push_back(uint32_t(
+        get_be(static_cast<const unsigned char*>(value.mv_data) + first.rest_bytes, 4)));
     if (last_value) *last_value = value.mv_data;
     rc = mdb_cursor_get(cursor.get(), &key, &value, MDB_NEXT_DUP);
   }
@@ -122,7 +156,7 @@ struct IndexAppender {
   MDB_dbi dbi;
   bool append;
   bool any = false;
-  uint16_t last_top = 0;
+  uint32_t last_top = 0;
   int put(const IndexEntry<KeyBits>& e) {
     MDB_val k = e.key_val(), v = e.value_val();
     unsigned flags = 0;
@@ -159,6 +193,9 @@ extern std::atomic<size_t> g_chunk_cache_bytes;
 struct Snapshot {
   size_t txn_id = 0;
   uint32_t next_slot = 0;
+  // The key width of ids/ and names/ (meta/"index_key_bits"); 0 when that value is damaged,
+  // which fails every lookup.
+  unsigned index_key_bits = 0;
   // The spatial top, decoded by the first view of the state that asks for anything spatial (in
   // its own read transaction, which sees the same committed state as every other view of it);
   // read-only afterwards. On failure the top stays empty and top_error says why.
@@ -174,6 +211,15 @@ struct Snapshot {
 // copy, a full disk, a file cut short while open) would be a SIGBUS at the first read, not an
 // error. False with a message naming the file, its size and the size it needs.
 bool data_file_complete(MDB_env* env, const std::string& directory, std::string& error);
+
+// Makes the data file as long as data_file_complete() asks, after a commit. LMDB may end a
+// commit with its last pages free and never written (pages the transaction allocated and freed
+// again, which it lists as free rather than writing them; an import that re-keys the indexes
+// after removing many objects does this): the file is extended over them (a hole, read as
+// zeros, never as pages in use). False with a message naming the file on a system error. (A
+// failure, or a crash between the commit and this, leaves a file that open() refuses as
+// truncated, which it is not: extending data.mdb to the size named mends it.)
+bool cover_free_tail(MDB_env* env, const std::string& directory, std::string& error);
 
 }  // namespace plantview::detail
 
@@ -199,6 +245,7 @@ struct Store::State {
     auto s = std::make_shared<detail::Snapshot>();
     s->txn_id = txn_id;
     s->next_slot = detail::read_next_slot(txn, dbs.meta);
+    if (!detail::read_index_key_bits(txn, dbs.meta, s->index_key_bits)) s->index_key_bits = 0;
     if (!latest || latest->txn_id < txn_id) latest = s;
     return s;
   }

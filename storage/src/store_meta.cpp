@@ -1,6 +1,9 @@
-// The store's meta/ keys: statistics (as JSON), the commit id, the next slot, the spatial top.
+// The store's meta/ keys: statistics (as JSON), the commit id, the next slot, the ids' and names'
+// key width, the spatial top.
 #include "plantview/store.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <nlohmann/json.hpp>
 
@@ -199,6 +202,29 @@ uint32_t read_next_slot(MDB_txn* txn, MDB_dbi meta) {
     std::memcpy(&next_slot, v.mv_data, 4);
   }
   return next_slot;
+}
+
+unsigned index_key_bits(uint64_t objects, unsigned current) {
+  if (current != 0) {
+    const uint64_t keys = uint64_t(1) << current;
+    const bool few = objects < 16 * keys && current > kMinIndexKeyBits;
+    const bool many = objects >= 64 * keys && current < kMaxIndexKeyBits;
+    if (!few && !many) return current;
+  }
+  const long ideal = std::lround(std::log2(double(std::max<uint64_t>(objects, 1)) / 32.0));
+  return unsigned(std::clamp<long>(ideal, kMinIndexKeyBits, kMaxIndexKeyBits));
+}
+
+bool read_index_key_bits(MDB_txn* txn, MDB_dbi meta, unsigned& bits) {
+  bits = kMinIndexKeyBits;
+  MDB_val k = as_val("index_key_bits"), v;
+  if (mdb_get(txn, meta, &k, &v) != MDB_SUCCESS) return true;
+  uint32_t value = 0;
+  if (v.mv_size != 4) return false;
+  std::memcpy(&value, v.mv_data, 4);
+  if (value < kMinIndexKeyBits || value > kMaxIndexKeyBits) return false;
+  bits = value;
+  return true;
 }
 
 }  // namespace detail

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "store_internal.h"
 
@@ -49,6 +50,26 @@ bool data_file_complete(MDB_env* env, const std::string& directory, std::string&
           " bytes each) need " + std::to_string(needed) +
           " (a partial copy, or a disk that was full)";
   return false;
+}
+
+bool cover_free_tail(MDB_env* env, const std::string& directory, std::string& error) {
+  MDB_envinfo info;
+  MDB_stat stat;
+  mdb_filehandle_t fd;
+  struct stat file;
+  int rc = mdb_env_info(env, &info);
+  if (rc == MDB_SUCCESS) rc = mdb_env_stat(env, &stat);
+  if (rc == MDB_SUCCESS) rc = mdb_env_get_fd(env, &fd);
+  if (rc == MDB_SUCCESS && fstat(fd, &file) != 0) rc = errno;
+  const uint64_t needed = (uint64_t(info.me_last_pgno) + 1) * stat.ms_psize;
+  if (rc == MDB_SUCCESS && uint64_t(file.st_size) < needed && ftruncate(fd, off_t(needed)) != 0) {
+    rc = errno;
+  }
+  if (rc != MDB_SUCCESS) {
+    error = lmdb_message(directory, "extending data.mdb over its free last pages", rc);
+    return false;
+  }
+  return true;
 }
 
 }  // namespace detail
@@ -146,6 +167,14 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   // totals: refuse the store now, naming the key, rather than misreport it later.
   ModelStatistics statistics;
   if (!read_statistics(txn.get(), d.meta, directory, statistics, error)) return nullptr;
+  // So is a key width the ids and names cannot be read with.
+  unsigned index_key_bits;
+  if (!detail::read_index_key_bits(txn.get(), d.meta, index_key_bits)) {
+    error = "store " + directory + ": meta/\"index_key_bits\" is damaged (not a u32 from " +
+            std::to_string(detail::kMinIndexKeyBits) + " to " +
+            std::to_string(detail::kMaxIndexKeyBits) + ")";
+    return nullptr;
+  }
   struct Named {
     const char* name;
     MDB_dbi* dbi;

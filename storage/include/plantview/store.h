@@ -9,6 +9,8 @@
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
 //               "next_slot"   -> u32, the slot the next object gets
+//               "index_key_bits" -> u32, 8 to 24: the bits of an id or name hash that key the ids
+//                                and names (below); absent until the first commit
 //               "spatial_top" -> zstd: the top of the spatial hierarchy (spatial.h): the spatial
 //                                origin, the entry and block counts, each block's count and grid
 //                                bounds, and the far-field proxy of every top node
@@ -23,11 +25,17 @@
 //                                format 3 kept 32 chunks a value, which left an import's memory
 //                                unbounded (below)
 //   attributes  first slot (u32) -> the same for the objects' key/value attributes
-//   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
-//                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
-//                                an object on disk)
-//   names       u16 (the top 16 bits of the 32-bit name hash) -> sorted duplicates: u16 rest of
-//                                the hash, u32 slot (about 7 bytes an object)
+//   ids         the top B bits of the id (B = meta/"index_key_bits", in (B + 7) / 8 bytes) ->
+//                                sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED, packed in pages):
+//                                the other 64 - B bits of the id (in (71 - B) / 8 bytes), u32 slot.
+//                                B follows the object count, about 32 objects a key (LMDB costs a
+//                                key about 28 bytes; much beyond 200 it gives a key pages of its
+//                                own): 10 bits at preset c (15 bytes an object on disk), 17 at
+//                                its x100 (13 bytes); 16 bits for both took 20 and 14. An import
+//                                that leaves the count outside 16 to 64 a key (it doubled or
+//                                halved) writes the ids and names again with the width for it
+//   names       the top B bits of the 32-bit name hash -> sorted duplicates: the other 32 - B
+//                                bits, u32 slot (about 9 and 8 bytes an object)
 //   spatial_a / spatial_b     -> u32 block -> zstd: the grid entries (bounds on a grid of
 //                                1/1024 m, slot, colour) of kSpatialBlockObjects objects or fewer,
 //                                consecutive in the Morton order of their centres; the top says
@@ -37,7 +45,7 @@
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
 // the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
 // every import writes the spatial blocks and the top again (the ids and names are updated key
-// by key).
+// by key, or written again when their key width changes).
 //
 // Transactions and lifetimes
 //   - An Import is one LMDB write transaction: until commit() nothing is visible, and a failed,
@@ -108,17 +116,19 @@
 // over, never by importing into it in place. Readers in a writable directory use lock.mdb as
 // usual and may run alongside an import.
 //
-// Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an
-// empty data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter
-// than the pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps
-// the file, and reading a page past its end would kill the process with SIGBUS), another format
-// version, and meta/"statistics" that is not JSON of the form statistics_json() writes (the
-// message names the key). read() checks the file's length again, so a file cut short while the
-// store is open fails the next view instead of faulting; a cut during a view's life is not
-// caught (the view's pages past the new end fault, as any mapped file's would). A damaged
-// spatial top fails spatial_ready(), spatial_block() and for_each_spatial_entry() (naming it;
-// the other spatial calls answer as for an empty store); a damaged block fails spatial_block()
-// (naming it) and nothing else. info(), objects and lookups read on.
+// Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an empty
+// data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter than the
+// pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps the file, and
+// reading a page past its end would kill the process with SIGBUS), another format version,
+// meta/"statistics" that is not JSON of the form statistics_json() writes, and
+// meta/"index_key_bits" that is not a u32 from 8 to 24 (the message names the key). (LMDB may leave
+// a commit's last pages free and unwritten; an import extends the file over them.) read() checks
+// the file's length again, so a file cut short while the store is open fails the next view instead
+// of faulting; a cut during a view's life is not caught (the view's pages past the new end fault,
+// as any mapped file's would). A damaged spatial top fails spatial_ready(), spatial_block() and
+// for_each_spatial_entry() (naming it; the other spatial calls answer as for an empty store); a
+// damaged block fails spatial_block() (naming it) and nothing else. info(), objects and lookups
+// read on.
 #pragma once
 
 #include <cstddef>
