@@ -65,13 +65,14 @@
 //     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
 //     full buffer (64 MB) is sorted and written to a run file in the store directory
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
-//     have been killed). commit() merges the runs into the ids and names databases and, with the
+//     have been killed). commit() merges the runs into the ids and names databases (a commit
+//     that changes their key width first moves their entries into the same runs) and, with the
 //     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
-//     --scale 1000` (40.75 million objects) peaked at 0.87 GB while putting objects and 1.15 GB
-//     while committing (format 3: 3.7 GB).
+//     --scale 1000` (40.75 million objects) peaked at 1.60 GB (format 4: 0.87 GB while putting
+//     objects and 1.15 GB while committing; format 3: 3.7 GB).
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view is used by one thread at a time (it need not
 //     be the thread that made it); threads that read one snapshot together each take a
