@@ -8,6 +8,7 @@
 #include <lmdb.h>
 
 #include <algorithm>
+#include <cstring>
 #include <random>
 #include <unordered_map>
 #include <vector>
@@ -185,7 +186,9 @@ TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBefore
   view_.reset();
   store_.reset();
   const TempDir& dir = dir_;
-  // Object block 20 (slots 1280-1343; chunks.h) overwritten with a frame that is not zstd.
+  // The object chunk holding slot 1280 (the greatest key not above it; chunks.h) overwritten
+  // with a frame that is not zstd, for as many slots as it held.
+  uint32_t first = 0;
   {
     MDB_env* env = nullptr;
     ASSERT_EQ(mdb_env_create(&env), MDB_SUCCESS);
@@ -193,15 +196,31 @@ TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBefore
     ASSERT_EQ(mdb_env_open(env, dir.str().c_str(), 0, 0644), MDB_SUCCESS);
     MDB_txn* txn = nullptr;
     MDB_dbi dbi;
+    MDB_cursor* cursor = nullptr;
     ASSERT_EQ(mdb_txn_begin(env, nullptr, 0, &txn), MDB_SUCCESS);
     ASSERT_EQ(mdb_dbi_open(txn, "objects", 0, &dbi), MDB_SUCCESS);
-    char key[4] = {0, 0, 0, 20};
-    uint8_t value[8] = {4, 0, 0, 0, 'X', 'X', 'X', 'X'};
-    MDB_val k{4, key}, v{8, value};
-    ASSERT_EQ(mdb_put(txn, dbi, &k, &v, 0), MDB_SUCCESS);
+    ASSERT_EQ(mdb_cursor_open(txn, dbi, &cursor), MDB_SUCCESS);
+    unsigned char key[4] = {0, 0, 1280 >> 8, 1280 & 255};
+    MDB_val k{4, key}, v;
+    int rc = mdb_cursor_get(cursor, &k, &v, MDB_SET_RANGE);
+    if (rc != MDB_SUCCESS || std::memcmp(k.mv_data, key, 4) != 0) {
+      rc = mdb_cursor_get(cursor, &k, &v, MDB_PREV);
+    }
+    ASSERT_EQ(rc, MDB_SUCCESS);
+    ASSERT_EQ(k.mv_size, 4u);
+    const auto* got = static_cast<const unsigned char*>(k.mv_data);
+    first = uint32_t(got[0]) << 24 | uint32_t(got[1]) << 16 | uint32_t(got[2]) << 8 | got[3];
+    uint8_t value[8] = {0, 0, 0, 0, 'X', 'X', 'X', 'X'};
+    std::memcpy(value, v.mv_data, 4);  // the chunk's slot count
+    std::memcpy(key, got, 4);
+    mdb_cursor_close(cursor);
+    MDB_val put_k{4, key}, put_v{8, value};
+    ASSERT_EQ(mdb_put(txn, dbi, &put_k, &put_v, 0), MDB_SUCCESS);
     ASSERT_EQ(mdb_txn_commit(txn), MDB_SUCCESS);
     mdb_env_close(env);
   }
+  ASSERT_GT(first, 1000u);
+  ASSERT_LE(first, 1280u);
   std::string error;
   auto store = Store::open(dir.str(), Store::Mode::read_only, error);
   ASSERT_TRUE(store) << error;
@@ -219,10 +238,11 @@ TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBefore
   EXPECT_FALSE(shared.decode(frame, true, shared_error));
   EXPECT_EQ(shared_error, alone_error);
   EXPECT_NE(shared_error.find(dir.str()), std::string::npos) << shared_error;
-  EXPECT_NE(shared_error.find("object slot 1280"), std::string::npos) << shared_error;
+  EXPECT_NE(shared_error.find("object slot " + std::to_string(first)), std::string::npos)
+      << shared_error;
   EXPECT_GT(shared.reading_views(), 1u) << "the objects must have been read on the workers";
   size_t in_runs = 0;
-  for (uint32_t slot = 0; slot < 1280; ++slot) {
+  for (uint32_t slot = 0; slot < first; ++slot) {
     const detail::Known* a = alone.find(slot);
     const detail::Known* b = shared.find(slot);
     ASSERT_TRUE(a && b) << "slot " << slot << " precedes the damage and must be known";
@@ -231,7 +251,7 @@ TEST_F(PipelineWorkers, ACorruptRecordStopsDecodingAtItsSlotWithTheObjectsBefore
   }
   // (59 of these slots are in runs: the plant lists its equipment first.)
   EXPECT_GT(in_runs, 20u) << "the pipelines of the objects known must have been analysed";
-  EXPECT_FALSE(shared.find(1280));
+  EXPECT_FALSE(shared.find(first));
 }
 
 // Occlusion's CPU form on the pool (the occluders rasterised by each worker into a buffer of

@@ -26,6 +26,7 @@
 #include "lmdb_guard.h"
 #include "record.h"
 #include "spatial.h"
+#include "store_internal.h"
 #include "tables.h"
 #include "support/temp_dir.h"
 
@@ -974,13 +975,14 @@ TEST(Store, AStoreOfAnotherFormatVersionIsRefusedNotMisread) {
   }
 }
 
-// Format 4 keeps each chunk of records in an LMDB value of its own, keyed by the chunk's number,
-// so that every value an import writes is a page or two: LMDB's dirty list counts values, and
-// this is what bounds an import's memory (chunks.h).
-TEST(Store, EachChunkOfRecordsIsAnLmdbValueOfAPageOrTwo) {
+// Format 5 keeps each chunk of records in an LMDB value of its own, keyed by its first slot and
+// cut by compressed bytes: every value but the last of its span fills the two pages it takes to
+// within a few percent (so that LMDB's rounding to whole pages costs little), and the chunks
+// cover every slot once, in order, without crossing a span.
+TEST(Store, EachChunkOfRecordsFillsTwoPagesAndTheChunksCoverEverySlotOnce) {
   TempDir dir;
   std::vector<Object> objects;
-  for (int i = 0; i < 4100; ++i) objects.push_back(box_object("a", i, {i * 3.0, 0, 0}));
+  for (int i = 0; i < 20000; ++i) objects.push_back(box_object("a", i, {i * 3.0, 0, 0}));
   {
     auto store = open_store(dir.str());
     import_objects(*store, objects, "a");
@@ -991,48 +993,212 @@ TEST(Store, EachChunkOfRecordsIsAnLmdbValueOfAPageOrTwo) {
   ASSERT_EQ(mdb_env_open(env, dir.str().c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
   MDB_txn* txn = nullptr;
   ASSERT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
-  const size_t page_bytes = size_t(sysconf(_SC_PAGESIZE));
-  for (const auto& [database, chunk_slots] :
-       {std::pair<const char*, uint32_t>{"objects", 64}, {"attributes", 256}}) {
+  MDB_stat stat;
+  ASSERT_EQ(mdb_env_stat(env, &stat), MDB_SUCCESS);
+  const size_t budget = detail::chunk_frame_budget(stat.ms_psize, 2) + 4;  // the whole value
+  for (const auto& [database, shape] :
+       {std::pair<const char*, detail::ColumnShape>{"objects", detail::kObjectShape},
+        {"attributes", detail::kAttributeShape}}) {
     MDB_dbi dbi;
     ASSERT_EQ(mdb_dbi_open(txn, database, 0, &dbi), MDB_SUCCESS);
     MDB_cursor* cursor = nullptr;
     ASSERT_EQ(mdb_cursor_open(txn, dbi, &cursor), MDB_SUCCESS);
     MDB_val k, v;
-    uint32_t expected_key = 0;
+    uint64_t next = 0;  // the first slot no chunk so far holds
+    size_t values = 0, full = 0;
     for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == MDB_SUCCESS;
          rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
       ASSERT_EQ(k.mv_size, 4u);
-      EXPECT_EQ(detail::read_be32(k.mv_data), expected_key++) << database;
-      std::vector<std::span<const uint8_t>> frames;
+      const uint32_t first = detail::read_be32(k.mv_data);
+      uint32_t count = 0;
+      std::span<const uint8_t> frame;
       std::string error;
-      EXPECT_TRUE(detail::split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, 1, frames,
-                                      error)) << error;
-      EXPECT_LE(v.mv_size, 2 * page_bytes) << database;
+      ASSERT_TRUE(detail::split_chunk_value(static_cast<const uint8_t*>(v.mv_data), v.mv_size,
+                                            count, frame, error)) << error;
+      EXPECT_EQ(first, next) << database;  // every slot holds an object: no gaps
+      EXPECT_EQ(first / shape.span_slots, (first + count - 1) / shape.span_slots) << database;
+      next = uint64_t(first) + count;
+      EXPECT_LE(v.mv_size, budget) << database << " chunk at " << first;
+      ++values;
+      if (v.mv_size + budget / 16 >= budget) ++full;
     }
     mdb_cursor_close(cursor);
-    EXPECT_EQ(expected_key, (4100 + chunk_slots - 1) / chunk_slots) << database;
+    EXPECT_EQ(next, objects.size()) << database;
+    // Every value fills its pages but the last of each span (20000 slots: 5 object spans, 2
+    // attribute spans).
+    const size_t spans = (objects.size() + shape.span_slots - 1) / shape.span_slots;
+    EXPECT_GE(full + spans, values) << database;
+    EXPECT_GT(values, spans) << database;
   }
   mdb_txn_abort(txn);
   mdb_env_close(env);
 }
 
-// A format 3 store (32 chunks an LMDB value) is refused with what to do about it.
-TEST(Store, AFormat3StoreIsRefusedWithAnInstructionToImportAgain) {
-  TempDir dir;
-  {
-    auto store = open_store(dir.str());
-    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+// Records of every size cut into chunks: a record bigger than the budget is a chunk of its own;
+// a chunk whose frame is exactly the budget is kept whole, one byte less splits it; empty slots
+// lead no chunk; and the chunks give back every record.
+TEST(StoreChunks, ChunksAreCutAtTheBudgetAndGiveBackEveryRecord) {
+  using namespace detail;
+  const ZstdCCtx cctx = make_compressor();
+  const ZstdDCtx dctx{ZSTD_createDCtx()};
+  std::mt19937 random(7);
+  // Records of 0 (none) to 300 bytes of half-random text, and now and then one of 20 KB of noise.
+  std::vector<std::vector<uint8_t>> records(3000);
+  for (size_t i = 0; i < records.size(); ++i) {
+    if (i % 13 == 5 || i < 3) continue;  // empty slots, the first three among them
+    const size_t n = i % 397 == 100 ? 20000 : 20 + random() % 280;
+    for (size_t b = 0; b < n; ++b)
+      records[i].push_back(uint8_t(n > 10000 || b % 3 == 0 ? random() : 'a' + b % 7));
   }
-  std::string current("format\0\0\0\0", 10), old("format\x03\0\0\0", 10);
-  const uint32_t version = kStoreFormatVersion;
-  std::memcpy(current.data() + 6, &version, 4);
-  ASSERT_GE(patch_file(fs::path(dir.str()) / "data.mdb", current, old), 1);
-  for (auto mode : {Store::Mode::read_only, Store::Mode::read_write}) {
-    std::string error;
-    EXPECT_FALSE(Store::open(dir.str(), mode, error));
-    EXPECT_NE(error.find("store " + dir.str() + " has format 3; this build reads format 4: import "
-                         "or generate it again"), std::string::npos) << error;
+  const auto flat = [](const std::vector<std::vector<uint8_t>>& rs, size_t begin, size_t end,
+                       std::vector<uint32_t>& sizes, std::vector<uint8_t>& bytes) {
+    sizes.clear();
+    bytes.clear();
+    for (size_t i = begin; i < end; ++i) {
+      sizes.push_back(uint32_t(rs[i].size()));
+      bytes.insert(bytes.end(), rs[i].begin(), rs[i].end());
+    }
+  };
+  std::vector<uint32_t> sizes;
+  std::vector<uint8_t> bytes;
+  flat(records, 0, records.size(), sizes, bytes);
+  const size_t budget = chunk_frame_budget(4096, 2);
+  std::vector<ChunkValue> chunks;
+  std::string error;
+  ASSERT_TRUE(cut_chunks(cctx.get(), 1000, sizes, bytes, budget, chunks, error)) << error;
+  ASSERT_GT(chunks.size(), 5u);
+  std::vector<std::vector<uint8_t>> back(records.size());
+  uint64_t next = 0;
+  for (const ChunkValue& c : chunks) {
+    uint32_t count = 0;
+    std::span<const uint8_t> frame;
+    ASSERT_TRUE(split_chunk_value(c.value.data(), c.value.size(), count, frame, error)) << error;
+    ASSERT_GE(c.first_slot, 1000 + next);
+    const uint32_t at = c.first_slot - 1000;
+    for (uint64_t s = next; s < at; ++s) EXPECT_TRUE(records[s].empty()) << s;
+    EXPECT_FALSE(records[at].empty()) << "a chunk leads with an empty slot " << at;
+    std::vector<uint8_t> layout;
+    std::vector<uint32_t> ends;
+    ASSERT_TRUE(inflate_frame(dctx.get(), frame, layout, error)) << error;
+    ASSERT_TRUE(check_chunk(layout, count, ends, error)) << error;
+    for (uint32_t i = 0; i < count; ++i) {
+      const auto r = chunk_record(layout, ends, i);
+      back[at + i].assign(r.begin(), r.end());
+    }
+    if (frame.size() > budget) {
+      EXPECT_EQ(count, 1u) << "only a record alone may be over the budget, at " << at;
+      EXPECT_GT(records[at].size(), budget);
+    }
+    next = uint64_t(at) + count;
+  }
+  EXPECT_EQ(back, records);
+
+  // A chunk exactly full: the first 40 records' frame is the budget; they are one chunk, and
+  // with one byte less of budget they are not.
+  flat(records, 3, 43, sizes, bytes);
+  std::vector<uint8_t> layout, frame;
+  pack_chunk(sizes, bytes, layout);
+  ASSERT_TRUE(compress_frame(cctx.get(), layout, frame, error)) << error;
+  for (size_t exact : {frame.size(), frame.size() - 1}) {
+    chunks.clear();
+    ASSERT_TRUE(cut_chunks(cctx.get(), 0, sizes, bytes, exact, chunks, error)) << error;
+    uint32_t count = 0;
+    std::span<const uint8_t> first_frame;
+    ASSERT_TRUE(split_chunk_value(chunks[0].value.data(), chunks[0].value.size(), count,
+                                  first_frame, error)) << error;
+    if (exact == frame.size()) {
+      EXPECT_EQ(chunks.size(), 1u);
+      EXPECT_EQ(count, 40u);
+      EXPECT_EQ(first_frame.size(), exact);
+    } else {
+      EXPECT_GE(chunks.size(), 2u);
+      EXPECT_LT(count, 40u);
+      EXPECT_LE(first_frame.size(), exact);
+    }
+  }
+  // Nothing but empty slots: no chunk.
+  chunks.clear();
+  const std::vector<uint32_t> empty(50, 0);
+  ASSERT_TRUE(cut_chunks(cctx.get(), 0, empty, {}, budget, chunks, error)) << error;
+  EXPECT_TRUE(chunks.empty());
+}
+
+// Records bigger than a page and imports that add and remove sources in turn, over span and
+// chunk boundaries: every slot reads back as the last import left it.
+TEST(Store, EverySlotReadsBackAfterImportsThatAddAndRemoveSources) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::map<uint64_t, Object> expected;
+  std::mt19937 random(11);
+  const auto make = [&](const std::string& source, int count) {
+    std::vector<Object> objects;
+    for (int i = 0; i < count; ++i) {
+      Object o = box_object(source, i, {i * 2.0, double(source.size()), 0});
+      // Now and then a name bigger than a page, which makes its record a chunk of its own.
+      if (random() % 500 == 0) {
+        o.name += "-";
+        for (int c = 0; c < 9000; ++c) o.name += char('a' + random() % 26);
+      }
+      objects.push_back(std::move(o));
+    }
+    return objects;
+  };
+  const std::vector<std::pair<std::string, int>> rounds = {
+      {"a", 5000}, {"b", 3000}, {"a", 1000}, {"c", 4500}, {"b", 0}, {"d", 200}, {"c", 4600}};
+  std::map<std::string, std::vector<Object>> by_source;
+  for (const auto& [source, count] : rounds) {
+    by_source[source] = make(source, count);
+    import_objects(*store, by_source[source], source);
+    expected.clear();
+    for (const auto& [s, objects] : by_source) {
+      for (const Object& o : objects) expected.emplace(o.id, o);
+    }
+    ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected)) << source;
+  }
+  expect_indexes_agree(*store);
+  // Slot by slot, backwards (every lookup a miss of the view's cache), against a pass in order.
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  std::map<uint32_t, uint64_t> in_order;
+  ASSERT_TRUE(view->for_each_object([&](uint32_t slot, Object&& o) {
+    in_order[slot] = o.id;
+    return true;
+  }, false, error)) << error;
+  EXPECT_EQ(in_order.size(), expected.size());
+  for (uint32_t slot = view->slot_count(); slot-- > 0;) {
+    Object o;
+    const bool found = view->object(slot, o, true, error);
+    const auto it = in_order.find(slot);
+    ASSERT_EQ(found, it != in_order.end()) << slot << ": " << error;
+    if (found) {
+      EXPECT_EQ(o.id, it->second) << slot;
+      EXPECT_TRUE(o == expected.at(o.id)) << slot;
+    }
+  }
+}
+
+// A store of an earlier format (3: 32 chunks a value; 4: a chunk every 64 slots) is refused with
+// what to do about it.
+TEST(Store, AnEarlierFormatsStoreIsRefusedWithAnInstructionToImportAgain) {
+  for (const char old_version : {'\x03', '\x04'}) {
+    TempDir dir;
+    {
+      auto store = open_store(dir.str());
+      import_objects(*store, {sample_object("a", "/A", {})}, "a");
+    }
+    std::string current("format\0\0\0\0", 10), old("format\0\0\0\0", 10);
+    old[6] = old_version;
+    const uint32_t version = kStoreFormatVersion;
+    std::memcpy(current.data() + 6, &version, 4);
+    ASSERT_GE(patch_file(fs::path(dir.str()) / "data.mdb", current, old), 1);
+    for (auto mode : {Store::Mode::read_only, Store::Mode::read_write}) {
+      std::string error;
+      EXPECT_FALSE(Store::open(dir.str(), mode, error));
+      EXPECT_NE(error.find("store " + dir.str() + " has format " + std::to_string(old_version) +
+                           "; this build reads format 5: import or generate it again"),
+                std::string::npos) << error;
+    }
   }
 }
 
@@ -1042,15 +1208,15 @@ void put_raw(const std::string& dir, const char* database, std::string_view key,
 TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
   TempDir dir;
   std::vector<Object> objects;
-  for (int i = 0; i < 200; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  for (int i = 0; i < 3000; ++i) objects.push_back(box_object("a", i, {i * 1.0, 0, 0}));
   {
     auto store = open_store(dir.str());
     import_objects(*store, objects, "a");
   }
-  // The value of object chunk 0 (slots 0-63) holds a frame that is not zstd (chunks.h: u32
-  // frame end, frame).
+  // The object chunk at slot 0 says it holds slots 0-63, in a frame that is not zstd (chunks.h:
+  // u32 slot count, frame).
   const char key[4] = {0, 0, 0, 0};
-  const uint8_t value[8] = {4, 0, 0, 0, 'X', 'X', 'X', 'X'};
+  const uint8_t value[8] = {64, 0, 0, 0, 'X', 'X', 'X', 'X'};
   ASSERT_NO_FATAL_FAILURE(put_raw(dir.str(), "objects", std::string_view(key, 4), value));
 
   auto store = open_store(dir.str(), Store::Mode::read_only);
@@ -1062,8 +1228,8 @@ TEST(Store, ACorruptChunkGivesAnErrorNamingTheStoreAndTheSlot) {
   EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
   EXPECT_NE(error.find("object slot 5"), std::string::npos) << error;
   // Other chunks still read; listing everything stops at the corrupt one with the same message.
-  ASSERT_TRUE(view->object(100, o, true, error)) << error;
-  EXPECT_TRUE(o == objects[100]);
+  ASSERT_TRUE(view->object(2999, o, true, error)) << error;
+  EXPECT_TRUE(o == objects[2999]);
   error.clear();
   EXPECT_FALSE(view->for_each_object([](uint32_t, Object&&) { return true; }, false, error));
   EXPECT_NE(error.find("object slot 0"), std::string::npos) << error;
@@ -1187,16 +1353,19 @@ TEST(StoreEncodings, DecodersRefuseEveryTruncationAndSurviveCorruptBytes) {
     std::vector<uint8_t> cut(chunk.begin(), chunk.begin() + n);
     EXPECT_FALSE(check_chunk(cut, 4, ends, error)) << n;
   }
-  std::vector<uint8_t> block;
-  join_block({{9, 9}, {}, {8}}, block);
-  std::vector<std::span<const uint8_t>> frames;
-  ASSERT_TRUE(split_block(block.data(), block.size(), 3, frames, error)) << error;
-  EXPECT_EQ(frames[0].size(), 2u);
-  EXPECT_TRUE(frames[1].empty());
-  EXPECT_EQ(frames[2][0], 8);
-  for (size_t n = 0; n < block.size(); ++n) {
-    EXPECT_FALSE(split_block(block.data(), n, 3, frames, error)) << n;
+  std::vector<uint8_t> value;
+  const std::vector<uint8_t> frame_bytes = {9, 9, 8};
+  join_chunk_value(3, frame_bytes, value);
+  uint32_t count = 0;
+  std::span<const uint8_t> frame;
+  ASSERT_TRUE(split_chunk_value(value.data(), value.size(), count, frame, error)) << error;
+  EXPECT_EQ(count, 3u);
+  EXPECT_EQ(std::vector<uint8_t>(frame.begin(), frame.end()), frame_bytes);
+  for (size_t n = 0; n <= 4; ++n) {
+    EXPECT_FALSE(split_chunk_value(value.data(), n, count, frame, error)) << n;
   }
+  value[0] = 0;
+  EXPECT_FALSE(split_chunk_value(value.data(), value.size(), count, frame, error));
 }
 
 TEST(Store, ReadOnlyOpeningOfAMissingStoreFailsWithItsPath) {
@@ -1349,6 +1518,122 @@ TEST(Store, AnImportKilledPartWayLeavesExactlyTheEarlierContents) {
     const std::string source = "b" + std::to_string(attempt);
     import_objects(*store, {sample_object(source, "/B" + std::to_string(attempt), {})}, source);
   }
+}
+
+uint32_t index_key_bits_of(const std::string& dir) {
+  MDB_env* env = nullptr;
+  EXPECT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 12);
+  EXPECT_EQ(mdb_env_open(env, dir.c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  uint32_t bits = 0;
+  if (mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn) == MDB_SUCCESS) {
+    MDB_val k{14, const_cast<char*>("index_key_bits")}, v;
+    if (mdb_dbi_open(txn, "meta", 0, &dbi) == MDB_SUCCESS &&
+        mdb_get(txn, dbi, &k, &v) == MDB_SUCCESS && v.mv_size == 4) {
+      std::memcpy(&bits, v.mv_data, 4);
+    }
+    mdb_txn_abort(txn);
+  }
+  mdb_env_close(env);
+  return bits;
+}
+
+// meta/"index_key_bits" of the store in `dir` (0 when absent). LMDB must not have an environment
+// open twice in one process: `store` is closed meanwhile and opened again.
+uint32_t index_key_bits_of(const std::string& dir, std::unique_ptr<Store>& store) {
+  store.reset();
+  const uint32_t bits = index_key_bits_of(dir);
+  store = open_store(dir);
+  return bits;
+}
+TEST(StoreIndexes, TheKeyWidthFollowsTheObjectCountAndChangesOnlyWhenItDoublesOrHalves) {
+  using detail::index_key_bits;
+  // Empty indexes take the width of about 32 entries a key (preset c, its x100 and x1000).
+  EXPECT_EQ(index_key_bits(0, 0), 8u);
+  EXPECT_EQ(index_key_bits(40746, 0), 10u);
+  EXPECT_EQ(index_key_bits(4074822, 0), 17u);
+  EXPECT_EQ(index_key_bits(40746000, 0), 20u);
+  EXPECT_EQ(index_key_bits(uint64_t(1) << 40, 0), detail::kMaxIndexKeyBits);
+  // A width is kept while its keys hold 16 to 64 entries on average.
+  EXPECT_EQ(index_key_bits(16 * 1024, 10), 10u);
+  EXPECT_EQ(index_key_bits(16 * 1024 - 1, 10), 9u);
+  EXPECT_EQ(index_key_bits(64 * 1024 - 1, 10), 10u);
+  EXPECT_EQ(index_key_bits(64 * 1024, 10), 11u);
+  EXPECT_EQ(index_key_bits(300 * 1024, 10), 13u);
+  // At the bounds whatever the count.
+  EXPECT_EQ(index_key_bits(1, 8), 8u);
+  EXPECT_EQ(index_key_bits(uint64_t(1) << 40, 24), 24u);
+}
+
+// The ids and names are written again with another key width when an import doubles the store
+// or takes most of it away; every lookup answers as before, in the same import as a replacement
+// (looked up with the old width) and afterwards.
+TEST(StoreIndexes, TheIndexesAreReKeyedAsTheStoreGrowsAndShrinksAndEveryLookupFollows) {
+  TempDir dir;
+  auto store = open_store(dir.str());
+  std::map<uint64_t, Object> expected;
+  std::vector<Object> a, b;
+  for (int i = 0; i < 1000; ++i) a.push_back(box_object("a", i, {i * 1.0, 0, 0}));
+  for (int i = 0; i < 20000; ++i) b.push_back(box_object("b", i, {i * 1.0, 5, 0}));
+  // (Box names are "/BOX-<i>" in every source: a's 1,000 names are also b's first 1,000.)
+  import_objects(*store, a, "a");
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 8u);
+  for (const Object& o : a) expected.emplace(o.id, o);
+  expect_indexes_agree(*store);
+
+  // 21,000 objects: 82 a key at 8 bits, so 9 (41 a key). One of a's objects is replaced in the
+  // same import.
+  {
+    std::string error;
+    auto import = store->begin_import(error);
+    ASSERT_TRUE(import) << error;
+    for (const Object& o : b) ASSERT_TRUE(import->put(o, error)) << error;
+    Object again = a[500];
+    again.colour = {1, 2, 3, 4};
+    ASSERT_TRUE(import->put(again, error)) << error;
+    ASSERT_TRUE(import->commit(error)) << error;
+    for (const Object& o : b) expected.emplace(o.id, o);
+    expected[again.id] = again;
+  }
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 9u);
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
+  expect_indexes_agree(*store);
+
+  // Within the width's band nothing is written again: 19,000 objects are 37 a key.
+  import_objects(*store, std::vector<Object>(b.begin(), b.begin() + 18000), "b");
+  for (size_t i = 18000; i < b.size(); ++i) expected.erase(b[i].id);
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 9u);
+  expect_indexes_agree(*store);
+
+  // Back to 1,000: 2 a key at 9 bits, so 8 again.
+  import_objects(*store, {}, "b");
+  for (size_t i = 0; i < 18000; ++i) expected.erase(b[i].id);
+  EXPECT_EQ(index_key_bits_of(dir.str(), store), 8u);
+  ASSERT_NO_FATAL_FAILURE(expect_objects_exactly(*store, expected));
+  expect_indexes_agree(*store);
+  std::string error;
+  auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_FALSE(view->slot_of(b[0].id));
+  EXPECT_EQ(view->slots_named(b[5000].name).size(), 0u);
+  EXPECT_EQ(view->slots_named(a[1].name).size(), 1u);
+}
+
+TEST(StoreIndexes, ADamagedKeyWidthIsRefusedNamingTheKey) {
+  TempDir dir;
+  {
+    auto store = open_store(dir.str());
+    import_objects(*store, {sample_object("a", "/A", {})}, "a");
+  }
+  const uint32_t too_wide = 25;
+  const uint8_t three_bytes[3] = {8, 0, 0};
+  put_raw(dir.str(), "meta", "index_key_bits",
+          std::span(reinterpret_cast<const uint8_t*>(&too_wide), 4));
+  expect_refused_untouched(dir.str(), {dir.str(), "meta/\"index_key_bits\" is damaged"});
+  put_raw(dir.str(), "meta", "index_key_bits", three_bytes);
+  expect_refused_untouched(dir.str(), {dir.str(), "meta/\"index_key_bits\" is damaged"});
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <map>
@@ -326,17 +327,51 @@ std::vector<uint8_t> zstd_frame(const std::vector<uint8_t>& raw) {
 // read() and info() read metadata only: with a block damaged they still answer, and so do the
 // other blocks; the damaged block fails with a message naming the store and the block. With the
 // top damaged, read(), info() and objects still answer; the spatial calls that can fail name it.
+// The first slot of every object chunk (objects/ keys), read with the store closed.
+std::vector<uint32_t> object_chunk_firsts(const std::string& dir) {
+  std::vector<uint32_t> firsts;
+  MDB_env* env = nullptr;
+  EXPECT_EQ(mdb_env_create(&env), MDB_SUCCESS);
+  mdb_env_set_maxdbs(env, 12);
+  EXPECT_EQ(mdb_env_open(env, dir.c_str(), MDB_RDONLY, 0644), MDB_SUCCESS);
+  MDB_txn* txn = nullptr;
+  MDB_dbi dbi;
+  EXPECT_EQ(mdb_txn_begin(env, nullptr, MDB_RDONLY, &txn), MDB_SUCCESS);
+  EXPECT_EQ(mdb_dbi_open(txn, "objects", 0, &dbi), MDB_SUCCESS);
+  MDB_cursor* cursor = nullptr;
+  EXPECT_EQ(mdb_cursor_open(txn, dbi, &cursor), MDB_SUCCESS);
+  MDB_val k, v;
+  for (int rc = mdb_cursor_get(cursor, &k, &v, MDB_FIRST); rc == MDB_SUCCESS;
+       rc = mdb_cursor_get(cursor, &k, &v, MDB_NEXT)) {
+    firsts.push_back(detail::read_be32(k.mv_data));
+  }
+  mdb_cursor_close(cursor);
+  mdb_txn_abort(txn);
+  mdb_env_close(env);
+  return firsts;
+}
+
+// Which of `firsts` (ascending) holds `slot`.
+size_t chunk_index(const std::vector<uint32_t>& firsts, uint32_t slot) {
+  return size_t(std::upper_bound(firsts.begin(), firsts.end(), slot) - firsts.begin()) - 1;
+}
+
 TEST(StorePaged, ViewsOfOneStateDecompressAChunkOnceWithinTheSharedBound) {
   TempDir dir;
+  constexpr uint32_t kObjects = 64 * 64;
   auto store = open_store(dir.str());
-  import_objects(*store, scattered("s", 64 * 64), "s");  // 64 chunks of objects
+  import_objects(*store, scattered("s", kObjects), "s");
+  store.reset();
+  const std::vector<uint32_t> chunks = object_chunk_firsts(dir.str());
+  ASSERT_GT(chunks.size(), 12u);
+  store = open_store(dir.str());
   std::string error;
   auto first = store->read(error);
   ASSERT_TRUE(first) << error;
-  std::vector<Object> read(64 * 64);
+  std::vector<Object> read(kObjects);
   for (uint32_t slot = 0; slot < read.size(); ++slot)
     ASSERT_TRUE(first->object(slot, read[slot], false, error)) << error;
-  EXPECT_EQ(first->chunks_decompressed(), 64u);
+  EXPECT_EQ(first->chunks_decompressed(), chunks.size());
   // Another view of the state, a sibling on another thread or a later read, finds every chunk
   // decompressed, and the same objects in it.
   auto sibling = first->sibling(error);
@@ -363,22 +398,31 @@ TEST(StorePaged, ViewsOfOneStateDecompressAChunkOnceWithinTheSharedBound) {
 
   // A state read under a small bound keeps at most that much: what fell out is decompressed
   // again, correctly.
-  const size_t chunk_bytes = first->chunk_cache_bytes() / 64;
-  const size_t bound = chunk_bytes * 10;
+  const size_t chunk_bytes = first->chunk_cache_bytes() / chunks.size();
+  const size_t bound = chunk_bytes * 4;
+  first.reset();
+  sibling.reset();
+  later.reset();
+  import_objects(*store, scattered("s", kObjects, 6), "s");  // a new state, new slots
+  store.reset();
+  const std::vector<uint32_t> new_chunks = object_chunk_firsts(dir.str());
+  store = open_store(dir.str());
   detail::set_chunk_cache_bytes(bound);
-  import_objects(*store, scattered("s", 64 * 64, 6), "s");  // a new state, the same slots
   auto small = store->read(error);
   ASSERT_TRUE(small) << error;
   auto other = small->sibling(error);
   ASSERT_TRUE(other) << error;
-  const std::vector<Object> expected = scattered("s", 64 * 64, 6);
+  const std::vector<Object> expected = scattered("s", kObjects, 6);
   std::map<uint64_t, const Object*> by_id;
   for (const Object& e : expected) by_id[e.id] = &e;
-  const uint32_t base = small->slot_count() - 64 * 64;  // slots only grow: the new objects'
+  const uint32_t base = small->slot_count() - kObjects;  // slots only grow: the new objects'
+  ASSERT_EQ(new_chunks[chunk_index(new_chunks, base)], base);
+  const size_t new_count = new_chunks.size() - chunk_index(new_chunks, base);
+  ASSERT_GT(new_count, 12u);
   for (int pass = 0; pass < 2; ++pass) {
-    for (uint32_t slot = base; slot < base + 64 * 64; ++slot) {
+    for (uint32_t slot = base; slot < base + kObjects; ++slot) {
       // The views take turns chunk by chunk, swapping turns in the second pass.
-      ReadView& view = ((slot - base) / 64 + pass) % 2 ? *other : *small;
+      ReadView& view = (chunk_index(new_chunks, slot) + pass) % 2 ? *other : *small;
       ASSERT_TRUE(view.object(slot, o, false, error)) << error;
       ASSERT_TRUE(by_id.count(o.id)) << "slot " << slot;
       EXPECT_EQ(o.origin_m, by_id[o.id]->origin_m);
@@ -387,7 +431,7 @@ TEST(StorePaged, ViewsOfOneStateDecompressAChunkOnceWithinTheSharedBound) {
   }
   // In the second pass each view meets the chunks the other read, which the shared bound has
   // long let go.
-  EXPECT_EQ(small->chunks_decompressed() + other->chunks_decompressed(), 2u * 64u);
+  EXPECT_EQ(small->chunks_decompressed() + other->chunks_decompressed(), 2u * new_count);
   detail::set_chunk_cache_bytes(kChunkCacheBytes);
 }
 

@@ -1,29 +1,34 @@
 // Internal: how object and attribute records are grouped, compressed and laid out in LMDB.
 //
-// The records of consecutive slots are compressed together: a chunk is the records of
-// `chunk_slots` consecutive slots (64 for objects, 256 for attributes) as one zstd frame, so that
-// frames are big enough to compress well without a dictionary; a block is the frames of
-// `block_slots` consecutive slots as one LMDB value. A reader decompresses only the chunk it
-// needs.
+// A column (objects/, attributes/) is a sequence of chunks: the records of consecutive slots,
+// compressed together as one zstd frame (big enough to compress well without a dictionary), one
+// LMDB value each, under the key of the chunk's first slot (u32 big-endian). A reader finds the
+// chunk of a slot with one cursor lookup (the greatest key not above the slot) and decompresses
+// that chunk only.
 //
-// Format 4 stores one chunk a block (block_slots == chunk_slots): a value of about 3.5 KB (one
-// page of the data file, seldom two). Format 3 grouped 32 chunks a block (2048 and 4096 slots,
-// values of about 100 KB), which made an import's memory grow with the plant: LMDB keeps a
-// write transaction's dirty pages in memory and spills them to the data file only when its dirty
-// list is full, and that list counts entries (131071 at most), not bytes; a value bigger than
-// half a page is one entry whatever its pages. With values of one or two pages the dirty pages
-// stay under about 1 GB however big the import (preset c x1000 held 2.5 GB of values dirty).
-// The price is LMDB's rounding of each value to whole pages: about 10% more bytes than format 3.
+// Chunks are cut by compressed bytes, not by slot count: a writer makes each value as big as fits
+// in `value_pages` pages of the data file (LMDB stores a value of more than about half a page in
+// pages of its own, behind a 16-byte page header, and rounds it up to whole pages), so that the
+// pages hold records rather than rounding. Format 4 cut a chunk every 64 (objects) or 256
+// (attributes) slots, values of about 3.5 KB of which LMDB's rounding made 5.4 MB of preset c
+// where the records took 3.5 (format 3 held 32 chunks a value, of about 100 KB). Values of a page
+// or two are what bound an import's memory: LMDB keeps a write transaction's dirty pages in memory
+// until its dirty list is full, and that list counts entries (131071 at most), not bytes; a
+// value of several pages is one entry. With values of two pages the dirty pages stay under
+// about 1 GB however big the import. A single record bigger than that is a chunk of its own
+// (a value of as many pages as it takes).
 //
-// Block (the value under key slot / block_slots, u32 big-endian, in objects/ and attributes/):
-//   u32 frame_end[chunks per block] | frames
-//   Chunk i's frame is bytes [frame_end[i - 1], frame_end[i]) after the header (frame_end[-1] is
-//   0); an empty frame: nothing in the chunk's slots.
-// Chunk (a frame's content):
-//   u32 record_size[chunk_slots] | records, in slot order
+// Writers cut within spans of `span_slots` slots (aligned), never across one, so that rewriting
+// a span (a record in it replaced or removed) means rewriting the values keyed within it. The
+// last chunk of a span is a part-filled value; a span holds some 30 of them.
+//
+// Chunk value: u32 slot_count | zstd frame. The chunk holds slots [key, key + slot_count),
+//   slot_count >= 1; its first slot holds a record. Slots in no chunk hold nothing.
+// Frame content (the chunk's layout): u32 record_size[slot_count] | records, in slot order.
 //   Size 0: no object in that slot (records themselves are never empty). Sizes rather than
 //   offsets, because small repeated numbers compress better.
-// Integers little-endian. Frames carry their content size, and no checksum or dictionary.
+// Integers little-endian (keys big-endian). Frames carry their content size, and no checksum or
+// dictionary.
 #pragma once
 
 #include <zstd.h>
@@ -37,32 +42,42 @@
 namespace plantview::detail {
 
 struct ColumnShape {
-  uint32_t chunk_slots, block_slots;  // block_slots a multiple of chunk_slots
+  uint32_t span_slots;   // slots a writer cuts chunks within (aligned spans)
+  uint32_t value_pages;  // the pages of the data file a chunk value fills, at most
   // The zstd level a writer compresses chunks at (a reader needs no level). Measured on preset c
-  // x10 (bench: every chunk recompressed): object chunks 21.1 MB at 3, 22.4 MB at 1 (20% faster),
-  // 20.0 MB at 6 (3.4 times slower); attribute chunks 4.9 MB at 1 and 3 alike, 1 the faster.
+  // x10 (format 4, bench: every chunk recompressed): object chunks 21.1 MB at 3, 22.4 MB at 1
+  // (20% faster), 20.0 MB at 6 (3.4 times slower); attribute chunks 4.9 MB at 1 and 3 alike, 1
+  // the faster. Format 5, preset c's object chunks: 540 pages at 3, 518 at 4, 506 at 5, 496 at
+  // 6; gen --scale 100 took 28 s of CPU at 3 and 4 alike, 40 s at 6.
   int zstd_level = 3;
-  constexpr uint32_t chunks_per_block() const { return block_slots / chunk_slots; }
-  constexpr uint32_t chunk_of(uint32_t slot) const { return slot / chunk_slots; }
-  constexpr uint32_t block_of(uint32_t slot) const { return slot / block_slots; }
-  // The chunk's place in its block.
-  constexpr uint32_t chunk_in_block(uint32_t slot) const {
-    return (slot % block_slots) / chunk_slots;
-  }
+  constexpr uint32_t span_of(uint32_t slot) const { return slot / span_slots; }
 };
-inline constexpr ColumnShape kObjectShape{64, 64, 3};
-inline constexpr ColumnShape kAttributeShape{256, 256, 1};
+inline constexpr ColumnShape kObjectShape{4096, 2, 4};
+inline constexpr ColumnShape kAttributeShape{16384, 2, 1};
 
-// Splits a block into its frames (spans into `data`). False if the header is malformed.
-bool split_block(const uint8_t* data, size_t size, uint32_t chunks,
-                 std::vector<std::span<const uint8_t>>& frames, std::string& error);
-void join_block(const std::vector<std::vector<uint8_t>>& frames, std::vector<uint8_t>& out);
+// LMDB's header on the first page of a value stored in pages of its own (PAGEHDRSZ).
+inline constexpr size_t kLmdbPageHeaderBytes = 16;
+// The most bytes of a chunk's frame that keep its value within `pages` pages of `page_bytes`.
+constexpr size_t chunk_frame_budget(size_t page_bytes, uint32_t pages) {
+  return pages * page_bytes - kLmdbPageHeaderBytes - 4;
+}
 
-// Lays out a chunk; `records` has chunk_slots entries, empty where there is no object.
+// Splits a chunk value into its slot count and frame (a span into `data`). False if the header
+// is malformed (a value shorter than its header, a slot count of 0, no frame).
+bool split_chunk_value(const uint8_t* data, size_t size, uint32_t& slot_count,
+                       std::span<const uint8_t>& frame, std::string& error);
+void join_chunk_value(uint32_t slot_count, std::span<const uint8_t> frame,
+                      std::vector<uint8_t>& out);
+
+// Lays out a chunk; `records` has an entry per slot, empty where there is no object.
 void pack_chunk(const std::vector<std::vector<uint8_t>>& records, std::vector<uint8_t>& out);
+// The same from records kept flat: `sizes` one per slot (0: none), `bytes` the records in slot
+// order, back to back.
+void pack_chunk(std::span<const uint32_t> sizes, std::span<const uint8_t> bytes,
+                std::vector<uint8_t>& out);
 // Checks a chunk's header against its size and sets `ends` to where each record ends (after
 // the header); afterwards chunk_record() may be used on it.
-bool check_chunk(const std::vector<uint8_t>& chunk, uint32_t chunk_slots,
+bool check_chunk(const std::vector<uint8_t>& chunk, uint32_t slot_count,
                  std::vector<uint32_t>& ends, std::string& error);
 // The record at `index` of a checked chunk (empty: none). Valid while `chunk` is unchanged.
 std::span<const uint8_t> chunk_record(const std::vector<uint8_t>& chunk,
@@ -77,7 +92,7 @@ struct ZstdDCtxFree {
 using ZstdCCtx = std::unique_ptr<ZSTD_CCtx, ZstdCCtxFree>;
 using ZstdDCtx = std::unique_ptr<ZSTD_DCtx, ZstdDCtxFree>;
 
-ZstdCCtx make_compressor();  // the store's frame parameters (level 3, content size, no checksum)
+ZstdCCtx make_compressor();  // the store's frame parameters (level 6, content size, no checksum)
 // False with zstd's reason (only on allocation failure in practice).
 bool compress_frame(ZSTD_CCtx* cctx, std::span<const uint8_t> in, std::vector<uint8_t>& out,
                     std::string& error);
@@ -85,5 +100,21 @@ bool compress_frame(ZSTD_CCtx* cctx, std::span<const uint8_t> in, std::vector<ui
 // inflate to more than 1 GiB).
 bool inflate_frame(ZSTD_DCtx* dctx, std::span<const uint8_t> frame, std::vector<uint8_t>& out,
                    std::string& error);
+
+// A chunk cut by cut_chunks(): its first slot (the key) and its value, ready for LMDB.
+struct ChunkValue {
+  uint32_t first_slot = 0;
+  std::vector<uint8_t> value;
+};
+// Cuts the records of consecutive slots from `first_slot` (`sizes`, one per slot, 0: none;
+// `bytes`, the records back to back) into chunks, each as many slots as compress (with `cctx`,
+// at its level) into a frame of at most `frame_budget` bytes, or one record where that alone is
+// bigger: every slot with a record is in one chunk, each chunk starts with a record, and no
+// chunk is followed by a record that would have fit (bar a slack of 1/32 of the budget, which
+// spares trial compressions). Appends to `out`; a pure function of its inputs (the same values
+// whatever thread runs it). False with zstd's reason.
+bool cut_chunks(ZSTD_CCtx* cctx, uint32_t first_slot, std::span<const uint32_t> sizes,
+                std::span<const uint8_t> bytes, size_t frame_budget, std::vector<ChunkValue>& out,
+                std::string& error);
 
 }  // namespace plantview::detail

@@ -97,27 +97,28 @@ unsigned import_threads() { return detail::compression_threads(); }
 
 namespace plantview::detail {
 
-// A block on its way to LMDB: its chunks' frames (stored ones as they were, the others as their
-// layout until a pool thread compresses them in place).
+// A span on its way to LMDB: its records, flat, until a pool thread cuts and compresses them
+// into chunks.
 struct ColumnWriter::Pending {
   uint32_t number = 0;
-  bool stored = false;                      // the database held a version when it was handed over
-  std::vector<std::vector<uint8_t>> frames;  // one per chunk; empty: nothing in the chunk
-  std::vector<uint8_t> to_compress;         // per chunk: 1 while frames[i] is a layout
-  std::string error;                        // compression's reason, when it failed
+  bool stored = false;  // the database held chunks of the span when it was handed over
+  uint32_t first_slot = 0;
+  std::vector<uint32_t> sizes;
+  std::vector<uint8_t> bytes;
+  size_t frame_budget = 0;
+  int level = 3;
+  std::vector<ChunkValue> chunks;  // once done
+  std::string error;               // compression's reason, when it failed
   std::mutex mutex;
   std::condition_variable finished;
   bool done = false;
 
-  int level = 3;
   void compress(ZSTD_CCtx* cctx) {
-    std::vector<uint8_t> out;
     std::string why;
     ZSTD_CCtx_setParameter(cctx, ZSTD_c_compressionLevel, level);
-    for (size_t i = 0; i < frames.size() && why.empty(); ++i) {
-      if (!to_compress[i]) continue;
-      if (compress_frame(cctx, frames[i], out, why)) frames[i].swap(out);
-    }
+    cut_chunks(cctx, first_slot, sizes, bytes, frame_budget, chunks, why);
+    sizes = {};
+    bytes = {};
     const std::lock_guard lock(mutex);
     error = std::move(why);
     done = true;
@@ -139,7 +140,7 @@ ColumnWriter::ColumnWriter(std::string directory, std::string name, MDB_dbi dbi,
 }
 
 ColumnWriter::~ColumnWriter() {
-  // The pool's jobs hold their blocks; waiting keeps a writer's work from outliving its import.
+  // The pool's jobs hold their spans; waiting keeps a writer's work from outliving its import.
   for (const auto& p : in_flight_) p->wait();
 }
 
@@ -147,9 +148,21 @@ std::string ColumnWriter::fail(std::string_view what, int rc) const {
   return lmdb_message(directory_, what, rc);
 }
 
+std::string ColumnWriter::slots_named(uint32_t number) const {
+  return name_ + " slots " + std::to_string(uint64_t(number) * shape_.span_slots) + "-" +
+         std::to_string(uint64_t(number + 1) * shape_.span_slots - 1);
+}
+
 bool ColumnWriter::begin(MDB_txn* txn, std::string& error) {
+  MDB_stat stat;
+  int rc = mdb_env_stat(mdb_txn_env(txn), &stat);
+  if (rc != MDB_SUCCESS) {
+    error = fail("reading the page size", rc);
+    return false;
+  }
+  frame_budget_ = chunk_frame_budget(stat.ms_psize, shape_.value_pages);
   LmdbCursor cursor;
-  int rc = cursor.open(txn, dbi_);
+  rc = cursor.open(txn, dbi_);
   MDB_val k, v;
   if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_LAST);
   if (rc == MDB_SUCCESS && k.mv_size == 4) {
@@ -161,112 +174,110 @@ bool ColumnWriter::begin(MDB_txn* txn, std::string& error) {
   return true;
 }
 
-bool ColumnWriter::open_block(MDB_txn* txn, uint32_t number, Block*& block, std::string& error) {
-  if (auto it = blocks_.find(number); it != blocks_.end()) {
-    block = &it->second;
+bool ColumnWriter::open_span(MDB_txn* txn, uint32_t number, Span*& span, std::string& error) {
+  if (auto it = spans_.find(number); it != spans_.end()) {
+    span = &it->second;
     return true;
   }
-  // A block on its way to LMDB is read back from there once it has arrived.
+  // A span on its way to LMDB is read back from there once it has arrived.
   const bool travelling = std::any_of(in_flight_.begin(), in_flight_.end(),
                                       [&](const auto& p) { return p->number == number; });
   if (travelling && !store_compressed(txn, true, error)) return false;
-  // Bounded memory for imports that touch many blocks (replacing a large source).
-  if (blocks_.size() >= kMaxOpenBlocks && !flush(txn, error)) return false;
-  Block fresh;
-  fresh.chunks.resize(shape_.chunks_per_block());
-  const Key32 key(number);
+  // Bounded memory for imports that touch many spans (replacing a large source).
+  if (spans_.size() >= kMaxOpenSpans && !flush(txn, error)) return false;
+  Span fresh;
+  // The chunks keyed within the span (chunks never cross a span's end).
+  const uint64_t first = uint64_t(number) * shape_.span_slots;
+  const uint64_t end = first + shape_.span_slots;
+  const Key32 key{uint32_t(first)};
   MDB_val k = key.val(), v;
-  const int rc = mdb_get(txn, dbi_, &k, &v);
-  if (rc == MDB_SUCCESS) {
-    std::vector<std::span<const uint8_t>> frames;
+  LmdbCursor cursor;
+  int rc = cursor.open(txn, dbi_);
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  for (; rc == MDB_SUCCESS; rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT)) {
+    const uint64_t at = k.mv_size == 4 ? read_be32(k.mv_data) : UINT64_MAX;
+    if (at >= end) break;
+    if (!fresh.decoded) {
+      fresh.records.assign(shape_.span_slots, {});
+      fresh.decoded = fresh.stored = true;
+    }
+    uint32_t count = 0;
+    std::span<const uint8_t> frame;
     std::string why;
-    if (!split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, shape_.chunks_per_block(),
-                     frames, why)) {
-      error = "store " + directory_ + ": " + name_ + " slots " +
-              std::to_string(uint64_t(number) * shape_.block_slots) + "-" +
-              std::to_string(uint64_t(number + 1) * shape_.block_slots - 1) + ": " + why;
+    if (!split_chunk_value(static_cast<const uint8_t*>(v.mv_data), v.mv_size, count, frame,
+                           why) ||
+        !inflate_frame(dctx_.get(), frame, inflated_, why) ||
+        !check_chunk(inflated_, count, ends_, why)) {
+      error = "store " + directory_ + ": " + name_ + " chunk at slot " + std::to_string(at) +
+              ": " + why;
       return false;
     }
-    for (size_t i = 0; i < frames.size(); ++i) {
-      fresh.chunks[i].frame.assign(frames[i].begin(), frames[i].end());
+    if (at + count > end) {
+      error = "store " + directory_ + ": " + name_ + " chunk at slot " + std::to_string(at) +
+              ": its " + std::to_string(count) + " slots run past " + slots_named(number);
+      return false;
     }
-    fresh.stored = true;
-  } else if (rc != MDB_NOTFOUND) {
-    error = fail("reading " + name_ + " records", rc);
+    for (uint32_t i = 0; i < count; ++i) {
+      const auto r = chunk_record(inflated_, ends_, i);
+      fresh.records[at - first + i].assign(r.begin(), r.end());
+    }
+  }
+  if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
+    error = fail("reading " + slots_named(number), rc);
     return false;
   }
-  block = &blocks_.emplace(number, std::move(fresh)).first->second;
+  span = &spans_.emplace(number, std::move(fresh)).first->second;
   return true;
 }
 
-void ColumnWriter::decode(Chunk& chunk) {
-  chunk.records.assign(shape_.chunk_slots, {});
-  if (!chunk.packed.empty()) {
-    // Laid out by put(): well formed by construction.
-    std::string why;
-    [[maybe_unused]] const bool ok = check_chunk(chunk.packed, shape_.chunk_slots, ends_, why);
-    assert(ok && "a chunk laid out by put() is malformed");
-    for (uint32_t i = 0; i < shape_.chunk_slots; ++i) {
-      const auto r = chunk_record(chunk.packed, ends_, i);
-      chunk.records[i].assign(r.begin(), r.end());
-    }
+void ColumnWriter::decode(Span& span) {
+  span.records.assign(shape_.span_slots, {});
+  size_t at = 0;
+  for (size_t i = 0; i < span.sizes.size(); ++i) {
+    span.records[i].assign(span.bytes.begin() + at, span.bytes.begin() + at + span.sizes[i]);
+    at += span.sizes[i];
   }
-  chunk.packed = {};
-  chunk.decoded = true;
+  span.sizes = {};
+  span.bytes = {};
+  span.decoded = true;
 }
 
 bool ColumnWriter::open_record(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>*& record,
                                std::string& error) {
-  Block* block;
-  if (!open_block(txn, shape_.block_of(slot), block, error)) return false;
-  Chunk& chunk = block->chunks[shape_.chunk_in_block(slot)];
-  if (!chunk.decoded) {
-    if (!chunk.frame.empty()) {
-      std::string why;
-      if (!inflate_frame(dctx_.get(), chunk.frame, chunk.packed, why) ||
-          !check_chunk(chunk.packed, shape_.chunk_slots, ends_, why)) {
-        chunk.packed = {};
-        error = "store " + directory_ + ": " + name_ + " slot " + std::to_string(slot) + ": " + why;
-        return false;
-      }
-      chunk.frame = {};
-    }
-    decode(chunk);
-  }
-  record = &chunk.records[slot % shape_.chunk_slots];
+  Span* span;
+  if (!open_span(txn, shape_.span_of(slot), span, error)) return false;
+  if (!span->decoded) decode(*span);
+  record = &span->records[slot % shape_.span_slots];
   return true;
 }
 
 bool ColumnWriter::put(MDB_txn* txn, uint32_t slot, std::vector<uint8_t>&& record,
                        std::string& error) {
-  const uint32_t number = shape_.block_of(slot);
-  Block* block;
-  if (!open_block(txn, number, block, error)) return false;
-  Chunk& chunk = block->chunks[shape_.chunk_in_block(slot)];
-  const uint32_t index = slot % shape_.chunk_slots;
-  if (!chunk.decoded && chunk.frame.empty() && index >= chunk.next) {
-    // Appending: the record goes straight into the chunk's layout.
-    const size_t header = size_t(shape_.chunk_slots) * 4;
-    if (chunk.packed.empty()) {
-      // Room for as much as the last chunk laid out held: one allocation a chunk, mostly.
-      chunk.packed.reserve(std::max(packed_bytes_, header + record.size()));
-      chunk.packed.assign(header, 0);
+  const uint32_t number = shape_.span_of(slot);
+  Span* span;
+  if (!open_span(txn, number, span, error)) return false;
+  const uint32_t index = slot % shape_.span_slots;
+  if (!span->decoded && index >= span->sizes.size()) {
+    // Appending: the record goes straight into the span's flat buffer.
+    if (span->bytes.capacity() == 0) {
+      // Room for as much as the last span held: one allocation a span, mostly.
+      span->bytes.reserve(std::max(span_bytes_, record.size()));
+      span->sizes.reserve(shape_.span_slots);
     }
-    const auto size = uint32_t(record.size());
-    std::memcpy(chunk.packed.data() + 4 * size_t(index), &size, 4);
-    chunk.packed.insert(chunk.packed.end(), record.begin(), record.end());
-    chunk.next = index + 1;
+    span->sizes.resize(index, 0);
+    span->sizes.push_back(uint32_t(record.size()));
+    span->bytes.insert(span->bytes.end(), record.begin(), record.end());
   } else {
     std::vector<uint8_t>* at;
     if (!open_record(txn, slot, at, error)) return false;
     at->assign(record.begin(), record.end());
-    block = &blocks_.at(number);
+    span = &spans_.at(number);
   }
-  block->changed = true;
-  // Imports fill slots in order: a block whose last slot is put is complete.
-  if (slot % shape_.block_slots == shape_.block_slots - 1) {
-    if (!write_block(txn, number, *block, error)) return false;
-    blocks_.erase(number);
+  span->changed = true;
+  // Imports fill slots in order: a span whose last slot is put is complete.
+  if (index == shape_.span_slots - 1) {
+    if (!write_span(txn, number, *span, error)) return false;
+    spans_.erase(number);
   }
   return true;
 }
@@ -276,7 +287,7 @@ bool ColumnWriter::erase(MDB_txn* txn, uint32_t slot, std::string& error) {
   if (!open_record(txn, slot, at, error)) return false;
   at->clear();
   at->shrink_to_fit();
-  blocks_.at(shape_.block_of(slot)).changed = true;
+  spans_.at(shape_.span_of(slot)).changed = true;
   return true;
 }
 
@@ -288,33 +299,33 @@ bool ColumnWriter::get(MDB_txn* txn, uint32_t slot, std::span<const uint8_t>& re
   return true;
 }
 
-// Hands the block over for compression; the block's contents move out (the caller drops it).
-bool ColumnWriter::write_block(MDB_txn* txn, uint32_t number, Block& block, std::string& error) {
-  if (!block.changed) return true;
+// Hands the span over for cutting and compression; its contents move out (the caller drops it).
+bool ColumnWriter::write_span(MDB_txn* txn, uint32_t number, Span& span, std::string& error) {
+  if (!span.changed) return true;
   auto p = std::make_shared<Pending>();
   p->number = number;
-  p->stored = block.stored;
+  p->stored = span.stored;
+  p->first_slot = number * shape_.span_slots;
+  p->frame_budget = frame_budget_;
   p->level = shape_.zstd_level;
-  p->frames.resize(block.chunks.size());
-  p->to_compress.assign(block.chunks.size(), 0);
-  for (size_t i = 0; i < block.chunks.size(); ++i) {
-    Chunk& chunk = block.chunks[i];
-    if (chunk.decoded) {
-      const bool empty = std::all_of(chunk.records.begin(), chunk.records.end(),
-                                     [](const std::vector<uint8_t>& r) { return r.empty(); });
-      if (!empty) {
-        pack_chunk(chunk.records, p->frames[i]);
-        p->to_compress[i] = 1;
-      }
-    } else if (!chunk.frame.empty()) {
-      p->frames[i] = std::move(chunk.frame);
-    } else if (!chunk.packed.empty()) {
-      packed_bytes_ = chunk.packed.size();
-      p->frames[i] = std::move(chunk.packed);
-      p->to_compress[i] = 1;
+  if (span.decoded) {
+    size_t used = 0, total = 0;  // the slots up to the last record, and its bytes
+    for (size_t i = 0; i < span.records.size(); ++i) {
+      if (!span.records[i].empty()) used = i + 1;
+      total += span.records[i].size();
     }
+    p->sizes.resize(used);
+    p->bytes.reserve(total);
+    for (size_t i = 0; i < used; ++i) {
+      p->sizes[i] = uint32_t(span.records[i].size());
+      p->bytes.insert(p->bytes.end(), span.records[i].begin(), span.records[i].end());
+    }
+  } else {
+    span_bytes_ = span.bytes.size();
+    p->sizes = std::move(span.sizes);
+    p->bytes = std::move(span.bytes);
   }
-  block.changed = false;
+  span.changed = false;
   in_flight_.push_back(p);
   if (threads_ > 1) {
     CompressionPool::shared().submit([p](ZSTD_CCtx* cctx) { p->compress(cctx); });
@@ -325,34 +336,48 @@ bool ColumnWriter::write_block(MDB_txn* txn, uint32_t number, Block& block, std:
 }
 
 bool ColumnWriter::store_compressed(MDB_txn* txn, bool all, std::string& error) {
-  // When a block reaches LMDB depends on the calls made, never on the threads' timing: so the
+  // When a span reaches LMDB depends on the calls made, never on the threads' timing: so the
   // data file's pages come in the same order whatever the thread count.
-  while (!in_flight_.empty() && (all || in_flight_.size() > kMaxBlocksInFlight)) {
+  while (!in_flight_.empty() && (all || in_flight_.size() > kMaxSpansInFlight)) {
     const std::shared_ptr<Pending> p = in_flight_.front();
     p->wait();
     in_flight_.pop_front();
     if (!p->error.empty()) {
-      error = "store " + directory_ + ": " + name_ + " block " + std::to_string(p->number) + ": " +
-              p->error;
+      error = "store " + directory_ + ": " + slots_named(p->number) + ": " + p->error;
       return false;
     }
-    const bool any = std::any_of(p->frames.begin(), p->frames.end(),
-                                 [](const std::vector<uint8_t>& f) { return !f.empty(); });
-    const Key32 key(p->number);
-    MDB_val k = key.val();
     int rc = MDB_SUCCESS;
-    if (!any) {
-      if (p->stored) rc = mdb_del(txn, dbi_, &k, nullptr);
-      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
-    } else {
-      join_block(p->frames, value_);
-      MDB_val v = as_val(value_.data(), value_.size());
-      // Blocks past the last one stored append to full pages.
-      rc = mdb_put(txn, dbi_, &k, &v, int64_t(p->number) > last_stored_ ? MDB_APPEND : 0);
-      last_stored_ = std::max<int64_t>(last_stored_, p->number);
+    if (p->stored) {
+      // The span's chunks as stored go: the new cut need not share their keys.
+      const uint64_t end = uint64_t(p->first_slot) + shape_.span_slots;
+      std::vector<uint32_t> keys;
+      LmdbCursor cursor;
+      const Key32 first(p->first_slot);
+      MDB_val k = first.val(), v;
+      rc = cursor.open(txn, dbi_);
+      if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+      for (; rc == MDB_SUCCESS && k.mv_size == 4 && read_be32(k.mv_data) < end;
+           rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT)) {
+        keys.push_back(read_be32(k.mv_data));
+      }
+      if (rc == MDB_NOTFOUND || rc == MDB_SUCCESS) rc = MDB_SUCCESS;
+      for (size_t i = 0; i < keys.size() && rc == MDB_SUCCESS; ++i) {
+        const Key32 key(keys[i]);
+        MDB_val dk = key.val();
+        rc = mdb_del(txn, dbi_, &dk, nullptr);
+      }
+    }
+    for (size_t i = 0; i < p->chunks.size() && rc == MDB_SUCCESS; ++i) {
+      const ChunkValue& c = p->chunks[i];
+      const Key32 key(c.first_slot);
+      MDB_val k = key.val(), v = as_val(c.value.data(), c.value.size());
+      // Chunks past the last one stored append to full pages.
+      const bool append = int64_t(c.first_slot) > last_stored_;
+      rc = mdb_put(txn, dbi_, &k, &v, append ? MDB_APPEND : 0);
+      last_stored_ = std::max<int64_t>(last_stored_, c.first_slot);
     }
     if (rc != MDB_SUCCESS) {
-      error = fail("writing " + name_ + " records", rc);
+      error = fail("writing " + slots_named(p->number), rc);
       return false;
     }
   }
@@ -360,18 +385,17 @@ bool ColumnWriter::store_compressed(MDB_txn* txn, bool all, std::string& error) 
 }
 
 bool ColumnWriter::flush(MDB_txn* txn, std::string& error) {
-  for (auto& [number, block] : blocks_) {
-    if (!write_block(txn, number, block, error)) return false;
+  for (auto& [number, span] : spans_) {
+    if (!write_span(txn, number, span, error)) return false;
   }
-  blocks_.clear();
+  spans_.clear();
   return store_compressed(txn, true, error);
 }
 
 // ---------------------------------------------------------------------------------------------
 
-ChunkCache::ChunkCache(MDB_dbi dbi, ColumnShape shape, size_t capacity, size_t byte_budget,
-                       SharedChunks* shared)
-    : dbi_(dbi), shape_(shape), byte_budget_(byte_budget), shared_(shared), entries_(capacity) {}
+ChunkCache::ChunkCache(MDB_dbi dbi, size_t capacity, size_t byte_budget, SharedChunks* shared)
+    : dbi_(dbi), byte_budget_(byte_budget), shared_(shared), entries_(capacity) {}
 
 ChunkCache::~ChunkCache() { release_touched(); }
 
@@ -391,58 +415,70 @@ void ChunkCache::release_touched() {
   reads_since_release_ = 0;
 }
 
-std::shared_ptr<const InflatedChunk> ChunkCache::inflate(MDB_txn* txn, ZSTD_DCtx* dctx,
-                                                         uint32_t slot, std::string& why) {
-  auto chunk = std::make_shared<InflatedChunk>();
-  // Through a cursor, which returns the key in place: in the leaf page that points to the
-  // value (a page of its own, for a value of more than half a page), released with it.
-  const Key32 key(shape_.block_of(slot));
+std::shared_ptr<const InflatedChunk> ChunkCache::find_or_inflate(MDB_txn* txn, ZSTD_DCtx* dctx,
+                                                                 uint32_t slot, std::string& why) {
+  // The chunk with the greatest first slot not above `slot`. Through a cursor, which returns the
+  // key in place: in the leaf page that points to the value (a page of its own, for a value of
+  // more than half a page), released with it.
+  const Key32 key(slot);
   MDB_val k = key.val(), v;
   LmdbCursor cursor;
   int rc = cursor.open(txn, dbi_);
-  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_KEY);
-  if (rc == MDB_NOTFOUND) return chunk;
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  if (rc == MDB_SUCCESS && (k.mv_size != 4 || read_be32(k.mv_data) != slot)) {
+    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_PREV);
+  } else if (rc == MDB_NOTFOUND) {
+    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_LAST);
+  }
+  if (rc == MDB_NOTFOUND) return nullptr;
   if (rc != MDB_SUCCESS) {
     why = mdb_strerror(rc);
     return nullptr;
   }
-  if (!split_block(static_cast<const uint8_t*>(v.mv_data), v.mv_size, shape_.chunks_per_block(),
-                   frames_, why)) {
+  if (k.mv_size != 4) {
+    why = "a chunk key of " + std::to_string(k.mv_size) + " bytes";
     return nullptr;
   }
-  const auto frame = frames_[shape_.chunk_in_block(slot)];
-  inflated_ += frame.empty() ? 0 : 1;
-  const bool inflated = frame.empty() || inflate_frame(dctx, frame, chunk->bytes, why);
-  // After inflating, so that the pages it brought in count.
-  const auto* value = static_cast<const uint8_t*>(v.mv_data);
-  touched(value, frame.empty() ? value + shape_.chunks_per_block() * 4 : frame.data() + frame.size(),
-          static_cast<const uint8_t*>(k.mv_data));
-  if (!inflated) return nullptr;
-  if (!frame.empty()) {
-    if (!check_chunk(chunk->bytes, shape_.chunk_slots, chunk->ends, why)) return nullptr;
-    chunk->present = true;
+  const uint32_t first = read_be32(k.mv_data);
+  uint32_t count = 0;
+  std::span<const uint8_t> frame;
+  if (!split_chunk_value(static_cast<const uint8_t*>(v.mv_data), v.mv_size, count, frame, why)) {
+    return nullptr;
   }
+  if (first > slot || uint64_t(slot) - first >= count) return nullptr;  // in no chunk
+  if (shared_) {
+    if (auto found = shared_->find(first)) return found;
+  }
+  auto chunk = std::make_shared<InflatedChunk>();
+  chunk->first = first;
+  chunk->slot_count = count;
+  ++inflated_;
+  const bool inflated = inflate_frame(dctx, frame, chunk->bytes, why);
+  // After inflating, so that the pages it brought in count.
+  touched(static_cast<const uint8_t*>(v.mv_data), frame.data() + frame.size(),
+          static_cast<const uint8_t*>(k.mv_data));
+  if (!inflated || !check_chunk(chunk->bytes, count, chunk->ends, why)) return nullptr;
+  if (shared_) shared_->insert(first, chunk);
   return chunk;
 }
 
 bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<const uint8_t>& out,
                         std::string& why) {
-  const uint32_t chunk = shape_.chunk_of(slot);
   Entry* entry = nullptr;
   for (Entry& e : entries_) {
-    if (e.inflated && e.chunk == chunk) entry = &e;
+    if (e.inflated && slot >= e.inflated->first && slot - e.inflated->first < e.inflated->slot_count)
+      entry = &e;
   }
   if (!entry) {
-    std::shared_ptr<const InflatedChunk> found = shared_ ? shared_->find(chunk) : nullptr;
+    why.clear();
+    std::shared_ptr<const InflatedChunk> found = find_or_inflate(txn, dctx, slot, why);
     if (!found) {
-      found = inflate(txn, dctx, slot, why);
-      if (!found) return false;
-      if (shared_) shared_->insert(chunk, found);
+      out = {};
+      return why.empty();  // no chunk holds the slot: no record
     }
     entry = &*std::min_element(entries_.begin(), entries_.end(),
                                [](const Entry& a, const Entry& b) { return a.used < b.used; });
     if (entry->inflated) held_bytes_ -= entry->inflated->memory_bytes();
-    entry->chunk = chunk;
     entry->inflated = std::move(found);
     held_bytes_ += entry->inflated->memory_bytes();
     // Chunks of big meshes can be megabytes: keep the entries within the byte budget, least
@@ -459,8 +495,7 @@ bool ChunkCache::record(MDB_txn* txn, ZSTD_DCtx* dctx, uint32_t slot, std::span<
   }
   entry->used = ++clock_;
   const InflatedChunk& c = *entry->inflated;
-  out = c.present ? chunk_record(c.bytes, c.ends, slot % shape_.chunk_slots)
-                  : std::span<const uint8_t>();
+  out = chunk_record(c.bytes, c.ends, slot - c.first);
   return true;
 }
 

@@ -1,29 +1,41 @@
 // plantview/store.h: the plant store. A plant model kept as parameters only, in one LMDB
 // environment (a directory), read by renderers and services while imports write.
 //
-// Schema, format 4 (LMDB named databases; integers in keys are big-endian so that keys sort
+// Schema, format 5 (LMDB named databases; integers in keys are big-endian so that keys sort
 // numerically):
 //   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
-//                                else, and a store of another version is refused (a format 3
-//                                store: "import or generate it again")
+//                                else, and a store of another version is refused (a format 3 or
+//                                4 store: "import or generate it again")
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
 //               "next_slot"   -> u32, the slot the next object gets
+//               "index_key_bits" -> u32, 8 to 24: the bits of an id or name hash that key the ids
+//                                and names (below); absent until the first commit
 //               "spatial_top" -> zstd: the top of the spatial hierarchy (spatial.h): the spatial
 //                                origin, the entry and block counts, each block's count and grid
 //                                bounds, and the far-field proxy of every top node
-//   objects     chunk (u32)   -> the object records of slots [chunk * 64, chunk * 64 + 64), one
-//                                zstd frame: id, class, colour, origin, name, source,
-//                                primitives, piping topology (layouts in chunks.h and record.h).
-//                                Format 3 kept 32 chunks a value; format 4 keeps values to a
-//                                page or two, which bounds an import's memory (below)
-//   attributes  chunk (u32)   -> the same for the objects' key/value attributes: chunks of 256
-//                                slots
-//   ids         u16 (the top 16 bits of the id) -> sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED,
-//                                packed in pages): u48 rest of the id, u32 slot (about 11 bytes
-//                                an object on disk)
-//   names       u16 (the top 16 bits of the 32-bit name hash) -> sorted duplicates: u16 rest of
-//                                the hash, u32 slot (about 7 bytes an object)
+//   objects     first slot (u32) -> a chunk: the object records of consecutive slots from that
+//                                one, as one zstd frame (id, class, colour, origin, name, source,
+//                                primitives, piping topology; layouts in chunks.h and record.h).
+//                                Chunks are cut by compressed bytes, so that each value fills
+//                                two pages of the data file (about 150 generated objects): the
+//                                slot of a record is found by the greatest key not above it.
+//                                Format 4 cut a chunk every 64 slots, and LMDB's rounding of
+//                                each value to whole pages made preset c half as big again;
+//                                format 3 kept 32 chunks a value, which left an import's memory
+//                                unbounded (below)
+//   attributes  first slot (u32) -> the same for the objects' key/value attributes
+//   ids         the top B bits of the id (B = meta/"index_key_bits", in (B + 7) / 8 bytes) ->
+//                                sorted duplicates (MDB_DUPSORT | MDB_DUPFIXED, packed in pages):
+//                                the other 64 - B bits of the id (in (71 - B) / 8 bytes), u32 slot.
+//                                B follows the object count, about 32 objects a key (LMDB costs a
+//                                key about 28 bytes; much beyond 200 it gives a key pages of its
+//                                own): 10 bits at preset c (15 bytes an object on disk), 17 at
+//                                its x100 (13 bytes); 16 bits for both took 20 and 14. An import
+//                                that leaves the count outside 16 to 64 a key (it doubled or
+//                                halved) writes the ids and names again with the width for it
+//   names       the top B bits of the 32-bit name hash -> sorted duplicates: the other 32 - B
+//                                bits, u32 slot (about 9 and 8 bytes an object)
 //   spatial_a / spatial_b     -> u32 block -> zstd: the grid entries (bounds on a grid of
 //                                1/1024 m, slot, colour) of kSpatialBlockObjects objects or fewer,
 //                                consecutive in the Morton order of their centres; the top says
@@ -31,8 +43,9 @@
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
-// the chunk it is in; every import writes the spatial blocks and the top again (the ids and
-// names are updated key by key).
+// the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
+// every import writes the spatial blocks and the top again (the ids and names are updated key
+// by key, or written again when their key width changes).
 //
 // Transactions and lifetimes
 //   - An Import is one LMDB write transaction: until commit() nothing is visible, and a failed,
@@ -43,8 +56,8 @@
 //     into free pages of the data file beyond it, never over a page a committed state uses, and
 //     the meta page that makes them the store's state is written only by the commit. The limit
 //     counts values, not bytes (131071 dirty entries: a page, or one value of several pages):
-//     so every value an import writes is a page or a few (a chunk of records, an index page, a
-//     spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed
+//     so every value an import writes is a page or a few (a chunk of records of two pages, an
+//     index page, a spatial block of about 20 KB), and the dirty pages stay under about 1 GB. A killed
 //     process's pages are unreachable, and the next writer reuses them. (No MDB_WRITEMAP: the
 //     guarantee does not need it, and it would write dirty pages in place through the map,
 //     where they count in the process's memory until written back.)
@@ -52,13 +65,14 @@
 //     buffers (id and slot; name hash and slot; Morton key, slot, grid box and colour), and each
 //     full buffer (64 MB) is sorted and written to a run file in the store directory
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
-//     have been killed). commit() merges the runs into the ids and names databases and, with the
+//     have been killed). commit() merges the runs into the ids and names databases (a commit
+//     that changes their key width first moves their entries into the same runs) and, with the
 //     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
-//     --scale 1000` (40.75 million objects) peaked at 0.87 GB while putting objects and 1.15 GB
-//     while committing (format 3: 3.7 GB).
+//     --scale 1000` (40.75 million objects) peaked at 1.60 GB (format 4: 0.87 GB while putting
+//     objects and 1.15 GB while committing; format 3: 3.7 GB).
 //   - A ReadView is one LMDB read transaction: a consistent snapshot. Views may be used while an
 //     import writes; they do not see it. A view is used by one thread at a time (it need not
 //     be the thread that made it); threads that read one snapshot together each take a
@@ -80,8 +94,8 @@
 //     resident set once decoded, and a view drops the pages of the chunks it has decompressed
 //     every 256 chunks and when destroyed (the kernel's page cache keeps them all: reading them
 //     again costs a minor fault).
-//   - object() decompresses the 64-slot chunk holding the slot and keeps the view's 32 most
-//     recently used chunks: fetching neighbouring slots costs one decompression per chunk.
+//   - object() decompresses the chunk holding the slot (about 150 generated objects, found by a
+//     cursor lookup) and keeps the view's 32 most recently used chunks: fetching neighbouring slots costs one decompression per chunk.
 //     Decompressed chunks are also shared by the views of one committed state, up to
 //     kChunkCacheBytes (least recently used go first; a chunk a view keeps stays alive with it):
 //     a chunk another view, or an earlier one, decompressed is not decompressed again. (Preset c
@@ -103,17 +117,19 @@
 // over, never by importing into it in place. Readers in a writable directory use lock.mdb as
 // usual and may run alongside an import.
 //
-// Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an
-// empty data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter
-// than the pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps
-// the file, and reading a page past its end would kill the process with SIGBUS), another format
-// version, and meta/"statistics" that is not JSON of the form statistics_json() writes (the
-// message names the key). read() checks the file's length again, so a file cut short while the
-// store is open fails the next view instead of faulting; a cut during a view's life is not
-// caught (the view's pages past the new end fault, as any mapped file's would). A damaged
-// spatial top fails spatial_ready(), spatial_block() and for_each_spatial_entry() (naming it;
-// the other spatial calls answer as for an empty store); a damaged block fails spatial_block()
-// (naming it) and nothing else. info(), objects and lookups read on.
+// Damaged stores: open() refuses, in either mode and without writing a byte to data.mdb, an empty
+// data.mdb ("not a plantview store"), one too short for LMDB's meta pages, one shorter than the
+// pages its newest meta page says are in use (a partial copy, a full disk: LMDB maps the file, and
+// reading a page past its end would kill the process with SIGBUS), another format version,
+// meta/"statistics" that is not JSON of the form statistics_json() writes, and
+// meta/"index_key_bits" that is not a u32 from 8 to 24 (the message names the key). (LMDB may leave
+// a commit's last pages free and unwritten; an import extends the file over them.) read() checks
+// the file's length again, so a file cut short while the store is open fails the next view instead
+// of faulting; a cut during a view's life is not caught (the view's pages past the new end fault,
+// as any mapped file's would). A damaged spatial top fails spatial_ready(), spatial_block() and
+// for_each_spatial_entry() (naming it; the other spatial calls answer as for an empty store); a
+// damaged block fails spatial_block() (naming it) and nothing else. info(), objects and lookups
+// read on.
 #pragma once
 
 #include <cstddef>
@@ -130,7 +146,7 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 4;
+inline constexpr uint32_t kStoreFormatVersion = 5;
 // Objects in a spatial block (the last block of a store may hold fewer).
 inline constexpr uint32_t kSpatialBlockObjects = 2048;
 // Boxes in a top node's far-field proxy, at most.
@@ -311,11 +327,11 @@ class ReadView {
   uint64_t chunks_decompressed() const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
-  // its record is corrupt (error says which). Cost: decompressing the slot's chunk of 64 slots
-  // (about 10 microseconds) unless it is one of the view's 32 most recently used; so fetch a
+  // its record is corrupt (error says which). Cost: decompressing the slot's chunk (two
+  // pages compressed, a few hundred slots: tens of microseconds) unless it is one of the view's 32 most recently used; so fetch a
   // batch of slots in ascending order (a renderer's newly visible objects, sorted), and each
   // chunk is decompressed once. Slots follow import order, which keeps a pipe run's parts
-  // together but is only loosely spatial: a leaf of the hierarchy spans 2 to 3 chunks.
+  // together but is only loosely spatial: a leaf of the hierarchy spans one to a few chunks.
   bool object(uint32_t slot, Object& out, bool with_attributes, std::string& error) const;
   // The id and pipeline id of the object in a slot, from the first bytes of its record: the
   // same chunk as object() (so as cheap once a neighbour was read) without decoding the rest,

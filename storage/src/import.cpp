@@ -1,0 +1,287 @@
+// Imports: beginning one, putting and removing objects (one LMDB write transaction each).
+#include "plantview/store.h"
+
+#include <cassert>
+#include <filesystem>
+
+#include "import_state.h"
+#include "record.h"
+
+namespace plantview {
+
+using detail::as_val;
+using detail::lmdb_message;
+using detail::name_hash;
+using detail::read_statistics;
+using detail::read_top;
+using detail::read_next_slot;
+using detail::IdEntry;
+using detail::NameEntry;
+using detail::index_slots;
+using detail::SpatialItem;
+
+namespace detail {
+
+namespace {
+std::atomic<size_t> g_import_run_bytes{size_t(64) << 20};
+std::atomic<ImportStageHook> g_stage_hook{nullptr};
+}  // namespace
+
+size_t import_run_bytes() { return g_import_run_bytes; }
+void set_import_run_bytes(size_t bytes) { g_import_run_bytes = bytes; }
+void set_import_stage_hook(ImportStageHook hook) { g_stage_hook = hook; }
+void import_stage(const char* stage) {
+  if (const ImportStageHook hook = g_stage_hook.load()) hook(stage);
+}
+
+void remove_stale_runs(const std::string& directory) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("import-", 0) == 0 && name.size() > 4 &&
+        name.compare(name.size() - 4, 4, ".run") == 0) {
+      std::error_code ignored;
+      std::filesystem::remove(entry.path(), ignored);
+    }
+  }
+}
+
+
+}  // namespace detail
+
+// The slot runs of a source (as committed, plus this import's), loaded on first use.
+bool Import::State::source_runs(std::string_view source, std::vector<detail::SlotRun>*& out, std::string& error) {
+  if (last_source && last_source_name == source) {
+    out = last_source;
+    return true;
+  }
+  auto it = sources.find(source);
+  if (it == sources.end()) {
+    std::vector<detail::SlotRun> runs;
+    MDB_val k = as_val(source), v;
+    const int rc = mdb_get(txn.get(), store->dbs.sources, &k, &v);
+    std::string why;
+    if (rc == MDB_SUCCESS) {
+      if (!detail::decode_slot_runs(static_cast<const uint8_t*>(v.mv_data), v.mv_size,
+                                    first_new_slot, runs, why)) {
+        error = message("slots of source '" + std::string(source) + "': " + why);
+        return false;
+      }
+    } else if (rc != MDB_NOTFOUND) {
+      error = fail("reading the sources index", rc);
+      return false;
+    }
+    it = sources.emplace(std::string(source), std::move(runs)).first;
+  }
+  last_source = &it->second;
+  last_source_name = it->first;
+  out = last_source;
+  return true;
+}
+
+// Removes the object in `slot` (committed earlier, or put by this import). A committed one's
+// id and name keys go now; this import's are left out of the merge at commit.
+bool Import::State::remove_slot(uint32_t slot, std::string& error) {
+  if (is_removed(slot)) return true;
+  digest(slot);
+  std::span<const uint8_t> record;
+  if (!objects.get(txn.get(), slot, record, error)) return false;
+  Object old;
+  std::string why;
+  if (record.empty()) {
+    error = message("slot " + std::to_string(slot) + " is indexed but holds no object");
+    return false;
+  }
+  if (!detail::decode_object(record.data(), record.size(), old, why)) {
+    error = message("object slot " + std::to_string(slot) + ": " + why);
+    return false;
+  }
+  if (!objects.erase(txn.get(), slot, error) || !attributes.erase(txn.get(), slot, error)) {
+    return false;
+  }
+  ModelStatistics part;
+  part.add(old);
+  totals.subtract_counts(part);
+  mark_removed(slot);
+  // The source's list is rewritten at commit (without the removed slots).
+  std::vector<detail::SlotRun>* unused;
+  if (!source_runs(old.source, unused, error)) return false;
+  if (slot < first_new_slot) {
+    const IdEntry id(old.id, slot, index_key_bits);
+    MDB_val k = id.key_val(), v = id.value_val();
+    int rc = mdb_del(txn.get(), store->dbs.ids, &k, &v);
+    if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;  // the id is another slot's (or nobody's)
+    if (rc == MDB_SUCCESS) {
+      const NameEntry name(name_hash(old.name), slot, index_key_bits);
+      MDB_val nk = name.key_val(), nv = name.value_val();
+      rc = mdb_del(txn.get(), store->dbs.names, &nk, &nv);
+      if (rc == MDB_NOTFOUND) rc = MDB_SUCCESS;
+    }
+    if (rc != MDB_SUCCESS) {
+      error = fail("removing slot " + std::to_string(slot) + " from the ids and names", rc);
+      return false;
+    }
+  }
+  return true;
+}
+
+// Compresses and stores `raw_value` under `key` of `dbi`.
+bool Import::State::put_frame(MDB_dbi dbi, MDB_val key, const std::vector<uint8_t>& raw_value, unsigned flags,
+               const std::string& what, std::string& error) {
+  std::vector<uint8_t> frame;
+  std::string why;
+  if (!detail::compress_frame(compressor.get(), raw_value, frame, why)) {
+    error = message(what + ": " + why);
+    return false;
+  }
+  MDB_val v = as_val(frame.data(), frame.size());
+  const int rc = mdb_put(txn.get(), dbi, &key, &v, flags);
+  if (rc != MDB_SUCCESS) {
+    error = fail("writing " + what, rc);
+    return false;
+  }
+  return true;
+}
+
+bool Import::State::database_empty(MDB_dbi dbi, bool& empty, std::string& error) {
+  MDB_stat stat;
+  const int rc = mdb_stat(txn.get(), dbi, &stat);
+  if (rc != MDB_SUCCESS) {
+    error = fail("reading database statistics", rc);
+    return false;
+  }
+  empty = stat.ms_entries == 0;
+  return true;
+}
+
+Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
+Import::~Import() = default;
+uint64_t Import::objects_put() const { return state_->put_count; }
+const ModelStatistics& Import::put_statistics() const { return state_->put_statistics; }
+
+bool Import::remove_source(std::string_view source, std::string& error) {
+  State& s = *state_;
+  assert(s.txn.get() && "remove_source() on a spent Import");
+  std::vector<detail::SlotRun>* runs;
+  if (!s.source_runs(source, runs, error)) return false;
+  // remove_slot may load other sources (never this one again), which leaves `runs` in place.
+  const std::vector<detail::SlotRun> copy = *runs;
+  for (const detail::SlotRun& r : copy) {
+    for (uint32_t slot = r.first; slot < r.first + r.length; ++slot) {
+      if (!s.remove_slot(slot, error)) return false;
+    }
+  }
+  return true;
+}
+
+bool Import::put(const Object& object, std::string& error) {
+  State& s = *state_;
+  assert(s.txn.get() && "put() on a spent Import");
+  if (object.id == 0) {
+    error = s.message("object '" + object.name + "' has id 0");
+    return false;
+  }
+  if (s.next_slot == UINT32_MAX) {
+    error = s.message("no slots left (4 billion objects put)");
+    return false;
+  }
+  // An object committed with the same id is replaced (one put twice in this import is resolved
+  // at commit: the later wins).
+  {
+    const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, s.index_key_bits, object.id,
+                                   s.slots, 1);
+    if (rc != MDB_SUCCESS) {
+      error = s.fail("looking up id " + std::to_string(object.id), rc);
+      return false;
+    }
+    if (!s.slots.empty() && !s.remove_slot(s.slots[0], error)) return false;
+  }
+  const uint32_t slot = s.next_slot;
+  // The object's statistics, whose bounds are its object_bounds() (computed once). Bounds first:
+  // an object the grid cannot hold is refused before anything of it is written.
+  ModelStatistics part;
+  part.add(object);
+  const DAabb& bounds = part.bounds;
+  SpatialItem item{};
+  if (!bounds.empty()) {
+    if (!s.has_origin) {
+      // The origin is fixed by the first object with geometry: whole metres near its centre.
+      s.origin = glm::floor(0.5 * (bounds.min + bounds.max));
+      s.has_origin = true;
+    }
+    if (!detail::quantise_bounds(bounds, s.origin, slot, item.entry.grid)) {
+      error = s.message("object slot " + std::to_string(slot) +
+                        ": bounds are not finite or lie more than 2000 km from the model's origin");
+      return false;
+    }
+    item.key = detail::morton_key(item.entry.grid);
+    item.entry.colour = detail::pack_colour(object.colour);
+  }
+  std::vector<detail::SlotRun>* runs;
+  if (!s.source_runs(object.source, runs, error)) return false;
+  detail::encode_object(object, s.raw);
+  s.digest(slot);
+  s.digest(s.raw);
+  if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  detail::encode_attributes(object.attributes, s.raw);
+  s.digest(s.raw);
+  if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  ++s.next_slot;
+  if (!runs->empty() && runs->back().first + runs->back().length == slot) {
+    ++runs->back().length;
+  } else {
+    runs->push_back({slot, 1});
+  }
+  std::string why;
+  if (!s.new_ids.add({object.id, slot}, why) ||
+      !s.new_names.add({name_hash(object.name), slot}, why) ||
+      (!bounds.empty() && !s.new_spatial.add(item, why))) {
+    error = s.message(why);
+    return false;
+  }
+  s.totals.add_counts(part);
+  s.put_statistics.add_counts(part);
+  s.put_statistics.bounds.extend(part.bounds);
+  ++s.put_count;
+  return true;
+}
+
+std::unique_ptr<Import> Store::begin_import(std::string& error) {
+  if (state_->mode == Mode::read_only) {
+    error = "store " + state_->directory + ": opened read-only";
+    return nullptr;
+  }
+  auto s = std::make_unique<Import::State>(state_, detail::import_run_bytes());
+  int rc = s->txn.begin(state_->env.get(), 0);
+  if (rc != MDB_SUCCESS) {
+    error = state_->fail("starting an import", rc);
+    return nullptr;
+  }
+  // This transaction holds LMDB's writer lock: no other import runs, and run files left in the
+  // directory are a killed import's.
+  detail::remove_stale_runs(state_->directory);
+  MDB_txn* txn = s->txn.get();
+  if (!read_statistics(txn, state_->dbs.meta, state_->directory, s->totals, error)) {
+    return nullptr;
+  }
+  s->next_slot = read_next_slot(txn, state_->dbs.meta);
+  if (!detail::read_index_key_bits(txn, state_->dbs.meta, s->index_key_bits)) {
+    error = "store " + state_->directory + ": meta/\"index_key_bits\" is damaged";
+    return nullptr;
+  }
+  s->first_new_slot = s->next_slot;
+  // The spatial origin, fixed by the first objects with geometry ever imported.
+  detail::DecodedTop top;
+  bool found;
+  std::string why;
+  if (!read_top(txn, state_->dbs.meta, false, s->dctx.get(), top, found, why)) {
+    error = "store " + state_->directory + ": spatial top (meta/\"spatial_top\"): " + why;
+    return nullptr;
+  }
+  s->has_origin = found;
+  s->origin = top.origin;
+  if (!s->objects.begin(txn, error) || !s->attributes.begin(txn, error)) return nullptr;
+  return std::unique_ptr<Import>(new Import(std::move(s)));
+}
+
+}  // namespace plantview
