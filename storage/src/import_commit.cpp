@@ -37,31 +37,15 @@ bool Import::State::rekey_indexes(std::string& error) {
     index_key_bits = bits;
     return true;
   }
-  // Entries read in place from the map count in the resident set (at 40 million objects the
-  // indexes are about 0.8 GB): the span of the map read is given back every so many entries.
-  // Pages this transaction changed are in the heap, not the map, and are never given back.
-  MDB_envinfo env_info;
-  mdb_env_info(store->env.get(), &env_info);
-  const auto* map_begin = static_cast<const uint8_t*>(env_info.me_mapaddr);
-  const uint8_t* map_end = map_begin + env_info.me_mapsize;
-  const uint8_t *read_begin = nullptr, *read_end = nullptr;
-  const auto release = [&] {
-    if (read_begin) detail::release_map_pages(read_begin, size_t(read_end - read_begin));
-    read_begin = read_end = nullptr;
-  };
+  // Entries are read in place from the map (clean file pages, which the kernel may drop) or
+  // from the pages this transaction changed. (LMDB names its map's address only for a fixed
+  // map, so which is which cannot be told here: no page is given back early.)
   const auto move = [&](MDB_dbi dbi, const char* what, auto decode_add) {
     detail::LmdbCursor cursor;
     int rc = cursor.open(txn.get(), dbi);
     MDB_val k, v;
-    uint64_t entries = 0;
     if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_FIRST);
     while (rc == MDB_SUCCESS) {
-      const auto* p = static_cast<const uint8_t*>(v.mv_data);
-      if (p >= map_begin && p < map_end) {
-        read_begin = read_begin ? std::min(read_begin, p) : p;
-        read_end = std::max(read_end, p + v.mv_size);
-      }
-      if (++entries % (uint64_t(1) << 16) == 0) release();
       std::string why;
       if (!decode_add(k, v, why)) {
         error = message(std::string("re-keying the ") + what + ": " + why);
@@ -69,7 +53,6 @@ bool Import::State::rekey_indexes(std::string& error) {
       }
       rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
     }
-    release();
     if (rc == MDB_NOTFOUND) rc = mdb_drop(txn.get(), dbi, 0);
     if (rc != MDB_SUCCESS) error = fail(std::string("re-keying the ") + what, rc);
     return rc == MDB_SUCCESS;
