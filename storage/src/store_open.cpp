@@ -28,43 +28,54 @@ constexpr size_t kMapSizeBytes = size_t(1) << 40;  // address space only; the fi
 
 namespace detail {
 
-bool data_file_complete(MDB_env* env, const std::string& directory, std::string& error) {
+namespace {
+
+// The data file's length and the bytes its pages in use need (LMDB's last page number + 1
+// pages); `fd` gets the file. An LMDB or system error code, or MDB_SUCCESS.
+struct DataFileSize {
+  uint64_t file_bytes = 0, needed_bytes = 0, last_page = 0, page_bytes = 0;
+  mdb_filehandle_t fd{};
+};
+int measure_data_file(MDB_env* env, DataFileSize& out) {
   MDB_envinfo info;
   MDB_stat stat;
-  mdb_filehandle_t fd;
   struct stat file;
   int rc = mdb_env_info(env, &info);
   if (rc == MDB_SUCCESS) rc = mdb_env_stat(env, &stat);
-  if (rc == MDB_SUCCESS) rc = mdb_env_get_fd(env, &fd);
-  if (rc == MDB_SUCCESS && fstat(fd, &file) != 0) rc = errno;
-  if (rc != MDB_SUCCESS) {
+  if (rc == MDB_SUCCESS) rc = mdb_env_get_fd(env, &out.fd);
+  if (rc == MDB_SUCCESS && fstat(out.fd, &file) != 0) rc = errno;
+  if (rc != MDB_SUCCESS) return rc;
+  out.file_bytes = uint64_t(file.st_size);
+  out.last_page = info.me_last_pgno;
+  out.page_bytes = stat.ms_psize;
+  out.needed_bytes = (out.last_page + 1) * out.page_bytes;
+  return MDB_SUCCESS;
+}
+
+}  // namespace
+
+bool data_file_complete(MDB_env* env, const std::string& directory, std::string& error) {
+  DataFileSize size;
+  if (const int rc = measure_data_file(env, size); rc != MDB_SUCCESS) {
     error = lmdb_message(directory, "checking the size of data.mdb", rc);
     return false;
   }
-  const uint64_t needed = (uint64_t(info.me_last_pgno) + 1) * stat.ms_psize;
-  if (uint64_t(file.st_size) >= needed) return true;
+  if (size.file_bytes >= size.needed_bytes) return true;
   error = "store " + directory + ": " +
           (std::filesystem::path(directory) / "data.mdb").string() + " is truncated: " +
-          std::to_string(file.st_size) + " bytes, but its pages in use (0 to " +
-          std::to_string(info.me_last_pgno) + ", " + std::to_string(stat.ms_psize) +
-          " bytes each) need " + std::to_string(needed) +
+          std::to_string(size.file_bytes) + " bytes, but its pages in use (0 to " +
+          std::to_string(size.last_page) + ", " + std::to_string(size.page_bytes) +
+          " bytes each) need " + std::to_string(size.needed_bytes) +
           " (a partial copy, or a disk that was full)";
   return false;
 }
 
 bool cover_free_tail(MDB_env* env, const std::string& directory, std::string& error) {
-  MDB_envinfo info;
-  MDB_stat stat;
-  mdb_filehandle_t fd;
-  struct stat file;
-  int rc = mdb_env_info(env, &info);
-  if (rc == MDB_SUCCESS) rc = mdb_env_stat(env, &stat);
-  if (rc == MDB_SUCCESS) rc = mdb_env_get_fd(env, &fd);
-  if (rc == MDB_SUCCESS && fstat(fd, &file) != 0) rc = errno;
-  const uint64_t needed = (uint64_t(info.me_last_pgno) + 1) * stat.ms_psize;
-  if (rc == MDB_SUCCESS && uint64_t(file.st_size) < needed && ftruncate(fd, off_t(needed)) != 0) {
+  DataFileSize size;
+  int rc = measure_data_file(env, size);
+  if (rc == MDB_SUCCESS && size.file_bytes < size.needed_bytes &&
+      ftruncate(size.fd, off_t(size.needed_bytes)) != 0)
     rc = errno;
-  }
   if (rc != MDB_SUCCESS) {
     error = lmdb_message(directory, "extending data.mdb over its free last pages", rc);
     return false;
