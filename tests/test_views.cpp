@@ -135,6 +135,13 @@ std::vector<ReviewView> sample_views() {
   a.aspect = 16.0 / 9.0;
   a.subject = {12, 13, 14, uint64_t(1) << 60};
   a.attributes = {{"type", "PUMP"}, {"tag", "P-101A"}, {"description", "Feed pump, \"A\" side"}};
+  a.section.planes = {ClipPlane{{0.5, 1.25, 12.0}, {0, 0, 1}}, ClipPlane{{3, 0, 0}, {-1, 0, 0}}};
+  a.section.has_box = true;
+  a.section.box.min = {-1, -2, -3};
+  a.section.box.max = {4, 5, 6.5};
+  a.style.colour_by = "Material";
+  a.style.hide = {"structure", "HV-*"};
+  a.style.only = {"P-1*"};
   ReviewView b;
   b.name = "unit_2.zone-B";
   b.title = "Zone B of unit 2";
@@ -156,6 +163,8 @@ void expect_same(const std::vector<ReviewView>& a, const std::vector<ReviewView>
     EXPECT_EQ(a[i].aspect, b[i].aspect);
     EXPECT_EQ(a[i].subject, b[i].subject);
     EXPECT_EQ(a[i].attributes, b[i].attributes);  // in order
+    EXPECT_EQ(a[i].section, b[i].section);
+    EXPECT_EQ(a[i].style, b[i].style);
   }
 }
 
@@ -254,9 +263,70 @@ TEST(ViewsFile, ErrorsNameTheViewAndTheField) {
             "views file: view 0 ('P-101A'): 'title' is missing");
   EXPECT_EQ(error_after([](Json& j) { j["views"][1]["aspekt"] = 1.0; }),
             "views file: view 1 ('unit_2.zone-B'): unknown key 'aspekt' (name, title, kind, camera, "
-            "aspect, subject, attributes)");
+            "aspect, subject, attributes, section, style)");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["section"]["planes"][1]["normal"] = Json::array({0, 0, 0}); }),
+            "views file: view 0 ('P-101A'): 'section.planes[1].normal' has no direction (zero length)");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["section"]["box"]["min"][2] = 7.0; }),
+            "views file: view 0 ('P-101A'): 'section.box' has min above max on an axis");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["section"]["slab"] = 2; }),
+            "views file: view 0 ('P-101A'): unknown key 'section.slab' (planes, box, capped)");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["style"]["hide"][0] = 3; }),
+            "views file: view 0 ('P-101A'): 'style.hide[0]' must be a non-empty string");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["style"]["colour"] = "x"; }),
+            "views file: view 0 ('P-101A'): unknown key 'style.colour' (colour_by, hide, only)");
   EXPECT_EQ(error_after([](Json& j) { j["extra"] = 1; }),
             "views file: unknown key 'extra' (version, per, views)");
+}
+
+TEST(ViewFilters, ClipPlanesAndBoxesParseAndRejectWhatCannotCut) {
+  ClipPlane plane;
+  std::string error;
+  ASSERT_TRUE(parse_clip_plane("1,2,3,0,0,2", "--clip", plane, error)) << error;
+  EXPECT_EQ(plane.point_m, glm::dvec3(1, 2, 3));
+  EXPECT_EQ(plane.normal, glm::dvec3(0, 0, 1));
+  EXPECT_FALSE(parse_clip_plane("1,2,3,0,0,0", "--clip", plane, error));
+  EXPECT_EQ(error, "--clip: the plane's normal (0.000000, 0.000000, 0.000000) has no direction, in '1,2,3,0,0,0'");
+  EXPECT_FALSE(parse_clip_plane("1,2,3,0,0", "clip", plane, error));
+  EXPECT_EQ(error, "clip: expected PX,PY,PZ,NX,NY,NZ (6 numbers separated by commas), got '1,2,3,0,0'");
+  EXPECT_FALSE(parse_clip_plane("1,2,3,0,0,1,", "clip", plane, error));
+  EXPECT_FALSE(parse_clip_plane("1,2,nan,0,0,1", "clip", plane, error));
+  DAabb box;
+  ASSERT_TRUE(parse_section_box("-1,-2,-3,1,2,3", "--section-box", box, error)) << error;
+  EXPECT_EQ(box.max, glm::dvec3(1, 2, 3));
+  EXPECT_FALSE(parse_section_box("0,0,5,1,1,4", "--section-box", box, error));
+  EXPECT_EQ(error, "--section-box: the box's min z (5.000000) is above its max (4.000000), in '0,0,5,1,1,4'");
+  std::vector<std::string> words;
+  ASSERT_TRUE(parse_word_list(" structure, P-*,,", "--hide", words, error)) << error;
+  EXPECT_EQ(words, (std::vector<std::string>{"structure", "P-*"}));
+  EXPECT_FALSE(parse_word_list(",", "--hide", words, error));
+}
+
+TEST(ViewFilters, BoundsWhollyOnTheClippedSideAreRemovedAndOthersKept) {
+  Section plan;  // cut away all above 12 m
+  plan.planes.push_back(ClipPlane{{0, 0, 12}, {0, 0, 1}});
+  const auto box = [](glm::dvec3 min, glm::dvec3 max) {
+    DAabb b;
+    b.min = min;
+    b.max = max;
+    return b;
+  };
+  EXPECT_TRUE(section_removes_all(plan, box({0, 0, 12.5}, {1, 1, 14})));
+  EXPECT_FALSE(section_removes_all(plan, box({0, 0, 11}, {1, 1, 14})));
+  EXPECT_FALSE(section_keeps_all(plan, box({0, 0, 11}, {1, 1, 14})));
+  EXPECT_TRUE(section_keeps_all(plan, box({0, 0, 1}, {1, 1, 12})));
+  EXPECT_TRUE(section_removes(plan, {0, 0, 12.001}));
+  EXPECT_FALSE(section_removes(plan, {0, 0, 12}));
+  Section slab;  // a 2 m slab kept by a box
+  slab.has_box = true;
+  slab.box = box({-100, -100, 4}, {100, 100, 6});
+  EXPECT_TRUE(section_removes_all(slab, box({0, 0, 7}, {1, 1, 8})));
+  EXPECT_FALSE(section_removes_all(slab, box({0, 0, 5}, {1, 1, 8})));
+  EXPECT_TRUE(section_keeps_all(slab, box({0, 0, 4.5}, {1, 1, 5.5})));
+  Section oblique;  // 45 degrees: a box touching the plane by its corner is not wholly removed
+  oblique.planes.push_back(ClipPlane{{0, 0, 0}, glm::normalize(glm::dvec3(1, 1, 0))});
+  EXPECT_FALSE(section_removes_all(oblique, box({0, 0, 0}, {1, 1, 1})));
+  EXPECT_TRUE(section_removes_all(oblique, box({0.01, 0.01, 0}, {1, 1, 1})));
+  EXPECT_FALSE(section_removes_all(oblique, box({-1, 0.1, 0}, {0, 1, 1})));
 }
 
 TEST(ViewsFile, AnEmptyListOrANonObjectIsRejected) {

@@ -19,6 +19,122 @@ constexpr size_t kMaxViewNameChars = 200;
 
 Json vec3(const glm::dvec3& v) { return Json::array({v.x, v.y, v.z}); }
 
+// A list of 3 finite numbers at `key` of `object` into `out`; `name` names it in errors.
+template <typename Fail>
+bool read_vec3(const Json& object, const char* key, const std::string& name, glm::dvec3& out,
+               const Fail& fail) {
+  if (!object.contains(key)) return fail("'" + name + "' is missing");
+  const Json& a = object[key];
+  if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() ||
+      !a[2].is_number())
+    return fail("'" + name + "' must be a list of 3 numbers");
+  out = {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+  if (!std::isfinite(out.x + out.y + out.z)) return fail("'" + name + "' must be finite");
+  return true;
+}
+
+template <typename Fail>
+bool check_keys(const Json& object, const std::string& name,
+                std::initializer_list<std::string_view> allowed, const Fail& fail) {
+  if (!object.is_object()) return fail("'" + name + "' must be an object");
+  for (const auto& [key, value] : object.items()) {
+    (void)value;
+    bool known = false;
+    std::string list;
+    for (const std::string_view a : allowed) {
+      known = known || key == a;
+      list += (list.empty() ? "" : ", ") + std::string(a);
+    }
+    if (!known) return fail("unknown key '" + name + "." + key + "' (" + list + ")");
+  }
+  return true;
+}
+
+template <typename Fail>
+bool parse_section(const Json& json, Section& out, const Fail& fail) {
+  if (!check_keys(json, "section", {"planes", "box", "capped"}, fail)) return false;
+  Section section;
+  if (json.contains("planes")) {
+    const Json& planes = json["planes"];
+    if (!planes.is_array()) return fail("'section.planes' must be a list of planes");
+    if (planes.size() > kMaxClipPlanes)
+      return fail("'section.planes' holds " + std::to_string(planes.size()) +
+                  " planes; at most " + std::to_string(kMaxClipPlanes));
+    for (size_t i = 0; i < planes.size(); ++i) {
+      const std::string name = "section.planes[" + std::to_string(i) + "]";
+      if (!check_keys(planes[i], name, {"point", "normal"}, fail)) return false;
+      ClipPlane plane;
+      if (!read_vec3(planes[i], "point", name + ".point", plane.point_m, fail) ||
+          !read_vec3(planes[i], "normal", name + ".normal", plane.normal, fail))
+        return false;
+      const double length = glm::length(plane.normal);
+      if (!(length > 1e-12)) return fail("'" + name + ".normal' has no direction (zero length)");
+      plane.normal /= length;
+      section.planes.push_back(plane);
+    }
+  }
+  if (json.contains("box")) {
+    if (!check_keys(json["box"], "section.box", {"min", "max"}, fail) ||
+        !read_vec3(json["box"], "min", "section.box.min", section.box.min, fail) ||
+        !read_vec3(json["box"], "max", "section.box.max", section.box.max, fail))
+      return false;
+    if (section.box.empty()) return fail("'section.box' has min above max on an axis");
+    section.has_box = true;
+  }
+  if (json.contains("capped")) {
+    if (!json["capped"].is_boolean()) return fail("'section.capped' must be true or false");
+    section.capped = json["capped"].get<bool>();
+  }
+  out = std::move(section);
+  return true;
+}
+
+template <typename Fail>
+bool parse_style(const Json& json, ObjectStyle& out, const Fail& fail) {
+  if (!check_keys(json, "style", {"colour_by", "hide", "only"}, fail)) return false;
+  ObjectStyle style;
+  if (json.contains("colour_by")) {
+    if (!json["colour_by"].is_string()) return fail("'style.colour_by' must be a string");
+    style.colour_by = json["colour_by"].get<std::string>();
+  }
+  for (const char* key : {"hide", "only"}) {
+    if (!json.contains(key)) continue;
+    const Json& list = json[key];
+    const std::string name = std::string("style.") + key;
+    if (!list.is_array()) return fail("'" + name + "' must be a list of strings");
+    auto& words = std::string_view(key) == "hide" ? style.hide : style.only;
+    for (size_t i = 0; i < list.size(); ++i) {
+      if (!list[i].is_string() || list[i].get<std::string>().empty())
+        return fail("'" + name + "[" + std::to_string(i) + "]' must be a non-empty string");
+      words.push_back(list[i].get<std::string>());
+    }
+  }
+  out = std::move(style);
+  return true;
+}
+
+Json section_json(const Section& section) {
+  Json json = Json::object();
+  if (!section.planes.empty()) {
+    Json planes = Json::array();
+    for (const ClipPlane& p : section.planes)
+      planes.push_back(Json{{"point", vec3(p.point_m)}, {"normal", vec3(p.normal)}});
+    json["planes"] = planes;
+  }
+  if (section.has_box)
+    json["box"] = Json{{"min", vec3(section.box.min)}, {"max", vec3(section.box.max)}};
+  if (!section.capped) json["capped"] = false;
+  return json;
+}
+
+Json style_json(const ObjectStyle& style) {
+  Json json = Json::object();
+  if (!style.colour_by.empty()) json["colour_by"] = style.colour_by;
+  if (!style.hide.empty()) json["hide"] = style.hide;
+  if (!style.only.empty()) json["only"] = style.only;
+  return json;
+}
+
 // Reads one view; `where` names it in errors ("views file: view 3 ('P-101A')").
 bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::string& error) {
   const auto fail = [&](const std::string& what) {
@@ -28,9 +144,9 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   for (const auto& [key, value] : item.items()) {
     (void)value;
     if (key != "name" && key != "title" && key != "kind" && key != "camera" && key != "aspect" &&
-        key != "subject" && key != "attributes")
+        key != "subject" && key != "attributes" && key != "section" && key != "style")
       return fail("unknown key '" + key +
-                  "' (name, title, kind, camera, aspect, subject, attributes)");
+                  "' (name, title, kind, camera, aspect, subject, attributes, section, style)");
   }
   const auto text = [&](const char* key, std::string& out) {
     if (!item.contains(key)) return fail(std::string("'") + key + "' is missing");
@@ -96,6 +212,8 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
       v.attributes.emplace_back(key, value.get<std::string>());
     }
   }
+  if (item.contains("section") && !parse_section(item["section"], v.section, fail)) return false;
+  if (item.contains("style") && !parse_style(item["style"], v.style, fail)) return false;
   return true;
 }
 
@@ -130,6 +248,8 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
                         {"aspect", v.aspect},
                         {"subject", v.subject},
                         {"attributes", attributes}});
+    if (!v.section.empty()) list.back()["section"] = section_json(v.section);
+    if (!v.style.empty()) list.back()["style"] = style_json(v.style);
   }
   const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
   // Attribute values are bytes as the model gave them, not always UTF-8: invalid sequences

@@ -80,6 +80,7 @@
 #include "plantview/camera.h"
 #include "plantview/image.h"
 #include "plantview/model.h"
+#include "plantview/view_filters.h"
 
 namespace plantview {
 
@@ -171,6 +172,11 @@ struct RenderOptions {
   // lighter, id 0 in the id buffer); whatever lies between the eye and them is drawn
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
+  // Clip planes and a section box (view_filters.h): what they remove is neither decoded,
+  // tessellated, drawn nor picked; cut closed solids are capped.
+  Section section;
+  // Colour by an attribute, hide, show only (view_filters.h).
+  ObjectStyle style;
   bool occlusion = true;                           // leave out objects hidden behind what
                                                    // is drawn first (conservative: nothing
                                                    // visible is ever left out; step 1b)

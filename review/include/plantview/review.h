@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "plantview/camera.h"
+#include "plantview/view_filters.h"
 
 namespace plantview {
 
@@ -36,13 +37,20 @@ struct ReviewView {
   double aspect = 16.0 / 9.0;
   std::vector<uint64_t> subject;
   std::vector<std::pair<std::string, std::string>> attributes;
+  Section section;     // empty: nothing cut
+  ObjectStyle style;   // empty: the model's colours, every object shown
 };
 
 // The views file. JSON:
 //   {"version": 1, "per": "equipment",
 //    "views": [{"name": "P-101A", "title": "Pump P-101A", "kind": "equipment",
 //               "camera": {"eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fov_deg": 50},
-//               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...}}]}
+//               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...},
+//               "section": {"planes": [{"point": [x,y,z], "normal": [x,y,z]}],
+//                           "box": {"min": [x,y,z], "max": [x,y,z]}, "capped": true},
+//               "style": {"colour_by": "Material", "hide": ["structure"], "only": ["P-*"]}}]}
+// `section` and `style` are optional (absent: nothing cut, the model's colours) and written
+// only when not empty; each of their keys is optional too.
 // `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
 // (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
 // bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other
