@@ -23,11 +23,13 @@ PACKAGES=(
   haproxy                                               # the replicas test (a real load balancer)
   python3-prometheus-client                             # the metrics test (text-format parser)
   fonts-dejavu-core                                     # caption strips of review images
+  libfcl-dev                                            # distances between primitives (measure, clash)
+  libzip-dev                                            # BCF files (zip archives of viewpoints)
 )
 
 # npm tools, installed into an ignored folder of the repository (not system-wide).
 NPM_DIR="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/.tools/npm"
-NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10)
+NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10 @parametricos/bcf-js@0.2.6)   # glTF validator; an independent BCF reader
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -56,6 +58,6 @@ if [ ! -f "$NPM_DIR/.installed" ] || [ "$(cat "$NPM_DIR/.installed")" != "${NPM_
   if npm install --silent --no-audit --no-fund --prefix "$NPM_DIR" "${NPM_PACKAGES[@]}" >/dev/null 2>&1; then
     echo "${NPM_PACKAGES[*]}" > "$NPM_DIR/.installed"
   else
-    echo "deps: npm install failed; the glTF validator test will skip" >&2
+    echo "deps: npm install failed; the glTF validator and BCF reader tests will skip" >&2
   fi
 fi
