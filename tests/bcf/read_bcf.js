@@ -59,7 +59,7 @@ async function main() {
     }
     topics.push({ guid: topic.guid, title: topic.title, creation_date: topic.creation_date, viewpoints });
   }
-  process.stdout.write(JSON.stringify({ version: reader.project.version, topics }) + "\n");
+  process.stdout.write(JSON.stringify({ version: String(reader.project.version), topics }) + "\n");
 }
 main().catch((e) => {
   process.stdout.write(JSON.stringify({ error: String(e) }) + "\n");
