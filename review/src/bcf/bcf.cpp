@@ -378,7 +378,10 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
     return zip.close(error);
   }();
   if (ok) {
+    // mkstemp made the file private; a BCF file is for sharing: rw-r--r--.
     std::error_code ec;
+    fs::permissions(tmp, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read,
+                    ec);
     fs::rename(tmp, path, ec);
     if (ec) {
       error = "cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message();
