@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "plantview/bcf.h"
 #include "support/temp_dir.h"
 
 namespace {
@@ -356,6 +357,30 @@ TEST_F(Bcf, BadFilesFailWithWhatAndWhereAndWriteNothing) {
     EXPECT_NE(r.err.find((bad / name).string()), std::string::npos) << name << ": " << r.err;
     EXPECT_FALSE(fs::exists(out)) << name;
   }
+}
+
+// The size caps, through the library: an entry over max_entry_bytes, and entries over
+// max_total_bytes together.
+TEST_F(Bcf, OversizedEntriesAreRefused) {
+  std::vector<plantview::ReviewView> out;
+  plantview::BcfReadReport report;
+  std::string error;
+  plantview::BcfReadOptions options;
+  options.max_entry_bytes = 4096;  // below the first viewpoint's (its hidden list) and every snapshot's size
+  EXPECT_FALSE(plantview::read_bcf(dir() / "out.bcf", nullptr, options, out, report, error));
+  EXPECT_NE(error.find("' is "), std::string::npos) << error;
+  EXPECT_NE(error.find("over the limit of 4096"), std::string::npos) << error;
+  options = {};
+  options.max_total_bytes = 3000;  // a few XML entries
+  EXPECT_FALSE(plantview::read_bcf(dir() / "out.bcf", nullptr, options, out, report, error));
+  EXPECT_NE(error.find("over 3000 bytes uncompressed"), std::string::npos) << error;
+  EXPECT_TRUE(out.empty());
+  // A directory that does not exist: exit 1, and no temporary left anywhere near.
+  const Outcome r = run(plantview("bcf export --views " + (dir() / "views.json").string() + " --images " +
+                                  (dir() / "images").string() + " --out " + (dir() / "nowhere/x.bcf").string()),
+                        dir());
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("nowhere/x.bcf"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -557,7 +557,8 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
     for (const bcf::ViewpointRef& r : refs) {
       const std::string entry = folder + r.viewpoint;
       const std::string where = file + ": " + entry + " (topic '" + topic + "')";
-      if (r.viewpoint.find("..") != std::string::npos || r.viewpoint.front() == '/') {
+      if (r.viewpoint.find("..") != std::string::npos || r.viewpoint.front() == '/' ||
+          r.viewpoint.front() == '\\') {
         error = where + ": the viewpoint's name escapes its topic folder";
         return false;
       }
