@@ -80,9 +80,10 @@ class Bcf : public ::testing::Test {
     const fs::path d = dir_->path();
     Outcome r = run(plantview("gen --preset a --threads 2 --store " + (d / "store").string()), d);
     ASSERT_EQ(r.status, 0) << r.err;
-    r = run(plantview("views --store " + (d / "store").string() + " --per equipment --select 'P-01-00[12]*' " +
-                      "--size 320x180 --out " + (d / "views.json").string()),
-            d);
+    r = run(
+        plantview("views --store " + (d / "store").string() + " --per equipment --select 'P-01-00[12]*' " +
+                  "--size 320x180 --out " + (d / "views.json").string()),
+        d);
     ASSERT_EQ(r.status, 0) << r.err;
     json views = read_json(d / "views.json");
     ASSERT_EQ(views["views"].size(), 4u);
@@ -96,9 +97,10 @@ class Bcf : public ::testing::Test {
                                     {"capped", false}};
     views["views"][3]["camera"]["fov_deg"] = 70.0;
     std::ofstream(d / "views.json") << views.dump();
-    r = run(plantview("render --store " + (d / "store").string() + " --views " + (d / "views.json").string() +
-                      " --out " + (d / "images").string() + " --size 160x90 --bcf " + (d / "out.bcf").string()),
-            d);
+    r = run(
+        plantview("render --store " + (d / "store").string() + " --views " + (d / "views.json").string() +
+                  " --out " + (d / "images").string() + " --size 160x90 --bcf " + (d / "out.bcf").string()),
+        d);
     ASSERT_EQ(r.status, 0) << r.err;
     ASSERT_EQ(json::parse(r.out).value("bcf", ""), "written") << r.out;
   }
@@ -116,7 +118,8 @@ class Bcf : public ::testing::Test {
 void expect_vec_near(const json& a, const json& b, double tolerance, const std::string& what) {
   ASSERT_EQ(a.size(), 3u) << what;
   ASSERT_EQ(b.size(), 3u) << what;
-  for (size_t i = 0; i < 3; ++i) EXPECT_NEAR(a[i].get<double>(), b[i].get<double>(), tolerance) << what << "[" << i << "]";
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_NEAR(a[i].get<double>(), b[i].get<double>(), tolerance) << what << "[" << i << "]";
 }
 
 TEST_F(Bcf, RoundTripKeepsCamerasSectionsSelectionsAndStyles) {
@@ -141,7 +144,8 @@ TEST_F(Bcf, RoundTripKeepsCamerasSectionsSelectionsAndStyles) {
     EXPECT_EQ(b[i]["attributes"], a[i]["attributes"]) << name;
     for (const char* key : {"eye", "target", "up"})
       expect_vec_near(b[i]["camera"][key], a[i]["camera"][key], 1e-9, name + " camera." + key);
-    EXPECT_DOUBLE_EQ(b[i]["camera"]["fov_deg"].get<double>(), a[i]["camera"]["fov_deg"].get<double>()) << name;
+    EXPECT_DOUBLE_EQ(b[i]["camera"]["fov_deg"].get<double>(), a[i]["camera"]["fov_deg"].get<double>())
+        << name;
     EXPECT_EQ(b[i].value("section", json()), a[i].value("section", json())) << name;
     EXPECT_EQ(b[i].value("style", json()), a[i].value("style", json())) << name;
   }
@@ -154,14 +158,17 @@ TEST_F(Bcf, ExportIsStableAndAtomic) {
                             (dir() / "images").string() + " --store " + store() + " --out " + again.string()),
                   dir());
   ASSERT_EQ(r.status, 0) << r.err;
-  const std::string list = "python3 -c 'import sys,zipfile; print(sorted(zipfile.ZipFile(sys.argv[1]).namelist()))' ";
-  const Outcome first = run(list + (dir() / "out.bcf").string(), dir()), second = run(list + again.string(), dir());
+  const std::string list =
+      "python3 -c 'import sys,zipfile; print(sorted(zipfile.ZipFile(sys.argv[1]).namelist()))' ";
+  const Outcome first = run(list + (dir() / "out.bcf").string(), dir()),
+                second = run(list + again.string(), dir());
   ASSERT_EQ(first.status, 0) << first.err;
   EXPECT_EQ(first.out, second.out);
   // A view without its image: exit 1, the view named, no file and no temporary left.
   fs::create_directories(dir() / "partial");
   for (const auto& e : fs::directory_iterator(dir() / "images"))
-    if (e.path().extension() == ".png" && e.path().stem() != "P-01-002A") fs::copy(e.path(), dir() / "partial");
+    if (e.path().extension() == ".png" && e.path().stem() != "P-01-002A")
+      fs::copy(e.path(), dir() / "partial");
   r = run(plantview("bcf export --views " + (dir() / "views.json").string() + " --images " +
                     (dir() / "partial").string() + " --out " + (dir() / "partial.bcf").string()),
           dir());
@@ -170,7 +177,8 @@ TEST_F(Bcf, ExportIsStableAndAtomic) {
   for (const auto& e : fs::directory_iterator(dir()))
     EXPECT_EQ(e.path().filename().string().find("partial.bcf"), std::string::npos) << e.path();
   // --bcf without --views is a usage error.
-  r = run(plantview("render --store " + store() + " --out " + (dir() / "x.png").string() + " --bcf y.bcf"), dir());
+  r = run(plantview("render --store " + store() + " --out " + (dir() / "x.png").string() + " --bcf y.bcf"),
+          dir());
   EXPECT_EQ(r.status, 2);
 }
 
@@ -178,8 +186,8 @@ TEST_F(Bcf, IndependentReaderSeesEveryTopicCameraPlaneComponentAndSnapshot) {
   if (!have("node")) GTEST_SKIP() << "node is not installed";
   if (!fs::exists(kModules / "@parametricos/bcf-js/package.json"))
     GTEST_SKIP() << "@parametricos/bcf-js is not installed under .tools/npm (run scripts/deps.sh)";
-  const Outcome r = run("node " + (kSource / "tests/bcf/read_bcf.js").string() + " " + kModules.string() + " " +
-                            (dir() / "out.bcf").string(),
+  const Outcome r = run("node " + (kSource / "tests/bcf/read_bcf.js").string() + " " + kModules.string() +
+                            " " + (dir() / "out.bcf").string(),
                         dir());
   ASSERT_EQ(r.status, 0) << r.out << r.err;
   const json read = json::parse(r.out);
@@ -198,9 +206,11 @@ TEST_F(Bcf, IndependentReaderSeesEveryTopicCameraPlaneComponentAndSnapshot) {
     expect_vec_near(vp["camera"]["eye"], camera["eye"], 1e-12, name + " eye");
     json direction = json::array();
     double length = 0;
-    for (int k = 0; k < 3; ++k) length += std::pow(camera["target"][k].get<double>() - camera["eye"][k].get<double>(), 2);
     for (int k = 0; k < 3; ++k)
-      direction.push_back((camera["target"][k].get<double>() - camera["eye"][k].get<double>()) / std::sqrt(length));
+      length += std::pow(camera["target"][k].get<double>() - camera["eye"][k].get<double>(), 2);
+    for (int k = 0; k < 3; ++k)
+      direction.push_back((camera["target"][k].get<double>() - camera["eye"][k].get<double>()) /
+                          std::sqrt(length));
     expect_vec_near(vp["camera"]["direction"], direction, 1e-12, name + " direction");
     expect_vec_near(vp["camera"]["up"], camera["up"], 1e-12, name + " up");
     EXPECT_DOUBLE_EQ(vp["camera"]["fov"].get<double>(), camera["fov_deg"].get<double>()) << name;
@@ -236,7 +246,8 @@ TEST_F(Bcf, IndependentReaderSeesEveryTopicCameraPlaneComponentAndSnapshot) {
     }
     // The snapshot is the rendered image, byte for byte as long.
     EXPECT_TRUE(vp["snapshot_is_png"].get<bool>()) << name;
-    EXPECT_EQ(vp["snapshot_bytes"].get<uintmax_t>(), fs::file_size(dir() / "images" / (name + ".png"))) << name;
+    EXPECT_EQ(vp["snapshot_bytes"].get<uintmax_t>(), fs::file_size(dir() / "images" / (name + ".png")))
+        << name;
   }
 }
 
@@ -250,14 +261,16 @@ TEST_F(Bcf, FilesFollowTheBcf21Schemas) {
   size_t checked = 0;
   for (const auto& e : fs::recursive_directory_iterator(unzipped)) {
     const std::string name = e.path().filename().string();
-    const char* schema = name == "markup.bcf" ? "markup.xsd"
+    const char* schema = name == "markup.bcf"       ? "markup.xsd"
                          : name == "viewpoint.bcfv" ? "visinfo.xsd"
-                         : name == "bcf.version" ? "version.xsd"
-                                                 : nullptr;
+                         : name == "bcf.version"    ? "version.xsd"
+                                                    : nullptr;
     if (!schema) continue;
-    const Outcome r = run("xmllint --noout --schema " + (schemas / schema).string() + " " + e.path().string(), dir());
+    const Outcome r =
+        run("xmllint --noout --schema " + (schemas / schema).string() + " " + e.path().string(), dir());
     // The one known departure: the view whose field of view (70) is outside 2.1's 45..60.
-    if (r.status != 0 && r.err.find("FieldOfView") != std::string::npos && r.err.find("'70'") != std::string::npos)
+    if (r.status != 0 && r.err.find("FieldOfView") != std::string::npos &&
+        r.err.find("'70'") != std::string::npos)
       continue;
     EXPECT_EQ(r.status, 0) << e.path() << ": " << r.err;
     ++checked;
@@ -298,8 +311,9 @@ with zipfile.ZipFile('FILE', 'w') as z:
   script.replace(script.find("'FILE'"), 6, "'" + file.string() + "'");
   python(script, dir());
   const fs::path out = dir() / "other.json";
-  const Outcome r = run(plantview("bcf import " + file.string() + " --store " + store() + " --json --out " + out.string()),
-                        dir());
+  const Outcome r =
+      run(plantview("bcf import " + file.string() + " --store " + store() + " --json --out " + out.string()),
+          dir());
   ASSERT_EQ(r.status, 0) << r.err;
   const json report = json::parse(r.out);
   EXPECT_EQ(report["topics"], 3);
@@ -334,15 +348,20 @@ TEST_F(Bcf, BadFilesFailWithWhatAndWhereAndWriteNothing) {
     std::ofstream(bad / "truncated.bcf", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
   std::ofstream(bad / "text.bcf") << "this is not a zip archive\n";
-  python("import zipfile\n"
-         "with zipfile.ZipFile('" + (bad / "escape.bcf").string() + "', 'w') as z:\n"
-         "    z.writestr('../x', 'gotcha')\n"
-         "with zipfile.ZipFile('" + (bad / "nocamera.bcf").string() + "', 'w') as z:\n"
-         "    z.writestr('t/markup.bcf', '<Markup><Topic Guid=\"x\"><Title>No camera</Title></Topic>"
-         "<Viewpoints Guid=\"y\"><Viewpoint>viewpoint.bcfv</Viewpoint></Viewpoints></Markup>')\n"
-         "    z.writestr('t/viewpoint.bcfv', '<VisualizationInfo Guid=\"y\"><Components><Visibility/>"
-         "</Components></VisualizationInfo>')\n",
-         dir());
+  python(
+      "import zipfile\n"
+      "with zipfile.ZipFile('" +
+          (bad / "escape.bcf").string() +
+          "', 'w') as z:\n"
+          "    z.writestr('../x', 'gotcha')\n"
+          "with zipfile.ZipFile('" +
+          (bad / "nocamera.bcf").string() +
+          "', 'w') as z:\n"
+          "    z.writestr('t/markup.bcf', '<Markup><Topic Guid=\"x\"><Title>No camera</Title></Topic>"
+          "<Viewpoints Guid=\"y\"><Viewpoint>viewpoint.bcfv</Viewpoint></Viewpoints></Markup>')\n"
+          "    z.writestr('t/viewpoint.bcfv', '<VisualizationInfo Guid=\"y\"><Components><Visibility/>"
+          "</Components></VisualizationInfo>')\n",
+      dir());
   const std::pair<const char*, const char*> cases[] = {
       {"truncated.bcf", "not a readable zip archive"},
       {"text.bcf", "not a readable zip archive"},
@@ -376,9 +395,10 @@ TEST_F(Bcf, OversizedEntriesAreRefused) {
   EXPECT_NE(error.find("over 3000 bytes uncompressed"), std::string::npos) << error;
   EXPECT_TRUE(out.empty());
   // A directory that does not exist: exit 1, and no temporary left anywhere near.
-  const Outcome r = run(plantview("bcf export --views " + (dir() / "views.json").string() + " --images " +
-                                  (dir() / "images").string() + " --out " + (dir() / "nowhere/x.bcf").string()),
-                        dir());
+  const Outcome r =
+      run(plantview("bcf export --views " + (dir() / "views.json").string() + " --images " +
+                    (dir() / "images").string() + " --out " + (dir() / "nowhere/x.bcf").string()),
+          dir());
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("nowhere/x.bcf"), std::string::npos) << r.err;
 }

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
-#include <nlohmann/json.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "cli/bcf_export.h"
@@ -76,7 +76,8 @@ int run_import(const BcfArgs& a) {
   // `per`: equipment when every view is of one item, else area.
   bool all_equipment = true;
   for (const ReviewView& v : views) all_equipment = all_equipment && v.kind == "equipment";
-  if (!farm::write_file_atomically(a.out, review_views_json(views, all_equipment ? "equipment" : "area"), error))
+  if (!farm::write_file_atomically(a.out, review_views_json(views, all_equipment ? "equipment" : "area"),
+                                   error))
     return fail(error);
   std::cerr << "plantview: bcf import " << a.file << ": " << report.to_text() << "\n";
   if (a.json) std::cout << report.to_json() << "\n";
@@ -103,7 +104,8 @@ bool export_views_bcf(const std::vector<ReviewView>& views, const fs::path& imag
   options.seed = seed;
   BcfWriteReport report;
   if (!write_bcf(out, views, snapshots, store, options, report, error)) return false;
-  for (const std::string& note : report.notes) std::cerr << "plantview: bcf " << out.string() << ": " << note << "\n";
+  for (const std::string& note : report.notes)
+    std::cerr << "plantview: bcf " << out.string() << ": " << note << "\n";
   if (report.snapshots_converted)
     std::cerr << "plantview: bcf " << out.string() << ": " << report.snapshots_converted
               << " JPEG image(s) converted to PNG snapshots\n";
@@ -118,7 +120,8 @@ Action add_bcf_command(CLI::App& app) {
   exp->add_option("--views", args->views, "Views JSON file (from plantview views)")->required();
   exp->add_option("--images", args->images, "The directory render --views wrote the images into")->required();
   exp->add_option("--out", args->out, "BCF file to write")->required();
-  exp->add_option("--store", args->store, "Store directory (tags of components, hide/only/colour_by lists, GUIDs)");
+  exp->add_option("--store", args->store,
+                  "Store directory (tags of components, hide/only/colour_by lists, GUIDs)");
   auto* imp = bcf->add_subcommand("import", "Turn a BCF file's viewpoints into review views");
   imp->add_option("file", args->file, "BCF file")->required();
   imp->add_option("--out", args->out, "Views JSON file to write")->required();

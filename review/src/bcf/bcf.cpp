@@ -77,7 +77,8 @@ bool matches_word(std::string_view word, ObjectClass object_class, const std::st
                   const std::string& tag) {
   const std::string w(word);
   if (class_name(object_class) == word) return true;
-  return fnmatch(w.c_str(), name.c_str(), 0) == 0 || (!tag.empty() && fnmatch(w.c_str(), tag.c_str(), 0) == 0);
+  return fnmatch(w.c_str(), name.c_str(), 0) == 0 ||
+         (!tag.empty() && fnmatch(w.c_str(), tag.c_str(), 0) == 0);
 }
 bool matches_any(const std::vector<std::string>& words, ObjectClass c, const std::string& name,
                  const std::string& tag) {
@@ -123,7 +124,8 @@ bool png_snapshot(const fs::path& image, const fs::path& scratch, fs::path& png,
   }
   Image decoded;
   std::vector<uint8_t> bytes;
-  if (!read_image(image.string(), decoded, error) || !encode_image(decoded, ImageFormat::png, 0, bytes, error)) {
+  if (!read_image(image.string(), decoded, error) ||
+      !encode_image(decoded, ImageFormat::png, 0, bytes, error)) {
     error = image.string() + ": cannot convert to PNG: " + error;
     return false;
   }
@@ -201,8 +203,8 @@ std::string bcf_guid(std::string_view text) {
 }
 
 bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
-               const std::vector<fs::path>& snapshots, const ReadView* store,
-               const BcfWriteOptions& options, BcfWriteReport& report, std::string& error) {
+               const std::vector<fs::path>& snapshots, const ReadView* store, const BcfWriteOptions& options,
+               BcfWriteReport& report, std::string& error) {
   assert(snapshots.size() == views.size());
   report = {};
   const std::string date = options.date.empty() ? now_iso8601_utc() : options.date;
@@ -222,10 +224,14 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
           ObjectFacts f;
           f.id = o.id;
           f.object_class = o.object_class;
-          f.tag = [&] { const std::string* t = find_attribute(o, "Tag"); return t ? *t : std::string(); }();
+          f.tag = [&] {
+            const std::string* t = find_attribute(o, "Tag");
+            return t ? *t : std::string();
+          }();
           f.name = std::move(o.name);
           for (const std::string& key : colour_keys)
-            if (const std::string* value = find_attribute(o, key); value && !value->empty()) f.values[key] = *value;
+            if (const std::string* value = find_attribute(o, key); value && !value->empty())
+              f.values[key] = *value;
           tool_ids[f.id] = f.tag.empty() ? std::to_string(f.id) : f.tag;
           facts.push_back(std::move(f));
           return true;
@@ -244,8 +250,9 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
       }
     }
   } else if (need_pass) {
-    report.notes.push_back("no store: hide, only and colour_by are not listed as BCF Visibility and Coloring "
-                           "(they travel in plantview-view.json only)");
+    report.notes.push_back(
+        "no store: hide, only and colour_by are not listed as BCF Visibility and Coloring "
+        "(they travel in plantview-view.json only)");
   }
   const auto tool_id = [&](uint64_t id) {
     const auto found = tool_ids.find(id);
@@ -297,7 +304,8 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
       };
       if (!facts.empty() && (!view.style.hide.empty() || !view.style.only.empty())) {
         std::vector<Component> shown, hidden;
-        for (const ObjectFacts& f : facts) (shown_by_style(f) ? shown : hidden).push_back(component_for(tool_id(f.id)));
+        for (const ObjectFacts& f : facts)
+          (shown_by_style(f) ? shown : hidden).push_back(component_for(tool_id(f.id)));
         if (!view.style.only.empty() && shown.size() <= options.max_listed) {
           vp.default_visibility = false;
           vp.exceptions = std::move(shown);
@@ -365,12 +373,14 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
       ++report.topics;
     }
     if (wide_fov)
-      report.notes.push_back(std::to_string(wide_fov) +
-                             " view(s) have a field of view outside BCF 2.1's 45..60 degrees; written as they are");
+      report.notes.push_back(
+          std::to_string(wide_fov) +
+          " view(s) have a field of view outside BCF 2.1's 45..60 degrees; written as they are");
     if (visibility_unlisted)
-      report.notes.push_back(std::to_string(visibility_unlisted) + " view(s) hide or show more than " +
-                             std::to_string(options.max_listed) +
-                             " objects: Visibility left at its default (plantview-view.json keeps hide/only)");
+      report.notes.push_back(
+          std::to_string(visibility_unlisted) + " view(s) hide or show more than " +
+          std::to_string(options.max_listed) +
+          " objects: Visibility left at its default (plantview-view.json keeps hide/only)");
     if (colours_unlisted)
       report.notes.push_back(std::to_string(colours_unlisted) + " view(s) colour more than " +
                              std::to_string(options.max_listed) +
@@ -380,8 +390,9 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
   if (ok) {
     // mkstemp made the file private; a BCF file is for sharing: rw-r--r--.
     std::error_code ec;
-    fs::permissions(tmp, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read,
-                    ec);
+    fs::permissions(
+        tmp, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read,
+        ec);
     fs::rename(tmp, path, ec);
     if (ec) {
       error = "cannot rename " + tmp.string() + " to " + path.string() + ": " + ec.message();
@@ -446,7 +457,7 @@ class Matcher {
     ++report_.components_unknown;
     if (key.empty() && !c.ifc_guid.empty()) ++report_.components_ifc_only;
     if (report_.unknown_examples.size() < 5) {
-      std::string what = !key.empty() ? "AuthoringToolId '" + key + "'"
+      std::string what = !key.empty()          ? "AuthoringToolId '" + key + "'"
                          : !c.ifc_guid.empty() ? "IfcGuid " + c.ifc_guid
                                                : std::string("a component with no id");
       if (!c.originating_system.empty()) what += " (" + c.originating_system + ")";
@@ -500,7 +511,8 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
   std::vector<std::string> folders;  // topic folders, "GUID/", in archive order
   for (const std::string& name : zip.names()) {
     const size_t slash = name.find('/');
-    if (slash != std::string::npos && name.substr(slash) == "/markup.bcf") folders.push_back(name.substr(0, slash + 1));
+    if (slash != std::string::npos && name.substr(slash) == "/markup.bcf")
+      folders.push_back(name.substr(0, slash + 1));
   }
   if (folders.empty()) {
     error = file + ": no topic (no FOLDER/markup.bcf entry): not a BCF file";
@@ -541,7 +553,8 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
       if (d.file != kDocumentName || !zip.has(folder + d.file)) continue;
       std::vector<ReviewView> parsed;
       std::string doc_error;
-      if (zip.read(folder + d.file, text, doc_error) && parse_review_views(text, parsed, doc_error) && parsed.size() == 1)
+      if (zip.read(folder + d.file, text, doc_error) && parse_review_views(text, parsed, doc_error) &&
+          parsed.size() == 1)
         own = std::move(parsed.front());
       else
         report.notes.push_back("topic '" + topic + "': " + folder + d.file + " ignored: " + doc_error);
@@ -587,12 +600,14 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
       std::vector<std::string> words;
       for (const Component& c : vp.exceptions)
         for (const uint64_t id : matcher.match(c, topic))
-          if (std::string w = matcher.word_of(id); !w.empty() && std::find(words.begin(), words.end(), w) == words.end())
+          if (std::string w = matcher.word_of(id);
+              !w.empty() && std::find(words.begin(), words.end(), w) == words.end())
             words.push_back(std::move(w));
       if (!own) {
         (vp.default_visibility ? view.style.hide : view.style.only) = std::move(words);
         if (!vp.default_visibility && view.style.only.empty())
-          report.notes.push_back("topic '" + topic + "': DefaultVisibility false with no object matched: every object shown");
+          report.notes.push_back("topic '" + topic +
+                                 "': DefaultVisibility false with no object matched: every object shown");
         colour_groups_dropped += vp.colours.size();
       }
 
@@ -608,7 +623,8 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
       if (vp.camera == bcf::Viewpoint::CameraKind::orthogonal) {
         ++report.orthogonal_converted;
         camera.fov_deg = kOrthogonalFov_deg;
-        const double back = 0.5 * std::max(vp.view_scale_m, 0.01) / std::tan(glm::radians(kOrthogonalFov_deg) * 0.5);
+        const double back =
+            0.5 * std::max(vp.view_scale_m, 0.01) / std::tan(glm::radians(kOrthogonalFov_deg) * 0.5);
         camera.target_m = vp.eye;
         camera.eye_m = vp.eye - direction * back;
       } else {
@@ -658,20 +674,25 @@ bool read_bcf(const fs::path& path, const ReadView* store, const BcfReadOptions&
       // Name and kind.
       const std::string base = own && refs.size() == 1 ? own->name : views::safe_name(view.title, 180);
       view.name = unique_name(base, used_names);
-      if (!own) view.kind = view.subject.empty() ? "overview" : view.subject.size() == 1 ? "equipment" : "area";
+      if (!own)
+        view.kind = view.subject.empty() ? "overview" : view.subject.size() == 1 ? "equipment" : "area";
       views.push_back(std::move(view));
       ++report.imported;
     }
   }
   if (colour_groups_dropped)
-    report.notes.push_back(std::to_string(colour_groups_dropped) +
-                           " Coloring group(s) not imported: plantview colours by an attribute, not per object");
+    report.notes.push_back(
+        std::to_string(colour_groups_dropped) +
+        " Coloring group(s) not imported: plantview colours by an attribute, not per object");
   if (planes_dropped)
-    report.notes.push_back(std::to_string(planes_dropped) + " clipping plane(s) dropped (zero direction, or over " +
+    report.notes.push_back(std::to_string(planes_dropped) +
+                           " clipping plane(s) dropped (zero direction, or over " +
                            std::to_string(kMaxClipPlanes) + " planes besides a box)");
-  if (fov_clamped) report.notes.push_back(std::to_string(fov_clamped) + " field(s) of view clamped to 1..170 degrees");
+  if (fov_clamped)
+    report.notes.push_back(std::to_string(fov_clamped) + " field(s) of view clamped to 1..170 degrees");
   if (up_replaced)
-    report.notes.push_back(std::to_string(up_replaced) + " camera up vector(s) along the view replaced by the default up");
+    report.notes.push_back(std::to_string(up_replaced) +
+                           " camera up vector(s) along the view replaced by the default up");
   if (views.empty()) {
     error = file + ": no topic has a viewpoint (" + std::to_string(report.topics) + " topic(s) read)";
     return false;
@@ -701,14 +722,17 @@ std::string BcfReadReport::to_json() const {
 }
 
 std::string BcfReadReport::to_text() const {
-  std::string text = std::to_string(topics) + " topic(s) read, " + std::to_string(viewpoints) + " viewpoint(s), " +
-                     std::to_string(imported) + " view(s) imported";
-  if (topics_without_viewpoint) text += ", " + std::to_string(topics_without_viewpoint) + " topic(s) without a viewpoint skipped";
-  if (orthogonal_converted) text += ", " + std::to_string(orthogonal_converted) + " orthogonal camera(s) converted to perspective";
-  text += "\ncomponents: " + std::to_string(components_matched) + " matched, " + std::to_string(components_unknown) +
-          " unknown";
+  std::string text = std::to_string(topics) + " topic(s) read, " + std::to_string(viewpoints) +
+                     " viewpoint(s), " + std::to_string(imported) + " view(s) imported";
+  if (topics_without_viewpoint)
+    text += ", " + std::to_string(topics_without_viewpoint) + " topic(s) without a viewpoint skipped";
+  if (orthogonal_converted)
+    text += ", " + std::to_string(orthogonal_converted) + " orthogonal camera(s) converted to perspective";
+  text += "\ncomponents: " + std::to_string(components_matched) + " matched, " +
+          std::to_string(components_unknown) + " unknown";
   if (components_ifc_only)
-    text += " (" + std::to_string(components_ifc_only) + " with only an IfcGuid, which plantview objects do not have)";
+    text += " (" + std::to_string(components_ifc_only) +
+            " with only an IfcGuid, which plantview objects do not have)";
   for (const std::string& e : unknown_examples) text += "\n  unknown: " + e;
   if (components_unknown > unknown_examples.size()) text += "\n  ...";
   for (const std::string& n : notes) text += "\nnote: " + n;

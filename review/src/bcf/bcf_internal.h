@@ -87,8 +87,8 @@ struct Viewpoint {
   std::string guid;
   enum class CameraKind { none, perspective, orthogonal } camera = CameraKind::none;
   glm::dvec3 eye{0.0}, direction{0.0}, up{0.0};
-  double fov_deg = 0;         // perspective
-  double view_scale_m = 0;    // orthogonal: ViewToWorldScale
+  double fov_deg = 0;             // perspective
+  double view_scale_m = 0;        // orthogonal: ViewToWorldScale
   std::vector<ClipPlane> planes;  // Direction as the normal (not normalised when read)
   std::vector<Component> selection;
   bool default_visibility = true;

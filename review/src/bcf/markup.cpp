@@ -13,9 +13,7 @@ void text_child(pugi::xml_node parent, const char* name, const std::string& valu
   parent.append_child(name).text().set(value.c_str());
 }
 
-std::string child_text(pugi::xml_node node, const char* name) {
-  return node.child(name).text().as_string();
-}
+std::string child_text(pugi::xml_node node, const char* name) { return node.child(name).text().as_string(); }
 
 }  // namespace
 
@@ -75,7 +73,8 @@ bool parse_markup(const std::string& xml, Markup& out, std::string& error) {
     m.documents.push_back({child_text(d, "ReferencedDocument"), child_text(d, "Description")});
   }
   for (pugi::xml_node v : root.children("Viewpoints"))
-    m.viewpoints.push_back({v.attribute("Guid").as_string(), child_text(v, "Viewpoint"), child_text(v, "Snapshot")});
+    m.viewpoints.push_back(
+        {v.attribute("Guid").as_string(), child_text(v, "Viewpoint"), child_text(v, "Snapshot")});
   out = std::move(m);
   return true;
 }

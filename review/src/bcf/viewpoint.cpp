@@ -140,7 +140,8 @@ bool parse_viewpoint(const std::string& xml, Viewpoint& out, std::string& error)
     if (!read_xyz(ortho, "CameraViewPoint", v.eye, error) ||
         !read_xyz(ortho, "CameraDirection", v.direction, error) ||
         !read_xyz(ortho, "CameraUpVector", v.up, error) ||
-        !read_number(ortho.child("ViewToWorldScale"), "OrthogonalCamera/ViewToWorldScale", v.view_scale_m, error))
+        !read_number(ortho.child("ViewToWorldScale"), "OrthogonalCamera/ViewToWorldScale", v.view_scale_m,
+                     error))
       return false;
   }
   for (pugi::xml_node plane : root.child("ClippingPlanes").children("ClippingPlane")) {

@@ -74,8 +74,7 @@ bool ZipWriter::add_bytes(const std::string& name, std::string bytes, std::strin
   return true;
 }
 
-bool ZipWriter::add_file(const std::string& name, const std::filesystem::path& file,
-                         std::string& error) {
+bool ZipWriter::add_file(const std::string& name, const std::filesystem::path& file, std::string& error) {
   zip_source_t* source = zip_source_file(archive_, file.c_str(), 0, -1);
   if (!source) {
     error = "cannot read " + file.string() + ": " + zip_message(archive_);
@@ -106,8 +105,8 @@ ZipReader::~ZipReader() {
   if (archive_) zip_discard(archive_);
 }
 
-bool ZipReader::open(const std::filesystem::path& path, uint64_t max_entry_bytes,
-                     uint64_t max_total_bytes, std::string& error) {
+bool ZipReader::open(const std::filesystem::path& path, uint64_t max_entry_bytes, uint64_t max_total_bytes,
+                     std::string& error) {
   max_entry_bytes_ = max_entry_bytes;
   max_total_bytes_ = max_total_bytes;
   std::error_code ec;
@@ -118,10 +117,10 @@ bool ZipReader::open(const std::filesystem::path& path, uint64_t max_entry_bytes
   int code = 0;
   archive_ = zip_open(path.c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &code);
   if (!archive_) {
-    error = path.string() + ": not a readable zip archive (" +
-            (code == ZIP_ER_NOZIP ? std::string("not a zip archive, or truncated")
-                                  : open_error_message(code)) +
-            ")";
+    error =
+        path.string() + ": not a readable zip archive (" +
+        (code == ZIP_ER_NOZIP ? std::string("not a zip archive, or truncated") : open_error_message(code)) +
+        ")";
     return false;
   }
   const zip_int64_t count = zip_get_num_entries(archive_, 0);
@@ -197,7 +196,10 @@ bool ZipReader::read(const std::string& name, std::string& out, std::string& err
   const int closed = zip_fclose(file);
   if (short_read || over || closed != 0) {
     error = "entry '" + name + "' cannot be read whole (" +
-            (over ? std::string("larger than its header says") : reason.empty() ? "truncated" : reason) + ")";
+            (over             ? std::string("larger than its header says")
+             : reason.empty() ? "truncated"
+                              : reason) +
+            ")";
     out.clear();
     return false;
   }
