@@ -378,6 +378,23 @@ TEST_F(Bcf, BadFilesFailWithWhatAndWhereAndWriteNothing) {
   }
 }
 
+// The farm: every shard gets --bcf (a relative name made absolute by farm submit); the shard
+// that finds the job complete writes the whole file.
+TEST_F(Bcf, FarmShardsWriteOneCompleteFile) {
+  const Outcome r = run("cd " + dir().string() + " && " +
+                            plantview("farm submit --scheduler local --tasks 2 --views views.json --store " +
+                                      store() + " --out farm --size 160x90 --bcf farm.bcf"),
+                        dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const Outcome listed = run("python3 -c 'import sys,zipfile; n=zipfile.ZipFile(sys.argv[1]).namelist(); "
+                             "print(sum(x.endswith(\"/markup.bcf\") for x in n), "
+                             "sum(x.endswith(\"/snapshot.png\") for x in n))' " +
+                                 (dir() / "farm.bcf").string(),
+                             dir());
+  ASSERT_EQ(listed.status, 0) << listed.err;
+  EXPECT_EQ(listed.out, "4 4\n");
+}
+
 // The size caps, through the library: an entry over max_entry_bytes, and entries over
 // max_total_bytes together.
 TEST_F(Bcf, OversizedEntriesAreRefused) {
