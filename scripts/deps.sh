@@ -25,6 +25,7 @@ PACKAGES=(
   fonts-dejavu-core                                     # caption strips of review images
   libfcl-dev                                            # distances between primitives (measure, clash)
   libzip-dev                                            # BCF files (zip archives of viewpoints)
+  libxml2-utils                                         # xmllint: the BCF test checks files against the BCF 2.1 XSDs
 )
 
 # npm tools, installed into an ignored folder of the repository (not system-wide).

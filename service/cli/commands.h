@@ -51,6 +51,9 @@ Action add_farm_command(CLI::App& app);
 // `plantview serve`: the HTTP service (plantview/server.h).
 Action add_serve_command(CLI::App& app);
 
+// `plantview bcf export` and `bcf import`: review views as BCF 2.1 files and back.
+Action add_bcf_command(CLI::App& app);
+
 // `plantview devices [--json]`: the EGL devices (the --device indices) and the default one.
 Action add_devices_command(CLI::App& app);
 

@@ -54,6 +54,9 @@ int run_submit(const SubmitArgs& a) {
   job.partition = a.partition;
   job.time_limit = a.time_limit;
   job.render_args = passed_render_args(a);
+  // The BCF file is written from the shards' working directory: named absolutely here.
+  for (size_t k = 0; k + 1 < job.render_args.size(); ++k)
+    if (job.render_args[k] == "--bcf") job.render_args[k + 1] = fs::absolute(job.render_args[k + 1]).string();
   // A render option every shard would refuse is refused here, before anything is written.
   if (const int status = check_render_options(job.render_args, a.views, a.out); status != 0)
     return status;
@@ -191,7 +194,8 @@ Action add_farm_command(CLI::App& app) {
       {"--antialias", "automatic, multisampling, supersampling, edge-filter or off"},
       {"--occlusion", "on or off"},
       {"--occlusion-test", "automatic, coarse or exact"},
-      {"--device", "EGL device index"}};
+      {"--device", "EGL device index"},
+      {"--bcf", "BCF file of the views, written by the shard that finds the job complete"}};
   size_t i = 0;
   for (const auto& [name, help] : values) {
     CLI::Option* option = submit->add_option(name, a->render_storage[i], help);

@@ -118,6 +118,7 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
     if (!parse_camera(a.camera, camera, error)) return usage_error("--camera: " + error);
     plan.camera = camera;
   }
+  if (!a.bcf.empty() && a.views.empty()) return usage_error("--bcf goes with --views");
   plan.mode = !a.path.empty()    ? RenderPlan::Mode::path
               : !a.views.empty() ? RenderPlan::Mode::views
                                  : RenderPlan::Mode::single;
@@ -217,6 +218,9 @@ void add_render_options(CLI::App* render, RenderArgs* args) {
   render->add_option("--highlight", args->highlight,
                      "ID or TAG,...: draw these objects in their colours and the rest ghosted, "
                      "see-through where it hides them (with --views: each view's subject)");
+  render->add_option("--bcf", args->bcf,
+                     "With --views: a BCF 2.1 file of the views and their images, written once every "
+                     "view of the job is rendered");
 }
 
 }  // namespace plantview::cli::rendering

@@ -32,6 +32,7 @@ struct RenderArgs {
   int device = -1, quality = 90;
   uint32_t samples = 0;
   std::string antialias = "automatic", highlight;
+  std::string bcf;  // with --views: the BCF file written once the job is complete
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
   bool no_ground = false, no_ambient_occlusion = false;
 };

@@ -4,6 +4,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "cli/bcf_export.h"
 #include "cli/farm/job_inputs.h"
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
@@ -180,14 +181,29 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
   }
   farm::FarmSummary summary;
   if (!farm::merge_manifests(out, summary, error)) return fail(error);
-  std::cout << nlohmann::json{{"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)},
-                              {"views", to_render.size() + skipped},
-                              {"rendered", to_render.size() - failed},
-                              {"skipped", skipped},
-                              {"failed", failed},
-                              {"job", farm::summary_json(summary)}}
-                   .dump()
-            << "\n";
+  // The job's BCF file, by whichever shard finds every view done (each writes it whole under a
+  // temporary name, so two that finish together leave one complete file).
+  std::string bcf_status;
+  if (!a.bcf.empty()) {
+    if (summary.done.size() == summary.views) {
+      read = store->read(error);
+      if (!read) return fail(error);
+      if (!export_views_bcf(views, out, farm::store_identity(*read), read.get(), a.bcf, error))
+        return fail("--bcf: " + error);
+      read.reset();
+      bcf_status = "written";
+    } else {
+      bcf_status = "waiting: " + std::to_string(summary.views - summary.done.size()) + " view(s) not done";
+    }
+  }
+  nlohmann::json result{{"shard", std::to_string(plan.shard_index) + "/" + std::to_string(plan.shard_count)},
+                        {"views", to_render.size() + skipped},
+                        {"rendered", to_render.size() - failed},
+                        {"skipped", skipped},
+                        {"failed", failed},
+                        {"job", farm::summary_json(summary)}};
+  if (!bcf_status.empty()) result["bcf"] = bcf_status;
+  std::cout << result.dump() << "\n";
   return failed == 0 ? 0 : 1;
 }
 
