@@ -205,7 +205,7 @@ return {camera: p.camera, home: p.home, framesShown: p.framesShown, framesByMode
         stats: document.getElementById('stats').innerText,
         pick: document.getElementById('pick').innerText,
         frameParams: p.frameParams, section: p.section, sectionHandles: p.sectionHandles,
-        measure: p.measure, permalink: p.permalink, lastBcf: p.lastBcf ? {name: p.lastBcf.name, size: p.lastBcf.size} : null,
+        measure: p.measure, permalink: p.permalink, legend: p.legend, style: p.style, lastBcf: p.lastBcf ? {name: p.lastBcf.name, size: p.lastBcf.size} : null,
         error: document.getElementById('stats-error').innerText};
 """
 
@@ -516,6 +516,22 @@ def review_tools(driver, server, state, wait_state, obj, text, downloads, tmp, s
         print(f"NOTE: this server's renderer does not cut sections; box= sent (top {box0['max'][2]:.3f} -> "
               f"{box['max'][2]:.3f} m), image change {change:.2f} not checked", flush=True)
 
+    # Colour by an attribute every object of preset a has, and the selection highlighted.
+    driver.click("#style-tool > summary")
+    driver.type_into("#colour-by", "Type")
+    driver.click("#style-form button[type=submit]")
+    driver.click("#isolate")
+    styled = wait_state("a still coloured by Type with the selection highlighted", FRAME_S,
+                        lambda s: s["still"] and "colour_by=Type" in s["frameParams"]
+                        and f"highlight={obj['id']}" in s["frameParams"] and "box=" in s["frameParams"])
+    if styled["legend"]:
+        if styled["legend"].get("key") != "Type" or not driver.js("return !document.getElementById('legend').hidden"):
+            raise Failure(f"the legend panel does not show the frame's legend: {styled['legend']}")
+        print(f"colour by Type: legend of {len(styled['legend'].get('entries', []))} entries shown", flush=True)
+    else:
+        print("NOTE: this server sends no X-Plantview-Legend; colour_by= and highlight= sent, legend not checked",
+              flush=True)
+
     # 9. Save the viewpoint: a BCF 2.1 zip downloaded, its XML as the page showed it.
     driver.click("#viewpoint-tool > summary")
     title = "Valve check <A&B>"
@@ -536,8 +552,8 @@ def review_tools(driver, server, state, wait_state, obj, text, downloads, tmp, s
 
     # 10. The permalink in a fresh window: the same request, the same image.
     link = saved["permalink"]
-    if not link or "box=" not in link or f"sel={obj['id']}" not in link:
-        raise Failure(f"the permalink does not hold the section box and the selection: {link}")
+    if not link or any(part not in link for part in ("box=", f"sel={obj['id']}", "colour_by=Type", "hl=1")):
+        raise Failure(f"the permalink does not hold the section box, the selection and the styling: {link}")
     first_window = driver.command("GET", "/window")
     rect = driver.command("GET", "/window/rect")
     pixels = driver.js(FRAME_SIGNATURE_JS)
