@@ -1009,6 +1009,7 @@
                      `dx ${metres(r.dx_m)}  dy ${metres(r.dy_m)}  dz ${metres(r.dz_m)}`];
       if (r.kind === 'objects') {
         lines.unshift(`${r.aName} – ${r.bName}`);
+        if (r.overlapping) lines.push(`overlapping${Number.isFinite(r.penetration_m) ? ` by ${metres(r.penetration_m)}` : ''}`);
         if (Number.isFinite(r.error_m)) lines.push(`± ${metres(r.error_m)} (${r.method ?? ''})`);
       }
       measureResult.textContent = lines.join('\n');
@@ -1056,6 +1057,7 @@
             const j = await response.json();
             measure.result = { kind: 'objects', a: j.a.point_m, b: j.b.point_m, distance_m: j.distance_m,
                                dx_m: j.dx_m, dy_m: j.dy_m, dz_m: j.dz_m, error_m: j.error_m, method: j.method,
+                               overlapping: j.overlapping === true, penetration_m: j.penetration_m,
                                aName: j.a.tag || j.a.id, bName: j.b.tag || j.b.id };
           }
         } catch (e) {
@@ -1072,13 +1074,14 @@
   function drawMeasure(g, aspect) {
     const cssW = overlay.clientWidth, cssH = overlay.clientHeight;
     const at = (p) => { const q = project(shown.camera, aspect, p); return q.depth > NEAR_M ? [q.x * cssW, q.y * cssH] : null; };
-    const points = measure.result ? [measure.result.a, measure.result.b] : measure.picks.map((p) => p.point).filter(Boolean);
+    const valid = (p) => Array.isArray(p) && p.length === 3 && p.every(Number.isFinite);
+    const points = (measure.result ? [measure.result.a, measure.result.b] : measure.picks.map((p) => p.point)).filter(valid);
     g.fillStyle = '#ff6ec7';
     g.strokeStyle = '#ff6ec7';
     g.lineWidth = 2;
     const drawn = points.map(at);
     for (const p of drawn) if (p) { g.beginPath(); g.arc(p[0], p[1], 4, 0, 2 * Math.PI); g.fill(); }
-    if (measure.result && drawn[0] && drawn[1]) {
+    if (measure.result && points.length === 2 && drawn[0] && drawn[1]) {
       g.beginPath();
       g.moveTo(...drawn[0]);
       g.lineTo(...drawn[1]);
@@ -1354,6 +1357,7 @@
       const box = planesToBox(planes);
       section.box = box;
       section.planes = box ? [] : planes.slice(0, MAX_CLIP_PLANES);
+      const dropped = box ? 0 : Math.max(0, planes.length - MAX_CLIP_PLANES);
       section.planZ = null;
       planCut.checked = false;
       let found = null;
@@ -1372,7 +1376,7 @@
                       fov: Number.isFinite(fov) && fov > 0 ? fov : camera.fov });
       }
       filtersChanged();
-      showError('');
+      showError(dropped ? `open viewpoint: ${dropped} clipping planes left out (at most ${MAX_CLIP_PLANES})` : '');
     } catch (e) {
       showError(`open viewpoint: ${e.message}`);
     }
