@@ -886,23 +886,26 @@
   const planZ = document.getElementById('plan-z');
   const elevation = document.getElementById('elevation');
   sectionBoxButton.addEventListener('click', () => {
+    sectionBoxButton.blur();
     section.box = sectionBoxAround();
     filtersChanged();
   });
   sectionReset.addEventListener('click', () => {
+    sectionReset.blur();
     section.box = null;
     section.planes = [];
     section.planZ = null;
     planCut.checked = false;
     filtersChanged();
   });
-  sectionCaps.addEventListener('change', () => { section.caps = sectionCaps.checked; filtersChanged(); });
+  // Checkboxes give the keys back to walking once changed (a focused input takes them).
+  sectionCaps.addEventListener('change', () => { sectionCaps.blur(); section.caps = sectionCaps.checked; filtersChanged(); });
   function setPlanCut() {
     section.planZ = planCut.checked ? mm(Number(elevation.value)) : null;
     planZ.textContent = `${mm(Number(elevation.value)).toFixed(2)} m`;
     filtersChanged();
   }
-  planCut.addEventListener('change', setPlanCut);
+  planCut.addEventListener('change', () => { planCut.blur(); setPlanCut(); });
   elevation.addEventListener('input', () => { if (!planCut.checked) planCut.checked = true; setPlanCut(); });
   function setElevationRange() {
     if (!model?.bounds) return;
@@ -930,7 +933,7 @@
     if (document.activeElement instanceof HTMLElement) document.activeElement.blur();
     filtersChanged();
   });
-  isolateInput.addEventListener('change', () => { isolate = isolateInput.checked; filtersChanged(); });
+  isolateInput.addEventListener('change', () => { isolateInput.blur(); isolate = isolateInput.checked; filtersChanged(); });
   function showStyleInputs() {
     colourByInput.value = style.colourBy;
     hideInput.value = style.hide;
@@ -1119,7 +1122,7 @@
     if (style.hide) q.set('hide', style.hide);
     if (style.only) q.set('only', style.only);
     if (isolate) q.set('hl', '1');
-    return `#${q.toString()}`;
+    return `#${q.toString().replace(/%2C/gi, ',')}`;  // commas kept: a readable link
   }
   function writeLink() {
     const hash = permalinkHash();
