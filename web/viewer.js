@@ -356,6 +356,7 @@
              face: handle ? handle.face : null, box: handle ? section.box : null };
   });
   frame.addEventListener('pointermove', (e) => {
+    if (!drag) frame.classList.toggle('on-handle', section.box !== null && handleAt(e.clientX, e.clientY) !== null);
     if (!drag || e.pointerId !== drag.id) return;
     if (drag.face !== null) {
       drag.moved = true;
@@ -374,7 +375,8 @@
   });
   const endDrag = (e, isClick) => {
     if (!drag || e.pointerId !== drag.id) return;
-    if (isClick && !drag.moved && !drag.pan) (measure.mode === 'off' ? pick : measurePick)(e.clientX, e.clientY);
+    if (isClick && !drag.moved && !drag.pan && drag.face === null)
+      (measure.mode === 'off' ? pick : measurePick)(e.clientX, e.clientY);
     drag = null;
     frame.classList.remove('dragging');
   };
