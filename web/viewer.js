@@ -41,6 +41,7 @@
 //                 or null
 //   permalink,    the page's address with the view in its fragment
 //   lastBcf,      the last saved viewpoint {name, topic, size, base64}, or null
+//   picksAnswered, picks whose answers have come (or failed) since the page loaded
 // }
 //
 // Review tools (the panel under the search):
@@ -103,7 +104,7 @@
   const hooks = { camera: null, home: null, framesShown: 0, framesByMode: { interactive: 0, still: 0 },
                   lastPick: null, selected: null, flying: false, still: false, quality: null,
                   frameParams: null, section: null, sectionHandles: [], style: null, legend: null,
-                  measure: null, permalink: null, lastBcf: null };
+                  measure: null, permalink: null, lastBcf: null, picksAnswered: 0 };
   window.plantview = hooks;
 
   // Names this page's latest-wins slot to the server, which answers an older waiting request of
@@ -687,6 +688,8 @@
     } catch (e) {
       if (seq === pickSeq) showError(`pick: ${e.message}`);
       return null;
+    } finally {
+      hooks.picksAnswered += 1;
     }
   }
 

@@ -205,7 +205,7 @@ return {camera: p.camera, home: p.home, framesShown: p.framesShown, framesByMode
         stats: document.getElementById('stats').innerText,
         pick: document.getElementById('pick').innerText,
         frameParams: p.frameParams, section: p.section, sectionHandles: p.sectionHandles,
-        measure: p.measure, permalink: p.permalink, legend: p.legend, style: p.style, lastBcf: p.lastBcf ? {name: p.lastBcf.name, size: p.lastBcf.size} : null,
+        measure: p.measure, permalink: p.permalink, picksAnswered: p.picksAnswered, legend: p.legend, style: p.style, lastBcf: p.lastBcf ? {name: p.lastBcf.name, size: p.lastBcf.size} : null,
         error: document.getElementById('stats-error').innerText};
 """
 
@@ -656,12 +656,11 @@ def measure_two_boxes(driver, plantview, tmp, processes, wait_state):
                 raise Failure(f"the pixel of {name}'s centre picks {status} {reply}")
             clicks.append((css_x, css_y, name))
         def click_both():
-            for i, (cx, cy, name) in enumerate(clicks):
+            # Each pick answered before the next click (a newer pick drops an older one's answer).
+            for cx, cy, name in clicks:
+                answered = driver.js("return window.plantview.picksAnswered")
                 driver.pointer([move(cx, cy), {"type": "pointerDown", "button": 0}, {"type": "pointerUp", "button": 0}])
-                if i == 0:  # the first pick answered before the second is asked (a newer pick drops an older one)
-                    wait_for("the first object to be picked", PICK_S,
-                             lambda: "second" in driver.js("return document.getElementById('measure-result').innerText")
-                             or driver.js("return document.getElementById('stats-error').innerText"))
+                wait_state(f"the pick of {name}", PICK_S, lambda s: s["picksAnswered"] > answered)
             return wait_state("the measurement or its error", PICK_S + FRAME_S,
                               lambda s: s["measure"] is not None or "measure" in s["error"])
 
