@@ -495,6 +495,60 @@ TEST(Routes, APickNeedsAPixelInsideTheImage) {
             std::string::npos);
 }
 
+TEST(Routes, ViewFiltersOnFrameStatsAndPickBecomeTheJobsSectionStyleAndHighlight) {
+  const std::string filters =
+      "clip=0,0,12,0,0,2&clip=1,2,3,-1,0,0&box=-1,-2,-3,4,5,6&caps=0&colour_by=Material&hide=pipe,F-*"
+      "&only=equipment&highlight=P-101A,12345";
+  for (const std::string path : {"/api/frame?", "/api/stats?", "/api/pick?x=1&y=1&"}) {
+    const RenderJob job = job_of(route(get(path + filters), config(), false, 1));
+    ASSERT_EQ(job.section.planes.size(), 2u) << path;
+    EXPECT_EQ(job.section.planes[0].point_m, glm::dvec3(0, 0, 12));
+    EXPECT_EQ(job.section.planes[0].normal, glm::dvec3(0, 0, 1));  // normalised
+    EXPECT_EQ(job.section.planes[1].normal, glm::dvec3(-1, 0, 0));
+    EXPECT_TRUE(job.section.has_box);
+    EXPECT_EQ(job.section.box.min, glm::dvec3(-1, -2, -3));
+    EXPECT_EQ(job.section.box.max, glm::dvec3(4, 5, 6));
+    EXPECT_FALSE(job.section.capped);
+    EXPECT_EQ(job.style.colour_by, "Material");
+    EXPECT_EQ(job.style.hide, (std::vector<std::string>{"pipe", "F-*"}));
+    EXPECT_EQ(job.style.only, (std::vector<std::string>{"equipment"}));
+    EXPECT_EQ(job.highlight, (std::vector<std::string>{"P-101A", "12345"}));
+  }
+  const RenderJob plain = job_of(route(get("/api/frame?w=8&h=8"), config(), false, 1));
+  EXPECT_TRUE(plain.section.empty());
+  EXPECT_TRUE(plain.section.capped);
+  EXPECT_TRUE(plain.style.empty());
+  EXPECT_TRUE(plain.highlight.empty());
+
+  const std::string seven = "clip=0,0,1,0,0,1&clip=0,0,1,0,0,1&clip=0,0,1,0,0,1&clip=0,0,1,0,0,1"
+                            "&clip=0,0,1,0,0,1&clip=0,0,1,0,0,1&clip=0,0,1,0,0,1";
+  const std::pair<std::string, std::string> bad[] = {
+      {"clip=0,0,0,0,0,0", "'clip': the plane's normal"},
+      {"clip=1,2,3", "'clip': expected PX,PY,PZ,NX,NY,NZ"},
+      {"clip=0,0,0,0,0,nan", "'clip'"},
+      {seven, "'clip': at most 6 clip planes"},
+      {"box=1,0,0,0,1,1", "'box': the box's min x"},
+      {"box=0,0,0,1,1", "'box': expected MINX"},
+      {"caps=yes", "'caps' must be 0"},
+      {"hide=", "'hide': expected words"},
+      {"only=,,", "'only': expected words"},
+      {"highlight=", "'highlight': expected words"},
+      {"box=0,0,0,1,1,1&box=0,0,0,2,2,2", "'box' is given twice"},
+  };
+  for (const std::string path : {"/api/frame?", "/api/stats?", "/api/pick?x=1&y=1&"})
+    for (const auto& [query, reason] : bad)
+      EXPECT_NE(error_of(route(get(path + query), config(), false, 1), 400).find(reason), std::string::npos)
+          << path << query;
+}
+
+TEST(RenderWorker, RendererErrorsAboutViewFiltersAreTheCallersNotTheServers) {
+  EXPECT_TRUE(is_view_filter_error("colour_by 'Foo': no object has it; keys: Material, Type"));
+  EXPECT_TRUE(is_view_filter_error("--colour-by Foo: unknown key"));
+  EXPECT_TRUE(is_view_filter_error("section: the box is empty"));
+  EXPECT_FALSE(is_view_filter_error("cannot read object 12: MDB_CORRUPTED"));
+  EXPECT_FALSE(is_view_filter_error(""));
+}
+
 TEST(Routes, EndpointsAreNamedForTheMetrics) {
   EXPECT_EQ(endpoint_of("/api/frame"), "frame");
   EXPECT_EQ(endpoint_of("/api/objects/123"), "objects");

@@ -275,6 +275,67 @@ TEST(Service, BadParametersAreRefusedWithAReason) {
   EXPECT_EQ(post.headers["allow"], "GET");
 }
 
+// clip=, box=, caps=, colour_by=, hide=, only= and highlight= on frame, stats and pick: accepted,
+// refused with a 400 naming the parameter when malformed, and highlight words looked up in the
+// store (a tag or an id; one naming nothing is a 404 that names it). Whether the image obeys
+// them is the renderer's (test_render.cpp); here the HTTP layer.
+TEST(Service, ViewFilterParametersAreAcceptedAndBadOnesRefusedNamingThem) {
+  Server server;
+  Client c(server.port());
+  ASSERT_TRUE(c.connected());
+  const std::string id = json_of(c.request("/api/objects/BOX-2"))["id"].get<std::string>();
+  const std::string filters = "&clip=0,0,0.5,0,0,1&clip=14,0,0,1,0,0&box=-1,-1,-1,16,1,1&caps=1"
+                              "&colour_by=Type&hide=pipe&only=equipment,BOX-*";
+  for (const std::string& highlight : std::vector<std::string>{"BOX-2", "/BOX-2", id, "BOX-1," + id}) {
+    const std::string view = kView + filters + "&highlight=" + highlight;
+    Response frame = c.request("/api/frame?" + view + "&w=64&h=48&format=png");
+    EXPECT_TRUE(is_image(frame, 64, 48, ".png")) << highlight << ": " << frame.status << " " << frame.body;
+    EXPECT_EQ(c.request("/api/stats?" + view + "&w=64&h=48").status, 200) << highlight;
+    EXPECT_EQ(c.request("/api/pick?" + view + "&w=64&h=48&x=32&y=24").status, 200) << highlight;
+  }
+  for (const std::string path : {"/api/frame?", "/api/stats?", "/api/pick?x=1&y=1&"}) {
+    Response unknown = c.request(path + kView + "&highlight=BOX-2,NO-SUCH-TAG");
+    EXPECT_EQ(unknown.status, 404) << path << ": " << unknown.body;
+    EXPECT_NE(unknown.body.find("'highlight': no object has the id or the tag 'NO-SUCH-TAG'"), std::string::npos)
+        << unknown.body;
+  }
+  const std::pair<std::string, std::string> bad[] = {
+      {"clip=0,0,0,0,0,0", "'clip'"},
+      {"clip=0,0,0,0,0,1&clip=0,0,0,0,0,1&clip=0,0,0,0,0,1&clip=0,0,0,0,0,1&clip=0,0,0,0,0,1"
+       "&clip=0,0,0,0,0,1&clip=0,0,0,0,0,1",
+       "'clip': at most 6"},
+      {"box=2,0,0,1,1,1", "'box'"},
+      {"caps=2", "'caps'"},
+      {"hide=", "'hide'"},
+      {"only=", "'only'"},
+      {"highlight=", "'highlight'"},
+  };
+  for (const std::string path : {"/api/frame?", "/api/stats?", "/api/pick?x=1&y=1&"}) {
+    for (const auto& [query, reason] : bad) {
+      Response r = c.request(path + query);
+      EXPECT_EQ(r.status, 400) << path << query;
+      EXPECT_NE(r.body.find(reason), std::string::npos) << path << query << ": " << r.body;
+    }
+  }
+  // The view of one request does not stay with the renderer: the next plain frame sees all six.
+  Response plain = c.request("/api/frame?" + kView + "&w=160&h=90");
+  EXPECT_EQ(plain.headers["x-objects-visible"], "6");
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// A colour_by key no object has is the caller's mistake: 400 with the renderer's message (which
+// lists the keys), not a 500. Skipped where the renderer does not yet colour by attributes (it
+// then draws the frame).
+TEST(Service, AnUnknownColourByKeyIsA400) {
+  Server server;
+  Client c(server.port());
+  Response r = c.request("/api/frame?" + kView + "&w=32&h=32&colour_by=NoSuchKey");
+  if (r.status == 200) GTEST_SKIP() << "this renderer ignores colour_by";
+  EXPECT_EQ(r.status, 400) << r.body;
+  EXPECT_NE(r.body.find("Type"), std::string::npos) << r.body;
+  EXPECT_EQ(server.stop(), 0);
+}
+
 TEST(Service, BrokenHttpHugeHeadersAndBodiesCloseOnlyThatConnection) {
   Server server;
   Client broken(server.port());

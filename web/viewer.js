@@ -31,7 +31,28 @@
 //                 pixelError, askedPx, jpegQuality, renderSize, requestedSize, queue, renderMs,
 //                 roundTripMs},
 //                 or null before the first frame
+//   frameParams,  the query (camera, size, filters) of the displayed frame
+//   section,      {box: {min, max} or null, planes: [{point, normal}] as sent, caps}
+//   sectionHandles, the box's face handles as drawn: [{face (0..5: -x, +x, -y, +y, -z, +z), x, y}]
+//                 in CSS pixels of the page
+//   style,        {colourBy, hide, only, isolate}
+//   legend,       the displayed frame's X-Plantview-Legend (parsed), or null
+//   measure,      the last measurement {kind: points|objects, a, b, distance_m, dx_m, dy_m, dz_m, ...}
+//                 or null
+//   permalink,    the page's address with the view in its fragment
+//   lastBcf,      the last saved viewpoint {name, topic, size, base64}, or null
+//   picksAnswered, picks whose answers have come (or failed) since the page loaded
 // }
+//
+// Review tools (the panel under the search):
+//   Section: "Box" puts a section box around the selection (else the plant); drag its face
+//     handles along their normals; "plan cut" and the slider cut away all above an elevation
+//     (clip=0,0,Z,0,0,1); caps fills cut solids; Reset. Sent as box= and clip= (and caps=0).
+//   Measure: points (two clicks; the picks' point_m) or clearance (two objects; /api/measure).
+//   Colour, hide, only: colour_by=, hide=, only=; the frame's legend is shown bottom right.
+//     "highlight the selection" sends it as highlight= (the rest ghosted).
+//   Viewpoint: saves a BCF 2.1 file (camera, clipping, selection, a PNG snapshot), opens one.
+//   The address bar's fragment always holds the view (permalink; see readLink).
 'use strict';
 
 (() => {
@@ -40,7 +61,9 @@
     const given = /(?:^#|&)token=([^&]*)/.exec(location.hash);
     if (given) {
       sessionStorage.setItem(TOKEN_KEY, decodeURIComponent(given[1]));
-      history.replaceState(null, '', location.pathname + location.search);
+      // The rest of the fragment (a permalink's view) stays.
+      const rest = location.hash.slice(1).split('&').filter((part) => !part.startsWith('token=')).join('&');
+      history.replaceState(null, '', location.pathname + location.search + (rest ? `#${rest}` : ''));
     }
   }
   // fetch() for the API, with the token where the page was given one.
@@ -63,6 +86,11 @@
   const FIT_MIN_HALF_SIZE_M = 0.5;         // ... but a small one is framed as if this large
   const FIT_ELEVATION_RAD = [15 * Math.PI / 180, 50 * Math.PI / 180];  // look down on it, not along the ground
   const Z_UP = [0, 0, 1];
+  const NEAR_M = 0.05;                     // the renderer's near plane: overlay edges are cut there
+  const MAX_CLIP_PLANES = 6;               // the server's limit on clip= parameters
+  const HANDLE_RADIUS_PX = 6;              // a section box face's handle, as drawn
+  const HANDLE_HIT_PX = 10;                // a press this close to a handle drags its face
+  const LINK_MS = 250;                     // the permalink is rewritten at most this often
 
   const frame = document.getElementById('frame');
   const statsLines = document.getElementById('stats-lines');
@@ -74,7 +102,9 @@
   const homeButton = document.getElementById('home');
 
   const hooks = { camera: null, home: null, framesShown: 0, framesByMode: { interactive: 0, still: 0 },
-                  lastPick: null, selected: null, flying: false, still: false, quality: null };
+                  lastPick: null, selected: null, flying: false, still: false, quality: null,
+                  frameParams: null, section: null, sectionHandles: [], style: null, legend: null,
+                  measure: null, permalink: null, lastBcf: null, picksAnswered: 0 };
   window.plantview = hooks;
 
   // Names this page's latest-wins slot to the server, which answers an older waiting request of
@@ -106,6 +136,14 @@
   let flight = null;          // a fly-to in progress: {from, to, startMs}, or null
   let sendMode = true;        // false once a server has refused the mode parameter (an older one)
   const shownTimesMs = [];    // display times of the recent frames, for the achieved rate
+  // The view's filters (sent with every request; see filterParams): the section box {min, max}
+  // or null, clip planes [{point, normal}] (from an opened viewpoint), the plan cut's elevation
+  // or null, caps; colour by, hide and only as typed; isolate: the selection is highlighted.
+  const section = { box: null, planes: [], planZ: null, caps: true };
+  const style = { colourBy: '', hide: '', only: '' };
+  let isolate = false;
+  // The measure tool: mode off | points | objects, the picks so far, the last result.
+  const measure = { mode: 'off', picks: [], result: null };
 
   // ---- vectors ([x, y, z] arrays) ----
   const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
@@ -183,6 +221,7 @@
     lastChangeMs = performance.now();
     failedParams = null;
     hooks.still = false;
+    scheduleLink();
     pump();
   }
 
@@ -291,7 +330,7 @@
       return;
     }
     if (e.key === 'Home') { e.preventDefault(); goHome(); return; }
-    if (e.key === 'Escape') { pickSeq += 1; select(null); showPick(undefined); return; }
+    if (e.key === 'Escape') { pickSeq += 1; select(null); showPick(undefined); clearMeasure(); return; }
     if (e.key === '/') { e.preventDefault(); searchText.focus(); searchText.select(); return; }
     const key = e.key.toLowerCase();
     if (!'wasdqe'.includes(key) || key.length !== 1 || !camera) return;
@@ -311,11 +350,20 @@
     e.preventDefault();
     if (document.activeElement instanceof HTMLElement) document.activeElement.blur();  // keys walk again
     frame.setPointerCapture(e.pointerId);
+    // A left press on a section box's handle drags that face.
+    const handle = e.button === 0 && !e.shiftKey ? handleAt(e.clientX, e.clientY) : null;
     drag = { id: e.pointerId, x0: e.clientX, y0: e.clientY, x: e.clientX, y: e.clientY,
-             moved: false, pan: e.button !== 0 || e.shiftKey };
+             moved: false, pan: e.button !== 0 || e.shiftKey,
+             face: handle ? handle.face : null, box: handle ? section.box : null };
   });
   frame.addEventListener('pointermove', (e) => {
+    if (!drag) frame.classList.toggle('on-handle', section.box !== null && handleAt(e.clientX, e.clientY) !== null);
     if (!drag || e.pointerId !== drag.id) return;
+    if (drag.face !== null) {
+      drag.moved = true;
+      dragFace(drag.face, drag.box, e.clientX - drag.x0, e.clientY - drag.y0);
+      return;
+    }
     if (!drag.moved) {
       if (Math.hypot(e.clientX - drag.x0, e.clientY - drag.y0) <= CLICK_SLOP_PX) return;
       drag.moved = true;
@@ -328,7 +376,8 @@
   });
   const endDrag = (e, isClick) => {
     if (!drag || e.pointerId !== drag.id) return;
-    if (isClick && !drag.moved && !drag.pan) pick(e.clientX, e.clientY);
+    if (isClick && !drag.moved && !drag.pan && drag.face === null)
+      (measure.mode === 'off' ? pick : measurePick)(e.clientX, e.clientY);
     drag = null;
     frame.classList.remove('dragging');
   };
@@ -379,7 +428,7 @@
     const still = restsInMs <= 0;
     if (!still) pumpTimer = setTimeout(pump, restsInMs + 1);  // the still, once it rests
     const { w, h } = frameSize();
-    const params = cameraParams(camera, w, h);
+    const params = viewParams(camera, w, h);
     if (shown && shown.params === params && (shown.still || !still)) return;  // already showing it
     if (params === failedParams) return;
     const q = still ? STILL : MOVING;
@@ -428,7 +477,9 @@
       shown = request;
       hooks.framesShown += 1;
       const { w, h } = frameSize();
-      hooks.still = request.still && request.params === cameraParams(camera, w, h);
+      hooks.still = request.still && request.params === viewParams(camera, w, h);
+      hooks.frameParams = request.params;
+      showLegend(response.headers.get('X-Plantview-Legend'));
       hooks.quality = qualityOf(response.headers, request, performance.now() - request.startMs);
       hooks.framesByMode[hooks.quality.mode] = (hooks.framesByMode[hooks.quality.mode] ?? 0) + 1;
       showStats(response.headers, hooks.quality);
@@ -535,11 +586,12 @@
     ].join('\n');
   }
 
-  // ---- the selection's box ----
+  // ---- the overlay: the selection's box, the section box and the measurement ----
 
   // Draws the selected object's bounds as a box over the displayed frame, projected with the
   // camera that frame was rendered with (so that box and image agree while a newer frame is on its
-  // way). Edges are clipped where they pass behind the eye.
+  // way), and under it the section box with its face handles and the measure tool's points and
+  // line. Edges are clipped where they pass behind the eye.
   function drawOverlay() {
     const dpr = window.devicePixelRatio || 1;
     const cssW = overlay.clientWidth, cssH = overlay.clientHeight;
@@ -550,17 +602,35 @@
     const g = overlay.getContext('2d');
     g.setTransform(1, 0, 0, 1, 0, 0);
     g.clearRect(0, 0, overlay.width, overlay.height);
-    if (!selected || !selected.bounds || !shown) return;
+    if (!shown) return;
     g.scale(dpr, dpr);
     const aspect = shown.w / shown.h;
-    const { min, max } = selected.bounds;
+    drawSection(g, aspect);
+    drawMeasure(g, aspect);
+    if (!selected || !selected.bounds) return;
+    const top = drawBox(g, aspect, selected.bounds, '#ffcc33', 2);
+    if (top) {
+      g.shadowBlur = 4;
+      g.font = 'bold 13px system-ui, sans-serif';
+      g.fillStyle = '#ffcc33';
+      g.textAlign = 'center';
+      g.fillText(selected.name || selected.id || '', clamp(top.x * cssW, 60, cssW - 60), clamp(top.y * cssH - 8, 16, cssH - 4));
+    }
+    g.shadowBlur = 0;
+  }
+
+  // Draws the 12 edges of the box `bounds` ({min, max}) with the displayed frame's camera; returns
+  // the highest point drawn (for a label), or null.
+  function drawBox(g, aspect, bounds, colour, widthPx) {
+    const cssW = overlay.clientWidth, cssH = overlay.clientHeight;
+    const { min, max } = bounds;
     const corner = (i) => [i & 1 ? max[0] : min[0], i & 2 ? max[1] : min[1], i & 4 ? max[2] : min[2]];
-    const near = 0.05;  // metres: the renderer's near plane
+    const near = NEAR_M;
     const edges = [];
     for (let i = 0; i < 8; ++i)
       for (const bit of [1, 2, 4]) if (!(i & bit)) edges.push([corner(i), corner(i | bit)]);
-    g.lineWidth = 2;
-    g.strokeStyle = '#ffcc33';
+    g.lineWidth = widthPx;
+    g.strokeStyle = colour;
     g.shadowColor = 'rgba(0, 0, 0, 0.8)';
     g.shadowBlur = 3;
     g.beginPath();
@@ -578,19 +648,18 @@
       for (const p of [pa, pb]) if (!top || p.y < top.y) top = p;
     }
     g.stroke();
-    if (top) {
-      g.shadowBlur = 4;
-      g.font = 'bold 13px system-ui, sans-serif';
-      g.fillStyle = '#ffcc33';
-      g.textAlign = 'center';
-      g.fillText(selected.name || selected.id || '', clamp(top.x * cssW, 60, cssW - 60), clamp(top.y * cssH - 8, 16, cssH - 4));
-    }
+    g.shadowBlur = 0;
+    return top;
   }
 
+  // The selection changes: its box is drawn, the permalink holds it, and where the selection is
+  // highlighted, frames follow.
   function select(object) {
+    const before = selected;
     selected = object && object.bounds ? object : null;
     hooks.selected = selected;
-    drawOverlay();
+    if (isolate && (before?.id ?? null) !== (selected?.id ?? null)) filtersChanged();
+    else { drawOverlay(); scheduleLink(); }
   }
 
   // ---- picking ----
@@ -598,8 +667,10 @@
   // Picks the object under a click, with the camera and size of the displayed frame (so that what
   // is picked is what the user sees even while a newer frame is on its way). The browser stretches
   // the image over the element, so client pixels scale to image pixels by w / element width.
-  async function pick(clientX, clientY) {
-    if (!shown) return;
+  // The pick answer ({object, point_m?, normal?}) for a click, or null (an error shown, or a
+  // newer pick asked meanwhile). The displayed frame's filters go with it.
+  async function pickAt(clientX, clientY) {
+    if (!shown) return null;
     const rect = frame.getBoundingClientRect();
     const x = clamp(Math.floor((clientX - rect.left) * shown.w / rect.width), 0, shown.w - 1);
     const y = clamp(Math.floor((clientY - rect.top) * shown.h / rect.height), 0, shown.h - 1);
@@ -610,16 +681,24 @@
       adoptClientId(response.headers);
       if (!response.ok) {
         if (seq === pickSeq) showError(`pick: ${await errorText(response)}`);
-        return;
+        return null;
       }
       const body = await response.json();
-      if (seq !== pickSeq) return;
-      hooks.lastPick = body.object ?? null;
-      showPick(hooks.lastPick);
-      select(hooks.lastPick);
+      return seq === pickSeq ? body : null;
     } catch (e) {
       if (seq === pickSeq) showError(`pick: ${e.message}`);
+      return null;
+    } finally {
+      hooks.picksAnswered += 1;
     }
+  }
+
+  async function pick(clientX, clientY) {
+    const body = await pickAt(clientX, clientY);
+    if (!body) return;
+    hooks.lastPick = body.object ?? null;
+    showPick(hooks.lastPick);
+    select(hooks.lastPick);
   }
 
   // Finds an object by what the user typed: a tag or name (as given, then with the leading '/'
@@ -689,6 +768,663 @@
     pickPanel.append(el('h2', object.name || '(unnamed)'), table);
   }
 
+  // ---- view filters: section, styling, highlight ----
+
+  // The query parameters of the view's filters, appended to every frame, stats and pick request
+  // (and held in the permalink): clip= (the BCF planes, then the plan cut; at most 6), box=,
+  // caps=0, colour_by=, hide=, only=, highlight= (the selection, when isolate is on).
+  function filterParams() {
+    const parts = [];
+    for (const p of allPlanes()) parts.push(`clip=${[...p.point, ...p.normal].join(',')}`);
+    if (section.box) parts.push(`box=${[...section.box.min, ...section.box.max].join(',')}`);
+    if (!section.caps && (section.box || allPlanes().length > 0)) parts.push('caps=0');
+    if (style.colourBy) parts.push(`colour_by=${encodeURIComponent(style.colourBy)}`);
+    if (style.hide) parts.push(`hide=${encodeURIComponent(style.hide)}`);
+    if (style.only) parts.push(`only=${encodeURIComponent(style.only)}`);
+    if (isolate && selected) parts.push(`highlight=${encodeURIComponent(selected.id)}`);
+    return parts.length ? `&${parts.join('&')}` : '';
+  }
+
+  // The camera, size and filters of a request (frame, stats and pick share them).
+  function viewParams(cam, w, h) { return cameraParams(cam, w, h) + filterParams(); }
+
+  // The clip planes sent: those of an opened viewpoint, then the plan cut (removes all above z).
+  function allPlanes() {
+    const planes = [...section.planes];
+    if (section.planZ !== null) planes.push({ point: [0, 0, section.planZ], normal: [0, 0, 1] });
+    return planes.slice(0, MAX_CLIP_PLANES);
+  }
+
+  // A filter changed: new frames, and the permalink follows.
+  function filtersChanged() {
+    hooks.section = { box: section.box, planes: allPlanes(), caps: section.caps };
+    hooks.style = { ...style, isolate };
+    drawOverlay();
+    if (camera) changed();
+  }
+
+  const mm = (v) => Math.round(v * 1000) / 1000;  // metres to the millimetre (shorter URLs)
+
+  // The section box: around the selection (a margin of a tenth of its size, at least 0.5 m),
+  // else the whole plant.
+  function sectionBoxAround() {
+    const bounds = selected?.bounds ?? model?.bounds;
+    if (!bounds) return null;
+    const margin = sub(bounds.max, bounds.min).map((d) => Math.max(0.5, 0.1 * d));
+    return { min: sub(bounds.min, margin).map(mm), max: add(bounds.max, margin).map(mm) };
+  }
+
+  // Face f of the box (0..5: -x, +x, -y, +y, -z, +z): its centre and outward normal.
+  function boxFace(box, f) {
+    const axis = f >> 1, sign = f & 1 ? 1 : -1;
+    const centre = scale(add(box.min, box.max), 0.5);
+    centre[axis] = sign > 0 ? box.max[axis] : box.min[axis];
+    const normal = [0, 0, 0];
+    normal[axis] = sign;
+    return { axis, sign, centre, normal };
+  }
+
+  // Where the handles of the box's faces are drawn, in CSS pixels of the overlay (with the camera
+  // of the displayed frame; handles behind the eye are left out).
+  function sectionHandles() {
+    if (!section.box || !shown) return [];
+    const aspect = shown.w / shown.h, cssW = overlay.clientWidth, cssH = overlay.clientHeight;
+    const handles = [];
+    for (let f = 0; f < 6; ++f) {
+      const p = project(shown.camera, aspect, boxFace(section.box, f).centre);
+      if (p.depth > NEAR_M) handles.push({ face: f, x: p.x * cssW, y: p.y * cssH });
+    }
+    return handles;
+  }
+
+  function handleAt(clientX, clientY) {
+    const rect = overlay.getBoundingClientRect();
+    let best = null;
+    for (const h of sectionHandles()) {
+      const d = Math.hypot(clientX - rect.left - h.x, clientY - rect.top - h.y);
+      if (d <= HANDLE_HIT_PX && (!best || d < best.d)) best = { ...h, d };
+    }
+    return best;
+  }
+
+  // Drags face `face` of the box from `start` (the box when the drag began) by the pointer's
+  // movement since then (CSS px), along the face's normal as the camera shows it; the face stops
+  // at the opposite one.
+  function dragFace(face, start, dxPx, dyPx) {
+    const { axis, sign, centre, normal } = boxFace(start, face);
+    const aspect = shown.w / shown.h, cssW = overlay.clientWidth, cssH = overlay.clientHeight;
+    const stepM = Math.max(0.01, 0.1 * length(sub(start.max, start.min)));
+    const p0 = project(camera, aspect, centre), p1 = project(camera, aspect, add(centre, scale(normal, stepM)));
+    if (p0.depth <= NEAR_M || p1.depth <= NEAR_M) return;
+    const vx = (p1.x - p0.x) * cssW / stepM, vy = (p1.y - p0.y) * cssH / stepM;  // px per metre
+    const v2 = vx * vx + vy * vy;
+    if (v2 < 1e-6) return;  // the normal points at the eye: no way to drag along it
+    const moveM = (dxPx * vx + dyPx * vy) / v2;
+    const box = { min: [...start.min], max: [...start.max] };
+    if (sign > 0) box.max[axis] = mm(Math.max(start.min[axis], start.max[axis] + moveM));
+    else box.min[axis] = mm(Math.min(start.max[axis], start.min[axis] - moveM));
+    section.box = box;
+    filtersChanged();
+  }
+
+  function drawSection(g, aspect) {
+    hooks.sectionHandles = [];
+    if (!section.box) return;
+    drawBox(g, aspect, section.box, '#4fc3f7', 1.5);
+    const handles = sectionHandles();
+    hooks.sectionHandles = handles.map(({ face, x, y }) => ({ face, x, y }));
+    g.fillStyle = '#4fc3f7';
+    g.strokeStyle = '#0b3a4f';
+    g.lineWidth = 1.5;
+    for (const h of handles) {
+      g.beginPath();
+      g.arc(h.x, h.y, HANDLE_RADIUS_PX, 0, 2 * Math.PI);
+      g.fill();
+      g.stroke();
+    }
+  }
+
+  const sectionBoxButton = document.getElementById('section-box');
+  const sectionReset = document.getElementById('section-reset');
+  const sectionCaps = document.getElementById('section-caps');
+  const planCut = document.getElementById('plan-cut');
+  const planZ = document.getElementById('plan-z');
+  const elevation = document.getElementById('elevation');
+  sectionBoxButton.addEventListener('click', () => {
+    sectionBoxButton.blur();
+    section.box = sectionBoxAround();
+    filtersChanged();
+  });
+  sectionReset.addEventListener('click', () => {
+    sectionReset.blur();
+    section.box = null;
+    section.planes = [];
+    section.planZ = null;
+    planCut.checked = false;
+    filtersChanged();
+  });
+  // Checkboxes give the keys back to walking once changed (a focused input takes them).
+  sectionCaps.addEventListener('change', () => { sectionCaps.blur(); section.caps = sectionCaps.checked; filtersChanged(); });
+  function setPlanCut() {
+    section.planZ = planCut.checked ? mm(Number(elevation.value)) : null;
+    planZ.textContent = `${mm(Number(elevation.value)).toFixed(2)} m`;
+    filtersChanged();
+  }
+  planCut.addEventListener('change', () => { planCut.blur(); setPlanCut(); });
+  elevation.addEventListener('input', () => { if (!planCut.checked) planCut.checked = true; setPlanCut(); });
+  function setElevationRange() {
+    if (!model?.bounds) return;
+    elevation.min = model.bounds.min[2];
+    elevation.max = model.bounds.max[2];
+    elevation.step = Math.max(0.01, (model.bounds.max[2] - model.bounds.min[2]) / 500);
+    elevation.value = section.planZ ?? model.bounds.max[2];
+    planCut.checked = section.planZ !== null;
+    planZ.textContent = `${Number(elevation.value).toFixed(2)} m`;
+  }
+
+  // ---- colour by, hide, only, highlight ----
+
+  const styleForm = document.getElementById('style-form');
+  const colourByInput = document.getElementById('colour-by');
+  const hideInput = document.getElementById('hide');
+  const onlyInput = document.getElementById('only');
+  const isolateInput = document.getElementById('isolate');
+  const legendPanel = document.getElementById('legend');
+  styleForm.addEventListener('submit', (e) => {
+    e.preventDefault();
+    style.colourBy = colourByInput.value.trim();
+    style.hide = hideInput.value.trim();
+    style.only = onlyInput.value.trim();
+    if (document.activeElement instanceof HTMLElement) document.activeElement.blur();
+    filtersChanged();
+  });
+  isolateInput.addEventListener('change', () => { isolateInput.blur(); isolate = isolateInput.checked; filtersChanged(); });
+  function showStyleInputs() {
+    colourByInput.value = style.colourBy;
+    hideInput.value = style.hide;
+    onlyInput.value = style.only;
+    isolateInput.checked = isolate;
+    const keys = model?.attribute_keys ?? [];
+    document.getElementById('attribute-keys').replaceChildren(...keys.map((k) => {
+      const o = document.createElement('option');
+      o.value = k;
+      return o;
+    }));
+  }
+
+  // The legend of the displayed frame (X-Plantview-Legend: {key, kind: "categories", entries:
+  // [{value, colour, objects}], other_objects} or {key, kind: "ramp", unit, min, max, colours,
+  // objects}); hidden when the frame has none. Text only: values come from the model.
+  function showLegend(text) {
+    let legend = null;
+    try { legend = text ? JSON.parse(text) : null; } catch { legend = null; }
+    hooks.legend = legend;
+    if (!legend) { legendPanel.hidden = true; legendPanel.replaceChildren(); return; }
+    const el = (tag, cls, content) => {
+      const e = document.createElement(tag);
+      if (cls) e.className = cls;
+      if (content !== undefined) e.textContent = content;
+      return e;
+    };
+    const items = [el('h3', '', `colour by ${legend.key ?? ''}`)];
+    const colourOk = (c) => (typeof c === 'string' && /^#[0-9a-fA-F]{3,8}$/.test(c) ? c : '#888');
+    if (legend.kind === 'ramp') {
+      const colours = (legend.colours ?? []).map(colourOk);
+      const ramp = el('div', 'ramp');
+      ramp.style.background = `linear-gradient(to right, ${colours.length > 1 ? colours.join(', ') : `${colours[0] ?? '#888'}, ${colours[0] ?? '#888'}`})`;
+      const unit = legend.unit ? ` ${legend.unit}` : '';
+      const ends = el('div', 'ends');
+      ends.append(el('span', '', `${legend.min}${unit}`), el('span', '', `${legend.max}${unit}`));
+      items.push(ramp, ends, el('div', 'count', `${legend.objects ?? '–'} objects`));
+    } else {
+      for (const entry of legend.entries ?? []) {
+        const row = el('div', 'entry');
+        const swatch = el('span', 'swatch');
+        swatch.style.background = colourOk(entry.colour);
+        row.append(swatch, el('span', '', String(entry.value)), el('span', 'count', String(entry.objects ?? '')));
+        items.push(row);
+      }
+      if (legend.other_objects) items.push(el('div', 'count', `${legend.other_objects} others`));
+    }
+    legendPanel.replaceChildren(...items);
+    legendPanel.hidden = false;
+  }
+
+  // ---- measure ----
+
+  const measureResult = document.getElementById('measure-result');
+  for (const radio of document.querySelectorAll('input[name="measure-mode"]')) {
+    radio.addEventListener('change', () => {
+      if (!radio.checked) return;
+      measure.mode = radio.value;
+      clearMeasure();
+      radio.blur();
+    });
+  }
+  function clearMeasure() {
+    measure.picks = [];
+    measure.result = null;
+    hooks.measure = null;
+    showMeasure();
+    drawOverlay();
+  }
+
+  const metres = (v) => `${v.toFixed(3)} m`;
+  function showMeasure() {
+    const r = measure.result;
+    if (r) {
+      const lines = [`distance ${metres(r.distance_m)}`,
+                     `dx ${metres(r.dx_m)}  dy ${metres(r.dy_m)}  dz ${metres(r.dz_m)}`];
+      if (r.kind === 'objects') {
+        lines.unshift(`${r.aName} – ${r.bName}`);
+        if (r.overlapping) lines.push(`overlapping${Number.isFinite(r.penetration_m) ? ` by ${metres(r.penetration_m)}` : ''}`);
+        if (Number.isFinite(r.error_m)) lines.push(`± ${metres(r.error_m)} (${r.method ?? ''})`);
+      }
+      measureResult.textContent = lines.join('\n');
+    } else if (measure.mode === 'off') {
+      measureResult.textContent = '';
+    } else {
+      const what = measure.mode === 'points' ? 'point' : 'object';
+      measureResult.textContent = `click the ${measure.picks.length === 0 ? 'first' : 'second'} ${what}`;
+    }
+  }
+
+  // A click while measuring: points (two picks' point_m) or objects (two picks' objects, then
+  // /api/measure for their clearance). A server whose picks carry no point says so.
+  async function measurePick(clientX, clientY) {
+    const body = await pickAt(clientX, clientY);
+    if (!body) return;
+    const object = body.object ?? null;
+    if (!object) { showError('measure: nothing here: click on an object'); return; }
+    if (measure.picks.length >= 2) { measure.picks = []; measure.result = null; }
+    if (measure.mode === 'points') {
+      const point = body.point_m ?? object.point_m ?? null;
+      if (!Array.isArray(point) || point.length !== 3) {
+        showError("measure: this server's picks carry no point (point_m): measure the clearance between objects instead");
+        return;
+      }
+      measure.picks.push({ point, normal: body.normal ?? object.normal ?? null, object });
+      if (measure.picks.length === 2) {
+        const [a, b] = measure.picks;
+        const d = sub(b.point, a.point);
+        measure.result = { kind: 'points', a: a.point, b: b.point, distance_m: length(d),
+                           dx_m: d[0], dy_m: d[1], dz_m: d[2] };
+      }
+    } else {
+      if (!object.id) return;
+      measure.picks.push({ point: body.point_m ?? null, object });
+      if (measure.picks.length === 2) {
+        const [a, b] = measure.picks;
+        try {
+          const response = await api(`api/measure?a=${encodeURIComponent(a.object.id)}&b=${encodeURIComponent(b.object.id)}`,
+                                     { cache: 'no-store' });
+          if (!response.ok) {
+            showError(`measure: ${await errorText(response)}`);
+            measure.picks = [];
+          } else {
+            const j = await response.json();
+            measure.result = { kind: 'objects', a: j.a.point_m, b: j.b.point_m, distance_m: j.distance_m,
+                               dx_m: j.dx_m, dy_m: j.dy_m, dz_m: j.dz_m, error_m: j.error_m, method: j.method,
+                               overlapping: j.overlapping === true, penetration_m: j.penetration_m,
+                               aName: j.a.tag || j.a.id, bName: j.b.tag || j.b.id };
+          }
+        } catch (e) {
+          showError(`measure: ${e.message}`);
+          measure.picks = [];
+        }
+      }
+    }
+    hooks.measure = measure.result;
+    showMeasure();
+    drawOverlay();
+  }
+
+  function drawMeasure(g, aspect) {
+    const cssW = overlay.clientWidth, cssH = overlay.clientHeight;
+    const at = (p) => { const q = project(shown.camera, aspect, p); return q.depth > NEAR_M ? [q.x * cssW, q.y * cssH] : null; };
+    const valid = (p) => Array.isArray(p) && p.length === 3 && p.every(Number.isFinite);
+    const points = (measure.result ? [measure.result.a, measure.result.b] : measure.picks.map((p) => p.point)).filter(valid);
+    g.fillStyle = '#ff6ec7';
+    g.strokeStyle = '#ff6ec7';
+    g.lineWidth = 2;
+    const drawn = points.map(at);
+    for (const p of drawn) if (p) { g.beginPath(); g.arc(p[0], p[1], 4, 0, 2 * Math.PI); g.fill(); }
+    if (measure.result && points.length === 2 && drawn[0] && drawn[1]) {
+      g.beginPath();
+      g.moveTo(...drawn[0]);
+      g.lineTo(...drawn[1]);
+      g.stroke();
+      g.font = 'bold 13px system-ui, sans-serif';
+      g.textAlign = 'center';
+      g.fillText(metres(measure.result.distance_m), (drawn[0][0] + drawn[1][0]) / 2, (drawn[0][1] + drawn[1][1]) / 2 - 8);
+    }
+  }
+
+  // ---- the permalink ----
+
+  // The address bar's fragment always holds the view: camera (eye, target, up, fov), section
+  // (box, clip planes, plan, caps), selection (sel: its id), styling (colour_by, hide, only,
+  // hl=1 for isolate). Opening it in a fresh page restores the same view. Updated at most every
+  // LINK_MS (browsers limit how often history may be replaced).
+  let linkTimer = 0;
+  function scheduleLink() {
+    if (linkTimer) return;
+    linkTimer = setTimeout(() => { linkTimer = 0; writeLink(); }, LINK_MS);
+  }
+  function permalinkHash() {
+    if (!camera) return '';
+    const q = new URLSearchParams();
+    q.set('eye', camera.eye.join(','));
+    q.set('target', camera.target.join(','));
+    q.set('up', camera.up.join(','));
+    q.set('fov', String(camera.fov));
+    if (section.box) q.set('box', [...section.box.min, ...section.box.max].join(','));
+    for (const p of section.planes) q.append('clip', [...p.point, ...p.normal].join(','));
+    if (section.planZ !== null) q.set('plan', String(section.planZ));
+    if (!section.caps) q.set('caps', '0');
+    if (selected) q.set('sel', selected.id);
+    if (style.colourBy) q.set('colour_by', style.colourBy);
+    if (style.hide) q.set('hide', style.hide);
+    if (style.only) q.set('only', style.only);
+    if (isolate) q.set('hl', '1');
+    return `#${q.toString().replace(/%2C/gi, ',')}`;  // commas kept: a readable link
+  }
+  function writeLink() {
+    const hash = permalinkHash();
+    hooks.permalink = location.origin + location.pathname + location.search + hash;
+    if (hash && hash !== location.hash) history.replaceState(null, '', location.pathname + location.search + hash);
+  }
+
+  // The view the page was opened with (its fragment), applied before the first frame: camera,
+  // section and styling here; the selection (sel) is returned, to be looked up.
+  function readLink() {
+    const q = new URLSearchParams(location.hash.slice(1));
+    const vec = (name, n) => {
+      const v = (q.get(name) ?? '').split(',').map(Number);
+      return v.length === n && v.every(Number.isFinite) ? v : null;
+    };
+    const eye = vec('eye', 3), target = vec('target', 3), up = vec('up', 3), fov = Number(q.get('fov'));
+    const cam = eye && target && up && Number.isFinite(fov) && fov > 0 ? { eye, target, up, fov } : null;
+    const box = vec('box', 6);
+    if (box) section.box = { min: box.slice(0, 3), max: box.slice(3) };
+    for (const c of q.getAll('clip')) {
+      const v = c.split(',').map(Number);
+      if (v.length === 6 && v.every(Number.isFinite)) section.planes.push({ point: v.slice(0, 3), normal: v.slice(3) });
+    }
+    const plan = Number(q.get('plan') ?? NaN);
+    if (q.has('plan') && Number.isFinite(plan)) section.planZ = plan;
+    section.caps = q.get('caps') !== '0';
+    style.colourBy = q.get('colour_by') ?? '';
+    style.hide = q.get('hide') ?? '';
+    style.only = q.get('only') ?? '';
+    isolate = q.get('hl') === '1';
+    return { camera: cam, selection: q.get('sel') };
+  }
+
+  // ---- BCF viewpoints ----
+
+  const CRC_TABLE = (() => {
+    const t = new Uint32Array(256);
+    for (let n = 0; n < 256; ++n) {
+      let c = n;
+      for (let k = 0; k < 8; ++k) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+      t[n] = c >>> 0;
+    }
+    return t;
+  })();
+  function crc32(bytes) {
+    let c = 0xffffffff;
+    for (let i = 0; i < bytes.length; ++i) c = CRC_TABLE[(c ^ bytes[i]) & 0xff] ^ (c >>> 8);
+    return (c ^ 0xffffffff) >>> 0;
+  }
+
+  // A zip of `files` ([{name, bytes: Uint8Array}]), stored (method 0) with their CRC-32s: the
+  // local headers and data, the central directory, its end record.
+  function zipStored(files) {
+    const enc = new TextEncoder();
+    const now = new Date();
+    const dosTime = (now.getHours() << 11) | (now.getMinutes() << 5) | (now.getSeconds() >> 1);
+    const dosDate = ((now.getFullYear() - 1980) << 9) | ((now.getMonth() + 1) << 5) | now.getDate();
+    const parts = [], central = [];
+    let offset = 0, centralSize = 0;
+    for (const f of files) {
+      const name = enc.encode(f.name), crc = crc32(f.bytes), size = f.bytes.length;
+      const local = new DataView(new ArrayBuffer(30));
+      local.setUint32(0, 0x04034b50, true);
+      local.setUint16(4, 20, true);
+      local.setUint16(6, 0x0800, true);  // names are UTF-8
+      local.setUint16(8, 0, true);       // stored
+      local.setUint16(10, dosTime, true);
+      local.setUint16(12, dosDate, true);
+      local.setUint32(14, crc, true);
+      local.setUint32(18, size, true);
+      local.setUint32(22, size, true);
+      local.setUint16(26, name.length, true);
+      local.setUint16(28, 0, true);
+      parts.push(local, name, f.bytes);
+      const entry = new DataView(new ArrayBuffer(46));
+      entry.setUint32(0, 0x02014b50, true);
+      entry.setUint16(4, 20, true);
+      entry.setUint16(6, 20, true);
+      entry.setUint16(8, 0x0800, true);
+      entry.setUint16(10, 0, true);
+      entry.setUint16(12, dosTime, true);
+      entry.setUint16(14, dosDate, true);
+      entry.setUint32(16, crc, true);
+      entry.setUint32(20, size, true);
+      entry.setUint32(24, size, true);
+      entry.setUint16(28, name.length, true);
+      entry.setUint32(42, offset, true);  // extra, comment, disk and attributes stay 0
+      central.push(entry, name);
+      centralSize += 46 + name.length;
+      offset += 30 + name.length + size;
+    }
+    const end = new DataView(new ArrayBuffer(22));
+    end.setUint32(0, 0x06054b50, true);
+    end.setUint16(8, files.length, true);
+    end.setUint16(10, files.length, true);
+    end.setUint32(12, centralSize, true);
+    end.setUint32(16, offset, true);
+    return new Blob([...parts, ...central, end], { type: 'application/octet-stream' });
+  }
+
+  // The files of a zip (a Map of name to Uint8Array), from its central directory; stored and
+  // deflated entries (DecompressionStream 'deflate-raw').
+  async function unzip(buffer) {
+    const bytes = new Uint8Array(buffer), dv = new DataView(buffer);
+    let eocd = -1;
+    for (let i = bytes.length - 22; i >= Math.max(0, bytes.length - 22 - 65535); --i)
+      if (dv.getUint32(i, true) === 0x06054b50) { eocd = i; break; }
+    if (eocd < 0) throw new Error('not a zip file (no end of central directory)');
+    const count = dv.getUint16(eocd + 10, true);
+    let p = dv.getUint32(eocd + 16, true);
+    const files = new Map(), dec = new TextDecoder();
+    for (let i = 0; i < count; ++i) {
+      if (dv.getUint32(p, true) !== 0x02014b50) throw new Error('a bad central directory entry');
+      const method = dv.getUint16(p + 10, true), csize = dv.getUint32(p + 20, true);
+      const nameLen = dv.getUint16(p + 28, true), extraLen = dv.getUint16(p + 30, true);
+      const commentLen = dv.getUint16(p + 32, true), local = dv.getUint32(p + 42, true);
+      const name = dec.decode(bytes.subarray(p + 46, p + 46 + nameLen));
+      const start = local + 30 + dv.getUint16(local + 26, true) + dv.getUint16(local + 28, true);
+      const data = bytes.subarray(start, start + csize);
+      if (method === 0) files.set(name, data);
+      else if (method === 8) {
+        const stream = new Blob([data]).stream().pipeThrough(new DecompressionStream('deflate-raw'));
+        files.set(name, new Uint8Array(await new Response(stream).arrayBuffer()));
+      }
+      p += 46 + nameLen + extraLen + commentLen;
+    }
+    return files;
+  }
+
+  const xmlEscape = (s) => String(s).replace(/[<>&"']/g, (c) => ({ '<': '&lt;', '>': '&gt;', '&': '&amp;', '"': '&quot;', "'": '&apos;' }[c]));
+  const xyz = (tag, v) => `<${tag}><X>${v[0]}</X><Y>${v[1]}</Y><Z>${v[2]}</Z></${tag}>`;
+
+  // The view's clipping as BCF planes (Direction points into the removed side): the clip planes,
+  // then a box as six planes.
+  function bcfPlanes() {
+    const planes = allPlanes().map((p) => ({ location: p.point, direction: normalize(p.normal) }));
+    if (section.box) for (let f = 0; f < 6; ++f) {
+      const { centre, normal } = boxFace(section.box, f);
+      planes.push({ location: centre, direction: normal });
+    }
+    return planes;
+  }
+
+  // Saves the view as a BCF 2.1 file: bcf.version, one topic (markup.bcf, viewpoint.bcfv and a
+  // PNG still of the view as snapshot.png), downloaded as <title>.bcf.
+  async function saveViewpoint() {
+    if (!camera) return;
+    const title = document.getElementById('bcf-title').value.trim() || 'plantview viewpoint';
+    const topic = crypto.randomUUID(), viewpoint = crypto.randomUUID();
+    const { w, h } = frameSize();
+    let snapshot = null;
+    try {
+      const response = await api(`api/frame?${viewParams(camera, w, h)}&format=png&mode=still`, { cache: 'no-store' });
+      if (response.ok) snapshot = new Uint8Array(await response.arrayBuffer());
+      else showError(`viewpoint snapshot: ${await errorText(response)}`);
+    } catch (e) {
+      showError(`viewpoint snapshot: ${e.message}`);
+    }
+    const { forward } = viewBasis(camera);
+    const head = '<?xml version="1.0" encoding="UTF-8"?>\n';
+    const xsi = 'xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" xmlns:xsd="http://www.w3.org/2001/XMLSchema"';
+    const version = `${head}<Version VersionId="2.1" ${xsi}><DetailedVersion>2.1</DetailedVersion></Version>\n`;
+    const markup = `${head}<Markup ${xsi}>\n` +
+      `  <Topic Guid="${topic}" TopicType="Issue" TopicStatus="Open">\n` +
+      `    <Title>${xmlEscape(title)}</Title>\n` +
+      `    <CreationDate>${new Date().toISOString()}</CreationDate>\n` +
+      '    <CreationAuthor>plantview</CreationAuthor>\n' +
+      '  </Topic>\n' +
+      `  <Viewpoints Guid="${viewpoint}"><Viewpoint>viewpoint.bcfv</Viewpoint>` +
+      `${snapshot ? '<Snapshot>snapshot.png</Snapshot>' : ''}</Viewpoints>\n` +
+      '</Markup>\n';
+    const components = selected
+      ? '    <Selection><Component><OriginatingSystem>plantview</OriginatingSystem>' +
+        `<AuthoringToolId>${xmlEscape(tagOf(selected))}</AuthoringToolId></Component></Selection>\n`
+      : '';
+    const planes = bcfPlanes().map((p) => `    <ClippingPlane>${xyz('Location', p.location)}${xyz('Direction', p.direction)}</ClippingPlane>\n`).join('');
+    const visualization = `${head}<VisualizationInfo Guid="${viewpoint}" ${xsi}>\n` +
+      `  <Components>\n${components}    <Visibility DefaultVisibility="true"/>\n  </Components>\n` +
+      `  <PerspectiveCamera>${xyz('CameraViewPoint', camera.eye)}${xyz('CameraDirection', forward)}` +
+      `${xyz('CameraUpVector', camera.up)}<FieldOfView>${camera.fov}</FieldOfView></PerspectiveCamera>\n` +
+      (planes ? `  <ClippingPlanes>\n${planes}  </ClippingPlanes>\n` : '') +
+      '</VisualizationInfo>\n';
+    const enc = new TextEncoder();
+    const files = [{ name: 'bcf.version', bytes: enc.encode(version) },
+                   { name: `${topic}/markup.bcf`, bytes: enc.encode(markup) },
+                   { name: `${topic}/viewpoint.bcfv`, bytes: enc.encode(visualization) }];
+    if (snapshot) files.push({ name: `${topic}/snapshot.png`, bytes: snapshot });
+    const blob = zipStored(files);
+    const name = `${title.replace(/[^A-Za-z0-9._-]+/g, '_').slice(0, 80) || 'viewpoint'}.bcf`;
+    const url = URL.createObjectURL(blob);
+    const a = document.createElement('a');
+    a.href = url;
+    a.download = name;
+    document.body.append(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 60000);
+    const raw = new Uint8Array(await blob.arrayBuffer());
+    let binary = '';
+    for (let i = 0; i < raw.length; i += 0x8000) binary += String.fromCharCode(...raw.subarray(i, i + 0x8000));
+    hooks.lastBcf = { name, topic, size: raw.length, base64: btoa(binary) };
+  }
+
+  // What names an object in a BCF component: its tag (its name without the leading '/' plant
+  // names carry), else its id; /api/objects/ finds it again by either.
+  function tagOf(object) {
+    if (object.name) return object.name.replace(/^\//, '');
+    return object.id;
+  }
+
+  // Opens a .bcf/.bcfzip: the first topic's first viewpoint restores the camera, clipping (six
+  // axis-aligned planes forming a box become the section box, others clip planes) and the
+  // selection (the first component found by /api/objects/).
+  async function openViewpoint(file) {
+    try {
+      const files = await unzip(await file.arrayBuffer());
+      const name = [...files.keys()].find((n) => n.endsWith('.bcfv'));
+      if (!name) throw new Error('no viewpoint (.bcfv) in it');
+      const doc = new DOMParser().parseFromString(new TextDecoder().decode(files.get(name)), 'application/xml');
+      if (doc.querySelector('parsererror')) throw new Error(`${name} is not XML`);
+      const vec = (parent, tag) => {
+        const e = parent?.getElementsByTagName(tag)[0];
+        if (!e) return null;
+        const v = ['X', 'Y', 'Z'].map((k) => Number(e.getElementsByTagName(k)[0]?.textContent));
+        return v.every(Number.isFinite) ? v : null;
+      };
+      const pc = doc.getElementsByTagName('PerspectiveCamera')[0];
+      const eye = vec(pc, 'CameraViewPoint'), dir = vec(pc, 'CameraDirection'), up = vec(pc, 'CameraUpVector');
+      const fov = Number(pc?.getElementsByTagName('FieldOfView')[0]?.textContent);
+      const planes = [];
+      for (const cp of doc.getElementsByTagName('ClippingPlane')) {
+        const location = vec(cp, 'Location'), direction = vec(cp, 'Direction');
+        if (location && direction && length(direction) > 0) planes.push({ point: location, normal: normalize(direction) });
+      }
+      const box = planesToBox(planes);
+      section.box = box;
+      section.planes = box ? [] : planes.slice(0, MAX_CLIP_PLANES);
+      const dropped = box ? 0 : Math.max(0, planes.length - MAX_CLIP_PLANES);
+      section.planZ = null;
+      planCut.checked = false;
+      let found = null;
+      for (const c of doc.getElementsByTagName('Component')) {
+        const id = c.getElementsByTagName('AuthoringToolId')[0]?.textContent?.trim();
+        if (!id) continue;
+        found = await findObject(id);
+        if (found) break;
+      }
+      if (found) { hooks.lastPick = found; showPick(found); }
+      select(found);
+      if (eye && dir && up && length(dir) > 0) {
+        endFlight();
+        const d = Math.max(1, length(sub(camera.target, camera.eye)));
+        placeCamera({ eye, target: add(eye, scale(normalize(dir), d)), up,
+                      fov: Number.isFinite(fov) && fov > 0 ? fov : camera.fov });
+      }
+      filtersChanged();
+      showError(dropped ? `open viewpoint: ${dropped} clipping planes left out (at most ${MAX_CLIP_PLANES})` : '');
+    } catch (e) {
+      showError(`open viewpoint: ${e.message}`);
+    }
+  }
+
+  // Six planes, one facing each way along each axis, form a box; anything else does not.
+  function planesToBox(planes) {
+    if (planes.length !== 6) return null;
+    const min = [null, null, null], max = [null, null, null];
+    for (const p of planes) {
+      const axis = p.normal.findIndex((c) => Math.abs(Math.abs(c) - 1) < 1e-9);
+      if (axis < 0) return null;
+      const side = p.normal[axis] > 0 ? max : min;
+      if (side[axis] !== null) return null;
+      side[axis] = p.point[axis];
+    }
+    if (min.some((v, i) => v === null || max[i] === null || v > max[i])) return null;
+    return { min, max };
+  }
+
+  // An object by its tag or id (as the search finds it), or null.
+  async function findObject(text) {
+    const names = [text];
+    if (!text.startsWith('/') && !/^[0-9]+$/.test(text)) names.push(`/${text}`);
+    for (const name of names) {
+      const path = name.split('/').map(encodeURIComponent).join('/');
+      const response = await api(`api/objects/${path}`, { cache: 'no-store' });
+      if (response.ok) return response.json();
+    }
+    return null;
+  }
+
+  document.getElementById('bcf-save').addEventListener('click', (e) => { e.currentTarget.blur(); saveViewpoint(); });
+  const bcfOpen = document.getElementById('bcf-open');
+  bcfOpen.addEventListener('change', () => {
+    const file = bcfOpen.files[0];
+    if (file) openViewpoint(file);
+    bcfOpen.value = '';
+  });
+
   // ---- start ----
 
   // Loads the model and starts from its camera (or, lacking one, a view of its bounds from the
@@ -714,8 +1450,25 @@
     }
     home = { eye: [...c.eye], target: [...c.target], up: [...c.up], fov: c.fov };
     hooks.home = home;
-    camera = home;
+    // A permalink's view, where the page was opened with one; its selection is looked up first,
+    // so that the first frame is already the view the link holds.
+    const link = readLink();
+    if (link.selection) {
+      try {
+        const object = await findObject(link.selection);
+        if (object) { hooks.lastPick = object; showPick(object); select(object); }
+      } catch { /* the view without its selection */ }
+    }
+    camera = link.camera ?? home;
     hooks.camera = camera;
+    setElevationRange();
+    showStyleInputs();
+    hooks.section = { box: section.box, planes: allPlanes(), caps: section.caps };
+    hooks.style = { ...style, isolate };
+    if (section.box || section.planes.length || section.planZ !== null)
+      document.getElementById('section-tool').open = true;
+    if (style.colourBy || style.hide || style.only || isolate) document.getElementById('style-tool').open = true;
+    writeLink();
     pump();  // at rest: the first frame is a still
   }
 

@@ -4,6 +4,7 @@
 
 #include "cli/commands.h"
 #include "cli/render_run.h"
+#include "server/object_words.h"
 
 namespace plantview::cli::rendering {
 
@@ -146,33 +147,7 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
 
 bool resolve_highlight(const ReadView& view, const std::vector<std::string>& words,
                        std::vector<uint64_t>& ids, std::string& error, bool& usage) {
-  usage = false;
-  for (const std::string& word : words) {
-    uint64_t id = 0;
-    const auto [last, ec] = std::from_chars(word.data(), word.data() + word.size(), id);
-    if (ec == std::errc() && last == word.data() + word.size()) {
-      std::optional<uint32_t> slot;
-      if (!view.slot_of(id, slot, error)) return false;
-      if (slot) {
-        ids.push_back(id);
-        continue;
-      }
-    }
-    std::vector<uint32_t> slots;
-    if (!view.slots_named(word, slots, error)) return false;
-    if (slots.empty() && word.front() != '/' && !view.slots_named("/" + word, slots, error)) return false;
-    if (slots.empty()) {
-      error = "--highlight: no object has the id or the tag '" + word + "'";
-      usage = true;
-      return false;
-    }
-    for (const uint32_t slot : slots) {
-      Object o;
-      if (!view.object(slot, o, false, error)) return false;
-      ids.push_back(o.id);
-    }
-  }
-  return true;
+  return ids_of_words(view, words, "--highlight", ids, error, usage);
 }
 
 void add_render_options(CLI::App* render, RenderArgs* args) {

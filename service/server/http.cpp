@@ -33,6 +33,8 @@ bool decode(std::string_view in, std::string& out) {
 
 }  // namespace
 
+bool repeatable_parameter(std::string_view key) { return key == "clip"; }
+
 bool parse_query(std::string_view query, Fields& out, std::string& error) {
   out.clear();
   size_t at = 0;
@@ -54,7 +56,7 @@ bool parse_query(std::string_view query, Fields& out, std::string& error) {
       return false;
     }
     for (const auto& [k, v] : out) {
-      if (k == key) {
+      if (k == key && !repeatable_parameter(key)) {
         error = "parameter '" + key + "' is given twice";
         return false;
       }

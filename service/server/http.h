@@ -12,8 +12,10 @@ namespace plantview::service {
 using Fields = std::vector<std::pair<std::string, std::string>>;
 
 // Splits "a=1&b=x%2Cy" into decoded pairs. False (with a message naming the part) on bad
-// percent escapes, empty keys or a repeated key.
+// percent escapes, empty keys or a repeated key (except those repeatable_parameter allows).
 bool parse_query(std::string_view query, Fields& out, std::string& error);
+// Keys that may be given more than once, each time adding a value: clip (a clip plane each).
+bool repeatable_parameter(std::string_view key);
 
 std::string_view status_text(int status);
 

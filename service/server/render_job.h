@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "plantview/render.h"
 #include "server/http.h"
@@ -26,6 +27,13 @@ struct RenderJob {
   double pixel_error = 1.0;         // pixels, (0, 1000]
   FrameMode mode = FrameMode::still;  // frames only; stats and picks are never degraded
   uint32_t x = 0, y = 0;            // pick: a pixel inside width x height
+  // What the view shows besides its camera (view_filters.h), valid when the routes made it:
+  // clip= and box= (caps= is section.capped), colour_by=, hide=, only=.
+  Section section;
+  ObjectStyle style;
+  // highlight=: object ids or tags, resolved by the render worker through its renderer's read
+  // view (object_words.h); empty: nothing highlighted.
+  std::vector<std::string> highlight;
   // The latest-wins slot (routes.h: a connection's, or the one an issued client id names): the
   // unit of round-robin, and with `kind` the key a newer job replaces a waiting one by. Never
   // empty in a job the routes made.

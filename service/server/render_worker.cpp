@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <string_view>
 
+#include "server/object_words.h"
 #include "server/objects_json.h"
 
 namespace plantview::service {
@@ -49,6 +50,15 @@ std::string format_number(double value) {
 }
 
 }  // namespace
+
+bool is_view_filter_error(std::string_view message) {
+  static constexpr std::string_view kPrefixes[] = {"colour_by", "colour by", "--colour-by", "hide",
+                                                   "only", "style", "section", "clip", "box",
+                                                   "caps", "--clip", "--box", "--hide", "--only"};
+  for (const std::string_view prefix : kPrefixes)
+    if (message.substr(0, prefix.size()) == prefix) return true;
+  return false;
+}
 
 uint32_t default_software_renderers(uint32_t cores) {
   // Measured with bench_service on a 2-core machine (llvmpipe, preset c, 1280x720, 12 s a run,
@@ -290,16 +300,26 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
   const bool still = job.kind == RenderJob::Kind::frame && job.mode == FrameMode::still;
   options.antialias = still;
   options.ambient_occlusion = still;
-  renderer.set_options(options);
+  options.section = job.section;
+  options.style = job.style;
+  options.highlight_ids.clear();
   std::string error;
+  r.headers.emplace_back("X-Plantview-Client", job.client_id);
+  bool unknown = false;
+  if (!ids_of_words(renderer.read_view(), job.highlight, "'highlight'", options.highlight_ids, error, unknown)) {
+    r.status = unknown ? 404 : 500;
+    r.content_type = "application/json";
+    r.body = error_body(error);
+    return r;
+  }
+  renderer.set_options(options);
   Image image;
   const bool ok = job.kind == RenderJob::Kind::stats
                       ? renderer.statistics(job.camera, width, height, r.stats, error)
                       : renderer.render(job.camera, width, height, job.kind == RenderJob::Kind::pick,
                                         image, r.stats, error);
-  r.headers.emplace_back("X-Plantview-Client", job.client_id);
   if (!ok) {
-    r.status = 500;
+    r.status = is_view_filter_error(error) ? 400 : 500;
     r.content_type = "application/json";
     r.body = error_body(error);
     return r;

@@ -41,9 +41,14 @@
 //     uv_async_send).
 // Picks read their object from the snapshot of the renderer that drew them: the commit the
 // frame was drawn from.
+// View filters: each job sets its renderer's section, style and highlight ids (RenderOptions)
+// from the job's own, so nothing of one job's view carries over to the next. Highlight words
+// are resolved through the renderer's read view (object_words.h), the snapshot it draws.
 // Errors: start() fails with a message when the first GPU context or renderer cannot be made,
-// or one of an explicit number of renderers cannot; a job that fails gives a 500 result with
-// the renderer's message.
+// or one of an explicit number of renderers cannot. A job fails with the renderer's message:
+// 404 when a highlight word names no object; 400 when the renderer refuses the job's view
+// filters (is_view_filter_error: its message starts with the filter's name, e.g. "colour_by
+// 'Foo': ... keys: ..."); 500 otherwise.
 #pragma once
 
 #include <condition_variable>
@@ -53,6 +58,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -68,6 +74,12 @@ struct RenderWorkerOptions {
   uint32_t renderers = 0;  // render threads; 0: automatic (see the rules above)
   uint32_t max_queue = 64; // jobs waiting at most
 };
+
+// Whether a renderer's error message is about the caller's view filters (a bad request, not a
+// failure of the server): it starts with the name of one of them, as an option or a parameter:
+// colour_by, "colour by", --colour-by, hide, only, style, section, clip, box, caps (or their --
+// forms). The renderer's messages for a bad style or section must start so.
+bool is_view_filter_error(std::string_view message);
 
 // Renderers on a software renderer when the number is automatic, for `cores` cores (measured on
 // llvmpipe with bench_service: see render_worker.cpp).

@@ -148,11 +148,51 @@ bool percent_decode(std::string_view text, std::string& out, std::string& error)
   return true;
 }
 
+// --- the view's filters: sections, styling and highlight (view_filters.h) ----------------------
+
+bool is_view_filter(std::string_view key) {
+  return key == "clip" || key == "box" || key == "caps" || key == "colour_by" || key == "highlight" ||
+         key == "hide" || key == "only";
+}
+
+// One of is_view_filter's parameters into the job; false with a message naming the parameter.
+bool parse_view_filter(std::string_view key, const std::string& value, RenderJob& job, std::string& error) {
+  const std::string what = "'" + std::string(key) + "'";
+  if (key == "clip") {
+    if (job.section.planes.size() == kMaxClipPlanes) {
+      error = what + ": at most " + std::to_string(kMaxClipPlanes) + " clip planes";
+      return false;
+    }
+    ClipPlane plane;
+    if (!parse_clip_plane(value, what, plane, error)) return false;
+    job.section.planes.push_back(plane);
+  } else if (key == "box") {
+    if (!parse_section_box(value, what, job.section.box, error)) return false;
+    job.section.has_box = true;
+  } else if (key == "caps") {
+    if (value != "0" && value != "1") {
+      error = what + " must be 0 (cut solids open) or 1 (capped), got '" + value.substr(0, 32) + "'";
+      return false;
+    }
+    job.section.capped = value == "1";
+  } else if (key == "colour_by") {
+    job.style.colour_by = value;  // "" the model's colours; an unknown key is the renderer's 400
+  } else if (key == "hide") {
+    return parse_word_list(value, what, job.style.hide, error);
+  } else if (key == "only") {
+    return parse_word_list(value, what, job.style.only, error);
+  } else if (key == "highlight") {
+    return parse_word_list(value, what, job.highlight, error);
+  }
+  return true;
+}
+
 // --- the view: camera, size and LOD shared by frame, stats and pick -----------------------------
 
 bool parse_view(const RouteConfig& config, const Fields& query, std::initializer_list<std::string_view> allowed,
                 uint64_t connection_id, RenderJob& job, std::string& error) {
-  static constexpr std::string_view common[] = {"eye", "target", "up", "fov", "w", "h", "lod", "px", "client"};
+  static constexpr std::string_view common[] = {"eye", "target", "up", "fov", "w", "h", "lod", "px", "client",
+                                                "clip", "box", "caps", "colour_by", "highlight", "hide", "only"};
   CameraText camera;
   uint64_t slot = connection_id;
   job.width = 1280;
@@ -168,6 +208,9 @@ bool parse_view(const RouteConfig& config, const Fields& query, std::initializer
     else if (key == "up") camera.up = value;
     else if (key == "fov") camera.fov = value;
     else if (key == "client") client_slot_of(config.client_key, value, slot);  // else: its own
+    else if (is_view_filter(key)) {
+      if (!parse_view_filter(key, value, job, error)) return false;
+    }
     else if (key == "w" || key == "h") {
       uint32_t v = 0;
       if (!parse_u32(value, v) || v == 0 || v > kMaxSide) {

@@ -12,6 +12,12 @@
 //     view (camera.h: default_camera of the config's overview_boxes, else of its bounds), and
 //     then `up` or `fov` is refused (it would be ignored).
 //   - Missing parameters are named as missing (/api/pick without x: "missing 'x'").
+//   - View filters, on frame, stats and pick alike (view_filters.h): clip=PX,PY,PZ,NX,NY,NZ
+//     (repeatable, at most kMaxClipPlanes; the normal points into the removed side),
+//     box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ (kept inside), caps=0|1, colour_by=KEY, hide=W[,W],
+//     only=W[,W], highlight=ID|TAG[,...]. Their syntax is checked here (400 naming the
+//     parameter); whether a colour_by key or a highlight word names anything is the render
+//     worker's to say (render_worker.h: 400 and 404).
 //   - Latest-wins slots: a render job's slot (RenderJob::client) is its connection's, or the one
 //     named by `client=ID` where ID is a client id this server issued (issue_client_id: the
 //     connection number and a keyed hash of it, so that ids cannot be guessed or forged without
