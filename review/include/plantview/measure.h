@@ -10,10 +10,10 @@
 //     its on-surface tessellation at the coarsest level whose error is at most
 //     kMeasureMeshErrorM, or its finest level. Flat kinds (box, pyramid, prism, facet group)
 //     are exact as meshes. Lines (no surface) are left out.
-//   - An on-surface mesh lies inside its shape (polygons inscribed), so a tessellated distance
-//     is never below the true one and at most the two parts' level errors above it. A
-//     Clearance states that bound as error_m: the largest error of a part of A plus the
-//     largest of B (0: every part was exact, method "analytic").
+//   - A level's error bounds the distance between its mesh and the true surface (on either
+//     side: an elbow's chords cut inside its bend), so a tessellated distance is within the two
+//     parts' level errors of the true one. A Clearance states that bound as error_m: the largest
+//     error of a part of A plus the largest of B (0: every part was exact, method "analytic").
 //   - Meshes are surfaces: a part wholly inside a tessellated part of the other object is not
 //     seen as overlapping (FCL primitives are solids and are). Plant objects touch at their
 //     surfaces, so this matters only for parts buried in others.
@@ -84,7 +84,7 @@ struct Clearance {
   bool overlapping = false;
   glm::dvec3 point_a_m{0.0};   // model space: the closest point on A
   glm::dvec3 point_b_m{0.0};   // and on B
-  double error_m = 0;          // distance_m - true distance lies in [0, error_m]
+  double error_m = 0;          // |distance_m - true distance| <= error_m
   bool analytic = true;        // every part of both sets exact (error_m == 0)
   uint32_t primitive_a = 0;    // index of the closest primitive of A in the span it was built from
   uint32_t primitive_b = 0;

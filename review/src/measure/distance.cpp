@@ -25,6 +25,34 @@ struct Query {
   double penetration_m = 0;
 };
 
+// FCL 0.7 answers the nearest points of a shape-mesh pair mesh first whatever the order asked,
+// and a sphere's (or the mesh's) in its own frame; every other pair in the query's order and frame. So the
+// points are taken in the reading (order, frame) under which they lie `d` apart and each
+// within its own part's bounds.
+double bounds_gap(const MeasurePart& part, const fcl::Vector3d& p) {
+  const fcl::AABBd& box = part.proxy->getAABB();
+  return (p - p.cwiseMax(box.min_).cwiseMin(box.max_)).norm();
+}
+void read_points(const MeasurePart& pa, const MeasurePart& pb, double d, fcl::Vector3d& a, fcl::Vector3d& b) {
+  if (pa.mesh == pb.mesh) return;
+  const fcl::Vector3d n0 = a, n1 = b;
+  double best = std::numeric_limits<double>::infinity();
+  for (int reading = 0; reading < 8; ++reading) {
+    const bool swap = reading & 1, shape_local = reading & 2, mesh_local = reading & 4;
+    fcl::Vector3d u = swap ? n1 : n0, v = swap ? n0 : n1;
+    fcl::Vector3d& shape_point = pa.mesh ? v : u;
+    fcl::Vector3d& mesh_point = pa.mesh ? u : v;
+    if (shape_local) shape_point = (pa.mesh ? pb : pa).transform * shape_point;
+    if (mesh_local) mesh_point = (pa.mesh ? pa : pb).transform * mesh_point;
+    const double miss = std::abs((v - u).norm() - d) + bounds_gap(pa, u) + bounds_gap(pb, v);
+    if (miss < best - 1e-12) {
+      best = miss;
+      a = u;
+      b = v;
+    }
+  }
+}
+
 bool owns(const MeasureShapes::Impl& set, const MeasurePart* part) {
   return !set.parts.empty() && part >= set.parts.data() && part < set.parts.data() + set.parts.size();
 }
@@ -32,7 +60,7 @@ bool owns(const MeasureShapes::Impl& set, const MeasurePart* part) {
 // Where two overlapping parts touch, and how deep (0 where FCL cannot tell: meshes).
 void contact(Query& q, MeasurePart& pa, MeasurePart& pb) {
   fcl::CollisionRequestd request(1, true);
-  request.gjk_solver_type = q.request.gjk_solver_type;
+  request.gjk_solver_type = fcl::GST_LIBCCD;  // its MPR reports the depth of convex pairs
   fcl::CollisionResultd result;
   fcl::collide(&q.a->geometry(pa), pa.transform, &q.b->geometry(pb), pb.transform, request, result);
   if (result.numContacts() > 0) {
@@ -71,6 +99,7 @@ bool measure_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* da
     q.best_b = p2;
     q.point_a = result.nearest_points[0];
     q.point_b = result.nearest_points[1];
+    read_points(*p1, *p2, d, q.point_a, q.point_b);
   }
   dist = q.best_m;
   return false;
@@ -85,8 +114,8 @@ Clearance measure_clearance(const MeasureShapes& a, const MeasureShapes& b) {
   q.a = &a.impl();
   q.b = &b.impl();
   q.request.enable_nearest_points = true;
-  q.request.enable_signed_distance = true;
-  q.request.gjk_solver_type = fcl::GST_LIBCCD;
+  q.request.enable_signed_distance = false;  // depth from collide() instead: see contact()
+  q.request.gjk_solver_type = fcl::GST_INDEP;
   q.a->manager.distance(&q.b->manager, &q, measure_pair);
   Clearance c;
   assert(q.best_a && q.best_b);

@@ -84,7 +84,7 @@ Entry section_entry(const Section& section, const Ray& ray) {
     const double t = glm::dot(plane.point_m - ray.origin_m, plane.normal) / along;
     if (t > e.t) {
       e.t = t;
-      e.normal = -plane.normal;
+      e.normal = plane.normal;  // into the removed side: towards the eye
     }
   }
   if (section.has_box) {
