@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   actions.push_back(plantview::cli::add_serve_command(app));
   actions.push_back(plantview::cli::add_farm_command(app));
   actions.push_back(plantview::cli::add_devices_command(app));
+  actions.push_back(plantview::cli::add_measure_command(app));
 
   try {
     app.parse(argc, argv);

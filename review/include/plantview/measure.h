@@ -12,8 +12,9 @@
 //     are exact as meshes. Lines (no surface) are left out.
 //   - A level's error bounds the distance between its mesh and the true surface (on either
 //     side: an elbow's chords cut inside its bend), so a tessellated distance is within the two
-//     parts' level errors of the true one. A Clearance states that bound as error_m: the largest
-//     error of a part of A plus the largest of B (0: every part was exact, method "analytic").
+//     parts' level errors of the true one. A Clearance states its bound as error_m: the largest
+//     sum of two parts' errors over the pairs that could hold the true minimum (those whose
+//     bounds are no farther apart than the answer; 0: all exact, method "analytic").
 //   - Meshes are surfaces: a part wholly inside a tessellated part of the other object is not
 //     seen as overlapping (FCL primitives are solids and are). Plant objects touch at their
 //     surfaces, so this matters only for parts buried in others.
@@ -38,6 +39,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -85,7 +87,7 @@ struct Clearance {
   glm::dvec3 point_a_m{0.0};   // model space: the closest point on A
   glm::dvec3 point_b_m{0.0};   // and on B
   double error_m = 0;          // |distance_m - true distance| <= error_m
-  bool analytic = true;        // every part of both sets exact (error_m == 0)
+  bool analytic = true;        // error_m == 0: the answer came from exact parts only
   uint32_t primitive_a = 0;    // index of the closest primitive of A in the span it was built from
   uint32_t primitive_b = 0;
 };
@@ -97,6 +99,32 @@ Clearance measure_clearance(const MeasureShapes& a, const MeasureShapes& b);
 // The clearance between two objects. False, naming the object (its name, else its id), when
 // one has no geometry to measure.
 bool measure_objects(const Object& a, const Object& b, Clearance& out, std::string& error);
+
+// Measuring two objects of a store, as `plantview measure` and /api/measure do.
+//
+// An object is named by a word: all digits an id (or a name, if no object has that id), else a
+// tag (name) as stored, else with the leading '/' plant names carry ("P-101A" finds "/P-101A"),
+// as render --highlight and /api/objects read them.
+struct StoreMeasurement {
+  enum class Outcome {
+    measured,
+    unknown,      // no object has the word as id or tag (message names it)
+    ambiguous,    // the tag names several objects (message says so: ask by id)
+    no_geometry,  // an object has nothing to measure (message names it)
+    failed,       // the store could not be read (message names it)
+  } outcome = Outcome::failed;
+  std::string message;
+  Object a, b;       // without attributes
+  Clearance clearance;
+};
+class ReadView;
+StoreMeasurement measure_in_store(const ReadView& view, std::string_view a, std::string_view b);
+
+// The answer as one JSON object (one line, no newline):
+// {"a":{"id":"...","tag":"...","point_m":[x,y,z]},"b":{...},"distance_m":..,"dx_m":..,
+//  "dy_m":..,"dz_m":..,"error_m":..,"method":"analytic"|"tessellated","overlapping":bool
+//  [,"penetration_m":..]}. Ids are strings (64 bits), as /api/objects writes them; d = b - a.
+std::string clearance_json(const Object& a, const Object& b, const Clearance& c);
 
 // The pick ray: the camera ray through the centre of pixel (x, y) (0, 0 the top-left) of a
 // width x height image, as the renderer projects (camera.h's Camera, vertical fov).

@@ -23,7 +23,13 @@ struct Query {
   fcl::Vector3d point_a{0, 0, 0}, point_b{0, 0, 0};
   bool overlapping = false;
   double penetration_m = 0;
+  // Every tessellated pair measured: the gap between its bounds and its two parts' errors.
+  std::vector<std::pair<double, double>> tessellated;
 };
+
+double bounds_gap(const fcl::AABBd& x, const fcl::AABBd& y) {
+  return (x.min_ - y.max_).cwiseMax(y.min_ - x.max_).cwiseMax(0.0).norm();
+}
 
 // FCL 0.7 answers the nearest points of a shape-mesh pair mesh first whatever the order asked,
 // and a sphere's (or the mesh's) in its own frame; every other pair in the query's order and frame. So the
@@ -78,6 +84,8 @@ bool measure_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* da
   auto* p2 = static_cast<MeasurePart*>(o2->getUserData());
   if (!owns(*q.a, p1)) std::swap(p1, p2);
   assert(owns(*q.a, p1) && owns(*q.b, p2));
+  if (p1->error_m + p2->error_m > 0)
+    q.tessellated.emplace_back(bounds_gap(p1->proxy->getAABB(), p2->proxy->getAABB()), p1->error_m + p2->error_m);
   fcl::DistanceResultd result;
   fcl::distance(&q.a->geometry(*p1), p1->transform, &q.b->geometry(*p2), p2->transform, q.request, result);
   const double d = result.min_distance;
@@ -125,7 +133,12 @@ Clearance measure_clearance(const MeasureShapes& a, const MeasureShapes& b) {
   const glm::dvec3 origin = a.frame_origin_m();
   c.point_a_m = origin + glm::dvec3(q.point_a.x(), q.point_a.y(), q.point_a.z());
   c.point_b_m = origin + glm::dvec3(q.point_b.x(), q.point_b.y(), q.point_b.z());
-  c.error_m = a.error_m() + b.error_m();
+  // The true nearest pair lies within bounds no farther apart than the answer, and every pair
+  // whose bounds are that near was measured (the trees prune only farther ones): the answer is
+  // off by at most the errors of the pair it came from and of those pairs.
+  c.error_m = q.best_a->error_m + q.best_b->error_m;
+  for (const auto& [gap, error] : q.tessellated)
+    if (gap <= c.distance_m + 1e-9) c.error_m = std::max(c.error_m, error);
   c.analytic = c.error_m == 0;
   c.primitive_a = q.best_a->primitive;
   c.primitive_b = q.best_b->primitive;
