@@ -79,11 +79,15 @@ struct ObjectLookup {
   uint64_t id = 0;
   std::string name;  // never empty
 };
+// /api/measure?a=&b=: the two objects' words (tag or id, as /api/objects reads them).
+struct MeasureLookup {
+  std::string a, b;  // never empty
+};
 struct MetricsPage {};
 
 struct Routed {
   std::string endpoint;  // for the metrics: "frame", "objects", "page", "other", ...
-  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage> decision;
+  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage, MeasureLookup> decision;
 };
 
 // `connection_id`: the connection the request came on (its latest-wins slot, unless `client`
