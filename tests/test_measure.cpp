@@ -2,18 +2,31 @@
 // object pairs of a generated plant against a brute-force oracle on the finest tessellation,
 // the time two objects of 5,000 primitives take, and the pick ray on a known face.
 #include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <cmath>
 #include <numbers>
 #include <random>
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
 
 #include "plantview/generate.h"
+#include "plantview/ingest.h"
 #include "plantview/measure.h"
+#include "plantview/store.h"
+#include "support/box_row.h"
+#include "support/http_client.h"
 #include "support/measure_oracle.h"
+#include "support/temp_dir.h"
 
 namespace plantview {
 namespace {
@@ -332,6 +345,152 @@ TEST(Measure, PickRayThroughASectionHitsTheCutFace) {
   Section all;
   all.planes.push_back({{0, 5, 0}, {0, -1, 0}});
   EXPECT_FALSE(cast_ray(box, pixel_ray(camera, 101, 101, 50, 50), &all));
+}
+
+// --- the command and the service ----------------------------------------------------------------
+
+// The service tests' six 2 m boxes along x (1 m apart: /BOX-0 at 0, /BOX-1 at 3 m...) and an
+// object without geometry (/EMPTY: a line only).
+const std::string& box_store() {
+  static const test::TempDir dir;
+  static const std::string path = [] {
+    std::string error;
+    auto store = Store::open(dir.path().string(), Store::Mode::read_write, error);
+    if (!store) {
+      ADD_FAILURE() << error;
+      return dir.path().string();
+    }
+    std::vector<Object> objects = test::box_row_objects();
+    Object empty = object_of({at(Line{0, 1}, {0, 5, 0})}, glm::dvec3(0.0), "/EMPTY");
+    empty.source = "test";
+    empty.id = object_id(empty.source, empty.name);
+    objects.push_back(empty);
+    const IngestResult result = ingest_objects(*store, objects);
+    EXPECT_TRUE(result) << result.error().message;
+    return dir.path().string();
+  }();
+  return path;
+}
+
+// Runs the program; its exit status, stdout in `out`, stderr in `err`.
+int run_plantview(const std::vector<std::string>& args, std::string& out, std::string& err) {
+  const test::TempDir scratch;
+  std::filesystem::create_directories(scratch.path());
+  const std::string o = (scratch.path() / "out").string(), e = (scratch.path() / "err").string();
+  std::string command = PLANTVIEW_BIN;
+  for (const std::string& a : args) command += " '" + a + "'";
+  const int status = std::system((command + " >" + o + " 2>" + e).c_str());
+  const auto slurp = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  out = slurp(o);
+  err = slurp(e);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(MeasureCommand, TextJsonAndExitCodes) {
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"measure", "--store", box_store(), "--a", "BOX-0", "--b", "/BOX-1"}, out, err), 0) << err;
+  EXPECT_NE(out.find("distance 1.0000 m (1000.0 mm)"), std::string::npos) << out;
+  EXPECT_NE(out.find("method analytic"), std::string::npos) << out;
+  const uint64_t id2 = object_id("test", "/BOX-2");
+  ASSERT_EQ(run_plantview({"measure", "--store", box_store(), "--a", "BOX-0", "--b", std::to_string(id2), "--json"}, out, err), 0) << err;
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_NEAR(j["distance_m"].get<double>(), 4.0, 1e-6);
+  EXPECT_NEAR(j["dx_m"].get<double>(), 4.0, 1e-6);
+  EXPECT_NEAR(j["dy_m"].get<double>(), 0.0, 1e-6);
+  EXPECT_EQ(j["b"]["id"], std::to_string(id2));
+  EXPECT_EQ(j["b"]["tag"], "/BOX-2");
+  EXPECT_NEAR(j["a"]["point_m"][0].get<double>(), 1.0, 1e-6);
+  EXPECT_NEAR(j["b"]["point_m"][0].get<double>(), 5.0, 1e-6);
+  EXPECT_EQ(j["error_m"], 0.0);
+  EXPECT_EQ(j["method"], "analytic");
+  EXPECT_EQ(run_plantview({"measure", "--store", box_store(), "--a", "BOX-0", "--b", "NOPE"}, out, err), 1);
+  EXPECT_NE(err.find("'NOPE'"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"measure", "--store", box_store(), "--a", "EMPTY", "--b", "BOX-0"}, out, err), 1);
+  EXPECT_NE(err.find("/EMPTY"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"measure", "--store", box_store(), "--a", "BOX-0"}, out, err), 2);
+  EXPECT_EQ(run_plantview({"measure", "--store", "/nonexistent/store", "--a", "A", "--b", "B"}, out, err), 1);
+}
+
+// A server on the box store (as test_service.cpp starts it).
+class Server {
+ public:
+  Server() {
+    int out[2];
+    EXPECT_EQ(pipe(out), 0);
+    pid_ = fork();
+    if (pid_ == 0) {
+      dup2(out[1], 1);
+      close(out[0]);
+      std::vector<std::string> args = {PLANTVIEW_BIN, "serve", "--store", box_store(), "--listen",
+                                       "127.0.0.1:0", "--vertex-budget", "64"};
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execvp(argv[0], argv.data());
+      _exit(127);
+    }
+    close(out[1]);
+    std::string line;
+    char c;
+    pollfd pfd{out[0], POLLIN, 0};
+    while (line.find('\n') == std::string::npos && poll(&pfd, 1, 30000) > 0 && read(out[0], &c, 1) == 1) line += c;
+    close(out[0]);
+    const size_t colon = line.rfind(':');
+    if (colon != std::string::npos) port_ = std::atoi(line.c_str() + colon + 1);
+    EXPECT_GT(port_, 0) << "server did not start: '" << line << "'";
+  }
+  ~Server() {
+    if (pid_ > 0) {
+      kill(pid_, SIGTERM);
+      int status = 0;
+      waitpid(pid_, &status, 0);
+    }
+  }
+  int port() const { return port_; }
+
+ private:
+  pid_t pid_ = 0;
+  int port_ = 0;
+};
+
+TEST(MeasureService, MeasureAndPickPoint) {
+  Server server;
+  test_support::HttpClient c(server.port());
+  ASSERT_TRUE(c.connected());
+  auto r = c.request("/api/measure?a=BOX-0&b=BOX-1");
+  ASSERT_EQ(r.status, 200) << r.body;
+  auto j = nlohmann::json::parse(r.body);
+  EXPECT_NEAR(j["distance_m"].get<double>(), 1.0, 1e-6);
+  EXPECT_EQ(j["a"]["tag"], "/BOX-0");
+  EXPECT_EQ(j["method"], "analytic");
+  EXPECT_EQ(c.request("/api/measure?a=BOX-0&b=NOPE").status, 404);
+  EXPECT_EQ(c.request("/api/measure?a=BOX-0").status, 400);
+  EXPECT_EQ(c.request("/api/measure?a=BOX-0&b=").status, 400);
+  EXPECT_EQ(c.request("/api/measure?a=BOX-0&b=BOX-1&x=1").status, 400);
+  EXPECT_EQ(c.request("/api/measure?a=EMPTY&b=BOX-1").status, 422);
+
+  // The middle box (/BOX-2 at x = 6 m, faces at y = -1 and +1) seen down +y: the picked point
+  // lies on its near face, normal -y.
+  r = c.request("/api/pick?eye=6,-10,0.3&target=6,0,0.3&w=120&h=100&x=62&y=45");
+  ASSERT_EQ(r.status, 200) << r.body;
+  j = nlohmann::json::parse(r.body);
+  ASSERT_TRUE(j["object"].is_object()) << r.body;
+  EXPECT_EQ(j["object"]["name"], "/BOX-2");
+  ASSERT_TRUE(j.contains("point_m")) << r.body;
+  EXPECT_NEAR(j["point_m"][1].get<double>(), -1.0, 1e-3);
+  EXPECT_NEAR(j["normal"][1].get<double>(), -1.0, 1e-6);
+  Camera camera;
+  camera.eye_m = {6, -10, 0.3};
+  camera.target_m = {6, 0, 0.3};
+  const Ray ray = pixel_ray(camera, 120, 100, 62, 45);
+  const glm::dvec3 expected = camera.eye_m + ray.direction * (9.0 / ray.direction.y);
+  EXPECT_NEAR(j["point_m"][0].get<double>(), expected.x, 1e-3);
+  EXPECT_NEAR(j["point_m"][2].get<double>(), expected.z, 1e-3);
+  r = c.request("/api/pick?eye=6,-10,0.3&target=6,0,0.3&w=120&h=100&x=0&y=0");
+  EXPECT_FALSE(nlohmann::json::parse(r.body).contains("point_m")) << r.body;
 }
 
 }  // namespace
