@@ -209,20 +209,13 @@ std::vector<Object> plant_objects() {
   return out;
 }
 
-// The oracle's own error bound for an object: its largest level-0 error.
-double finest_error_m(const Object& o) {
-  double e = 0;
-  for (const Primitive& p : o.primitives) e = std::max(e, double(plan_mesh(p).error_m[0]));
-  return e;
-}
-
 TEST(Measure, TwoHundredPlantPairsAgreeWithTheOracle) {
   const std::vector<Object> objects = plant_objects();
   ASSERT_GT(objects.size(), 100u);
   std::vector<DAabb> bounds;
   for (const Object& o : objects) bounds.push_back(object_bounds(o));
   std::mt19937_64 random(41);
-  int pairs = 0, overlaps = 0, tessellated = 0, within_1mm = 0;
+  int pairs = 0, overlaps = 0, buried = 0, tessellated = 0, within_1mm = 0;
   double worst_mm = 0;
   while (pairs < 200) {
     const size_t i = random() % objects.size();
@@ -243,18 +236,23 @@ TEST(Measure, TwoHundredPlantPairsAgreeWithTheOracle) {
     overlaps += c.overlapping;
     tessellated += !c.analytic;
     // A solid inside another touches no surface: the oracle, all surfaces, cannot see it.
-    if (c.overlapping && oracle > 0 && c.penetration_m > 0) continue;
+    if (c.overlapping && oracle > 0 && c.penetration_m > 0) {
+      ++buried;
+      continue;
+    }
     const double off = std::abs(c.distance_m - oracle);
     worst_mm = std::max(worst_mm, off / kMm);
-    // Both sides err by at most their stated bounds: the oracle by its level-0 errors.
-    const double oracle_error = finest_error_m(objects[i]) + finest_error_m(objects[j]);
-    EXPECT_LE(off, kMm + c.error_m + oracle_error) << objects[i].name << " - " << objects[j].name << ": measured "
-                                    << c.distance_m << ", oracle " << oracle << ", error " << c.error_m;
+    // Both sides err by at most their stated bounds (the oracle's about a tenth of a millimetre).
+    const double oracle_error = test::oracle_error_m(objects[i]) + test::oracle_error_m(objects[j]);
+    // The goal: within 1 mm of the oracle; and the stated bound holds.
+    EXPECT_LE(off, kMm + oracle_error) << objects[i].name << " - " << objects[j].name << ": measured "
+                                       << c.distance_m << ", oracle " << oracle << ", error " << c.error_m;
+    EXPECT_LE(off, c.error_m + oracle_error + 1e-6) << objects[i].name << " - " << objects[j].name;
     expect_consistent(c);
     within_1mm += off <= kMm;
   }
-  std::printf("200 pairs: %d overlapping, %d tessellated, %d within 1 mm of the oracle, worst %.3f mm\n",
-              overlaps, tessellated, within_1mm, worst_mm);
+  std::printf("200 pairs: %d overlapping (%d buried, not compared), %d tessellated, %d within 1 mm of the "
+              "oracle, worst %.3f mm\n", overlaps, buried, tessellated, within_1mm, worst_mm);
 }
 
 // Two objects of `count` primitives each from a generated plant: A as generated (relative to

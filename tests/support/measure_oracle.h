@@ -1,14 +1,17 @@
 // A brute-force distance oracle for the measure tests: every triangle of one object's finest
-// on-surface tessellation against every triangle of the other's (pairs of primitives whose
+// on-surface tessellation, made 8 times finer than the renderer's (finer()), against every
+// triangle of the other's (pairs of primitives whose
 // bounds are farther apart than the best distance so far, and triangles likewise, are passed
-// over: they cannot be nearer). Exact up to that tessellation's error (the sum of the two
-// parts' level-0 errors, one-sided: never below the true distance for disjoint solids).
+// over: they cannot be nearer). Exact up to that tessellation's error (oracle_error_m of each
+// object).
 // Surfaces only: a solid wholly inside another is not seen as touching.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -27,10 +30,64 @@ struct OraclePart {
   glm::dvec3 lo{INFINITY}, hi{-INFINITY};
 };
 
-// Level-0 on-surface triangles of each primitive, relative to `frame_m`.
+// The same primitive with its lengths `k` times larger under a placement `k` times smaller: the
+// same solid, which the size rule cuts into up to 2^log2(k) times more segments (at most 256
+// a direction). Angles and counts stay.
+inline Primitive finer(const Primitive& primitive, float k) {
+  Primitive p = primitive;
+  p.placement.linear = primitive.placement.linear * (1.0f / k);
+  std::visit(
+      [k](auto& s) {
+        using S = std::decay_t<decltype(s)>;
+        if constexpr (std::is_same_v<S, Box>) {
+          s.size_x_m *= k; s.size_y_m *= k; s.size_z_m *= k;
+        } else if constexpr (std::is_same_v<S, Pyramid>) {
+          s.bottom_x_m *= k; s.bottom_y_m *= k; s.top_x_m *= k; s.top_y_m *= k;
+          s.offset_x_m *= k; s.offset_y_m *= k; s.height_m *= k;
+        } else if constexpr (std::is_same_v<S, Prism>) {
+          s.radius_m *= k; s.height_m *= k;
+        } else if constexpr (std::is_same_v<S, Cylinder>) {
+          s.radius_m *= k; s.height_m *= k;
+        } else if constexpr (std::is_same_v<S, Snout>) {
+          s.radius_bottom_m *= k; s.radius_top_m *= k; s.height_m *= k; s.offset_x_m *= k; s.offset_y_m *= k;
+        } else if constexpr (std::is_same_v<S, SquareToRound>) {
+          s.bottom_x_m *= k; s.bottom_y_m *= k; s.top_radius_m *= k; s.height_m *= k;
+          s.offset_x_m *= k; s.offset_y_m *= k;
+        } else if constexpr (std::is_same_v<S, CircularTorus>) {
+          s.bend_radius_m *= k; s.tube_radius_m *= k;
+        } else if constexpr (std::is_same_v<S, RectangularTorus>) {
+          s.inner_radius_m *= k; s.outer_radius_m *= k; s.height_m *= k;
+        } else if constexpr (std::is_same_v<S, Sphere>) {
+          s.radius_m *= k;
+        } else if constexpr (std::is_same_v<S, EllipticalDish> || std::is_same_v<S, SphericalDish>) {
+          s.base_radius_m *= k; s.height_m *= k;
+        } else if constexpr (std::is_same_v<S, Saddle>) {
+          s.length_m *= k; s.width_m *= k; s.height_m *= k; s.cradle_radius_m *= k;
+        } else if constexpr (std::is_same_v<S, Line>) {
+          s.start_x_m *= k; s.end_x_m *= k;
+        } else if constexpr (std::is_same_v<S, FacetGroup>) {
+          for (FacetVertex& v : s.vertices) v.position_m *= k;
+        }
+      },
+      p.shape);
+  return p;
+}
+
+// The oracle's tessellation: level 0 of the primitive made `k` times finer (finer()).
+inline constexpr float kOracleRefinement = 8.0f;
+
+// The oracle's own error bound for an object: its parts' largest level-0 error at that refinement.
+inline double oracle_error_m(const Object& object) {
+  double e = 0;
+  for (const Primitive& p : object.primitives) e = std::max(e, double(plan_mesh(finer(p, kOracleRefinement)).error_m[0]));
+  return e;
+}
+
+// Level-0 on-surface triangles of each primitive made finer, relative to `frame_m`.
 inline std::vector<OraclePart> oracle_parts(const Object& object, const glm::dvec3& frame_m) {
   std::vector<OraclePart> parts;
-  for (const Primitive& primitive : object.primitives) {
+  for (const Primitive& original : object.primitives) {
+    const Primitive primitive = finer(original, kOracleRefinement);
     const MeshPlan plan = plan_mesh(primitive);
     if (plan.topology != Topology::triangles || plan.vertex_count == 0) continue;
     std::vector<PackedVertex> v(plan.vertex_count);
