@@ -185,8 +185,21 @@ TEST(Measure, OverlapsAreZeroWithTheirDepth) {
   EXPECT_EQ(c.distance_m, 0);
 }
 
+TEST(Measure, LinesAreSegments) {
+  // A line along x from 0 to 2, turned to run along y and moved to (0.3, 0, 0.8) in an object
+  // at (10, 0, 0): 0.3 m above the top of a 1 m cube at (10, 1, 0).
+  const glm::mat3 to_y(glm::vec3(0, 1, 0), glm::vec3(-1, 0, 0), glm::vec3(0, 0, 1));
+  const Object stroke = object_of({at(Line{0, 2}, {0.3f, 0, 0.8f}, to_y)}, {10, 0, 0});
+  const Clearance c = measure(stroke, object_of({at(Box{1, 1, 1}, {0, 1, 0})}, {10, 0, 0}));
+  EXPECT_NEAR(c.distance_m, 0.3, 1e-6);
+  EXPECT_TRUE(c.analytic);
+  EXPECT_NEAR(c.point_a_m.x, 10.3, 1e-6);
+  EXPECT_NEAR(c.point_a_m.z, 0.8, 1e-6);
+  expect_consistent(c);
+}
+
 TEST(Measure, AnObjectWithoutGeometryIsNamed) {
-  Object lines = object_of({at(Line{0, 1}, {0, 0, 0})}, glm::dvec3(0.0), "/LINES");
+  Object lines = object_of({at(Line{1, 1}, {0, 0, 0}), at(Box{0, 1, 1}, {0, 0, 0})}, glm::dvec3(0.0), "/LINES");
   Clearance c;
   std::string error;
   EXPECT_FALSE(measure_objects(lines, object_of({at(Box{1, 1, 1}, {0, 0, 0})}), c, error));
@@ -348,7 +361,7 @@ TEST(Measure, PickRayThroughASectionHitsTheCutFace) {
 // --- the command and the service ----------------------------------------------------------------
 
 // The service tests' six 2 m boxes along x (1 m apart: /BOX-0 at 0, /BOX-1 at 3 m...) and an
-// object without geometry (/EMPTY: a line only).
+// object without geometry (/EMPTY: no primitive, as a pipeline).
 const std::string& box_store() {
   static const test::TempDir dir;
   static const std::string path = [] {
@@ -359,7 +372,7 @@ const std::string& box_store() {
       return dir.path().string();
     }
     std::vector<Object> objects = test::box_row_objects();
-    Object empty = object_of({at(Line{0, 1}, {0, 5, 0})}, glm::dvec3(0.0), "/EMPTY");
+    Object empty = object_of({}, glm::dvec3(0.0, 5.0, 0.0), "/EMPTY");
     empty.source = "test";
     empty.id = object_id(empty.source, empty.name);
     objects.push_back(empty);

@@ -9,7 +9,8 @@
 //     unevenly scaling placement, becomes an FCL mesh (a bounding-volume tree of triangles) of
 //     its on-surface tessellation at the coarsest level whose error is at most
 //     kMeasureMeshErrorM, or its finest level. Flat kinds (box, pyramid, prism, facet group)
-//     are exact as meshes. Lines (no surface) are left out.
+//     are exact as meshes. A line (RVM's, a pipe support drawn as a stroke) is its segment: an
+//     FCL capsule of radius 0.
 //   - A level's error bounds the distance between its mesh and the true surface (on either
 //     side: an elbow's chords cut inside its bend), so a tessellated distance is within the two
 //     parts' level errors of the true one. A Clearance states its bound as error_m: the largest
@@ -31,7 +32,8 @@
 // precision.
 // Threads: MeasureShapes is used by one thread at a time (its meshes are built lazily); distinct
 // instances on distinct threads are independent. The free functions are pure.
-// Errors: measure_objects returns false with a message naming the object that has no geometry.
+// Errors: measure_objects returns false with a message naming the object that has no geometry
+// (no primitive, or only empty ones).
 #pragma once
 
 #include <cstdint>
@@ -65,7 +67,7 @@ class MeasureShapes {
   MeasureShapes(MeasureShapes&&) noexcept;
   MeasureShapes& operator=(MeasureShapes&&) noexcept;
 
-  // Parts with geometry (lines and empty shapes are left out).
+  // Parts with geometry (shapes without volume and lines of no length are left out).
   size_t size() const;
   bool empty() const { return size() == 0; }
   const glm::dvec3& frame_origin_m() const;

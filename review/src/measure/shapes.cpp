@@ -6,6 +6,7 @@
 
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/box.h>
+#include <fcl/geometry/shape/capsule.h>
 #include <fcl/geometry/shape/cone.h>
 #include <fcl/geometry/shape/cylinder.h>
 #include <fcl/geometry/shape/sphere.h>
@@ -38,9 +39,39 @@ bool near_equal(double a, double b) { return std::abs(a - b) <= 1e-6 * std::max(
 
 }  // namespace
 
+namespace {
+
+// A line is a segment: a capsule of radius 0 along it (any placement: a line stays a line).
+std::shared_ptr<fcl::CollisionGeometryd> segment(const Line& line, const Placement& placement,
+                                                 const glm::dvec3& offset_m, fcl::Transform3d& transform) {
+  const glm::dvec3 axis(placement.linear[0]);
+  const glm::dvec3 a = axis * double(line.start_x_m), b = axis * double(line.end_x_m);
+  const double length = glm::length(b - a);
+  if (!(length > 0) || !std::isfinite(length)) return nullptr;
+  const glm::dvec3 z = (b - a) / length;
+  const glm::dvec3 x = glm::normalize(std::abs(z.x) < 0.9 ? glm::cross(glm::dvec3(1, 0, 0), z)
+                                                           : glm::cross(glm::dvec3(0, 1, 0), z));
+  const glm::dvec3 y = glm::cross(z, x);
+  const glm::dvec3 centre = offset_m + glm::dvec3(placement.translation_m) + (a + b) * 0.5;
+  transform = fcl::Transform3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    transform.linear()(r, 0) = x[r];
+    transform.linear()(r, 1) = y[r];
+    transform.linear()(r, 2) = z[r];
+  }
+  transform.translation() = fcl::Vector3d(centre.x, centre.y, centre.z);
+  auto shape = std::make_shared<fcl::Capsuled>(0.0, length);
+  shape->computeLocalAABB();
+  return shape;
+}
+
+}  // namespace
+
 std::shared_ptr<fcl::CollisionGeometryd> exact_shape(const Primitive& primitive,
                                                      const glm::dvec3& offset_m,
                                                      fcl::Transform3d& transform) {
+  if (const auto* line = std::get_if<Line>(&primitive.shape))
+    return segment(*line, primitive.placement, offset_m, transform);
   fcl::Matrix3d rotation;
   glm::dvec3 s(1.0);
   if (!rotation_and_scale(primitive.placement.linear, rotation, s)) return nullptr;
@@ -125,10 +156,11 @@ MeasureShapes::MeasureShapes(std::span<const Primitive> primitives, const glm::d
   for (uint32_t i = 0; i < m.primitives.size(); ++i) {
     const Primitive& primitive = m.primitives[i];
     const MeshPlan plan = plan_mesh(primitive);
-    if (plan.topology != Topology::triangles || plan.vertex_count == 0 || plan.index_count(0) == 0) continue;
+    if (plan.vertex_count == 0 || plan.index_count(0) == 0) continue;
     MeasurePart part;
     part.primitive = i;
     part.geometry = exact_shape(primitive, m.object_offset_m, part.transform);
+    if (!part.geometry && plan.topology != Topology::triangles) continue;  // a line of no length
     if (!part.geometry) {
       part.mesh = true;
       part.mesh_level = plan.coarsest_level_within(mesh_error_m);
