@@ -20,7 +20,7 @@ struct MeasurePart {
   uint32_t primitive = 0;              // index into Impl::primitives
   bool mesh = false;
   double error_m = 0;                  // 0 for exact parts
-  uint32_t mesh_level = 0;             // the tessellation level a mesh is built at
+  uint32_t mesh_level = 0;             // the tessellation level a mesh is built at, fitted to it
   fcl::Transform3d transform = fcl::Transform3d::Identity();  // to the frame (mesh: translation only)
   std::shared_ptr<fcl::CollisionGeometryd> geometry;           // null until a mesh is built
   std::unique_ptr<fcl::CollisionObjectd> proxy;
@@ -44,15 +44,15 @@ std::shared_ptr<fcl::CollisionGeometryd> exact_shape(const Primitive& primitive,
                                                      const glm::dvec3& offset_m,
                                                      fcl::Transform3d& transform);
 
-// A primitive's on-surface triangles at `level`: positions relative to the object's origin
-// (float, as written by write_vertices), three indices a triangle, outward winding for closed
-// kinds. Empty for lines and shapes without volume.
+// A primitive's triangles at `level`, the vertices on the surface (kOnSurface) or fitted to a
+// level (write_vertices): positions relative to the object's origin (float), three indices a
+// triangle, outward winding for closed kinds. Empty for lines and shapes without volume.
 struct PrimitiveTriangles {
   std::vector<glm::vec3> positions;
   std::vector<uint32_t> indices;
   bool closed = false;
 };
 PrimitiveTriangles primitive_triangles(const Primitive& primitive, const MeshPlan& plan,
-                                       uint32_t level);
+                                       uint32_t level, uint32_t fit_level = kOnSurface);
 
 }  // namespace plantview

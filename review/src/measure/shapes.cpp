@@ -111,11 +111,11 @@ std::shared_ptr<fcl::CollisionGeometryd> exact_shape(const Primitive& primitive,
 }
 
 PrimitiveTriangles primitive_triangles(const Primitive& primitive, const MeshPlan& plan,
-                                       uint32_t level) {
+                                       uint32_t level, uint32_t fit_level) {
   PrimitiveTriangles out;
   if (plan.topology != Topology::triangles || plan.vertex_count == 0) return out;
   std::vector<PackedVertex> vertices(plan.vertex_count);
-  write_vertices(primitive, plan, glm::dvec3(0.0), vertices, kOnSurface);
+  write_vertices(primitive, plan, glm::dvec3(0.0), vertices, fit_level);
   out.positions.reserve(vertices.size());
   for (const PackedVertex& v : vertices) out.positions.push_back(v.position_m);
   out.indices.resize(plan.index_count(level));
@@ -128,7 +128,8 @@ const fcl::CollisionGeometryd& MeasureShapes::Impl::geometry(MeasurePart& part) 
   if (part.geometry) return *part.geometry;
   assert(part.mesh);
   const Primitive& primitive = primitives[part.primitive];
-  const PrimitiveTriangles triangles = primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level);
+  const PrimitiveTriangles triangles =
+      primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level, part.mesh_level);
   auto model = std::make_shared<fcl::BVHModel<fcl::OBBRSSd>>();
   std::vector<fcl::Vector3d> points;
   points.reserve(triangles.positions.size());
@@ -163,20 +164,26 @@ MeasureShapes::MeasureShapes(std::span<const Primitive> primitives, const glm::d
     if (!part.geometry && plan.topology != Topology::triangles) continue;  // a line of no length
     if (!part.geometry) {
       part.mesh = true;
-      part.mesh_level = plan.coarsest_level_within(mesh_error_m);
-      part.error_m = plan.error_m[part.mesh_level];
+      // Vertices fitted to the level: its polygons straddle the surface, about half the error
+      // of inscribed ones for the same triangles (primitives.h).
+      while (part.mesh_level + 1u < plan.level_count &&
+             double(plan.straddled_error_m[part.mesh_level + 1]) <= mesh_error_m)
+        ++part.mesh_level;
+      part.error_m = plan.straddled_error_m[part.mesh_level];
       part.transform = fcl::Transform3d::Identity();
       part.transform.translation() = fcl::Vector3d(m.object_offset_m.x, m.object_offset_m.y, m.object_offset_m.z);
     }
     m.error_m = std::max(m.error_m, part.error_m);
     m.parts.push_back(std::move(part));
   }
-  // Proxies: each part's analytic bounds as a box, which an on-surface mesh never leaves.
+  // Proxies: each part's analytic bounds as a box, grown by its error (a fitted mesh reaches
+  // outside the shape by up to that).
   std::vector<fcl::CollisionObjectd*> proxies;
   proxies.reserve(m.parts.size());
   for (MeasurePart& part : m.parts) {
     const Aabb b = model_bounds(m.primitives[part.primitive]);
-    const glm::dvec3 lo = glm::dvec3(b.min) + m.object_offset_m, hi = glm::dvec3(b.max) + m.object_offset_m;
+    const glm::dvec3 lo = glm::dvec3(b.min) + m.object_offset_m - part.error_m,
+                     hi = glm::dvec3(b.max) + m.object_offset_m + part.error_m;
     const glm::dvec3 size = glm::max(hi - lo, glm::dvec3(1e-9)) + 2e-6, centre = (lo + hi) * 0.5;
     auto box = std::make_shared<fcl::Boxd>(size.x, size.y, size.z);
     part.proxy = std::make_unique<fcl::CollisionObjectd>(
