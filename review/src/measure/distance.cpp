@@ -27,18 +27,21 @@ struct Query {
   std::vector<std::pair<double, double>> tessellated;
 };
 
+// The distance between two boxes (0 when they meet).
 double bounds_gap(const fcl::AABBd& x, const fcl::AABBd& y) {
   return (x.min_ - y.max_).cwiseMax(y.min_ - x.max_).cwiseMax(0.0).norm();
 }
 
-// FCL 0.7 answers the nearest points of a shape-mesh pair mesh first whatever the order asked,
-// and a sphere's (or the mesh's) in its own frame; every other pair in the query's order and frame. So the
-// points are taken in the reading (order, frame) under which they lie `d` apart and each
-// within its own part's bounds.
+// How far a point lies outside a part's bounds.
 double bounds_gap(const MeasurePart& part, const fcl::Vector3d& p) {
   const fcl::AABBd& box = part.proxy->getAABB();
   return (p - p.cwiseMax(box.min_).cwiseMin(box.max_)).norm();
 }
+
+// FCL 0.7 answers the nearest points of a shape-mesh pair mesh first whatever the order asked,
+// and a sphere's (or the mesh's) in its own frame; every other pair in the query's order and
+// frame. So the points are taken in the reading (order, frame) under which they lie `d` apart
+// and each within its own part's bounds.
 void read_points(const MeasurePart& pa, const MeasurePart& pb, double d, fcl::Vector3d& a, fcl::Vector3d& b) {
   if (pa.mesh == pb.mesh) return;
   const fcl::Vector3d n0 = a, n1 = b;
