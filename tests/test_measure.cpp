@@ -167,6 +167,24 @@ TEST(Measure, PointsOfMixedPairsLieOnTheirParts) {
   }
 }
 
+TEST(Measure, ConesUpsideDownAndShapesUnderUnevenScale) {
+  // A cone with its apex down (a snout with a zero bottom), mirrored in x: the apex at z = -0.5,
+  // 0.3 above a box whose top is at -0.8.
+  const glm::mat3 mirror(glm::vec3(-1, 0, 0), glm::vec3(0, 1, 0), glm::vec3(0, 0, 1));
+  Clearance c = measure(object_of({at(Snout{0, 0.5f, 1}, {0, 0, 0}, mirror)}),
+                        object_of({at(Box{1, 1, 1}, {0, 0, -1.3f})}));
+  EXPECT_NEAR(c.distance_m, 0.3, 1e-5);
+  EXPECT_TRUE(c.analytic);
+  // A cylinder scaled 2 in x only is elliptic: a mesh, its half-width 0.2 along x; a box 0.3
+  // past it.
+  c = measure(object_of({at(Cylinder{0.1f, 1}, {0, 0, 0}, glm::mat3(glm::vec3(2, 0, 0), glm::vec3(0, 1, 0), glm::vec3(0, 0, 1)))}),
+              object_of({at(Box{1, 1, 1}, {1.0f, 0, 0})}));
+  EXPECT_FALSE(c.analytic);
+  EXPECT_NEAR(c.distance_m, 0.3, c.error_m + 1e-6);
+  EXPECT_LE(c.error_m, 2 * kMeasureMeshErrorM);
+  expect_consistent(c);
+}
+
 TEST(Measure, OverlapsAreZeroWithTheirDepth) {
   const Object a = object_of({at(Box{1, 1, 1}, {0, 0, 0})});
   Clearance c = measure(a, object_of({at(Box{1, 1, 1}, {0.9f, 0, 0})}));
