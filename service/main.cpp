@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   actions.push_back(plantview::cli::add_farm_command(app));
   actions.push_back(plantview::cli::add_devices_command(app));
   actions.push_back(plantview::cli::add_bcf_command(app));
+  actions.push_back(plantview::cli::add_measure_command(app));
 
   try {
     app.parse(argc, argv);

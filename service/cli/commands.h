@@ -57,4 +57,7 @@ Action add_bcf_command(CLI::App& app);
 // `plantview devices [--json]`: the EGL devices (the --device indices) and the default one.
 Action add_devices_command(CLI::App& app);
 
+// `plantview measure --store DIR --a TAG|ID --b TAG|ID [--json]`: clearance between two objects.
+Action add_measure_command(CLI::App& app);
+
 }  // namespace plantview::cli

@@ -7,11 +7,30 @@
 #include <string_view>
 
 #include "server/object_words.h"
+#include "plantview/measure.h"
 #include "server/objects_json.h"
 
 namespace plantview::service {
 
 namespace {
+
+// ',"point_m":[x,y,z],"normal":[x,y,z]': where the pixel's ray meets the picked object's
+// surface (its finest tessellation; a section's cut face where it shows the cut), or "" when
+// the id is no object with primitives (a merged pipeline run) or the ray misses them (a
+// silhouette pixel of a coarser level drawn).
+std::string pick_point_json(const ReadView& view, uint64_t id, const RenderJob& job, uint32_t width,
+                            uint32_t height, const Section& section) {
+  std::optional<uint32_t> slot;
+  std::string error;
+  Object object;
+  if (!view.slot_of(id, slot, error) || !slot || !view.object(*slot, object, false, error)) return "";
+  const auto hit = cast_ray(object, pixel_ray(job.camera, width, height, job.x, job.y), &section);
+  if (!hit) return "";
+  char buf[256];
+  std::snprintf(buf, sizeof buf, ",\"point_m\":[%.6f,%.6f,%.6f],\"normal\":[%.6f,%.6f,%.6f]", hit->point_m.x,
+                hit->point_m.y, hit->point_m.z, hit->normal.x, hit->normal.y, hit->normal.z);
+  return buf;
+}
 
 // llvmpipe's most rasteriser threads per context (Mesa's LP_MAX_THREADS).
 constexpr uint32_t kMaxRasteriserThreads = 16;
@@ -343,7 +362,8 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
         // which is one): report the id alone.
         json = "{\"id\":\"" + std::to_string(id) + "\"}";
       }
-      r.body = "{\"object\":" + json + "}\n";
+      r.body = "{\"object\":" + json +
+               pick_point_json(renderer.read_view(), id, job, width, height, options.section) + "}\n";
       break;
     }
     case RenderJob::Kind::frame: {

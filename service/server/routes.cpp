@@ -344,6 +344,25 @@ std::variant<Reply, ObjectLookup> route_object(std::string_view rest, bool no_pa
   return lookup;
 }
 
+// /api/measure?a=TAG|ID&b=TAG|ID: both named once, nothing else.
+std::variant<Reply, MeasureLookup> route_measure(const Fields& query) {
+  constexpr size_t kMaxTagBytes = 1024;
+  MeasureLookup lookup;
+  bool have_a = false, have_b = false;
+  for (const auto& [name, value] : query) {
+    if (name != "a" && name != "b") return error_reply(400, "/api/measure takes only 'a' and 'b', not '" + name.substr(0, 64) + "'");
+    bool& have = name == "a" ? have_a : have_b;
+    if (have) return error_reply(400, "'" + name + "' given twice");
+    if (value.empty()) return error_reply(400, "'" + name + "' is empty: give an object's tag or id");
+    if (value.size() > kMaxTagBytes) return error_reply(400, "an object's tag is at most 1024 bytes");
+    have = true;
+    (name == "a" ? lookup.a : lookup.b) = value;
+  }
+  if (!have_a) return error_reply(400, "missing 'a' (an object's tag or id)");
+  if (!have_b) return error_reply(400, "missing 'b' (an object's tag or id)");
+  return lookup;
+}
+
 // Compares in constant time over the expected length.
 bool token_matches(std::string_view authorization, const std::string& token) {
   const std::string expected = "Bearer " + token;
@@ -368,7 +387,8 @@ std::string endpoint_of(std::string_view path) {
   static constexpr std::pair<std::string_view, std::string_view> kEndpoints[] = {
       {"/", "page"},           {"/index.html", "page"},    {"/viewer.js", "viewer.js"},
       {"/viewer.css", "viewer.css"}, {"/api/model", "model"}, {"/api/frame", "frame"},
-      {"/api/stats", "stats"}, {"/api/pick", "pick"},      {"/metrics", "metrics"}};
+      {"/api/stats", "stats"}, {"/api/pick", "pick"},      {"/metrics", "metrics"},
+      {"/api/measure", "measure"}};
   if (path.rfind("/api/objects/", 0) == 0) return "objects";
   for (const auto& [known, name] : kEndpoints)
     if (path == known) return std::string(name);
@@ -440,6 +460,8 @@ Routed route(const Request& request, const RouteConfig& config, bool shutting_do
                              : error_reply(400, "/api/model takes no parameters");
   } else if (path == "/metrics") {
     decision = MetricsPage{};
+  } else if (path == "/api/measure") {
+    std::visit([&](auto&& d) { decision = std::move(d); }, route_measure(request.query));
   } else if (path.rfind("/api/objects/", 0) == 0) {
     std::visit([&](auto&& d) { decision = std::move(d); }, route_object(std::string_view(path).substr(13), no_parameters));
   } else {

@@ -1,6 +1,7 @@
 // Routes: a parsed request in, a decision out. Pure (no sockets, no GL, no store): the token,
 // the method, every parameter and its limits are checked here, and the answer is either a
-// complete reply or the work to do (a render job, an object look-up, the metrics page).
+// complete reply or the work to do (a render job, an object look-up, a measurement, the metrics
+// page).
 //
 // Rules
 //   - Checks in this order: shutting down (503, and the connection closes), the bearer token
@@ -28,6 +29,8 @@
 //   - /api/objects/{tag-or-id}: the rest of the path, percent-decoded; all digits: an id (or a
 //     name, if no object has that id); anything else a name (tag), as stored, else with the
 //     leading '/' plant names carry ("P-101A" finds "/P-101A").
+//   - /api/measure?a=&b=: exactly those two, each non-empty and at most 1024 bytes (400 naming
+//     the parameter otherwise); each names an object as /api/objects does (measure.h).
 // Threads: any; route() reads its inputs and nothing else.
 #pragma once
 
@@ -85,11 +88,15 @@ struct ObjectLookup {
   uint64_t id = 0;
   std::string name;  // never empty
 };
+// /api/measure?a=&b=: the two objects' words (tag or id, as /api/objects reads them).
+struct MeasureLookup {
+  std::string a, b;  // never empty
+};
 struct MetricsPage {};
 
 struct Routed {
   std::string endpoint;  // for the metrics: "frame", "objects", "page", "other", ...
-  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage> decision;
+  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage, MeasureLookup> decision;
 };
 
 // `connection_id`: the connection the request came on (its latest-wins slot, unless `client`
