@@ -664,7 +664,7 @@ def measure_two_boxes(driver, plantview, tmp, processes, wait_state):
             return wait_state("the measurement or its error", PICK_S + FRAME_S,
                               lambda s: s["measure"] is not None or "measure" in s["error"])
 
-        # Point to point: the two front faces (y = -1) at the boxes' centres, 3.25 m apart in x.
+        # Point to point: the two front faces (y = -1) where the rays through the boxes' centres meet them.
         driver.click('input[name="measure-mode"][value="points"]')
         done = click_both()
         if done["measure"] is None:
@@ -673,7 +673,11 @@ def measure_two_boxes(driver, plantview, tmp, processes, wait_state):
             print("NOTE: this server's picks carry no point_m; point to point not checked", flush=True)
         else:
             m = done["measure"]
-            if any(abs(p[1] + 1) > 1e-3 for p in (m["a"], m["b"])) or abs(m["dx_m"] - 3.25) > 0.05:
+            # The rays through the two centres meet the faces at y = -1, 11 m of the eye's 12 m to the
+            # centres' plane: in perspective the two points are 3.25 * 11 / 12 m apart in x.
+            eye_y = shown["camera"]["eye"][1]
+            expected_dx = 3.25 * (-1 - eye_y) / (0 - eye_y)
+            if any(abs(p[1] + 1) > 1e-3 for p in (m["a"], m["b"])) or abs(m["dx_m"] - expected_dx) > 0.05:
                 raise Failure(f"the points picked on the two front faces: {m}")
             print(f"measure: points {m['distance_m']:.3f} m apart (dx {m['dx_m']:.3f})", flush=True)
         driver.js("document.getElementById('stats-error').textContent = ''")
