@@ -542,6 +542,10 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
     if (i + kPrefetchAhead < known.size()) prefetch(known[i + kPrefetchAhead]);
     k->last_seen = frame;
     if (k->vertex_count == 0) continue;
+    if (k->hidden) {
+      stats.objects_hidden += 1;
+      continue;
+    }
     if (k->run >= 0 && merging) {
       // A run is decided by its first visible member; the others follow it.
       const uint32_t r = uint32_t(k->run);

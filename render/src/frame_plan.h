@@ -213,8 +213,11 @@ class FramePlan {
   //     occlusion_cells() cells (GlBackend::reduce_depth): visible() and node_boxes() become
   //     what was set aside and is not hidden (objects_occluded, nodes_occluded; objects_visible
   //     and node_proxies count both phases).
+  //   A frame coloured by an attribute is drawn in one phase: its colours (a ramp's range, the
+  //   categories' palette entries) follow from every value drawn, known only once all are
+  //   chosen.
   static bool two_phase(const RenderOptions& options) {
-    return options.occlusion && options.highlight_ids.empty();
+    return options.occlusion && options.highlight_ids.empty() && options.style.colour_by.empty();
   }
   bool first_phase(DecodedObjects& objects, const FrameView& frame_view,
                    const RenderOptions& options, uint64_t frame, bool exact, FrameStats& stats,
@@ -241,8 +244,8 @@ class FramePlan {
   void drop_unseen(std::span<const uint32_t> seen, FrameStats& stats);
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
-  // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
-  //    hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
+  // 2. Choose: a Draw per visible object with geometry that its style does not hide
+  //    (objects_hidden counted), or per merged run (hlod_merges and hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
   //    read from objects.decoded(), no lookup per object); those seen get last_seen = frame.
   //    Merged runs are decoded (made) here.
   void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,

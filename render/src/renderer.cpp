@@ -21,7 +21,16 @@ using namespace detail;
 
 struct Renderer::State {
   const Store* store = nullptr;  // outlives the renderer (render.h)
+  // As set (options()), and as frames use them: a style (view_filters.h) turns pipeline HLOD
+  // off, since a merged run would draw its members alike, hidden or coloured apart or not.
+  RenderOptions given;
   RenderOptions options;
+  void use_options(const RenderOptions& o) {
+    given = o;
+    options = o;
+    if (!o.style.empty()) options.hlod = false;
+    objects.set_style(o.style);
+  }
   std::unique_ptr<ReadView> view;  // never null once created
   DAabb bounds;
   uint64_t frame_number = 0;
@@ -32,6 +41,7 @@ struct Renderer::State {
   DecodedObjects objects{&pool};
   FramePlan plan{&pool};
   ArenaStreaming streaming{backend, pool};
+  FrameColouring colouring;  // colour_by: this frame's colours by value
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
   std::vector<glm::vec4> test_boxes;  // and its exact test
@@ -294,6 +304,15 @@ bool Renderer::State::stream_phase(const FrameView& frame_view, uint64_t frame,
   if (!objects.decode(plan.visible(), options.hlod, error)) return false;
   times.decode += clock.lap();
   plan.choose(objects, frame_view, options, frame, stats);
+  // Colour by an attribute (one phase: FramePlan::two_phase): the colours of the values drawn.
+  if (!options.style.colour_by.empty()) {
+    if (!colouring.make(options.style.colour_by, plan.draws(), objects.style_values(),
+                        stats.legend, error))
+      return false;
+    streaming.colour_by(&colouring);
+  } else {
+    streaming.colour_by(nullptr);
+  }
   times.choose += clock.lap();
   // The chosen levels resident in the arena (or boxes), the object table filled.
   if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
@@ -320,7 +339,7 @@ std::unique_ptr<Renderer> Renderer::create(const Store& store, const RenderOptio
   }
   auto state = std::make_unique<State>();
   state->store = &store;
-  state->options = options;
+  state->use_options(options);
   if (!state->backend.init(options.vertex_budget_bytes / kBytesPerVertex, error) ||
       !state->open_view(error))
     return nullptr;
@@ -346,11 +365,12 @@ bool Renderer::refresh(std::string& error) { return state_->open_view(error); }
 
 void Renderer::set_options(const RenderOptions& options) {
   const uint64_t budget = state_->options.vertex_budget_bytes;
-  state_->options = options;
-  state_->options.vertex_budget_bytes = budget;
+  RenderOptions o = options;
+  o.vertex_budget_bytes = budget;
+  state_->use_options(o);
 }
 
-const RenderOptions& Renderer::options() const { return state_->options; }
+const RenderOptions& Renderer::options() const { return state_->given; }
 const DAabb& Renderer::model_bounds() const { return state_->bounds; }
 const ReadView& Renderer::read_view() const { return *state_->view; }
 

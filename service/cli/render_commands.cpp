@@ -64,6 +64,19 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
     if (i + plan.shard_count < cameras.size()) session.renderer->expect(cameras[i + plan.shard_count]);
     if (!session.renderer->render(cameras[i], plan.width, plan.height, false, image, stats, error))
       return fail("view " + std::to_string(i) + ": " + error);
+    if (!stats.legend.key.empty()) {
+      // Coloured by an attribute: its legend in a strip along the bottom (a still without it
+      // would not say what its colours mean). An image too small for it goes without.
+      std::vector<std::string> lines;
+      std::vector<CaptionSwatch> swatches;
+      add_legend_lines(stats.legend, lines, swatches);
+      const std::string title = lines.front();
+      lines.erase(lines.begin());
+      swatches.erase(swatches.begin());
+      std::string why;
+      if (!add_caption(image, title, lines, swatches, why))
+        std::cerr << "plantview: view " << i << ": no legend: " << why << "\n";
+    }
     std::string file = a.out;
     if (many) {
       char name[64];

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -106,6 +107,47 @@ void report_first_image(std::chrono::steady_clock::time_point t_start) {
   } else {
     std::cerr << "plantview: first image written " << ms_since(t_start) / 1000.0
               << " s after the command started (no process start time in /proc)\n";
+  }
+}
+
+namespace {
+
+CaptionSwatch swatch(Colour c) { return {{{c.r, c.g, c.b}}}; }
+
+std::string number_text(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.6g", v);
+  return s;
+}
+
+}  // namespace
+
+void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
+                      std::vector<CaptionSwatch>& swatches) {
+  if (legend.key.empty()) return;
+  swatches.resize(lines.size());
+  lines.push_back("Colour by " + legend.key);
+  swatches.emplace_back();
+  if (legend.kind == FrameLegend::Kind::ramp) {
+    CaptionSwatch bar;
+    for (const Colour& c : legend.colours) bar.rgb.push_back({c.r, c.g, c.b});
+    const std::string unit = legend.unit.empty() ? "" : " " + legend.unit;
+    lines.push_back(number_text(legend.min) + unit + " \u2013 " + number_text(legend.max) + unit +
+                    "  (" + std::to_string(legend.objects) + ")");
+    swatches.push_back(std::move(bar));
+  } else {
+    for (const FrameLegend::Entry& e : legend.entries) {
+      lines.push_back(e.value + "  (" + std::to_string(e.objects) + ")");
+      swatches.push_back(swatch(e.colour));
+    }
+    if (legend.other_objects > 0) {
+      lines.push_back("other values  (" + std::to_string(legend.other_objects) + ")");
+      swatches.push_back(swatch(FrameLegend::kOtherColour));
+    }
+  }
+  if (legend.missing_objects > 0) {
+    lines.push_back("no " + legend.key + "  (" + std::to_string(legend.missing_objects) + ")");
+    swatches.push_back(swatch(FrameLegend::kMissingColour));
   }
 }
 

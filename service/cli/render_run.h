@@ -34,6 +34,7 @@ struct RenderArgs {
   std::string antialias = "automatic", highlight;
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
   bool no_ground = false, no_ambient_occlusion = false;
+  std::string colour_by, hide, only;  // view_filters.h: ObjectStyle
 };
 
 // What the command line asks for, typed and checked. Every usage error is found while making it,
@@ -129,6 +130,12 @@ struct RenderSession {
 };
 bool start_rendering(int device, const Store& store, const RenderOptions& options,
                      RenderSession& session, std::string& error);
+// The legend of a frame coloured by an attribute (FrameStats::legend; nothing when its key is
+// empty) appended to caption lines, with their colour keys (swatches aligned to lines):
+// "Colour by KEY", then a line per category with its object count, other values, and the
+// objects without the key; or the ramp's bar with its range and unit.
+void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
+                      std::vector<CaptionSwatch>& swatches);
 // Says on stderr how long after the process started the first image was written.
 void report_first_image(std::chrono::steady_clock::time_point t_start);
 
