@@ -67,14 +67,11 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
     if (!stats.legend.key.empty()) {
       // Coloured by an attribute: its legend in a strip along the bottom (a still without it
       // would not say what its colours mean). An image too small for it goes without.
-      std::vector<std::string> lines;
-      std::vector<CaptionSwatch> swatches;
-      add_legend_lines(stats.legend, lines, swatches);
-      const std::string title = lines.front();
-      lines.erase(lines.begin());
-      swatches.erase(swatches.begin());
+      // In columns of 4 lines, the key's name as the title.
+      std::vector<CaptionColumn> columns;
+      add_legend_columns(stats.legend, 4, columns, false);
       std::string why;
-      if (!add_caption(image, title, lines, swatches, why))
+      if (!add_caption_columns(image, "Colour by " + stats.legend.key, columns, why))
         std::cerr << "plantview: view " << i << ": no legend: " << why << "\n";
     }
     std::string file = a.out;

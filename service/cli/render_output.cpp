@@ -2,6 +2,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cstdio>
 #include <fstream>
@@ -122,12 +123,59 @@ std::string number_text(double v) {
 
 }  // namespace
 
+bool add_caption_columns(Image& image, std::string_view title,
+                         const std::vector<CaptionColumn>& columns, std::string& error) {
+  size_t rows = 0;
+  for (const CaptionColumn& c : columns) rows = std::max(rows, c.lines.size());
+  if (columns.size() <= 1) {
+    const CaptionColumn none;
+    const CaptionColumn& c = columns.empty() ? none : columns.front();
+    return add_caption(image, title, c.lines, c.swatches, error);
+  }
+  // Each column a caption of its own over its part of the width, every one `rows` lines high
+  // (so that their strips line up), the title in the first.
+  const uint32_t n = uint32_t(columns.size());
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t x0 = image.width * i / n, x1 = image.width * (i + 1) / n;
+    Image part;
+    part.width = x1 - x0;
+    part.height = image.height;
+    part.rgba.resize(size_t(part.width) * part.height * 4);
+    for (uint32_t y = 0; y < image.height; ++y)
+      std::copy_n(image.rgba.begin() + (ptrdiff_t(y) * image.width + x0) * 4, size_t(part.width) * 4,
+                  part.rgba.begin() + ptrdiff_t(y) * part.width * 4);
+    std::vector<std::string> lines = columns[i].lines;
+    lines.resize(rows);
+    if (!add_caption(part, i == 0 ? title : std::string_view(), lines, columns[i].swatches, error))
+      return false;
+    for (uint32_t y = 0; y < image.height; ++y)
+      std::copy_n(part.rgba.begin() + ptrdiff_t(y) * part.width * 4, size_t(part.width) * 4,
+                  image.rgba.begin() + (ptrdiff_t(y) * image.width + x0) * 4);
+  }
+  return true;
+}
+
+void add_legend_columns(const FrameLegend& legend, size_t rows, std::vector<CaptionColumn>& columns,
+                        bool heading) {
+  CaptionColumn all;
+  add_legend_lines(legend, all.lines, all.swatches, heading);
+  rows = std::max<size_t>(rows, 1);
+  for (size_t first = 0; first < all.lines.size(); first += rows) {
+    CaptionColumn& c = columns.emplace_back();
+    const size_t end = std::min(all.lines.size(), first + rows);
+    c.lines.assign(all.lines.begin() + ptrdiff_t(first), all.lines.begin() + ptrdiff_t(end));
+    c.swatches.assign(all.swatches.begin() + ptrdiff_t(first), all.swatches.begin() + ptrdiff_t(end));
+  }
+}
+
 void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
-                      std::vector<CaptionSwatch>& swatches) {
+                      std::vector<CaptionSwatch>& swatches, bool heading) {
   if (legend.key.empty()) return;
   swatches.resize(lines.size());
-  lines.push_back("Colour by " + legend.key);
-  swatches.emplace_back();
+  if (heading) {
+    lines.push_back("Colour by " + legend.key);
+    swatches.emplace_back();
+  }
   if (legend.kind == FrameLegend::Kind::ramp) {
     CaptionSwatch bar;
     for (const Colour& c : legend.colours) bar.rgb.push_back({c.r, c.g, c.b});

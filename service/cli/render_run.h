@@ -133,9 +133,22 @@ bool start_rendering(int device, const Store& store, const RenderOptions& option
 // The legend of a frame coloured by an attribute (FrameStats::legend; nothing when its key is
 // empty) appended to caption lines, with their colour keys (swatches aligned to lines):
 // "Colour by KEY", then a line per category with its object count, other values, and the
-// objects without the key; or the ramp's bar with its range and unit.
+// objects without the key; or the ramp's bar with its range and unit. heading false: without
+// the first line (the caller's title says it).
 void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
-                      std::vector<CaptionSwatch>& swatches);
+                      std::vector<CaptionSwatch>& swatches, bool heading = true);
+// A caption in columns side by side (legends beside a view's lines, long legends): each
+// column's lines after their keys (image.h: add_caption with swatches), every column as high
+// as the tallest, the title over the first. One column: add_caption itself.
+struct CaptionColumn {
+  std::vector<std::string> lines;
+  std::vector<CaptionSwatch> swatches;
+};
+bool add_caption_columns(Image& image, std::string_view title,
+                         const std::vector<CaptionColumn>& columns, std::string& error);
+// The legend's lines (add_legend_lines) as columns of `rows` lines each, appended to `columns`.
+void add_legend_columns(const FrameLegend& legend, size_t rows, std::vector<CaptionColumn>& columns,
+                        bool heading = true);
 // Says on stderr how long after the process started the first image was written.
 void report_first_image(std::chrono::steady_clock::time_point t_start);
 

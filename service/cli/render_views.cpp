@@ -33,10 +33,11 @@ RenderOptions review_render_options(const RenderOptions& base, const ReviewView&
 // legend when it is coloured by an attribute.
 bool add_review_caption(Image& image, const ReviewView& view, const FrameStats& stats,
                         std::string& error) {
-  std::vector<std::string> lines = caption_lines(view);
-  std::vector<CaptionSwatch> swatches;
-  add_legend_lines(stats.legend, lines, swatches);
-  return add_caption(image, view.title, lines, swatches, error);
+  std::vector<CaptionColumn> columns(1);
+  columns[0].lines = caption_lines(view);
+  // The legend in columns beside the view's lines, as many rows as they have (at least 4).
+  add_legend_columns(stats.legend, std::max<size_t>(4, columns[0].lines.size()), columns);
+  return add_caption_columns(image, view.title, columns, error);
 }
 
 // What, besides the view and the store's content, an image depends on (the settings hash).
