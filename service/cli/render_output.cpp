@@ -180,7 +180,7 @@ void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines
     CaptionSwatch bar;
     for (const Colour& c : legend.colours) bar.rgb.push_back({c.r, c.g, c.b});
     const std::string unit = legend.unit.empty() ? "" : " " + legend.unit;
-    lines.push_back(number_text(legend.min) + unit + " \u2013 " + number_text(legend.max) + unit +
+    lines.push_back(number_text(legend.min) + unit + " to " + number_text(legend.max) + unit +
                     "  (" + std::to_string(legend.objects) + ")");
     swatches.push_back(std::move(bar));
   } else {
