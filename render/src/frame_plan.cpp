@@ -559,6 +559,8 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         if (decision.merged) {
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;
+          rk.style_value = k->style_value;  // colour by: its deciding member's (styles that
+                                            // hide turn merging off)
           Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);

@@ -213,11 +213,8 @@ class FramePlan {
   //     occlusion_cells() cells (GlBackend::reduce_depth): visible() and node_boxes() become
   //     what was set aside and is not hidden (objects_occluded, nodes_occluded; objects_visible
   //     and node_proxies count both phases).
-  //   A frame coloured by an attribute is drawn in one phase: its colours (a ramp's range, the
-  //   categories' palette entries) follow from every value drawn, known only once all are
-  //   chosen.
   static bool two_phase(const RenderOptions& options) {
-    return options.occlusion && options.highlight_ids.empty() && options.style.colour_by.empty();
+    return options.occlusion && options.highlight_ids.empty();
   }
   bool first_phase(DecodedObjects& objects, const FrameView& frame_view,
                    const RenderOptions& options, uint64_t frame, bool exact, FrameStats& stats,

@@ -9,7 +9,7 @@
 #include <cmath>
 
 #include "decoded_objects.h"
-#include "frame_plan.h"
+#include "plantview/store.h"
 
 namespace plantview::detail {
 
@@ -142,7 +142,7 @@ std::vector<std::string> StyleValues::keys() const {
 
 // --- a frame's colours ---------------------------------------------------------------------------
 
-bool FrameColouring::make(const std::string& key, std::span<const Draw> draws,
+bool FrameColouring::make(const std::string& key, std::span<Known* const> known,
                           const StyleValues& values, FrameLegend& legend, std::string& error) {
   legend = FrameLegend{};
   legend.key = key;
@@ -150,8 +150,9 @@ bool FrameColouring::make(const std::string& key, std::span<const Draw> draws,
   by_value_.assign(values.size(), kOtherColour);
   seen_.clear();
   uint64_t missing = 0;
-  for (const Draw& d : draws) {
-    const int32_t v = d.known->style_value;
+  for (const Known* k : known) {
+    if (k->hidden || k->vertex_count == 0) continue;
+    const int32_t v = k->style_value;
     if (v < 0) {
       ++missing;
       continue;

@@ -16,7 +16,10 @@
 //     collision, values taken in text order: views that show the same values agree on their
 //     colours, and most views that share a value agree on its colour. More values than colours:
 //     the most frequent get colours (ties by text), the rest kOtherColour ("other_objects").
-//   - Ramp: viridis (5 stops) over the min..max of the values drawn in the frame.
+//   - A frame's colours and legend follow from the objects in view (frustum and pixel error;
+//     occlusion does not change them, and they are fixed before anything is drawn), those the
+//     style hides left out. A merged pipeline run takes the value of the member that decided it.
+//   - Ramp: viridis (5 stops) over the min..max of the values in view.
 //   - Objects without the key: kMissingColour. Alpha stays the model colour's.
 // Threads: the renderer's thread; a compiled style is read by the decode workers (const).
 #pragma once
@@ -34,7 +37,7 @@
 
 namespace plantview::detail {
 
-struct Draw;
+struct Known;
 
 inline constexpr Colour kMissingColour = FrameLegend::kMissingColour;
 inline constexpr Colour kOtherColour = FrameLegend::kOtherColour;
@@ -106,9 +109,10 @@ class StyleValues {
 // A frame's colours by value index (and the legend), from the values of what it draws.
 class FrameColouring {
  public:
-  // From the draws' Knowns' style values. False when objects are drawn and none has the key:
+  // From the style values of the objects in view (`known`: those with geometry that the
+  // style does not hide count). False when there are such objects and none has the key:
   // `error` names the key and lists the keys found (StyleValues::keys).
-  bool make(const std::string& key, std::span<const Draw> draws, const StyleValues& values,
+  bool make(const std::string& key, std::span<Known* const> known, const StyleValues& values,
             FrameLegend& legend, std::string& error);
   // The colour for an object of value `value` (-1: none) and model colour `model`.
   Colour colour(int32_t value, Colour model) const {

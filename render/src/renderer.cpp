@@ -21,14 +21,16 @@ using namespace detail;
 
 struct Renderer::State {
   const Store* store = nullptr;  // outlives the renderer (render.h)
-  // As set (options()), and as frames use them: a style (view_filters.h) turns pipeline HLOD
-  // off, since a merged run would draw its members alike, hidden or coloured apart or not.
+  // As set (options()), and as frames use them: hide and only (view_filters.h) turn pipeline
+  // HLOD off, since a merged run would draw its members alike, hidden or not. (Colour by keeps
+  // it: a run takes its deciding member's colour, the components it hides being under the
+  // pixel error.)
   RenderOptions given;
   RenderOptions options;
   void use_options(const RenderOptions& o) {
     given = o;
     options = o;
-    if (!o.style.empty()) options.hlod = false;
+    if (!o.style.hide.empty() || !o.style.only.empty()) options.hlod = false;
     objects.set_style(o.style);
   }
   std::unique_ptr<ReadView> view;  // never null once created
@@ -77,6 +79,10 @@ struct Renderer::State {
   // from the arena). A read error is left for that frame to meet (it starts afresh) and report.
   void look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact);
 
+  // Colour by an attribute: the frame's colours and legend (object_style.h) from the values of
+  // the objects the cull found (plan.visible(), decoded here where new), before any phase is
+  // drawn; else the objects' own colours.
+  bool colour_view(FrameStats& stats, std::string& error);
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
              FrameStats& stats, std::string& error);
@@ -104,7 +110,9 @@ void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, boo
   const FrameView next_view = make_frame_view(next, w, h, view->spatial_origin());
   MadeAhead made{frame_number + 1, next, w, h, options, FramePlan::two_phase(options), false, {}};
   std::string ignored;
-  if (!plan.find_visible(*view, next_view, options, made.stats, ignored)) return;
+  if (!plan.find_visible(*view, next_view, options, made.stats, ignored) ||
+      !colour_view(made.stats, ignored))
+    return;
   if (made.first_phase && !plan.first_phase(objects, next_view, options, made.frame, exact,
                                             made.stats, ignored))
     return;
@@ -143,10 +151,25 @@ bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, b
   objects.read_blocks(blocks_ahead);
   if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
   times.cull = clock.lap();
+  if (!colour_view(stats, error)) return false;
+  times.decode = clock.lap();
   if (first_phase &&
       !plan.first_phase(objects, frame_view, options, frame_number, exact, stats, error))
     return false;
   times.occlusion = clock.lap();
+  return true;
+}
+
+bool Renderer::State::colour_view(FrameStats& stats, std::string& error) {
+  if (options.style.colour_by.empty()) {
+    streaming.colour_by(nullptr);
+    return true;
+  }
+  if (!objects.decode(plan.visible(), options.hlod, error) ||
+      !colouring.make(options.style.colour_by, objects.decoded(), objects.style_values(),
+                      stats.legend, error))
+    return false;
+  streaming.colour_by(&colouring);
   return true;
 }
 
@@ -304,15 +327,6 @@ bool Renderer::State::stream_phase(const FrameView& frame_view, uint64_t frame,
   if (!objects.decode(plan.visible(), options.hlod, error)) return false;
   times.decode += clock.lap();
   plan.choose(objects, frame_view, options, frame, stats);
-  // Colour by an attribute (one phase: FramePlan::two_phase): the colours of the values drawn.
-  if (!options.style.colour_by.empty()) {
-    if (!colouring.make(options.style.colour_by, plan.draws(), objects.style_values(),
-                        stats.legend, error))
-      return false;
-    streaming.colour_by(&colouring);
-  } else {
-    streaming.colour_by(nullptr);
-  }
   times.choose += clock.lap();
   // The chosen levels resident in the arena (or boxes), the object table filled.
   if (!streaming.stream(plan, objects, frame_view, options, stats, error, second_phase))
