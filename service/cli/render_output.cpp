@@ -132,8 +132,22 @@ bool add_caption_columns(Image& image, std::string_view title,
     const CaptionColumn& c = columns.empty() ? none : columns.front();
     return add_caption(image, title, c.lines, c.swatches, error);
   }
+  // The title over the whole width: a caption of the title over empty lines, drawn on a copy,
+  // whose title band (the strip's top down to the first line, image_oiio.cpp's layout) is
+  // copied in once the columns are drawn.
+  Image titled = image;
+  if (!add_caption(titled, title, std::vector<std::string>(rows), error)) return false;
+  uint32_t top = 0;
+  while (top < image.height &&
+         std::equal(image.rgba.begin() + ptrdiff_t(top) * image.width * 4,
+                    image.rgba.begin() + ptrdiff_t(top + 1) * image.width * 4,
+                    titled.rgba.begin() + ptrdiff_t(top) * image.width * 4))
+    ++top;
+  const uint32_t title_px = std::clamp(image.height / 32, 9u, 64u);
+  const uint32_t band_end =
+      std::min(image.height, top + std::max(3u, title_px / 2) + title_px * 5 / 4);
   // Each column a caption of its own over its part of the width, every one `rows` lines high
-  // (so that their strips line up), the title in the first.
+  // (so that their strips line up).
   const uint32_t n = uint32_t(columns.size());
   for (uint32_t i = 0; i < n; ++i) {
     const uint32_t x0 = image.width * i / n, x1 = image.width * (i + 1) / n;
@@ -146,12 +160,14 @@ bool add_caption_columns(Image& image, std::string_view title,
                   part.rgba.begin() + ptrdiff_t(y) * part.width * 4);
     std::vector<std::string> lines = columns[i].lines;
     lines.resize(rows);
-    if (!add_caption(part, i == 0 ? title : std::string_view(), lines, columns[i].swatches, error))
-      return false;
+    if (!add_caption(part, std::string_view(), lines, columns[i].swatches, error)) return false;
     for (uint32_t y = 0; y < image.height; ++y)
       std::copy_n(part.rgba.begin() + ptrdiff_t(y) * part.width * 4, size_t(part.width) * 4,
                   image.rgba.begin() + (ptrdiff_t(y) * image.width + x0) * 4);
   }
+  std::copy(titled.rgba.begin() + ptrdiff_t(top) * image.width * 4,
+            titled.rgba.begin() + ptrdiff_t(band_end) * image.width * 4,
+            image.rgba.begin() + ptrdiff_t(top) * image.width * 4);
   return true;
 }
 
