@@ -84,16 +84,41 @@ void DecodedObjects::evaluate_style(Known& k, const Object& o) {
 }
 
 bool DecodedObjects::restyle(std::string& error) {
-  std::sort(restyle_.begin(), restyle_.end());  // each chunk decompressed once
-  for (const uint32_t slot : restyle_) {
-    Known& k = at(slot);
-    if (style_.needs_record()) {
-      if (!view_->object(slot, object_, true, error)) return false;
-    } else {
-      object_ = Object{};
-      object_.object_class = k.object_class;
+  if (!style_.needs_record()) {
+    Object o;
+    for (const uint32_t slot : restyle_) {
+      Known& k = at(slot);
+      o.object_class = k.object_class;
+      evaluate_style(k, o);
     }
-    evaluate_style(k, object_);
+    restyle_.clear();
+    return true;
+  }
+  // The records read again in waves, in slot order (each chunk decompressed once per part), in
+  // parts on the workers as new objects are (read_wave); evaluated here, in slot order.
+  std::sort(restyle_.begin(), restyle_.end());
+  for (size_t first = 0; first < restyle_.size(); first += kNewObjectsPerWave) {
+    const size_t count = std::min(kNewObjectsPerWave, restyle_.size() - first);
+    if (wave_objects_.size() < count) wave_objects_.resize(count);
+    wave_read_.assign(count, 0);
+    const size_t workers = workers_ ? workers_->size() : 1;
+    const size_t per_part = std::clamp<size_t>((count + workers - 1) / workers,
+                                               kMinNewObjectsPerPart, kNewObjectsPerPart);
+    const size_t parts = (count + per_part - 1) / per_part;
+    wave_errors_.assign(parts, std::string());
+    on_views(parts, [&](size_t part, const ReadView& view) {
+      for (size_t i = part * per_part; i < std::min(count, (part + 1) * per_part); ++i) {
+        if (!view.object(restyle_[first + i], wave_objects_[i], true, wave_errors_[part])) break;
+        wave_read_[i] = 1;
+      }
+    });
+    for (size_t i = 0; i < count; ++i) {
+      if (!wave_read_[i]) {
+        error = wave_errors_[i / per_part];
+        return false;
+      }
+      evaluate_style(at(restyle_[first + i]), wave_objects_[i]);
+    }
   }
   restyle_.clear();
   return true;
