@@ -1,7 +1,9 @@
 // Stills: what each part of the look costs. One renderer renders the same views with each
 // setting, round robin (the first round warms the arena and is not counted): aliased with the
 // extras off (an interactive frame), antialiasing by each method, ambient occlusion, the
-// ground, everything together (the still's defaults), and a highlight.
+// ground, everything together (the still's defaults), and a highlight; and colour by an
+// attribute (Material) against the still, each on a renderer of its own, then the first frame
+// after a style change on a warm renderer (issue 41's goal: colour by adds at most 10%).
 //
 // Usage: bench_stills [--quick] [--store DIR] [--preset P] [--size WxH] [--repeats N]
 //                     [--out DIR]
