@@ -1,7 +1,9 @@
 // Stills: what each part of the look costs. One renderer renders the same views with each
 // setting, round robin (the first round warms the arena and is not counted): aliased with the
 // extras off (an interactive frame), antialiasing by each method, ambient occlusion, the
-// ground, everything together (the still's defaults), and a highlight.
+// ground, everything together (the still's defaults), and a highlight; and colour by an
+// attribute (Material) against the still, each on a renderer of its own, then the first frame
+// after a style change on a warm renderer (issue 41's goal: colour by adds at most 10%).
 //
 // Usage: bench_stills [--quick] [--store DIR] [--preset P] [--size WxH] [--repeats N]
 //                     [--out DIR]
@@ -16,6 +18,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -32,7 +35,13 @@ using namespace plantview;
 struct Setting {
   const char* name;
   RenderOptions options;
+  bool own_renderer = false;  // rendered by a renderer of its own, made with these options
 };
+
+// Colour by an attribute (RenderOptions::style) is measured on a renderer of its own: switching
+// the style on the shared one would read every known object's attributes again each round
+// (measured apart: the first frame after a style change).
+constexpr const char* kColourByKey = "Material";
 
 std::vector<Setting> settings(const std::vector<uint64_t>& subject) {
   RenderOptions plain;
@@ -62,6 +71,11 @@ std::vector<Setting> settings(const std::vector<uint64_t>& subject) {
   RenderOptions highlight;
   highlight.highlight_ids = subject;
   out.push_back({"still + highlight", highlight});
+  // Both on renderers of their own (one that switches between settings pays for it).
+  out.push_back({"still, own renderer", RenderOptions{}, true});
+  RenderOptions coloured;
+  coloured.style.colour_by = kColourByKey;
+  out.push_back({"still + colour by", coloured, true});
   return out;
 }
 
@@ -163,15 +177,25 @@ int main(int argc, char** argv) {
   // Round robin (each repeat renders every setting once), keeping each view's fastest frame:
   // the machine's other load then weighs on every setting alike.
   const std::vector<Setting> all = settings(subject);
+  std::vector<std::unique_ptr<Renderer>> own(all.size());
+  for (size_t s = 0; s < all.size(); ++s) {
+    if (!all[s].own_renderer) continue;
+    own[s] = Renderer::create(*store, all[s].options, error);
+    if (!own[s]) {
+      std::fprintf(stderr, "bench_stills: %s\n", error.c_str());
+      return 1;
+    }
+  }
   std::vector<std::vector<double>> best_draw(all.size(), std::vector<double>(views.size(), 1e300));
   std::vector<std::vector<double>> best_frame = best_draw;
   for (int r = 0; r <= repeats; ++r) {
     for (size_t s = 0; s < all.size(); ++s) {
-      renderer->set_options(all[s].options);
+      Renderer& rendering = own[s] ? *own[s] : *renderer;
+      if (!own[s]) renderer->set_options(all[s].options);
       for (size_t v = 0; v < views.size(); ++v) {
         Image image;
         FrameStats stats;
-        if (!renderer->render(views[v], width, height, false, image, stats, error)) {
+        if (!rendering.render(views[v], width, height, false, image, stats, error)) {
           std::fprintf(stderr, "bench_stills: %s: %s\n", all[s].name, error.c_str());
           return 1;
         }
@@ -205,9 +229,40 @@ int main(int argc, char** argv) {
     json.push_back({{"setting", all[s].name}, {"draw_ms", draw_ms}, {"frame_ms", frame_ms},
                     {"frame_ratio", frame_ms / aliased_ms}});
   }
+  // Colour by against the still it colours, and the first frame after a style change on a
+  // warm renderer (every known object's attributes read again), each view once.
+  double still_ms = 0, coloured_ms = 0, switched_ms = 0;
+  for (size_t s = 0; s < all.size(); ++s) {
+    for (size_t v = 0; v < views.size(); ++v) {
+      if (std::string(all[s].name) == "still, own renderer") still_ms += best_frame[s][v];
+      if (std::string(all[s].name) == "still + colour by") coloured_ms += best_frame[s][v];
+    }
+  }
+  for (size_t v = 0; v < views.size(); ++v) {
+    RenderOptions coloured;
+    coloured.style.colour_by = kColourByKey;
+    Image image;
+    FrameStats stats;
+    renderer->set_options(RenderOptions{});
+    if (!renderer->render(views[v], width, height, false, image, stats, error)) return 1;
+    renderer->set_options(coloured);
+    if (!renderer->render(views[v], width, height, false, image, stats, error)) {
+      std::fprintf(stderr, "bench_stills: colour by: %s\n", error.c_str());
+      return 1;
+    }
+    switched_ms += stats.ms.total;
+  }
+  std::printf("colour by %s: x%.3f the still's frame (%.1f against %.1f ms); first frame after "
+              "the style changed: %.1f ms\n",
+              kColourByKey, coloured_ms / still_ms, coloured_ms / double(views.size()),
+              still_ms / double(views.size()), switched_ms / double(views.size()));
   std::printf("json: %s\n", nlohmann::json{{"width", width}, {"height", height},
                                            {"views", views.size()}, {"repeats", repeats},
-                                           {"settings", json}}.dump().c_str());
+                                           {"settings", json},
+                                           {"colour_by_ratio", coloured_ms / still_ms},
+                                           {"style_change_frame_ms", switched_ms / double(views.size())}}
+                                    .dump().c_str());
+  own.clear();
   renderer.reset();
   store.reset();
   if (!temp.empty()) fs::remove_all(temp);

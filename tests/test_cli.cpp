@@ -419,4 +419,30 @@ TEST_F(Cli, RenderPathWritesEveryImageAndItsStatsInViewOrderAndStopsAtOneItCanno
   EXPECT_EQ(lines, 2u) << "the views before the one that failed";
 }
 
+// Colour by, hide, only (view_filters.h) on the command line: the legend in the stats line and a
+// legend strip on the image; an unknown key fails naming the keys found; empty word lists are
+// usage errors; `views --colour-by` writes the style into every view.
+TEST_F(Cli, RenderColourByHideOnly) {
+  const std::string store = (dir_ / "s").string();
+  ASSERT_EQ(run("gen --preset a --store " + store).status, 0);
+  const std::string image = (dir_ / "coloured.png").string();
+  Outcome r = run("render --store " + store + " --size 320x180 --colour-by Material --hide structure --out " + image);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const nlohmann::json stats = nlohmann::json::parse(r.out);
+  EXPECT_EQ(stats["legend"]["key"], "Material");
+  EXPECT_EQ(stats["legend"]["kind"], "categories");
+  EXPECT_GT(stats["objects_hidden"].get<int>(), 0);
+  EXPECT_TRUE(fs::exists(image));
+  r = run("render --store " + store + " --size 320x180 --colour-by Nonesuch --out " + image);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("'Nonesuch'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Material"), std::string::npos) << r.err;
+  EXPECT_EQ(run("render --store " + store + " --only , --out " + image).status, 2);
+  const std::string views = (dir_ / "views.json").string();
+  ASSERT_EQ(run("views --store " + store + " --per overview --colour-by Material --only 'P-*' --out " + views).status, 0);
+  const nlohmann::json file = nlohmann::json::parse(slurp(views));
+  EXPECT_EQ(file["views"][0]["style"]["colour_by"], "Material");
+  EXPECT_EQ(file["views"][0]["style"]["only"][0], "P-*");
+}
+
 }  // namespace

@@ -160,6 +160,19 @@ TEST_F(Looks, TheDefaultOverviewMatchesItsReference) {
   expect_matches_reference(render(*r, camera), "overview");
 }
 
+TEST_F(Looks, AnOverviewColouredByMaterialMatchesItsReference) {
+  // Categories (view_filters.h: colour_by): each material a palette colour, objects without
+  // one grey. (The legend is the caption's, drawn by the CLI, not here.)
+  RenderOptions options;
+  options.style.colour_by = "Material";
+  auto r = renderer(options);
+  std::string error;
+  auto view = store_->read(error);
+  ASSERT_TRUE(view) << error;
+  const Camera camera = default_camera(overview_boxes(*view), double(kWidth) / kHeight);
+  expect_matches_reference(render(*r, camera), "colour_by");
+}
+
 TEST_F(Looks, AStillInsideThePlantMatchesItsReference) {
   // Among the pumps and exchangers of unit 01, under the pipe rack: curved shells, elbows and
   // contact shadows, where half-resolution ambient occlusion once left blocks.

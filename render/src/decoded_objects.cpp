@@ -57,6 +57,71 @@ void DecodedObjects::reset(const ReadView& view) {
   free_runs_.clear();
   pipeline_runs_.clear();
   pipelines_referenced_ = 0;
+  style_values_.clear();
+}
+
+void DecodedObjects::set_style(const ObjectStyle& style) {
+  if (style == style_.style()) return;
+  style_ = CompiledStyle(style);
+  style_values_.clear();
+  ++style_epoch_;
+}
+
+void DecodedObjects::evaluate_style(Known& k, const Object& o) {
+  const bool was_hidden = k.hidden;
+  k.style_epoch = style_epoch_;
+  k.hidden = style_.active() && style_.hides(o);
+  k.style_value = -1;
+  if (!style_.style().colour_by.empty()) {
+    style_values_.note_keys(o);
+    if (const std::string* v = style_.value(o)) k.style_value = style_values_.intern(*v);
+  }
+  if (k.hidden != was_hidden) {
+    // A hidden object occludes nothing: its occluder is built again when asked for.
+    k.occluder = {};
+    k.occluder_built = false;
+  }
+}
+
+bool DecodedObjects::restyle(std::string& error) {
+  if (!style_.needs_record()) {
+    Object o;
+    for (const uint32_t slot : restyle_) {
+      Known& k = at(slot);
+      o.object_class = k.object_class;
+      evaluate_style(k, o);
+    }
+    restyle_.clear();
+    return true;
+  }
+  // The records read again in waves, in slot order (each chunk decompressed once per part), in
+  // parts on the workers as new objects are (read_wave); evaluated here, in slot order.
+  std::sort(restyle_.begin(), restyle_.end());
+  for (size_t first = 0; first < restyle_.size(); first += kNewObjectsPerWave) {
+    const size_t count = std::min(kNewObjectsPerWave, restyle_.size() - first);
+    if (wave_objects_.size() < count) wave_objects_.resize(count);
+    wave_read_.assign(count, 0);
+    const size_t workers = workers_ ? workers_->size() : 1;
+    const size_t per_part = std::clamp<size_t>((count + workers - 1) / workers,
+                                               kMinNewObjectsPerPart, kNewObjectsPerPart);
+    const size_t parts = (count + per_part - 1) / per_part;
+    wave_errors_.assign(parts, std::string());
+    on_views(parts, [&](size_t part, const ReadView& view) {
+      for (size_t i = part * per_part; i < std::min(count, (part + 1) * per_part); ++i) {
+        if (!view.object(restyle_[first + i], wave_objects_[i], true, wave_errors_[part])) break;
+        wave_read_[i] = 1;
+      }
+    });
+    for (size_t i = 0; i < count; ++i) {
+      if (!wave_read_[i]) {
+        error = wave_errors_[i / per_part];
+        return false;
+      }
+      evaluate_style(at(restyle_[first + i]), wave_objects_[i]);
+    }
+  }
+  restyle_.clear();
+  return true;
 }
 
 namespace {
@@ -90,11 +155,16 @@ Known& DecodedObjects::insert(uint32_t key) {
 bool DecodedObjects::decode(std::span<const VisibleObject> visible, bool hlod,
                             std::string& error) {
   new_slots_.clear();
+  restyle_.clear();
   decoded_.resize(visible.size());
   for (size_t i = 0; i < visible.size(); ++i) {
     decoded_[i] = directory_.find(visible[i].slot);
-    if (!decoded_[i]) new_slots_.push_back(visible[i].slot);
+    if (!decoded_[i])
+      new_slots_.push_back(visible[i].slot);
+    else if (decoded_[i]->style_epoch != style_epoch_)
+      restyle_.push_back(visible[i].slot);
   }
+  if (!restyle_.empty() && !restyle(error)) return false;
   std::sort(new_slots_.begin(), new_slots_.end());
   stretches_.clear();
   stretch_of_.clear();
@@ -197,6 +267,7 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   k.primitives = std::move(o.primitives);
   o.primitives.clear();
   k.keeps_primitives = keeps_primitives;
+  evaluate_style(k, o);
   k.parts.clear();
   k.parts.reserve(k.primitives.size());
   k.own_plans.clear();
@@ -427,7 +498,9 @@ void DecodedObjects::read_wave(size_t first, bool hlod) {
     // A part stops at its first object that cannot be read (decode() stops there).
     for (size_t i = part * per_part; i < std::min(count, (part + 1) * per_part); ++i) {
       const Object& o = wave_objects_[i];
-      if (!view.object(new_slots_[first + i], wave_objects_[i], false, wave_errors_[part])) break;
+      if (!view.object(new_slots_[first + i], wave_objects_[i], style_.needs_record(),
+                       wave_errors_[part]))
+        break;
       wave_read_[i] = 1;
       // Its stretch analysed now, through the view that just read it, if it may lie in a run and
       // no part has taken it yet: its pipeline and neighbours lie in the slots about this one,
@@ -553,7 +626,7 @@ Known& DecodedObjects::know_run(uint32_t run) {
 
 const OccluderShape* DecodedObjects::occluder(uint32_t slot, Known& k, std::string& error) {
   if (!k.occluder_built) {
-    if (may_occlude(k.object_class, k.colour)) {
+    if (may_occlude(k.object_class, k.colour) && !k.hidden) {
       const std::vector<Primitive>* p = primitives(slot, k, error);
       if (!p) return nullptr;
       build_occluder_shape(*p, occluder_scratch_, k.occluder);

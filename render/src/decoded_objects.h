@@ -51,6 +51,7 @@
 #include <vector>
 
 #include "hlod.h"
+#include "object_style.h"
 #include "occlusion/occlusion_occluders.h"
 #include "plantview/model.h"
 #include "plantview/primitives.h"
@@ -108,6 +109,10 @@ struct alignas(64) Known {
   uint8_t base = 0;
   bool has_lines = false, has_triangles = false;
   bool has_centreline = false;      // a pipe with its centreline (below)
+  // RenderOptions::style (object_style.h), as of style_epoch: left out by hide/only; its
+  // colour-by value (StyleValues index, -1: none).
+  bool hidden = false;
+  int32_t style_value = -1;
   alignas(64) std::array<float, kMaxLevels> error_m{};  // metres, largest over the triangle parts
   uint64_t id = 0;
   glm::dvec3 origin_m{0.0};
@@ -128,6 +133,7 @@ struct alignas(64) Known {
   std::vector<Aabb> test_boxes;
   bool occluder_built = false;      // (occlusion_occluders.h; built when first asked for)
   bool test_boxes_built = false;
+  uint32_t style_epoch = 0;         // DecodedObjects' style epoch when hidden/style_value were set
 };
 static_assert(offsetof(Known, has_centreline) < 64 && offsetof(Known, origin_m) + 24 <= 128 &&
               offsetof(Known, parts) == 128);
@@ -194,6 +200,13 @@ class DecodedObjects {
   explicit DecodedObjects(WorkerPool* pool = nullptr) : workers_(pool) {}
   // Forgets every object and run: `view` is a new snapshot (it must outlive its use here).
   void reset(const ReadView& view);
+  // The style objects are evaluated by (object_style.h). A change keeps every Known (nothing is
+  // tessellated again) and evaluates each again, its record read again with its attributes
+  // where the style needs them, the next time decode() meets it. Objects are read with their
+  // attributes while the style needs them.
+  void set_style(const ObjectStyle& style);
+  const CompiledStyle& style() const { return style_; }
+  const StyleValues& style_values() const { return style_values_; }
 
   // Decodes the visible objects not known yet, in slot order. hlod: also find the runs of the
   // pipelines their pipes and components belong to. False if an object cannot be decoded
@@ -253,6 +266,11 @@ class DecodedObjects {
 
  private:
   Known& add(uint32_t key, Object& object, bool keeps_primitives);
+  // Sets k.hidden and k.style_value from `o` (its attributes read where the style needs them).
+  void evaluate_style(Known& k, const Object& o);
+  // Evaluates again the objects of restyle_ (known, evaluated under an older style): their
+  // records read again (with attributes) where the style needs them. False on a read error.
+  bool restyle(std::string& error);
   // A fresh Known for `key` (not known), from the pool.
   Known& insert(uint32_t key);
   // A stretch of one branch analysed this decode(): its members' slots (sorted) and its runs.
@@ -334,6 +352,10 @@ class DecodedObjects {
   std::vector<uint8_t> wave_read_;
   std::vector<std::string> wave_errors_;  // per part of a wave
   std::vector<Known*> decoded_;
+  CompiledStyle style_;
+  StyleValues style_values_;
+  uint32_t style_epoch_ = 0;
+  std::vector<uint32_t> restyle_;  // decode(): known slots to evaluate again
   Object object_;  // decode target
   std::vector<PackedVertex> occluder_scratch_;
 };

@@ -542,6 +542,10 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
     if (i + kPrefetchAhead < known.size()) prefetch(known[i + kPrefetchAhead]);
     k->last_seen = frame;
     if (k->vertex_count == 0) continue;
+    if (k->hidden) {
+      stats.objects_hidden += 1;
+      continue;
+    }
     if (k->run >= 0 && merging) {
       // A run is decided by its first visible member; the others follow it.
       const uint32_t r = uint32_t(k->run);
@@ -555,6 +559,8 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
         if (decision.merged) {
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;
+          rk.style_value = k->style_value;  // colour by: its deciding member's (styles that
+                                            // hide turn merging off)
           Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);

@@ -241,8 +241,8 @@ class FramePlan {
   void drop_unseen(std::span<const uint32_t> seen, FrameStats& stats);
   // 1c. Largest on screen first, so that the arena's budget goes where it shows most.
   void order();
-  // 2. Choose: a Draw per visible object with geometry, or per merged run (hlod_merges and
-  //    hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
+  // 2. Choose: a Draw per visible object with geometry that its style does not hide
+  //    (objects_hidden counted), or per merged run (hlod_merges and hlod_members counted). visible() must be what `objects` decoded last (its Knowns are
   //    read from objects.decoded(), no lookup per object); those seen get last_seen = frame.
   //    Merged runs are decoded (made) here.
   void choose(DecodedObjects& objects, const FrameView& frame_view, const RenderOptions& options,

@@ -1,6 +1,7 @@
 // Frame statistics: stage times and the JSON form of FrameStats (render.h).
 #include <cstdio>
 #include <string>
+#include <string_view>
 
 #include "frame_stats.h"
 #include "plantview/render.h"
@@ -44,7 +45,79 @@ std::string FrameStats::to_json() const {
          ",\"arena_bytes_evicted\":" + std::to_string(arena_bytes_evicted) +
          ",\"objects_resident\":" + std::to_string(objects_resident) +
          ",\"objects_tessellated\":" + std::to_string(objects_tessellated) +
-         ",\"objects_evicted\":" + std::to_string(objects_evicted) + ",\"ms\":" + times + "}";
+         ",\"objects_evicted\":" + std::to_string(objects_evicted) +
+         ",\"objects_hidden\":" + std::to_string(objects_hidden) +
+         (legend.key.empty() ? std::string() : ",\"legend\":" + legend.to_json()) +
+         ",\"ms\":" + times + "}";
+}
+
+namespace {
+
+// A JSON string of `bytes`: quotes, backslashes and control characters escaped, each invalid
+// UTF-8 sequence written as U+FFFD (attribute values are bytes as the model gave them).
+std::string json_text(std::string_view bytes) {
+  std::string out = "\"";
+  for (size_t i = 0; i < bytes.size();) {
+    const unsigned char c = static_cast<unsigned char>(bytes[i]);
+    if (c < 0x80) {
+      if (c == '"' || c == '\\') {
+        out += '\\';
+        out += char(c);
+      } else if (c < 0x20) {
+        char u[8];
+        std::snprintf(u, sizeof u, "\\u%04x", c);
+        out += u;
+      } else {
+        out += char(c);
+      }
+      ++i;
+      continue;
+    }
+    const size_t n = c >= 0xF0 && c < 0xF5 ? 4 : c >= 0xE0 ? 3 : c >= 0xC2 && c < 0xE0 ? 2 : 0;
+    bool valid = n > 0 && i + n <= bytes.size();
+    for (size_t k = 1; valid && k < n; ++k)
+      valid = (static_cast<unsigned char>(bytes[i + k]) & 0xC0) == 0x80;
+    if (valid) {
+      out.append(bytes.substr(i, n));
+      i += n;
+    } else {
+      out += "\xEF\xBF\xBD";
+      ++i;
+    }
+  }
+  return out + "\"";
+}
+
+std::string hex(Colour c) {
+  char s[8];
+  std::snprintf(s, sizeof s, "#%02x%02x%02x", c.r, c.g, c.b);
+  return std::string("\"") + s + "\"";
+}
+
+std::string number(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.10g", v);
+  return s;
+}
+
+}  // namespace
+
+std::string FrameLegend::to_json() const {
+  std::string out = "{\"key\":" + json_text(key);
+  if (kind == Kind::ramp) {
+    out += ",\"kind\":\"ramp\",\"unit\":" + json_text(unit) + ",\"min\":" + number(min) +
+           ",\"max\":" + number(max) + ",\"colours\":[";
+    for (size_t i = 0; i < colours.size(); ++i) out += (i ? "," : "") + hex(colours[i]);
+    out += "],\"objects\":" + std::to_string(objects);
+  } else {
+    out += ",\"kind\":\"categories\",\"entries\":[";
+    for (size_t i = 0; i < entries.size(); ++i)
+      out += std::string(i ? "," : "") + "{\"value\":" + json_text(entries[i].value) +
+             ",\"colour\":" + hex(entries[i].colour) +
+             ",\"objects\":" + std::to_string(entries[i].objects) + "}";
+    out += "],\"other_objects\":" + std::to_string(other_objects);
+  }
+  return out + ",\"missing_objects\":" + std::to_string(missing_objects) + "}";
 }
 
 namespace detail {

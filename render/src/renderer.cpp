@@ -21,7 +21,18 @@ using namespace detail;
 
 struct Renderer::State {
   const Store* store = nullptr;  // outlives the renderer (render.h)
+  // As set (options()), and as frames use them: hide and only (view_filters.h) turn pipeline
+  // HLOD off, since a merged run would draw its members alike, hidden or not. (Colour by keeps
+  // it: a run takes its deciding member's colour, the components it hides being under the
+  // pixel error.)
+  RenderOptions given;
   RenderOptions options;
+  void use_options(const RenderOptions& o) {
+    given = o;
+    options = o;
+    if (!o.style.hide.empty() || !o.style.only.empty()) options.hlod = false;
+    objects.set_style(o.style);
+  }
   std::unique_ptr<ReadView> view;  // never null once created
   DAabb bounds;
   uint64_t frame_number = 0;
@@ -32,6 +43,7 @@ struct Renderer::State {
   DecodedObjects objects{&pool};
   FramePlan plan{&pool};
   ArenaStreaming streaming{backend, pool};
+  FrameColouring colouring;  // colour_by: this frame's colours by value
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
   std::vector<glm::vec4> test_boxes;  // and its exact test
@@ -67,6 +79,10 @@ struct Renderer::State {
   // from the arena). A read error is left for that frame to meet (it starts afresh) and report.
   void look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact);
 
+  // Colour by an attribute: the frame's colours and legend (object_style.h) from the values of
+  // the objects the cull found (plan.visible(), decoded here where new), before any phase is
+  // drawn; else the objects' own colours.
+  bool colour_view(FrameStats& stats, std::string& error);
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
              FrameStats& stats, std::string& error);
@@ -94,7 +110,9 @@ void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, boo
   const FrameView next_view = make_frame_view(next, w, h, view->spatial_origin());
   MadeAhead made{frame_number + 1, next, w, h, options, FramePlan::two_phase(options), false, {}};
   std::string ignored;
-  if (!plan.find_visible(*view, next_view, options, made.stats, ignored)) return;
+  if (!plan.find_visible(*view, next_view, options, made.stats, ignored) ||
+      !colour_view(made.stats, ignored))
+    return;
   if (made.first_phase && !plan.first_phase(objects, next_view, options, made.frame, exact,
                                             made.stats, ignored))
     return;
@@ -133,10 +151,25 @@ bool Renderer::State::start(const Camera& camera, const FrameView& frame_view, b
   objects.read_blocks(blocks_ahead);
   if (!plan.find_visible(*view, frame_view, options, stats, error)) return false;
   times.cull = clock.lap();
+  if (!colour_view(stats, error)) return false;
+  times.decode = clock.lap();
   if (first_phase &&
       !plan.first_phase(objects, frame_view, options, frame_number, exact, stats, error))
     return false;
   times.occlusion = clock.lap();
+  return true;
+}
+
+bool Renderer::State::colour_view(FrameStats& stats, std::string& error) {
+  if (options.style.colour_by.empty()) {
+    streaming.colour_by(nullptr);
+    return true;
+  }
+  if (!objects.decode(plan.visible(), options.hlod, error) ||
+      !colouring.make(options.style.colour_by, objects.decoded(), objects.style_values(),
+                      stats.legend, error))
+    return false;
+  streaming.colour_by(&colouring);
   return true;
 }
 
@@ -320,7 +353,7 @@ std::unique_ptr<Renderer> Renderer::create(const Store& store, const RenderOptio
   }
   auto state = std::make_unique<State>();
   state->store = &store;
-  state->options = options;
+  state->use_options(options);
   if (!state->backend.init(options.vertex_budget_bytes / kBytesPerVertex, error) ||
       !state->open_view(error))
     return nullptr;
@@ -346,11 +379,12 @@ bool Renderer::refresh(std::string& error) { return state_->open_view(error); }
 
 void Renderer::set_options(const RenderOptions& options) {
   const uint64_t budget = state_->options.vertex_budget_bytes;
-  state_->options = options;
-  state_->options.vertex_budget_bytes = budget;
+  RenderOptions o = options;
+  o.vertex_budget_bytes = budget;
+  state_->use_options(o);
 }
 
-const RenderOptions& Renderer::options() const { return state_->options; }
+const RenderOptions& Renderer::options() const { return state_->given; }
 const DAabb& Renderer::model_bounds() const { return state_->bounds; }
 const ReadView& Renderer::read_view() const { return *state_->view; }
 

@@ -2,7 +2,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -106,6 +108,110 @@ void report_first_image(std::chrono::steady_clock::time_point t_start) {
   } else {
     std::cerr << "plantview: first image written " << ms_since(t_start) / 1000.0
               << " s after the command started (no process start time in /proc)\n";
+  }
+}
+
+namespace {
+
+CaptionSwatch swatch(Colour c) { return {{{c.r, c.g, c.b}}}; }
+
+std::string number_text(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.6g", v);
+  return s;
+}
+
+}  // namespace
+
+bool add_caption_columns(Image& image, std::string_view title,
+                         const std::vector<CaptionColumn>& columns, std::string& error) {
+  size_t rows = 0;
+  for (const CaptionColumn& c : columns) rows = std::max(rows, c.lines.size());
+  if (columns.size() <= 1) {
+    const CaptionColumn none;
+    const CaptionColumn& c = columns.empty() ? none : columns.front();
+    return add_caption(image, title, c.lines, c.swatches, error);
+  }
+  // The title over the whole width: a caption of the title over empty lines, drawn on a copy,
+  // whose title band (the strip's top down to the first line, image_oiio.cpp's layout) is
+  // copied in once the columns are drawn.
+  Image titled = image;
+  if (!add_caption(titled, title, std::vector<std::string>(rows), error)) return false;
+  uint32_t top = 0;
+  while (top < image.height &&
+         std::equal(image.rgba.begin() + ptrdiff_t(top) * image.width * 4,
+                    image.rgba.begin() + ptrdiff_t(top + 1) * image.width * 4,
+                    titled.rgba.begin() + ptrdiff_t(top) * image.width * 4))
+    ++top;
+  const uint32_t title_px = std::clamp(image.height / 32, 9u, 64u);
+  const uint32_t band_end =
+      std::min(image.height, top + std::max(3u, title_px / 2) + title_px * 5 / 4);
+  // Each column a caption of its own over its part of the width, every one `rows` lines high
+  // (so that their strips line up).
+  const uint32_t n = uint32_t(columns.size());
+  for (uint32_t i = 0; i < n; ++i) {
+    const uint32_t x0 = image.width * i / n, x1 = image.width * (i + 1) / n;
+    Image part;
+    part.width = x1 - x0;
+    part.height = image.height;
+    part.rgba.resize(size_t(part.width) * part.height * 4);
+    for (uint32_t y = 0; y < image.height; ++y)
+      std::copy_n(image.rgba.begin() + (ptrdiff_t(y) * image.width + x0) * 4, size_t(part.width) * 4,
+                  part.rgba.begin() + ptrdiff_t(y) * part.width * 4);
+    std::vector<std::string> lines = columns[i].lines;
+    lines.resize(rows);
+    if (!add_caption(part, std::string_view(), lines, columns[i].swatches, error)) return false;
+    for (uint32_t y = 0; y < image.height; ++y)
+      std::copy_n(part.rgba.begin() + ptrdiff_t(y) * part.width * 4, size_t(part.width) * 4,
+                  image.rgba.begin() + (ptrdiff_t(y) * image.width + x0) * 4);
+  }
+  std::copy(titled.rgba.begin() + ptrdiff_t(top) * image.width * 4,
+            titled.rgba.begin() + ptrdiff_t(band_end) * image.width * 4,
+            image.rgba.begin() + ptrdiff_t(top) * image.width * 4);
+  return true;
+}
+
+void add_legend_columns(const FrameLegend& legend, size_t rows, std::vector<CaptionColumn>& columns,
+                        bool heading) {
+  CaptionColumn all;
+  add_legend_lines(legend, all.lines, all.swatches, heading);
+  rows = std::max<size_t>(rows, 1);
+  for (size_t first = 0; first < all.lines.size(); first += rows) {
+    CaptionColumn& c = columns.emplace_back();
+    const size_t end = std::min(all.lines.size(), first + rows);
+    c.lines.assign(all.lines.begin() + ptrdiff_t(first), all.lines.begin() + ptrdiff_t(end));
+    c.swatches.assign(all.swatches.begin() + ptrdiff_t(first), all.swatches.begin() + ptrdiff_t(end));
+  }
+}
+
+void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
+                      std::vector<CaptionSwatch>& swatches, bool heading) {
+  if (legend.key.empty()) return;
+  swatches.resize(lines.size());
+  if (heading) {
+    lines.push_back("Colour by " + legend.key);
+    swatches.emplace_back();
+  }
+  if (legend.kind == FrameLegend::Kind::ramp) {
+    CaptionSwatch bar;
+    for (const Colour& c : legend.colours) bar.rgb.push_back({c.r, c.g, c.b});
+    const std::string unit = legend.unit.empty() ? "" : " " + legend.unit;
+    lines.push_back(number_text(legend.min) + unit + " to " + number_text(legend.max) + unit +
+                    "  (" + std::to_string(legend.objects) + ")");
+    swatches.push_back(std::move(bar));
+  } else {
+    for (const FrameLegend::Entry& e : legend.entries) {
+      lines.push_back(e.value + "  (" + std::to_string(e.objects) + ")");
+      swatches.push_back(swatch(e.colour));
+    }
+    if (legend.other_objects > 0) {
+      lines.push_back("other values  (" + std::to_string(legend.other_objects) + ")");
+      swatches.push_back(swatch(FrameLegend::kOtherColour));
+    }
+  }
+  if (legend.missing_objects > 0) {
+    lines.push_back("no " + legend.key + "  (" + std::to_string(legend.missing_objects) + ")");
+    swatches.push_back(swatch(FrameLegend::kMissingColour));
   }
 }
 

@@ -112,6 +112,10 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   plan.options.ambient_occlusion = !a.no_ambient_occlusion;
   if (!a.highlight.empty() && !split_highlight(a.highlight, plan.highlight, error))
     return usage_error(error);
+  plan.options.style.colour_by = a.colour_by;
+  if ((!a.hide.empty() && !parse_word_list(a.hide, "--hide", plan.options.style.hide, error)) ||
+      (!a.only.empty() && !parse_word_list(a.only, "--only", plan.options.style.only, error)))
+    return usage_error(error);
   if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
     return usage_error("give one of --camera, --path and --views");
   if (!a.camera.empty()) {
@@ -196,6 +200,14 @@ void add_render_options(CLI::App* render, RenderArgs* args) {
   render->add_option("--bcf", args->bcf,
                      "With --views: a BCF 2.1 file of the views and their images, written once every "
                      "view of the job is rendered");
+  render->add_option("--colour-by", args->colour_by,
+                     "KEY: colour objects by this attribute (categories, or a ramp for numbers "
+                     "with a unit), with a legend strip; with --views it replaces the views' own");
+  render->add_option("--hide", args->hide,
+                     "CLASS|GLOB,...: leave out these classes (equipment, pipeline, pipe, component, "
+                     "structure, other) and objects whose name or Tag matches a glob");
+  render->add_option("--only", args->only,
+                     "CLASS|GLOB,...: show only these classes and objects whose name or Tag matches");
 }
 
 }  // namespace plantview::cli::rendering

@@ -35,6 +35,7 @@ struct RenderArgs {
   std::string bcf;  // with --views: the BCF file written once the job is complete
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
   bool no_ground = false, no_ambient_occlusion = false;
+  std::string colour_by, hide, only;  // view_filters.h: ObjectStyle
 };
 
 // What the command line asks for, typed and checked. Every usage error is found while making it,
@@ -130,6 +131,25 @@ struct RenderSession {
 };
 bool start_rendering(int device, const Store& store, const RenderOptions& options,
                      RenderSession& session, std::string& error);
+// The legend of a frame coloured by an attribute (FrameStats::legend; nothing when its key is
+// empty) appended to caption lines, with their colour keys (swatches aligned to lines):
+// "Colour by KEY", then a line per category with its object count, other values, and the
+// objects without the key; or the ramp's bar with its range and unit. heading false: without
+// the first line (the caller's title says it).
+void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines,
+                      std::vector<CaptionSwatch>& swatches, bool heading = true);
+// A caption in columns side by side (legends beside a view's lines, long legends): each
+// column's lines after their keys (image.h: add_caption with swatches), every column as high
+// as the tallest, the title over the first. One column: add_caption itself.
+struct CaptionColumn {
+  std::vector<std::string> lines;
+  std::vector<CaptionSwatch> swatches;
+};
+bool add_caption_columns(Image& image, std::string_view title,
+                         const std::vector<CaptionColumn>& columns, std::string& error);
+// The legend's lines (add_legend_lines) as columns of `rows` lines each, appended to `columns`.
+void add_legend_columns(const FrameLegend& legend, size_t rows, std::vector<CaptionColumn>& columns,
+                        bool heading = true);
 // Says on stderr how long after the process started the first image was written.
 void report_first_image(std::chrono::steady_clock::time_point t_start);
 

@@ -18,21 +18,32 @@ namespace {
 
 
 // The options one view renders with: its subject highlighted, the rest ghosted (an overview's
-// empty subject highlights nothing).
+// empty subject highlights nothing); its style (view_filters.h), where the command line's
+// --colour-by, --hide and --only replace each part they give.
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
   RenderOptions options = base;
   options.highlight_ids = view.subject;
+  options.style = view.style;
+  if (!base.style.colour_by.empty()) options.style.colour_by = base.style.colour_by;
+  if (!base.style.hide.empty()) options.style.hide = base.style.hide;
+  if (!base.style.only.empty()) options.style.only = base.style.only;
   return options;
 }
 
-// Draws the view's caption strip (review.h: caption_lines) into the image.
-bool add_review_caption(Image& image, const ReviewView& view, std::string& error) {
-  return add_caption(image, view.title, caption_lines(view), error);
+// Draws the view's caption strip (review.h: caption_lines) into the image, with the frame's
+// legend when it is coloured by an attribute.
+bool add_review_caption(Image& image, const ReviewView& view, const FrameStats& stats,
+                        std::string& error) {
+  std::vector<CaptionColumn> columns(1);
+  columns[0].lines = caption_lines(view);
+  // The legend in columns beside the view's lines, as many rows as they have (at least 4).
+  add_legend_columns(stats.legend, std::max<size_t>(4, columns[0].lines.size()), columns);
+  return add_caption_columns(image, view.title, columns, error);
 }
 
 // What, besides the view and the store's content, an image depends on (the settings hash).
 std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
-  const nlohmann::json settings = {
+  nlohmann::json settings = {
       {"program", PLANTVIEW_VERSION},
       {"size", std::to_string(plan.width) + "x" + std::to_string(plan.height)},
       {"format", plan.format == ImageFormat::png ? "png" : "jpeg"},
@@ -49,6 +60,10 @@ std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
       {"ground", plan.options.ground},
       {"ambient_occlusion", plan.options.ambient_occlusion},
       {"caption", true}};
+  if (!plan.options.style.empty())  // (absent otherwise: earlier runs' hashes hold)
+    settings["style"] = {{"colour_by", plan.options.style.colour_by},
+                         {"hide", plan.options.style.hide},
+                         {"only", plan.options.style.only}};
   return settings.dump();
 }
 
@@ -136,7 +151,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       if (n + 1 < to_render.size()) session.renderer->expect(views[to_render[n + 1]].camera);
       bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
       const auto t_caption = std::chrono::steady_clock::now();
-      ok = ok && add_review_caption(image, view, error);
+      ok = ok && add_review_caption(image, view, stats, error);
       const double caption_ms = ms_since(t_caption);
       // Recorded once written (or at once, failed).
       const auto finish_view = [&, n, t_view, caption_ms, record](bool written, const std::string& why,

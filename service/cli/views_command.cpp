@@ -23,6 +23,7 @@ namespace {
 struct ViewsArgs {
   std::string store, per, select, size = "1280x720", out;
   int sides = 1;
+  std::string colour_by, hide, only;  // written into every view (view_filters.h: ObjectStyle)
 };
 
 int fail(const std::string& message) {
@@ -81,6 +82,11 @@ int run_views(const ViewsArgs& a) {
     return usage_error("--size: expected WxH with W and H positive integers, got '" + a.size + "'");
 
   std::string error;
+  ObjectStyle style;
+  style.colour_by = a.colour_by;
+  if ((!a.hide.empty() && !parse_word_list(a.hide, "--hide", style.hide, error)) ||
+      (!a.only.empty() && !parse_word_list(a.only, "--only", style.only, error)))
+    return usage_error(error);
   auto store = Store::open(a.store, Store::Mode::read_only, error);
   if (!store) return fail(error);
   std::vector<ReviewView> views;
@@ -91,6 +97,7 @@ int run_views(const ViewsArgs& a) {
                            [&](double f) { progress.update(f); }))
       return fail(error);
   }
+  for (ReviewView& view : views) view.style = style;
   if (!write_atomically(a.out, review_views_json(views, options.per), error)) return fail(error);
   std::cout << "{\"views\":" << views.size() << ",\"subjects\":" << summary.subjects
             << ",\"moved\":" << summary.moved << ",\"obstructed\":" << summary.obstructed
@@ -115,6 +122,10 @@ Action add_views_command(CLI::App& app) {
   views->add_option("--size", args->size, "The image size WxH the cameras are fitted for")
       ->capture_default_str();
   views->add_option("--out", args->out, "Views JSON file (for render --views)")->required();
+  views->add_option("--colour-by", args->colour_by,
+                    "KEY: every view coloured by this attribute (render --views draws a legend)");
+  views->add_option("--hide", args->hide, "CLASS|GLOB,...: every view leaves these out");
+  views->add_option("--only", args->only, "CLASS|GLOB,...: every view shows only these");
   return [=]() -> int { return views->parsed() ? run_views(*args) : -1; };
 }
 

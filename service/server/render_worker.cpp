@@ -383,6 +383,9 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
                         {"X-Plantview-Jpeg-Quality", std::to_string(r.quality)},
                         {"X-Plantview-Queue", std::to_string(waiting)},
                         {"X-Plantview-Render-Ms", format_ms(r.stats.ms.total)}});
+      // Coloured by an attribute: the frame's legend (FrameLegend::to_json, one line).
+      if (!r.stats.legend.key.empty())
+        r.headers.emplace_back("X-Plantview-Legend", r.stats.legend.to_json());
       break;
     }
   }

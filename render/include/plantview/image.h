@@ -12,6 +12,7 @@
 // Errors: fallible calls return false and fill `error` with what and where (the file, the size).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -70,6 +71,16 @@ bool write_difference_image(const Image& a, const Image& b, const std::string& p
 // /usr/share/fonts/truetype/dejavu), the module cannot be loaded or the image is malformed.
 bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
                  std::string& error);
+// A colour key before a caption line (legends): one colour, a square; several, a bar ramping
+// through them left to right; none, nothing.
+struct CaptionSwatch {
+  std::vector<std::array<uint8_t, 3>> rgb;
+};
+// The same caption, lines[i] after swatches[i] (swatches may be shorter than lines): every line
+// and the title move right by the widest key's room. Lines left out (half the height) leave
+// out their keys too.
+bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
+                 const std::vector<CaptionSwatch>& swatches, std::string& error);
 // How much of a difference a small shift explains: a pixel is explained when a pixel of the
 // other image within shift_px of it (Euclidean, in pixels) has every channel (RGB) within
 // tolerance (0..1) of it; checked both ways (A's pixels in B, B's in A). Shows where a LOD moves

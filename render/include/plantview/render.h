@@ -185,6 +185,32 @@ struct RenderOptions {
   bool operator==(const RenderOptions&) const = default;
 };
 
+// The legend of a frame coloured by an attribute (RenderOptions::style.colour_by; rules in
+// render/src/object_style.h): the values drawn, as categories (a colour each) or a ramp.
+struct FrameLegend {
+  enum class Kind { categories, ramp };
+  std::string key;                // "": no legend (colour_by empty)
+  Kind kind = Kind::categories;
+  struct Entry {
+    std::string value;
+    Colour colour;
+    uint64_t objects = 0;
+  };
+  std::vector<Entry> entries;     // categories, by value text
+  uint64_t other_objects = 0;     // categories beyond the palette, drawn in one colour
+  std::string unit;               // ramp: the values' unit ("" none)
+  double min = 0, max = 0;        // ramp: the values' range
+  std::vector<Colour> colours;    // ramp: its stops, min to max
+  uint64_t objects = 0;           // ramp: objects with a value
+  uint64_t missing_objects = 0;   // objects drawn without the key (neutral grey)
+  static constexpr Colour kMissingColour{200, 200, 200, 255};  // objects without the key
+  static constexpr Colour kOtherColour{96, 96, 96, 255};       // values beyond the palette
+  // {"key": ..., "kind": "categories", "entries": [{"value", "colour": "#rrggbb", "objects"}],
+  //  "other_objects": N, "missing_objects": N} or {"key", "kind": "ramp", "unit", "min",
+  //  "max", "colours": [5 stops], "objects", "missing_objects"}; one line.
+  std::string to_json() const;
+};
+
 struct FrameStats {
   uint64_t objects_visible = 0, objects_culled = 0;  // culled: outside the frustum
   uint64_t objects_occluded = 0;  // in the frustum but hidden behind occluders (not drawn)
@@ -238,7 +264,11 @@ struct FrameStats {
            arena_growth = 0, cpu = 0, draw = 0, ahead = 0, read_back = 0,
            encode = 0, total = 0;
   } ms;
-  // One JSON object (one line): the fields above, times under "ms".
+  // RenderOptions::style: objects in view left out by hide/only (neither tessellated nor
+  // drawn), and the legend when colour_by is set (key empty otherwise).
+  uint64_t objects_hidden = 0;
+  FrameLegend legend;
+  // One JSON object (one line): the fields above, times under "ms"; "legend" only when set.
   std::string to_json() const;
 };
 

@@ -318,4 +318,74 @@ bool add_caption(Image& image, std::string_view title, const std::vector<std::st
   return true;
 }
 
+bool add_caption(Image& image, std::string_view title, const std::vector<std::string>& lines,
+                 const std::vector<CaptionSwatch>& swatches, std::string& error) {
+  bool any = false, bars = false;
+  for (size_t i = 0; i < swatches.size() && i < lines.size(); ++i) {
+    any |= !swatches[i].rgb.empty();
+    bars |= swatches[i].rgb.size() > 1;
+  }
+  if (!any) return add_caption(image, title, lines, error);
+  if (!check_image(image, error)) return false;
+  // The strip's layout, as the image module lays it out (image_oiio.cpp: caption_rgba; the
+  // caption tests check that the keys land on their lines).
+  const int height = int(image.height), width = int(image.width);
+  const int title_px = std::clamp(height / 32, 9, 64);
+  const int line_px = std::max(8, title_px * 4 / 5);
+  const int pad_px = std::max(3, title_px / 2);
+  const int title_step = title_px * 5 / 4, line_step = line_px * 5 / 4;
+  const int room = height / 2 - 2 * pad_px - title_step;
+  const int key_px = line_px * 3 / 4;                    // a square's side, a bar's height
+  const int bar_px = 4 * line_px;                        // a bar's length
+  const int indent = pad_px + (bars ? bar_px : key_px);  // the keys' room, left of the text
+  if (room < 0 || indent + 4 * pad_px >= width) return add_caption(image, title, lines, error);
+  const size_t shown = std::min(lines.size(), size_t(room / line_step));
+  const int strip_px = 2 * pad_px + title_step + int(shown) * line_step;
+  const int top = height - strip_px;
+  // The caption drawn into the image right of the keys' room, then that room made a strip too.
+  Image right;
+  right.width = uint32_t(width - indent);
+  right.height = image.height;
+  right.rgba.resize(size_t(right.width) * right.height * 4);
+  for (int y = 0; y < height; ++y)
+    std::copy_n(image.rgba.begin() + (ptrdiff_t(y) * width + indent) * 4, size_t(right.width) * 4,
+                right.rgba.begin() + ptrdiff_t(y) * right.width * 4);
+  if (!add_caption(right, title, lines, error)) return false;
+  for (int y = 0; y < height; ++y)
+    std::copy_n(right.rgba.begin() + ptrdiff_t(y) * right.width * 4, size_t(right.width) * 4,
+                image.rgba.begin() + (ptrdiff_t(y) * width + indent) * 4);
+  for (int y = top; y < height; ++y) {
+    uint8_t* row = image.rgba.data() + size_t(y) * size_t(width) * 4;
+    for (int x = 0; x < indent; ++x) {
+      for (int c = 0; c < 3; ++c)
+        row[x * 4 + c] = y == top ? uint8_t(90) : uint8_t((row[x * 4 + c] * 12 + 248 * 88) / 100);
+      row[x * 4 + 3] = 255;
+    }
+  }
+  // Each key on its line: from the text's cap height down to its baseline.
+  int baseline = top + pad_px + title_px + title_step - title_px + line_px;
+  for (size_t i = 0; i < shown; ++i, baseline += line_step) {
+    if (i >= swatches.size() || swatches[i].rgb.empty()) continue;
+    const auto& rgb = swatches[i].rgb;
+    const int length = rgb.size() > 1 ? bar_px - pad_px / 2 : key_px;
+    for (int y = std::max(0, baseline - key_px); y < std::min(height, baseline); ++y) {
+      uint8_t* row = image.rgba.data() + size_t(y) * size_t(width) * 4;
+      for (int x = 0; x < length; ++x) {
+        uint8_t* p = row + size_t(pad_px + x) * 4;
+        if (rgb.size() == 1) {
+          std::copy_n(rgb[0].begin(), 3, p);
+        } else {
+          const double t = double(x) / std::max(1, length - 1) * double(rgb.size() - 1);
+          const size_t k = std::min(size_t(t), rgb.size() - 2);
+          const double f = t - double(k);
+          for (int c = 0; c < 3; ++c)
+            p[c] = uint8_t(std::lround(rgb[k][c] + (double(rgb[k + 1][c]) - rgb[k][c]) * f));
+        }
+        p[3] = 255;
+      }
+    }
+  }
+  return true;
+}
+
 }  // namespace plantview

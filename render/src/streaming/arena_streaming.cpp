@@ -53,6 +53,10 @@ void ObjectTable::set(uint32_t entry, const glm::dvec3& offset_m, const glm::vec
   e.pick = uint32_t(pick_ids_.size()) | tie << (32 - kTieBits);
 }
 
+Colour ArenaStreaming::colour_of(const Known& k) const {
+  return colouring_ ? colouring_->colour(k.style_value, k.colour) : k.colour;
+}
+
 // --- residency ----------------------------------------------------------------------------------
 
 void ArenaStreaming::reset(uint64_t budget_vertices, bool drop_primitives) {
@@ -323,7 +327,7 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
       stats.budget_proxies += 1;
       add_box(view.spatial_origin_m + glm::dvec3(v.min[0], v.min[1], v.min[2]) - view.eye_m,
               glm::vec3(v.max[0] - v.min[0], v.max[1] - v.min[1], v.max[2] - v.min[2]),
-              d.known->colour, d.known->id, stats);
+              colour_of(*d.known), d.known->id, stats);
     }
   }
   // Node boxes nearest first, as the objects are drawn: a far field of thousands of boxes
@@ -386,7 +390,7 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   d.drawn = true;
   d.arena_first = k.arena_offset;
   d.segment_first = uint32_t(segments_.size());
-  table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), k.colour, k.id,
+  table_.set(k.table, k.origin_m - view.eye_m, glm::vec3(1.0f), colour_of(k), k.id,
              tie_of(k.order_key));
   if (d.centreline) {
     stats.centreline_pipes += 1;

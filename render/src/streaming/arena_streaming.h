@@ -51,6 +51,7 @@ struct FrameView;
 struct Known;
 class DecodedObjects;
 class FramePlan;
+class FrameColouring;
 
 // The per-frame object table the vertex shader reads, and the frame's pick ids (the value a
 // pixel's pick p stands for is pick_ids[p - 1]).
@@ -103,6 +104,9 @@ class ArenaStreaming {
   // written by flush_uploads(), which the renderer calls before it draws again. The residency,
   // the object table and the Knowns change as if written.
   void defer_uploads(bool on) { deferring_ = on; }
+  // The colours stream() writes into the object table: by colour-by value (object_style.h),
+  // or (null) the objects' own. It must outlive the stream() calls it is set for.
+  void colour_by(const FrameColouring* colouring) { colouring_ = colouring; }
   void flush_uploads();
 
   const Residency& residency() const { return residency_; }
@@ -184,6 +188,8 @@ class ArenaStreaming {
   WorkerPool& pool_;
   Residency residency_{0};
   ObjectTable table_;
+  const FrameColouring* colouring_ = nullptr;
+  Colour colour_of(const Known& k) const;
   bool drop_primitives_ = false;
   std::unordered_map<CompactionKey, Compaction, CompactionKeyHash> compactions_;  // few
   IndexCounts counts_{};
