@@ -17,10 +17,11 @@ namespace {
 
 
 // The options one view renders with: its subject highlighted, the rest ghosted (an overview's
-// empty subject highlights nothing).
+// empty subject highlights nothing); its section where it has one, else the command line's.
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
   RenderOptions options = base;
   options.highlight_ids = view.subject;
+  if (!view.section.empty()) options.section = view.section;
   return options;
 }
 
@@ -48,7 +49,18 @@ std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
       {"ground", plan.options.ground},
       {"ambient_occlusion", plan.options.ambient_occlusion},
       {"caption", true}};
-  return settings.dump();
+  if (plan.options.section.empty()) return settings.dump();
+  // The command line's section (each view's own is in the view's text, hashed with it).
+  nlohmann::json with_section = settings;
+  nlohmann::json planes = nlohmann::json::array();
+  for (const ClipPlane& p : plan.options.section.planes)
+    planes.push_back({p.point_m.x, p.point_m.y, p.point_m.z, p.normal.x, p.normal.y, p.normal.z});
+  with_section["section"] = {{"planes", planes}, {"capped", plan.options.section.capped}};
+  if (plan.options.section.has_box) {
+    const DAabb& b = plan.options.section.box;
+    with_section["section"]["box"] = {b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z};
+  }
+  return with_section.dump();
 }
 
 nlohmann::json vec3_json(const glm::dvec3& v) { return {v.x, v.y, v.z}; }

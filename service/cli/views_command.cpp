@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -21,7 +22,8 @@ namespace plantview::cli {
 namespace {
 
 struct ViewsArgs {
-  std::string store, per, select, size = "1280x720", out;
+  std::string store, per, select, size = "1280x720", out, section = "none";
+  double section_margin_m = 1.0;
   int sides = 1;
 };
 
@@ -79,6 +81,13 @@ int run_views(const ViewsArgs& a) {
   options.sides = a.sides;
   if (!parse_aspect(a.size, options.aspect))
     return usage_error("--size: expected WxH with W and H positive integers, got '" + a.size + "'");
+  if (a.section != "none" && a.section != "subject")
+    return usage_error("--section: '" + a.section + "' is not one of none, subject");
+  if (!(a.section_margin_m >= 0) || !std::isfinite(a.section_margin_m))
+    return usage_error("--section-margin: expected metres >= 0, got " +
+                       std::to_string(a.section_margin_m));
+  options.section = a.section;
+  options.section_margin_m = a.section_margin_m;
 
   std::string error;
   auto store = Store::open(a.store, Store::Mode::read_only, error);
@@ -115,6 +124,13 @@ Action add_views_command(CLI::App& app) {
   views->add_option("--size", args->size, "The image size WxH the cameras are fitted for")
       ->capture_default_str();
   views->add_option("--out", args->out, "Views JSON file (for render --views)")->required();
+  views->add_option("--section", args->section,
+                    "none, or subject: each view (not the overview) cut to a box around its "
+                    "subject, grown by --section-margin")
+      ->capture_default_str();
+  views->add_option("--section-margin", args->section_margin_m,
+                    "Metres the subject's section box reaches beyond it")
+      ->capture_default_str();
   return [=]() -> int { return views->parsed() ? run_views(*args) : -1; };
 }
 

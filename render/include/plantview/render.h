@@ -188,6 +188,8 @@ struct RenderOptions {
 struct FrameStats {
   uint64_t objects_visible = 0, objects_culled = 0;  // culled: outside the frustum
   uint64_t objects_occluded = 0;  // in the frustum but hidden behind occluders (not drawn)
+  uint64_t objects_clipped = 0;   // in the frustum but wholly removed by the section
+                                  // (RenderOptions::section): neither decoded nor drawn
   uint64_t nodes_occluded = 0;    // tree leaves and node boxes found hidden as a whole
   uint64_t occluders = 0;         // drawn frames: objects drawn in occlusion's first phase
                                   // (last frame's and the largest); statistics(): objects

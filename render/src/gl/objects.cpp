@@ -78,6 +78,7 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
     draw_lists(counts, proxy_tables.size(), 2, kSeeThroughAlpha, with_ids);
     glDisable(GL_STENCIL_TEST);
   }
+  set_clipping(false);
   if (wait) glFinish();
 }
 
@@ -110,9 +111,12 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                         glm::mat3(glm::vec3(view.aspect / view.focal, 0, 0),
                                   glm::vec3(0, 1.0f / view.focal, 0), glm::vec3(0, 0, 1));
   const float focal_px = float(view.focal_px * plan.scale);
-  const GLuint centreline = gl_program(ProgramId::centreline);
+  const GLuint centreline = gl_program(ProgramId::centreline), cap = gl_program(ProgramId::cap);
   for (const GLuint program : {gl_program(ProgramId::surface), gl_program(ProgramId::proxy),
-                               centreline, gl_program(ProgramId::ground)}) {
+                               centreline, gl_program(ProgramId::ground), cap}) {
+    glProgramUniform1i(program, at(program, "u_clip_count"), clip_count_);
+    if (clip_count_)
+      glProgramUniform4fv(program, at(program, "u_clip"), clip_count_, glm::value_ptr(clip_[0]));
     glProgramUniformMatrix4fv(program, at(program, "u_view_projection"), 1, GL_FALSE,
                               glm::value_ptr(view.view_projection));
     glProgramUniform3fv(program, at(program, "u_key"), 1, glm::value_ptr(key));
@@ -122,6 +126,8 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
   glProgramUniform2f(centreline, at(centreline, "u_viewport"), float(w), float(h));
   glProgramUniform1f(centreline, at(centreline, "u_focal_px"), focal_px);
   glProgramUniform1f(centreline, at(centreline, "u_near"), float(kNearPlaneM));
+  glProgramUniform1f(cap, at(cap, "u_near"), float(kNearPlaneM));
+  set_clipping(true);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer_);
 }
 
@@ -143,6 +149,47 @@ void GlBackend::draw_triangles(size_t first, size_t count) const {
   if (previous) glDeleteSync(previous);
 }
 
+void GlBackend::draw_caps(size_t n_closed, int mode) {
+  // Highlight modes (gl/shaders/object_table.glsl): the context (2) is drawn only where the
+  // subject (stencil bit 0) is not, and the subject's caps mark its pixels like its surfaces.
+  const GLuint not_subject = mode == 2 ? 1u : 0u, subject = mode == 1 ? 1u : 0u;
+  glEnable(GL_STENCIL_TEST);
+  glEnable(GL_CULL_FACE);
+  glCullFace(GL_FRONT);
+  // 1. Back faces seen (at their own depth, nothing drawn in front): marked, nothing written.
+  glStencilFunc(GL_EQUAL, GLint(kCapStencilBit), not_subject);
+  glStencilMask(kCapStencilBit);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  glDepthMask(GL_FALSE);
+  draw_triangles(0, n_closed);
+  // 2. The caps where marked, moved onto the cut.
+  glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  glDepthMask(GL_TRUE);
+  glStencilFunc(GL_EQUAL, GLint(kCapStencilBit | subject), kCapStencilBit | not_subject);
+  glStencilMask(subject);
+  glUseProgram(gl_program(ProgramId::cap));
+  draw_triangles(0, n_closed);
+  glUseProgram(gl_program(ProgramId::surface));
+  glCullFace(GL_BACK);
+  glDisable(GL_CULL_FACE);
+  // The marks cleared (masked: bit 0 is the highlight's).
+  glStencilMask(kCapStencilBit);
+  const GLint zero = 0;
+  glClearNamedFramebufferiv(scene_.framebuffer, GL_STENCIL, 0, &zero);
+  glStencilMask(0xff);
+  // The highlight's stencil state back (draw_phase).
+  if (mode == 0) {
+    glDisable(GL_STENCIL_TEST);
+  } else if (mode == 1) {
+    glStencilFunc(GL_ALWAYS, 1, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  } else {
+    glStencilFunc(GL_EQUAL, 0, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+  }
+}
+
 void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                            bool with_ids) {
   const size_t n_closed = counts[kClosed], n_open = counts[kOpen];
@@ -151,7 +198,7 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   const bool see_through = alpha < 1.0f;
   const GLuint surface = gl_program(ProgramId::surface), proxy = gl_program(ProgramId::proxy),
                centreline = gl_program(ProgramId::centreline);
-  for (const GLuint program : {surface, proxy, centreline}) {
+  for (const GLuint program : {surface, proxy, centreline, gl_program(ProgramId::cap)}) {
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
   }
@@ -171,6 +218,7 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     glEnable(GL_CULL_FACE);
     draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
+    if (caps_ && !see_through) draw_caps(n_closed, mode);
   }
   if (n_open) draw_triangles(n_closed, n_open);
   if (proxies) {

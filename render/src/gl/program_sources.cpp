@@ -66,20 +66,25 @@ ProgramSource program_source(ProgramId id) {
   switch (id) {
     case ProgramId::surface:
       return {"surface",
-              {shader(vertex, {&kTieConstants, &kObjectTable, &kSurfaceVert}),
+              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kSurfaceVert}),
                shader(fragment, {&kSurfaceFrag}), shader(fragment, {&kLighting})}};
+    case ProgramId::cap:
+      return {"cap",
+              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kSurfaceVert}),
+               shader(fragment, {&kCapFrag}), shader(fragment, {&kLighting})}};
     case ProgramId::proxy:
       return {"proxy",
-              {shader(vertex, {&kTieConstants, &kObjectTable, &kProxyVert}),
+              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kProxyVert}),
                shader(vertex, {&kBoxFace}), shader(fragment, {&kSurfaceFrag}),
                shader(fragment, {&kLighting})}};
     case ProgramId::centreline:
       return {"centreline",
               {shader(vertex, {&kTieConstants, &kObjectTable, &kCentrelineVert}),
-               shader(geometry, {&kCentrelineGeom}), shader(fragment, {&kCentrelineFrag}),
+               shader(geometry, {&kSectionClip, &kCentrelineGeom}),
+               shader(fragment, {&kCentrelineFrag}),
                shader(fragment, {&kLighting})}};
     case ProgramId::ground:
-      return {"ground", {shader(vertex, {&kTieConstants, &kGroundVert}),
+      return {"ground", {shader(vertex, {&kTieConstants, &kSectionClip, &kGroundVert}),
                          shader(fragment, {&kGroundFrag})}};
     case ProgramId::ambient_occlusion:
       return {"ambient occlusion", {shader(vertex, {&kFullScreenVert}),
