@@ -597,6 +597,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
           Known& rk = objects.know_run(r);
           rk.last_seen = frame;
           Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
+          draw.cut = !options.section.empty() && !section_keeps_all(options.section, run.bounds);
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);
           stats.hlod_merges += 1;
@@ -608,6 +609,14 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
       }
     }
     Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m, k->order_key});
+    if (!options.section.empty()) {
+      DAabb bounds;
+      for (int a = 0; a < 3; ++a) {
+        bounds.min[a] = frame_view.spatial_origin_m[a] + double(v.min[a]);
+        bounds.max[a] = frame_view.spatial_origin_m[a] + double(v.max[a]);
+      }
+      draw.cut = !section_keeps_all(options.section, bounds);
+    }
     choose_level(*k, options, v.distance_m, v.px_per_m, v.extent_m(), draw.level, draw.centreline);
   }
 }

@@ -144,6 +144,7 @@ struct Draw {
   double distance_m = 0;           // from the eye to the nearest point of its bounds
   uint32_t order_key = 0;          // Known::order_key: breaks draw-order ties
   bool drawn = false;              // resident this frame (else a proxy box or nothing)
+  bool cut = false;                // the section cuts its bounds (its closed solids capped)
   uint32_t arena_first = 0;        // the object's first vertex in the arena, once drawn
   // Filled by streaming for drawn ones: its index ranges, [segment_first, + segment_count) of
   // the frame's segment list (arena_streaming.h), so that writing the indices reads no Known.

@@ -51,14 +51,16 @@
 //     ground (section_clip.glsl): at most kMaxClipHalfSpaces, the rest of a box's faces
 //     (three planes or more and a box cutting the model on every side) only cull whole
 //     objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
-//     (Section::capped), right after the closed solids of each opaque draw: their back faces
-//     are drawn once more with no colour or depth written, marking in the stencil (bit
-//     kCapStencilBit) the pixels where one is seen, which happens only where a solid is cut
-//     open; then again through the cap program where marked, each fragment moved onto the cut
-//     (cap.frag.glsl). The cap's depth, colour and id are written like a surface's. Where a
-//     non-convex solid's cut leaves air between the cut plane and a face behind it, the cap
-//     covers that too (stencil capping by parity would not); the closed list is drawn three
-//     times where caps are on (vertex work), the cap pass's fragments test depth late.
+//     (Section::capped): the closed solids of the objects the section cuts (kClosedCut) are
+//     drawn after the other closed solids with both sides, a front face that passes the depth
+//     test clearing stencil bit kCapStencilBit and a back face setting it: at the end it is
+//     set where a back face is seen, which happens only where a solid is cut open. Their back
+//     faces are then drawn again through the cap program where marked, each fragment moved
+//     onto the cut (cap.frag.glsl), and the marks cleared. The cap's depth, colour and id are
+//     written like a surface's. Where a non-convex solid's cut leaves air between the cut
+//     plane and a face behind it, the cap covers that too (stencil capping by parity would
+//     not). Cost: the cut objects' back faces rasterised, their vertices twice, the cap pass's
+//     fragments tested late (it writes gl_FragDepth) where the stencil lets them.
 // Units: arena offsets and sizes in vertices; buffer capacities in bytes; pixels; metres.
 // Threads: the thread whose GL context was current at init(), which must stay current for
 //   every call and for the destructor.
@@ -121,8 +123,9 @@ int section_half_spaces(const Section& section, const glm::dvec3& eye_m, const D
 
 using GlName = uint32_t;  // a GLuint: the name of a GL object (0: none)
 
-// The frame's index lists, in this order in the index buffer.
-enum IndexList : uint8_t { kClosed, kOpen, kTransparent, kLines, kIndexListCount };
+// The frame's index lists, in this order in the index buffer. kClosedCut: the closed solids of
+// objects the section cuts (Draw::cut; capped, see the rules above).
+enum IndexList : uint8_t { kClosed, kClosedCut, kOpen, kTransparent, kLines, kIndexListCount };
 using IndexCounts = std::array<size_t, kIndexListCount>;
 
 // How a frame looks: RenderOptions' look, and the model's bounds for the ground.
@@ -259,9 +262,9 @@ class GlBackend {
   // ahead, so that at most two are held. Measured (llvmpipe, 2 cores, render --path): peak
   // resident memory about 100 MB lower, drawing 5-9% slower, images identical.
   void draw_triangles(size_t first, size_t count) const;
-  // The caps of the closed solids just drawn (the first n_closed indices), in highlight mode
+  // The cut closed solids (`count` indices from `first`) with their caps, in highlight mode
   // `mode` (see the rules above).
-  void draw_caps(size_t n_closed, int mode);
+  void draw_cut_capped(size_t first, size_t count, int mode);
   // Enables the section's clip distances (begin_pass) or disables them (passes that do not
   // write them).
   void set_clipping(bool on) const;

@@ -68,10 +68,8 @@ ProgramSource program_source(ProgramId id) {
       return {"surface",
               {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kSurfaceVert}),
                shader(fragment, {&kSurfaceFrag}), shader(fragment, {&kLighting})}};
-    case ProgramId::cap:
-      return {"cap",
-              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kSurfaceVert}),
-               shader(fragment, {&kCapFrag}), shader(fragment, {&kLighting})}};
+    case ProgramId::cap_plane:
+      return {"cap plane", {shader(vertex, {&kCapPlaneVert}), shader(fragment, {&kCapPlaneFrag})}};
     case ProgramId::proxy:
       return {"proxy",
               {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kProxyVert}),

@@ -6,7 +6,8 @@
 //
 // Programs
 //   - surface: every triangle of the objects, lit per fragment;
-//   - cap: the cut faces of closed solids a section cuts open (gl/shaders/cap.frag.glsl);
+//   - cap plane: a square on a cutting plane, moving the depth of caps onto the cut
+//     (gl/backend.h: sections);
 //   - proxy: the faces the eye sees of each proxy box, lit as surfaces;
 //   - centreline: pipes drawn as their centreline, expanded by a geometry shader into a
 //     screen-aligned quad as wide as the pipe's projected diameter;
@@ -61,7 +62,7 @@ struct ProgramSource {
 // The programs the backend links at init, in that order.
 enum class ProgramId : uint8_t {
   surface,
-  cap,
+  cap_plane,
   proxy,
   centreline,
   ground,
