@@ -1,6 +1,7 @@
 // `plantview views --store DIR --per overview|equipment|pipeline|area [--select GLOB]
-// [--sides 1|4] [--size WxH] --out VIEWS.json`: named, fitted review views of a store's
-// subjects (review.h: make_review_views), for `render --views`.
+// [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
+// named, fitted review views of a store's subjects (review.h: make_review_views), for
+// `render --views`.
 #include <unistd.h>
 
 #include <charconv>
