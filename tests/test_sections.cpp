@@ -308,21 +308,47 @@ TEST(SectionViews, AWalledInSubjectIsCutOpenAndShowsItsColour) {
 
 struct Outcome {
   int status = -1;
-  std::string err;
+  std::string out, err;
 };
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
 Outcome run(const std::string& args) {
   TempDir dir;
   fs::create_directories(dir.str());
-  const fs::path err = fs::path(dir.str()) / "stderr";
-  const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >/dev/null 2>" + err.string();
+  const fs::path out = fs::path(dir.str()) / "stdout", err = fs::path(dir.str()) / "stderr";
+  const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out.string() + " 2>" +
+                          err.string();
   const int raw = std::system(cmd.c_str());
   Outcome o;
   o.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  std::ifstream in(err);
-  std::stringstream s;
-  s << in.rdbuf();
-  o.err = s.str();
+  o.out = slurp(out);
+  o.err = slurp(err);
   return o;
+}
+// The last "objects": N of an export's summary line.
+uint64_t objects_written(const std::string& summary) {
+  const size_t at = summary.rfind("\"objects\":");
+  return at == std::string::npos ? 0 : std::stoull(summary.substr(at + 10));
+}
+
+// glTF export leaves out what the section removes wholly, and keeps what it cuts.
+TEST(SectionCli, ExportLeavesOutWhatTheSectionRemoves) {
+  TempDir dir;
+  fs::create_directories(dir.str());
+  const std::string store = dir.str() + "/a";
+  ASSERT_EQ(run("gen --preset a --store " + store).status, 0);
+  const Outcome all = run("export --store " + store + " --gltf " + dir.str() + "/all.glb");
+  ASSERT_EQ(all.status, 0) << all.err;
+  const Outcome slab = run("export --store " + store + " --gltf " + dir.str() +
+                           "/slab.glb --clip 0,0,3,0,0,1 --clip=0,0,1,0,0,-1");
+  ASSERT_EQ(slab.status, 0) << slab.err;
+  const uint64_t n_all = objects_written(all.out), n_slab = objects_written(slab.out);
+  EXPECT_GT(n_slab, 0u);
+  EXPECT_LT(n_slab, n_all);
 }
 
 TEST(SectionCli, UsageErrorsExitTwoNamingTheOption) {
