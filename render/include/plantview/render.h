@@ -173,7 +173,8 @@ struct RenderOptions {
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
   // Clip planes and a section box (view_filters.h): what they remove is neither decoded,
-  // tessellated, drawn nor picked; cut closed solids are capped.
+  // tessellated, drawn nor picked (culled whole where its bounds are removed, else clipped on
+  // the GPU); cut closed solids are capped (docs/sections.md).
   Section section;
   // Colour by an attribute, hide, show only (view_filters.h).
   ObjectStyle style;
