@@ -145,7 +145,8 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
   if (software_) keep_freed_heap_memory();
 
   for (size_t i = 0; i < kProgramCount; ++i)
-    if (!(programs_[i] = link(program_source(ProgramId(i)), error))) return false;
+    if (i < kProgramsAtInit && !(programs_[i] = link(program_source(ProgramId(i)), error)))
+      return false;
 
   glCreateBuffers(1, &index_buffers_[0]);
   glCreateBuffers(1, &index_buffers_[1]);
@@ -196,6 +197,8 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
                     ? section_half_spaces(*look.section, view.eye_m, look.model_bounds, clip_)
                     : 0;
   caps_ = clip_count_ > 0 && look.section->capped;
+  for (size_t i = kProgramsAtInit; clip_count_ > 0 && i < kProgramCount; ++i)
+    if (!programs_[i] && !(programs_[i] = link(program_source(ProgramId(i)), error))) return false;
   // Stencil once a frame highlights (the subject's pixels are marked in it), kept for the frames
   // after; the resolved depth has the scene's format (a blit copies it).
   const bool stencil = scene_.has_stencil || !look.highlight_ids.empty() || caps_;

@@ -296,6 +296,11 @@ class GlBackend {
   bool bounded_drawing_ = false;
   std::array<GlName, kProgramCount> programs_{};  // linked at init(), by ProgramId
   GlName gl_program(ProgramId id) const { return programs_[size_t(id)]; }
+  // Surface, proxy, centreline or ground as this frame draws with it: the section variant
+  // when the frame has a section.
+  GlName drawing_program(ProgramId id) const {
+    return gl_program(clip_count_ > 0 ? sections_variant(id) : id);
+  }
   GlName box_buffer_ = 0, seen_buffer_ = 0;
   size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
   GlName vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0, table_buffer_ = 0,

@@ -112,12 +112,13 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                         glm::mat3(glm::vec3(view.aspect / view.focal, 0, 0),
                                   glm::vec3(0, 1.0f / view.focal, 0), glm::vec3(0, 0, 1));
   const float focal_px = float(view.focal_px * plan.scale);
-  const GLuint centreline = gl_program(ProgramId::centreline);
+  const GLuint centreline = drawing_program(ProgramId::centreline);
   glProgramUniformMatrix4fv(gl_program(ProgramId::cap_plane),
                             at(gl_program(ProgramId::cap_plane), "u_view_projection"), 1, GL_FALSE,
                             glm::value_ptr(view.view_projection));
-  for (const GLuint program : {gl_program(ProgramId::surface), gl_program(ProgramId::proxy),
-                               centreline, gl_program(ProgramId::ground)}) {
+  for (const GLuint program :
+       {drawing_program(ProgramId::surface), drawing_program(ProgramId::proxy), centreline,
+        drawing_program(ProgramId::ground)}) {
     glProgramUniform1i(program, at(program, "u_clip_count"), clip_count_);
     if (clip_count_)
       glProgramUniform4fv(program, at(program, "u_clip"), clip_count_, glm::value_ptr(clip_[0]));
@@ -157,7 +158,7 @@ void GlBackend::draw_cut_capped(size_t first, size_t count, int mode) {
   // subject (stencil bit 0) is not; the subject (1) marks its pixels in bit 0.
   const GLuint not_subject = mode == 2 ? 1u : 0u, subject = mode == 1 ? 1u : 0u;
   const GLenum test = mode == 2 ? GL_EQUAL : GL_ALWAYS;
-  const GLuint surface = gl_program(ProgramId::surface);
+  const GLuint surface = drawing_program(ProgramId::surface);
   glEnable(GL_STENCIL_TEST);
   // 1. Both sides, back faces shaded as caps: a front face drawn clears the mark, a back face
   //    sets it.
@@ -227,8 +228,9 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   const size_t n_opaque = n_closed + n_cut + n_open, n_transparent = counts[kTransparent],
                n_lines = counts[kLines];
   const bool see_through = alpha < 1.0f;
-  const GLuint surface = gl_program(ProgramId::surface), proxy = gl_program(ProgramId::proxy),
-               centreline = gl_program(ProgramId::centreline);
+  const GLuint surface = drawing_program(ProgramId::surface),
+               proxy = drawing_program(ProgramId::proxy),
+               centreline = drawing_program(ProgramId::centreline);
   for (const GLuint program : {surface, proxy, centreline}) {
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
