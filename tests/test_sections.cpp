@@ -243,6 +243,25 @@ TEST_F(Caps, UncappedTheInsideShowsNothingAndNothingIsPickedWhereClipped) {
   for (const uint64_t id : image.object_ids) EXPECT_NE(id, objects_[1].id);
 }
 
+// A section box holding the whole model cuts nothing: the frame is the one without a section
+// (the plain programs draw it: no face of the box cuts the model).
+TEST_F(Caps, ABoxAroundEverythingChangesNothing) {
+  RenderOptions options;
+  std::string error;
+  auto r = Renderer::create(*store_, options, error);
+  ASSERT_TRUE(r) << error;
+  Image plain, boxed;
+  FrameStats stats;
+  ASSERT_TRUE(render(*r, camera_, kSide, kSide, plain, stats));
+  options.section.has_box = true;
+  options.section.box = {{90, 190, -5}, {110, 210, 20}};
+  r->set_options(options);
+  ASSERT_TRUE(render(*r, camera_, kSide, kSide, boxed, stats));
+  EXPECT_EQ(stats.objects_clipped, 0u);
+  EXPECT_TRUE(plain.rgba == boxed.rgba);
+  EXPECT_TRUE(plain.object_ids == boxed.object_ids);
+}
+
 // ---- views --section subject
 
 TEST(SectionViews, AWalledInSubjectIsCutOpenAndShowsItsColour) {

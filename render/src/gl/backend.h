@@ -48,7 +48,8 @@
 //   - Sections (Look::section): its planes, then the faces of its box that cut the model, as
 //     camera-relative half-spaces (offsets computed in double precision from the eye), are
 //     clipped per vertex by gl_ClipDistance in every program that draws the model and the
-//     ground (section_clip.glsl): at most kMaxClipHalfSpaces, the rest of a box's faces
+//     ground (section_clip.glsl; the closed solids of objects it does not cut, kClosed, are
+//     drawn unclipped by the plain surface program): at most kMaxClipHalfSpaces, the rest of a box's faces
 //     (three planes or more and a box cutting the model on every side) only cull whole
 //     objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
 //     (Section::capped): the closed solids of the objects the section cuts (kClosedCut) are

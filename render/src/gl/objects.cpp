@@ -118,7 +118,7 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                             glm::value_ptr(view.view_projection));
   for (const GLuint program :
        {drawing_program(ProgramId::surface), drawing_program(ProgramId::proxy), centreline,
-        drawing_program(ProgramId::ground)}) {
+        drawing_program(ProgramId::ground), gl_program(ProgramId::surface)}) {
     glProgramUniform1i(program, at(program, "u_clip_count"), clip_count_);
     if (clip_count_)
       glProgramUniform4fv(program, at(program, "u_clip"), clip_count_, glm::value_ptr(clip_[0]));
@@ -231,7 +231,9 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   const GLuint surface = drawing_program(ProgramId::surface),
                proxy = drawing_program(ProgramId::proxy),
                centreline = drawing_program(ProgramId::centreline);
-  for (const GLuint program : {surface, proxy, centreline}) {
+  // The closed solids the section does not cut need no clipping: the plain program (cheaper).
+  const GLuint plain = gl_program(ProgramId::surface);
+  for (const GLuint program : {surface, proxy, centreline, plain}) {
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
   }
@@ -244,14 +246,17 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   } else {
     glDisablei(GL_BLEND, 0);
   }
-  glUseProgram(surface);
   glBindVertexArray(vao_);
   if (n_closed) {
     // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
+    glUseProgram(plain);
+    if (plain != surface) set_clipping(false);  // (it writes no clip distance)
     glEnable(GL_CULL_FACE);
     draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
+    if (plain != surface) set_clipping(true);
   }
+  glUseProgram(surface);
   if (n_cut && caps_ && !see_through) {
     draw_cut_capped(n_closed, n_cut, mode);
   } else if (n_cut) {
