@@ -49,9 +49,9 @@
 //     camera-relative half-spaces (offsets computed in double precision from the eye), are
 //     clipped per vertex by gl_ClipDistance in every program that draws the model and the
 //     ground (section_clip.glsl; the closed solids of objects it does not cut, kClosed, are
-//     drawn unclipped by the plain surface program): at most kMaxClipHalfSpaces, the rest of a box's faces
-//     (three planes or more and a box cutting the model on every side) only cull whole
-//     objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
+//     drawn unclipped by the plain surface program): at most kMaxClipHalfSpaces, the rest of
+//     a box's faces (three planes or more and a box cutting the model on every side) only
+//     cull whole objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
 //     (Section::capped): the closed solids of the objects the section cuts (kClosedCut) are
 //     drawn after the other closed solids with both sides, a front face that passes the depth
 //     test clearing stencil bit kCapStencilBit and a back face setting it: at the end it is
