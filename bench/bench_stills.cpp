@@ -3,11 +3,12 @@
 // extras off (an interactive frame), antialiasing by each method, ambient occlusion, the
 // ground, everything together (the still's defaults), and a highlight.
 //
-// Usage: bench_stills [--quick] [--store DIR] [--preset P] [--size WxH] [--repeats N]
+// Usage: bench_stills [--quick] [--section] [--store DIR] [--preset P] [--size WxH] [--repeats N]
 //                     [--out DIR]
 //   default   preset c (generated into a temporary directory unless --store names a store),
 //             1280x720, the default camera and an interior view, 3 repeats each.
 //   --quick   preset a, 320x180, 1 repeat (the CTest smoke run).
+//   --section the section's frames alone (no table of settings).
 //   --out     also writes each setting's image of each view there (view<N>-<setting>.png).
 // Per setting: each view's fastest draw (draw + read back, ms) and frame (ms) over the repeats,
 // averaged over the views, and the ratio of the frame time to the aliased one. Prints a table, then one "json: " line.
@@ -75,6 +76,7 @@ int main(int argc, char** argv) {
   char preset = 'c';
   uint32_t width = 1280, height = 720;
   int repeats = 3;
+  bool section_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const auto value = [&]() -> std::string {
@@ -84,7 +86,9 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (arg == "--quick") {
+    if (arg == "--section") {
+      section_only = true;
+    } else if (arg == "--quick") {
       preset = 'a';
       width = 320;
       height = 180;
@@ -168,7 +172,7 @@ int main(int argc, char** argv) {
   const std::vector<Setting> all = settings(subject);
   std::vector<std::vector<double>> best_draw(all.size(), std::vector<double>(views.size(), 1e300));
   std::vector<std::vector<double>> best_frame = best_draw;
-  for (int r = 0; r <= repeats; ++r) {
+  for (int r = 0; r <= (section_only ? -1 : repeats); ++r) {
     for (size_t s = 0; s < all.size(); ++s) {
       renderer->set_options(all[s].options);
       for (size_t v = 0; v < views.size(); ++v) {
@@ -232,7 +236,7 @@ int main(int argc, char** argv) {
   double aliased_ms = 0;
   std::printf("%-28s %12s %12s %8s   (fastest of %d, mean over %zu views)\n", "setting",
               "draw ms", "frame ms", "x frame", repeats, views.size());
-  for (size_t s = 0; s < all.size(); ++s) {
+  for (size_t s = 0; !section_only && s < all.size(); ++s) {
     double draw_ms = 0, frame_ms = 0;
     for (size_t v = 0; v < views.size(); ++v) {
       draw_ms += best_draw[s][v] / double(views.size());
