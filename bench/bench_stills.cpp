@@ -5,14 +5,18 @@
 // attribute (Material) against the still, each on a renderer of its own, then the first frame
 // after a style change on a warm renderer (issue 41's goal: colour by adds at most 10%).
 //
-// Usage: bench_stills [--quick] [--store DIR] [--preset P] [--size WxH] [--repeats N]
+// Usage: bench_stills [--quick] [--section] [--store DIR] [--preset P] [--size WxH] [--repeats N]
 //                     [--out DIR]
 //   default   preset c (generated into a temporary directory unless --store names a store),
 //             1280x720, the default camera and an interior view, 3 repeats each.
 //   --quick   preset a, 320x180, 1 repeat (the CTest smoke run).
+//   --section the section's frames alone (no table of settings).
 //   --out     also writes each setting's image of each view there (view<N>-<setting>.png).
 // Per setting: each view's fastest draw (draw + read back, ms) and frame (ms) over the repeats,
 // averaged over the views, and the ratio of the frame time to the aliased one. Prints a table, then one "json: " line.
+// Then a section: the default overview with the still's defaults, whole and cut to a 2 m plan
+// slab (clip planes 1 m and 3 m above the plant's lowest point), the same renderer warm, the
+// fastest frame of each over the repeats and their ratio (the goal: at most 0.5).
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -86,6 +90,7 @@ int main(int argc, char** argv) {
   char preset = 'c';
   uint32_t width = 1280, height = 720;
   int repeats = 3;
+  bool section_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const auto value = [&]() -> std::string {
@@ -95,7 +100,9 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (arg == "--quick") {
+    if (arg == "--section") {
+      section_only = true;
+    } else if (arg == "--quick") {
       preset = 'a';
       width = 320;
       height = 180;
@@ -188,7 +195,7 @@ int main(int argc, char** argv) {
   }
   std::vector<std::vector<double>> best_draw(all.size(), std::vector<double>(views.size(), 1e300));
   std::vector<std::vector<double>> best_frame = best_draw;
-  for (int r = 0; r <= repeats; ++r) {
+  for (int r = 0; r <= (section_only ? -1 : repeats); ++r) {
     for (size_t s = 0; s < all.size(); ++s) {
       Renderer& rendering = own[s] ? *own[s] : *renderer;
       if (!own[s]) renderer->set_options(all[s].options);
@@ -214,11 +221,46 @@ int main(int argc, char** argv) {
       }
     }
   }
+  // The section: the overview whole and as a plan slab, alternately (the first round warms).
+  RenderOptions whole;
+  whole.pixel_error = kStillPixelError;
+  RenderOptions slab = whole;
+  slab.section.planes.push_back({{0, 0, bounds.min.z + 3.0}, {0, 0, 1}});
+  slab.section.planes.push_back({{0, 0, bounds.min.z + 1.0}, {0, 0, -1}});
+  RenderOptions open_slab = slab;  // what capping costs
+  open_slab.section.capped = false;
+  double whole_ms = 1e300, slab_ms = 1e300, open_ms = 1e300;
+  uint64_t slab_clipped = 0, whole_triangles = 0, slab_triangles = 0;
+  std::string whole_json, slab_json;  // the last frame of each, for where the time goes
+  for (int r = 0; r <= repeats; ++r) {
+    for (const int part : {0, 1, 2}) {
+      const bool cut = part > 0;
+      renderer->set_options(part == 0 ? whole : part == 1 ? slab : open_slab);
+      Image image;
+      FrameStats stats;
+      if (!renderer->render(views[0], width, height, false, image, stats, error)) {
+        std::fprintf(stderr, "bench_stills: section: %s\n", error.c_str());
+        return 1;
+      }
+      if (r == 0) {
+        if (!out_dir.empty() && part < 2)
+          write_image(out_dir + (cut ? "/section-slab.png" : "/section-whole.png"), image, 90, error);
+        continue;
+      }
+      double& best = part == 0 ? whole_ms : part == 1 ? slab_ms : open_ms;
+      best = std::min(best, stats.ms.total);
+      if (part == 2) continue;
+      (cut ? slab_json : whole_json) = stats.to_json();
+      (cut ? slab_triangles : whole_triangles) = stats.triangles;
+      if (cut) slab_clipped = stats.objects_clipped;
+    }
+  }
+
   nlohmann::json json = nlohmann::json::array();
   double aliased_ms = 0;
   std::printf("%-28s %12s %12s %8s   (fastest of %d, mean over %zu views)\n", "setting",
               "draw ms", "frame ms", "x frame", repeats, views.size());
-  for (size_t s = 0; s < all.size(); ++s) {
+  for (size_t s = 0; !section_only && s < all.size(); ++s) {
     double draw_ms = 0, frame_ms = 0;
     for (size_t v = 0; v < views.size(); ++v) {
       draw_ms += best_draw[s][v] / double(views.size());
@@ -232,13 +274,13 @@ int main(int argc, char** argv) {
   // Colour by against the still it colours, and the first frame after a style change on a
   // warm renderer (every known object's attributes read again), each view once.
   double still_ms = 0, coloured_ms = 0, switched_ms = 0;
-  for (size_t s = 0; s < all.size(); ++s) {
+  for (size_t s = 0; !section_only && s < all.size(); ++s) {
     for (size_t v = 0; v < views.size(); ++v) {
       if (std::string(all[s].name) == "still, own renderer") still_ms += best_frame[s][v];
       if (std::string(all[s].name) == "still + colour by") coloured_ms += best_frame[s][v];
     }
   }
-  for (size_t v = 0; v < views.size(); ++v) {
+  for (size_t v = 0; !section_only && v < views.size(); ++v) {
     RenderOptions coloured;
     coloured.style.colour_by = kColourByKey;
     Image image;
@@ -252,16 +294,28 @@ int main(int argc, char** argv) {
     }
     switched_ms += stats.ms.total;
   }
-  std::printf("colour by %s: x%.3f the still's frame (%.1f against %.1f ms); first frame after "
-              "the style changed: %.1f ms\n",
-              kColourByKey, coloured_ms / still_ms, coloured_ms / double(views.size()),
-              still_ms / double(views.size()), switched_ms / double(views.size()));
-  std::printf("json: %s\n", nlohmann::json{{"width", width}, {"height", height},
-                                           {"views", views.size()}, {"repeats", repeats},
-                                           {"settings", json},
-                                           {"colour_by_ratio", coloured_ms / still_ms},
-                                           {"style_change_frame_ms", switched_ms / double(views.size())}}
-                                    .dump().c_str());
+  nlohmann::json summary{{"width", width}, {"height", height}, {"views", views.size()},
+                         {"repeats", repeats}, {"settings", json}};
+  if (!section_only) {
+    std::printf("colour by %s: x%.3f the still's frame (%.1f against %.1f ms); first frame after "
+                "the style changed: %.1f ms\n",
+                kColourByKey, coloured_ms / still_ms, coloured_ms / double(views.size()),
+                still_ms / double(views.size()), switched_ms / double(views.size()));
+    summary["colour_by_ratio"] = coloured_ms / still_ms;
+    summary["style_change_frame_ms"] = switched_ms / double(views.size());
+  }
+  std::printf("section: overview %.1f ms (%llu triangles), 2 m plan slab %.1f ms (%llu triangles, "
+              "%llu objects clipped): ratio %.2f; uncapped %.1f ms\n",
+              whole_ms, (unsigned long long)whole_triangles, slab_ms,
+              (unsigned long long)slab_triangles, (unsigned long long)slab_clipped,
+              slab_ms / whole_ms, open_ms);
+  std::printf("section frames:\n  overview %s\n  slab %s\n", whole_json.c_str(), slab_json.c_str());
+  summary["section"] = {{"overview_ms", whole_ms},
+                        {"slab_ms", slab_ms},
+                        {"ratio", slab_ms / whole_ms},
+                        {"uncapped_ms", open_ms},
+                        {"objects_clipped", slab_clipped}};
+  std::printf("json: %s\n", summary.dump().c_str());
   own.clear();
   renderer.reset();
   store.reset();

@@ -1,7 +1,7 @@
 // The looks a reviewer sees, as golden images: preset c's default overview, a still inside the
-// plant and an equipment item's highlighted review view, each rendered by a fresh renderer with
-// the stills' defaults (antialiasing, ambient occlusion, ground) and compared with a reference
-// PNG in tests/data/reference/looks/ (PSNR >= 30 dB and at most 2% of pixels differing; on
+// plant, an equipment item's highlighted review view and a plan slab (a section), each rendered
+// by a fresh renderer with the stills' defaults (antialiasing, ambient occlusion, ground) and
+// compared with a reference PNG in tests/data/reference/looks/ (PSNR >= 30 dB and at most 2% of pixels differing; on
 // failure the actual image and a difference image are written to the temporary directory and
 // named). PLANTVIEW_UPDATE_REFERENCES=1 rewrites the references: look at them before committing.
 // And what a highlight means, checked on the pixels: the subject keeps its own hue, in the
@@ -190,6 +190,23 @@ TEST_F(Looks, AHighlightedReviewViewMatchesItsReference) {
   options.highlight_ids = view.subject;
   auto r = renderer(options);
   expect_matches_reference(render(*r, view.camera), "highlight");
+}
+
+// A 2 m plan slab of preset c (clip planes 1 m and 3 m above its lowest point), seen from above
+// at an angle: only the slab drawn, the cut faces of vessels, walls and pipes capped in their
+// colours, darker.
+TEST_F(Looks, APlanSlabMatchesItsReference) {
+  RenderOptions options;
+  auto r = renderer(options);
+  const DAabb bounds = r->model_bounds();
+  const double bottom = bounds.min.z + 1.0, top = bottom + 2.0;
+  options.section.planes.push_back({{0, 0, top}, {0, 0, 1}});
+  options.section.planes.push_back({{0, 0, bottom}, {0, 0, -1}});
+  r->set_options(options);
+  Camera camera;
+  camera.target_m = {12.0, 14.0, bottom};  // vessels, a pipe rack's legs, pumps of unit 01
+  camera.eye_m = {4.0, 6.0, bottom + 8.3};
+  expect_matches_reference(render(*r, camera), "section");
 }
 
 // The subject's pixels (where a plain frame of the same view draws it) keep its stored hue and

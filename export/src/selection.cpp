@@ -50,6 +50,7 @@ bool choose_as_renderer(const ReadView& view, const GltfExportOptions& options, 
   render.lod_policy = LodPolicy::screen_space;
   render.pixel_error = options.pixel_error;
   render.hlod = options.hlod;
+  render.section = options.selection.section;
   ViewPlan plan;
   if (!plan_view(view, *options.camera, options.width, options.height, render, plan, error))
     return false;
@@ -159,6 +160,7 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
         if (!sel.globs.empty() && !name_matches && pipeline_id == 0) return true;
         const DAabb bounds = object_bounds(o);
         if (sel.box && !intersects(bounds, *sel.box)) return true;
+        if (section_removes_all(sel.section, bounds)) return true;
         Candidate c{slot, level, o.object_class, name_matches, pipeline_id, 0, {}, {}};
         for (int a = 0; a < 3; ++a) {
           c.min[a] = bounds.empty() ? 0.0f : float(bounds.min[a] - spatial_origin[a]);
@@ -211,6 +213,7 @@ bool plan_export(const ReadView& view, const GltfExportOptions& options, ExportP
     if (!sel.globs.empty() && !pipelines_matching.count(run.pipeline_id)) continue;
     if (!sel.classes.empty() && !pipelines_listed && !class_listed(sel.classes, ObjectClass::pipe)) continue;
     if (sel.box && !intersects(camera.run_bounds[r], *sel.box)) continue;
+    if (section_removes_all(sel.section, camera.run_bounds[r])) continue;
     ExportGroup* group = nullptr;
     if (options.split == GltfSplit::none) {
       if (plan.groups.empty()) plan.groups.push_back(ExportGroup{"", {}, {}});

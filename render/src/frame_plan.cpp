@@ -111,6 +111,9 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
   candidates_.clear();
   pending_items_ = 0;
   stats.objects_subpixel = stats.objects_in_node_proxies = 0;
+  section_ = options.section.empty() ? nullptr : &options.section;
+  section_origin_m_ = frame_view.spatial_origin_m;
+  clipped_ = 0;
   // Nodes are opened largest on screen first; the first that does not fit stops the opening,
   // and it and all the rest (no larger than it) are drawn whole.
   double whole_below_px = base_px;
@@ -150,12 +153,23 @@ bool FramePlan::find_visible(const ReadView& view, const FrameView& frame_view,
   blocks_.end_cull();
   stats.node_proxy_pixels = subpixel_culling || stopped ? whole_below_px : 0;
   stats.objects_visible = visible_.size();
+  stats.objects_clipped = clipped_;
   stats.objects_culled = view.spatial_objects() - visible_.size() - stats.objects_subpixel -
-                         stats.objects_in_node_proxies;
+                         stats.objects_in_node_proxies - clipped_;
   stats.node_proxies = node_boxes_.size();
   stats.spatial_blocks_walked = blocks_.walked();
   stats.spatial_blocks_held = blocks_.held();
   return true;
+}
+
+bool FramePlan::clipped(const float mn[3], const float mx[3]) const {
+  if (!section_) return false;
+  DAabb bounds;
+  for (int a = 0; a < 3; ++a) {
+    bounds.min[a] = section_origin_m_[a] + double(mn[a]);
+    bounds.max[a] = section_origin_m_[a] + double(mx[a]);
+  }
+  return section_removes_all(*section_, bounds);
 }
 
 bool FramePlan::occlude(const ReadView& view, DecodedObjects& objects, const FrameView& frame_view,
@@ -303,6 +317,14 @@ void FramePlan::blocks_ahead(const ReadView& view, const FrameView& frame_view,
     const double px = node_pixels(node, frame_view);
     const bool boxable = subpixel_culling && view.spatial_top_objects()[t] > 1;
     if (boxable && px < base_px) return TopStep::kPast;  // drawn whole, and all beneath it
+    if (!options.section.empty()) {
+      DAabb bounds;
+      for (int a = 0; a < 3; ++a) {
+        bounds.min[a] = frame_view.spatial_origin_m[a] + double(node.min[a]);
+        bounds.max[a] = frame_view.spatial_origin_m[a] + double(node.max[a]);
+      }
+      if (section_removes_all(options.section, bounds)) return TopStep::kPast;  // clipped
+    }
     if (node.count != 0) ahead_.push_back({px, node.first});
     return TopStep::kBeneath;
   });
@@ -331,11 +353,16 @@ void FramePlan::consider_top(const ReadView& view, uint32_t t, const FrameView& 
                              bool subpixel_culling) {
   const SpatialNode& node = view.spatial_top()[t];
   if (frame_view.outside(node.min, node.max)) return;
+  if (clipped(node.min, node.max)) {
+    clipped_ += view.spatial_top_objects()[t];
+    return;
+  }
   Candidate c{node_pixels(node, frame_view), kTopNode, t, 1, false};
   c.boxable = subpixel_culling && view.spatial_top_objects()[t] > 1;
   if (c.boxable) {
     c.items = 0;
-    for (const ProxyBox& b : view.spatial_proxy(t)) c.items += !frame_view.outside(b.min, b.max);
+    for (const ProxyBox& b : view.spatial_proxy(t))
+      c.items += !frame_view.outside(b.min, b.max) && !clipped(b.min, b.max);
   }
   fresh_.push_back(c);
 }
@@ -344,6 +371,10 @@ void FramePlan::consider_block_node(const SpatialBlock& block, uint32_t block_in
                                     const FrameView& frame_view, bool subpixel_culling) {
   const SpatialNode& node = block.nodes[n];
   if (frame_view.outside(node.min, node.max)) return;
+  if (clipped(node.min, node.max)) {
+    clipped_ += objects_beneath(block, n, count_stack_);
+    return;
+  }
   fresh_.push_back({node_pixels(node, frame_view), block_index, n, 1,
                     subpixel_culling && node.count != 1});
 }
@@ -365,7 +396,7 @@ void FramePlan::draw_whole(const ReadView& view, const Candidate& c, const Frame
   if (c.block == kTopNode) {
     // The far-field proxy: boxes whose union is the node's bounds, in its objects' colours.
     for (const ProxyBox& b : view.spatial_proxy(c.node)) {
-      if (frame_view.outside(b.min, b.max)) continue;
+      if (frame_view.outside(b.min, b.max) || clipped(b.min, b.max)) continue;
       node_boxes_.push_back({{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}, b.colour});
     }
     stats.objects_in_node_proxies += view.spatial_top_objects()[c.node];
@@ -384,6 +415,7 @@ bool FramePlan::open(const ReadView& view, const Candidate& c, const FrameView& 
                      bool& fits, FrameStats& stats, std::string& error) {
   fresh_.clear();
   const size_t visible_before = visible_.size(), subpixel_before = stats.objects_subpixel;
+  const uint64_t clipped_before = clipped_;
   const SpatialBlock* block = nullptr;
   uint32_t block_index = c.block, n = c.node;
   if (c.block == kTopNode) {
@@ -420,6 +452,7 @@ bool FramePlan::open(const ReadView& view, const Candidate& c, const FrameView& 
     fresh_.clear();
     visible_.resize(visible_before);
     stats.objects_subpixel = subpixel_before;
+    clipped_ = clipped_before;
     fits = false;
     return true;
   }
@@ -438,6 +471,10 @@ size_t FramePlan::take_leaf(const SpatialBlock& block, uint32_t block_index, uin
     VisibleObject v{block.entries[e].slot, {}, {}, 0.0, 0.0, block_index, n};
     entry_bounds(node, block.entries[e], v.min, v.max);
     if (!all_inside && frame_view.outside(v.min, v.max)) continue;
+    if (clipped(v.min, v.max)) {
+      clipped_ += 1;
+      continue;
+    }
     v.distance_m = frame_view.nearest_distance_m(v.min, v.max);
     v.px_per_m = pixels_per_metre(v.distance_m, frame_view.focal_px);
     // Screen-space policy: an object whose whole extent is under the pixel error is left out
@@ -464,6 +501,10 @@ bool FramePlan::walk_block(const ReadView& view, uint32_t block_index,
     const SpatialNode& node = block->nodes[n];
     // The block's root was tested as its top node.
     if (n != 0 && frame_view.outside(node.min, node.max)) continue;
+    if (n != 0 && clipped(node.min, node.max)) {
+      clipped_ += objects_beneath(*block, n, count_stack_);
+      continue;
+    }
     if (node.count == 0) {
       stack_.push_back(node.first);
       stack_.push_back(node.first + 1);
@@ -562,6 +603,7 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
           rk.style_value = k->style_value;  // colour by: its deciding member's (styles that
                                             // hide turn merging off)
           Draw& draw = draws_.emplace_back(Draw{kRunKeyBit | r, &rk, 0, false, nullptr, d, rk.order_key});
+          draw.cut = !options.section.empty() && !section_keeps_all(options.section, run.bounds);
           choose_level(rk, options, d, px, glm::length(run.end_m - run.start_m), draw.level,
                        draw.centreline);
           stats.hlod_merges += 1;
@@ -573,6 +615,14 @@ void FramePlan::choose(DecodedObjects& objects, const FrameView& frame_view,
       }
     }
     Draw& draw = draws_.emplace_back(Draw{v.slot, k, 0, false, &v, v.distance_m, k->order_key});
+    if (!options.section.empty()) {
+      DAabb bounds;
+      for (int a = 0; a < 3; ++a) {
+        bounds.min[a] = frame_view.spatial_origin_m[a] + double(v.min[a]);
+        bounds.max[a] = frame_view.spatial_origin_m[a] + double(v.max[a]);
+      }
+      draw.cut = !section_keeps_all(options.section, bounds);
+    }
     choose_level(*k, options, v.distance_m, v.px_per_m, v.extent_m(), draw.level, draw.centreline);
   }
 }

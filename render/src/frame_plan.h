@@ -28,6 +28,10 @@
 //     budget goes where it shows most.
 //   - Memory: nothing here is sized by the plant. What cull keeps follows the frame: its
 //     visible objects and node boxes (kMaxDrawnItems), and the blocks it read.
+//   - Sections (RenderOptions::section): a node, object or proxy box the section removes
+//     wholly (section_removes_all on its bounds) is left out like one outside the frustum,
+//     before any block under it is read or any object decoded (objects_clipped). What it cuts
+//     is kept: the GPU clips it (gl/backend.h).
 //   - choose: LodPolicy; merged runs replace their visible members (one draw per run).
 //   - resident_base: one level of slack (see there).
 // Units: metres and pixels; bounds relative to the store's spatial origin, matrices relative to
@@ -140,6 +144,7 @@ struct Draw {
   double distance_m = 0;           // from the eye to the nearest point of its bounds
   uint32_t order_key = 0;          // Known::order_key: breaks draw-order ties
   bool drawn = false;              // resident this frame (else a proxy box or nothing)
+  bool cut = false;                // the section cuts its bounds (its closed solids capped)
   uint32_t arena_first = 0;        // the object's first vertex in the arena, once drawn
   // Filled by streaming for drawn ones: its index ranges, [segment_first, + segment_count) of
   // the frame's segment list (arena_streaming.h), so that writing the indices reads no Known.
@@ -294,6 +299,12 @@ class FramePlan {
                    const FrameView& frame_view, const RenderOptions& options,
                    bool subpixel_culling, FrameStats& stats);
   size_t items() const { return visible_.size() + node_boxes_.size() + pending_items_; }
+  // Whether the section (RenderOptions::section, set by find_visible) removes every point of a
+  // box relative to the spatial origin: such nodes, objects and proxy boxes are left out.
+  bool clipped(const float min[3], const float max[3]) const;
+  const Section* section_ = nullptr;  // this cull's, null when empty
+  glm::dvec3 section_origin_m_{0.0};  // the spatial origin the boxes are relative to
+  uint64_t clipped_ = 0;              // objects left out so this cull (objects_clipped)
   // Whether the top leaves in the frustum hold at most `limit` objects (counted from the
   // resident top; stops as soon as they do not).
   bool frustum_objects_at_most(const ReadView& view, const FrameView& frame_view, uint64_t limit);

@@ -22,6 +22,7 @@ std::string FrameStats::to_json() const {
   return "{\"objects_visible\":" + std::to_string(objects_visible) +
          ",\"objects_culled\":" + std::to_string(objects_culled) +
          ",\"objects_occluded\":" + std::to_string(objects_occluded) +
+         ",\"objects_clipped\":" + std::to_string(objects_clipped) +
          ",\"nodes_occluded\":" + std::to_string(nodes_occluded) +
          ",\"occluders\":" + std::to_string(occluders) +
          ",\"triangles\":" + std::to_string(triangles) + ",\"lines\":" + std::to_string(lines) +

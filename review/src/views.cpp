@@ -66,6 +66,8 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
   assert(is_review_kind(options.per) && (options.sides == 1 || options.sides == 4));
   assert(options.aspect > 0 && options.fov_deg > 0 && options.fov_deg < 179);
   assert(options.fill > 0 && options.fill <= 1);
+  assert((options.section == "none" || options.section == "subject") &&
+         options.section_margin_m >= 0);
   summary = {};
   const auto report = [&](double fraction) {
     if (progress) progress(fraction);
@@ -121,6 +123,11 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
       v.aspect = options.aspect;
       v.subject = s.ids;
       v.attributes = s.attributes;
+      if (options.section == "subject" && s.kind != "overview") {
+        v.section.has_box = true;
+        v.section.box.min = s.bounds.min - glm::dvec3(options.section_margin_m);
+        v.section.box.max = s.bounds.max + glm::dvec3(options.section_margin_m);
+      }
       if (s.kind == "overview") {
         v.camera = fit_camera(s.boxes, side.directions.front(), options.aspect, options.fov_deg,
                               kOverviewFill);

@@ -33,7 +33,8 @@ struct SubmitArgs {
   bool dry_run = false;
   std::vector<std::pair<CLI::Option*, std::string>> render_values;  // given only
   std::vector<CLI::Option*> render_flags;
-  std::vector<std::string> render_storage = std::vector<std::string>(16);
+  std::vector<std::string> render_storage = std::vector<std::string>(24);
+  std::vector<std::string> clip;  // --clip, repeatable
 };
 
 // The render options given to `farm submit`, as the shards' command line passes them on.
@@ -43,6 +44,8 @@ std::vector<std::string> passed_render_args(const SubmitArgs& a) {
     if (option->count() > 0) args.insert(args.end(), {option->get_name(), value});
   for (CLI::Option* flag : a.render_flags)
     if (flag->count() > 0) args.push_back(flag->get_name());
+  // One word each, so that a plane whose point starts with a minus stays a value.
+  for (const std::string& plane : a.clip) args.push_back("--clip=" + plane);
   return args;
 }
 
@@ -195,7 +198,11 @@ Action add_farm_command(CLI::App& app) {
       {"--occlusion", "on or off"},
       {"--occlusion-test", "automatic, coarse or exact"},
       {"--device", "EGL device index"},
-      {"--bcf", "BCF file of the views, written by the shard that finds the job complete"}};
+      {"--bcf", "BCF file of the views, written by the shard that finds the job complete"},
+      {"--section-box", "Section box MINX,MINY,MINZ,MAXX,MAXY,MAXZ (each view's own wins)"},
+      {"--colour-by", "KEY: colour objects by this attribute (replaces the views' own)"},
+      {"--hide", "CLASS|GLOB,...: leave these out (replaces the views' own)"},
+      {"--only", "CLASS|GLOB,...: show only these (replaces the views' own)"}};
   size_t i = 0;
   for (const auto& [name, help] : values) {
     CLI::Option* option = submit->add_option(name, a->render_storage[i], help);
@@ -203,8 +210,10 @@ Action add_farm_command(CLI::App& app) {
     ++i;
   }
   for (const char* name : {"--force", "--no-centrelines", "--no-hlod", "--no-subpixel-culling",
-                           "--no-ground", "--no-ambient-occlusion"})
+                           "--no-ground", "--no-ambient-occlusion", "--no-caps"})
     a->render_flags.push_back(submit->add_flag(name)->description("Passed on to render"));
+  submit->add_option("--clip", a->clip,
+                     "Clip plane PX,PY,PZ,NX,NY,NZ, repeatable (each view's own section wins)");
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);

@@ -116,6 +116,20 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   if ((!a.hide.empty() && !parse_word_list(a.hide, "--hide", plan.options.style.hide, error)) ||
       (!a.only.empty() && !parse_word_list(a.only, "--only", plan.options.style.only, error)))
     return usage_error(error);
+  if (a.clip.size() > kMaxClipPlanes)
+    return usage_error("--clip: at most " + std::to_string(kMaxClipPlanes) + " planes, got " +
+                       std::to_string(a.clip.size()));
+  for (const std::string& text : a.clip) {
+    ClipPlane plane;
+    if (!parse_clip_plane(text, "--clip", plane, error)) return usage_error(error);
+    plan.options.section.planes.push_back(plane);
+  }
+  if (!a.section_box.empty()) {
+    if (!parse_section_box(a.section_box, "--section-box", plan.options.section.box, error))
+      return usage_error(error);
+    plan.options.section.has_box = true;
+  }
+  plan.options.section.capped = !a.no_caps;
   if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
     return usage_error("give one of --camera, --path and --views");
   if (!a.camera.empty()) {
@@ -194,6 +208,12 @@ void add_render_options(CLI::App* render, RenderArgs* args) {
       ->check(CLI::Range(1u, 16u));
   render->add_flag("--no-ground", args->no_ground, "No ground grid under the plant");
   render->add_flag("--no-ambient-occlusion", args->no_ambient_occlusion, "No screen-space ambient occlusion");
+  render->add_option("--clip", args->clip,
+                     "Clip plane PX,PY,PZ,NX,NY,NZ: removes what lies on the side the normal "
+                     "points into (repeatable, at most 6; a leading minus: --clip=-5,...)");
+  render->add_option("--section-box", args->section_box,
+                     "Section box MINX,MINY,MINZ,MAXX,MAXY,MAXZ: keeps what lies inside");
+  render->add_flag("--no-caps", args->no_caps, "Leave the cut faces of sectioned solids open");
   render->add_option("--highlight", args->highlight,
                      "ID or TAG,...: draw these objects in their colours and the rest ghosted, "
                      "see-through where it hides them (with --views: each view's subject)");

@@ -36,6 +36,11 @@ struct RenderArgs {
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
   bool no_ground = false, no_ambient_occlusion = false;
   std::string colour_by, hide, only;  // view_filters.h: ObjectStyle
+  // Sections (view_filters.h): --clip (repeatable, at most kMaxClipPlanes), --section-box,
+  // --no-caps.
+  std::vector<std::string> clip;
+  std::string section_box;
+  bool no_caps = false;
 };
 
 // What the command line asks for, typed and checked. Every usage error is found while making it,

@@ -16,10 +16,10 @@ namespace plantview::cli::rendering {
 
 namespace {
 
-
 // The options one view renders with: its subject highlighted, the rest ghosted (an overview's
-// empty subject highlights nothing); its style (view_filters.h), where the command line's
-// --colour-by, --hide and --only replace each part they give.
+// empty subject highlights nothing); its section where it has one, else the command line's; its
+// style (view_filters.h), where the command line's --colour-by, --hide and --only replace each
+// part they give.
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
   RenderOptions options = base;
   options.highlight_ids = view.subject;
@@ -27,6 +27,7 @@ RenderOptions review_render_options(const RenderOptions& base, const ReviewView&
   if (!base.style.colour_by.empty()) options.style.colour_by = base.style.colour_by;
   if (!base.style.hide.empty()) options.style.hide = base.style.hide;
   if (!base.style.only.empty()) options.style.only = base.style.only;
+  if (!view.section.empty()) options.section = view.section;
   return options;
 }
 
@@ -64,6 +65,16 @@ std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
     settings["style"] = {{"colour_by", plan.options.style.colour_by},
                          {"hide", plan.options.style.hide},
                          {"only", plan.options.style.only}};
+  if (plan.options.section.empty()) return settings.dump();
+  // The command line's section (each view's own is in the view's text, hashed with it).
+  nlohmann::json planes = nlohmann::json::array();
+  for (const ClipPlane& p : plan.options.section.planes)
+    planes.push_back({p.point_m.x, p.point_m.y, p.point_m.z, p.normal.x, p.normal.y, p.normal.z});
+  settings["section"] = {{"planes", planes}, {"capped", plan.options.section.capped}};
+  if (plan.options.section.has_box) {
+    const DAabb& b = plan.options.section.box;
+    settings["section"]["box"] = {b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z};
+  }
   return settings.dump();
 }
 

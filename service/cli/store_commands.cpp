@@ -178,6 +178,8 @@ struct ExportOptions {
   double tolerance_mm = 0, pixel_error = 0;
   std::string camera, size = "1920x1080", classes, box, split = "none";
   std::vector<std::string> select;
+  std::vector<std::string> clip;  // sections (view_filters.h)
+  std::string section_box;
   bool no_hlod = false, gpu_instancing = false, no_sharing = false, no_quantization = false;
 };
 
@@ -235,6 +237,19 @@ int gltf_options(const ExportOptions& o, GltfExportOptions& g) {
     DAabb box;
     if (!parse_box(o.box, box, error)) return usage_error("export: --" + error);
     g.selection.box = box;
+  }
+  if (o.clip.size() > kMaxClipPlanes)
+    return usage_error("export: --clip: at most " + std::to_string(kMaxClipPlanes) + " planes, got " +
+                       std::to_string(o.clip.size()));
+  for (const std::string& text : o.clip) {
+    ClipPlane plane;
+    if (!parse_clip_plane(text, "--clip", plane, error)) return usage_error("export: " + error);
+    g.selection.section.planes.push_back(plane);
+  }
+  if (!o.section_box.empty()) {
+    if (!parse_section_box(o.section_box, "--section-box", g.selection.section.box, error))
+      return usage_error("export: " + error);
+    g.selection.section.has_box = true;
   }
   if (!parse_gltf_split(o.split, g.split))
     return usage_error("export: --split must be site, zone, pipeline or equipment, got '" + o.split + "'");
@@ -364,6 +379,11 @@ Action add_store_commands(CLI::App& app) {
                          "glTF: objects whose name (or pipeline's name) matches this glob; repeatable");
   export_cmd->add_option("--class", exp->classes, "glTF: only these classes, comma-separated");
   export_cmd->add_option("--box", exp->box, "glTF: only objects meeting this box X0,Y0,Z0,X1,Y1,Z1 (metres)");
+  export_cmd->add_option("--clip", exp->clip,
+                         "glTF: leave out objects wholly beyond this plane PX,PY,PZ,NX,NY,NZ "
+                         "(the normal points into the side removed; repeatable, at most 6)");
+  export_cmd->add_option("--section-box", exp->section_box,
+                         "glTF: leave out objects wholly outside this box MINX,MINY,MINZ,MAXX,MAXY,MAXZ");
   export_cmd->add_flag("--no-hlod", exp->no_hlod, "glTF: with --camera, pipeline runs unmerged");
   export_cmd->add_option("--split", exp->split, "glTF: one file per site, zone, pipeline or equipment item");
   export_cmd->add_flag("--gpu-instancing", exp->gpu_instancing,

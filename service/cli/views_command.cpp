@@ -1,9 +1,11 @@
 // `plantview views --store DIR --per overview|equipment|pipeline|area [--select GLOB]
-// [--sides 1|4] [--size WxH] --out VIEWS.json`: named, fitted review views of a store's
-// subjects (review.h: make_review_views), for `render --views`.
+// [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
+// named, fitted review views of a store's subjects (review.h: make_review_views), for
+// `render --views`.
 #include <unistd.h>
 
 #include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -21,7 +23,8 @@ namespace plantview::cli {
 namespace {
 
 struct ViewsArgs {
-  std::string store, per, select, size = "1280x720", out;
+  std::string store, per, select, size = "1280x720", out, section = "none";
+  double section_margin_m = 1.0;
   int sides = 1;
   std::string colour_by, hide, only;  // written into every view (view_filters.h: ObjectStyle)
 };
@@ -80,6 +83,13 @@ int run_views(const ViewsArgs& a) {
   options.sides = a.sides;
   if (!parse_aspect(a.size, options.aspect))
     return usage_error("--size: expected WxH with W and H positive integers, got '" + a.size + "'");
+  if (a.section != "none" && a.section != "subject")
+    return usage_error("--section: '" + a.section + "' is not one of none, subject");
+  if (!(a.section_margin_m >= 0) || !std::isfinite(a.section_margin_m))
+    return usage_error("--section-margin: expected metres >= 0, got " +
+                       std::to_string(a.section_margin_m));
+  options.section = a.section;
+  options.section_margin_m = a.section_margin_m;
 
   std::string error;
   ObjectStyle style;
@@ -126,6 +136,13 @@ Action add_views_command(CLI::App& app) {
                     "KEY: every view coloured by this attribute (render --views draws a legend)");
   views->add_option("--hide", args->hide, "CLASS|GLOB,...: every view leaves these out");
   views->add_option("--only", args->only, "CLASS|GLOB,...: every view shows only these");
+  views->add_option("--section", args->section,
+                    "none, or subject: each view (not the overview) cut to a box around its "
+                    "subject, grown by --section-margin")
+      ->capture_default_str();
+  views->add_option("--section-margin", args->section_margin_m,
+                    "Metres the subject's section box reaches beyond it")
+      ->capture_default_str();
   return [=]() -> int { return views->parsed() ? run_views(*args) : -1; };
 }
 

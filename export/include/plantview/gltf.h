@@ -101,6 +101,7 @@
 
 #include "plantview/camera.h"
 #include "plantview/model.h"
+#include "plantview/view_filters.h"
 
 namespace plantview {
 
@@ -120,6 +121,9 @@ struct GltfSelection {
   std::vector<std::string> globs;     // fnmatch patterns on names
   std::vector<ObjectClass> classes;   // empty: every class
   std::optional<DAabb> box;           // model space, metres
+  // Clip planes and a section box (view_filters.h): objects (and merged runs) it removes
+  // wholly are left out; what it cuts is written whole (its triangles are not clipped).
+  Section section;
 };
 
 struct GltfExportOptions {

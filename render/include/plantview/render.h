@@ -173,7 +173,8 @@ struct RenderOptions {
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
   // Clip planes and a section box (view_filters.h): what they remove is neither decoded,
-  // tessellated, drawn nor picked; cut closed solids are capped.
+  // tessellated, drawn nor picked (culled whole where its bounds are removed, else clipped on
+  // the GPU); cut closed solids are capped (docs/sections.md).
   Section section;
   // Colour by an attribute, hide, show only (view_filters.h).
   ObjectStyle style;
@@ -214,6 +215,8 @@ struct FrameLegend {
 struct FrameStats {
   uint64_t objects_visible = 0, objects_culled = 0;  // culled: outside the frustum
   uint64_t objects_occluded = 0;  // in the frustum but hidden behind occluders (not drawn)
+  uint64_t objects_clipped = 0;   // in the frustum but wholly removed by the section
+                                  // (RenderOptions::section): neither decoded nor drawn
   uint64_t nodes_occluded = 0;    // tree leaves and node boxes found hidden as a whole
   uint64_t occluders = 0;         // drawn frames: objects drawn in occlusion's first phase
                                   // (last frame's and the largest); statistics(): objects

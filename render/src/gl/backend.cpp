@@ -69,6 +69,29 @@ void keep_freed_heap_memory() {
 
 static_assert(std::is_same_v<GlName, GLuint>);
 
+int section_half_spaces(const Section& section, const glm::dvec3& eye_m, const DAabb& model_bounds,
+                        std::array<glm::vec4, 8>& out) {
+  int count = 0;
+  const auto add = [&](const glm::dvec3& normal, const glm::dvec3& point_m) {
+    if (count == kMaxClipHalfSpaces) return;
+    out[size_t(count++)] = glm::vec4(glm::vec3(normal), float(glm::dot(normal, eye_m - point_m)));
+  };
+  for (const ClipPlane& plane : section.planes) add(plane.normal, plane.point_m);
+  if (section.has_box) {
+    for (int axis = 0; axis < 3; ++axis) {
+      glm::dvec3 normal(0.0);
+      normal[axis] = -1.0;
+      // A face with the whole model on its kept side removes nothing.
+      if (model_bounds.empty() || model_bounds.min[axis] < section.box.min[axis])
+        add(normal, section.box.min);
+      normal[axis] = 1.0;
+      if (model_bounds.empty() || model_bounds.max[axis] > section.box.max[axis])
+        add(normal, section.box.max);
+    }
+  }
+  return count;
+}
+
 Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
   Look look;
   look.antialias = options.antialias;
@@ -77,6 +100,7 @@ Look look_of(const RenderOptions& options, const DAabb& model_bounds) {
   look.ground = options.ground;
   look.ambient_occlusion = options.ambient_occlusion;
   look.highlight_ids = options.highlight_ids;
+  look.section = &options.section;
   look.model_bounds = model_bounds;
   return look;
 }
@@ -121,7 +145,8 @@ bool GlBackend::init(uint64_t budget_vertices, std::string& error, ArenaMemory m
   if (software_) keep_freed_heap_memory();
 
   for (size_t i = 0; i < kProgramCount; ++i)
-    if (!(programs_[i] = link(program_source(ProgramId(i)), error))) return false;
+    if (i < kProgramsAtInit && !(programs_[i] = link(program_source(ProgramId(i)), error)))
+      return false;
 
   glCreateBuffers(1, &index_buffers_[0]);
   glCreateBuffers(1, &index_buffers_[1]);
@@ -168,9 +193,15 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
   frame_plan_ = plan_for(look);
   const Plan& plan = frame_plan_;
   const uint32_t w = view.width, h = view.height;
+  clip_count_ = look.section && !look.section->empty()
+                    ? section_half_spaces(*look.section, view.eye_m, look.model_bounds, clip_)
+                    : 0;
+  caps_ = clip_count_ > 0 && look.section->capped;
+  for (size_t i = kProgramsAtInit; clip_count_ > 0 && i < kProgramCount; ++i)
+    if (!programs_[i] && !(programs_[i] = link(program_source(ProgramId(i)), error))) return false;
   // Stencil once a frame highlights (the subject's pixels are marked in it), kept for the frames
   // after; the resolved depth has the scene's format (a blit copies it).
-  const bool stencil = scene_.has_stencil || !look.highlight_ids.empty();
+  const bool stencil = scene_.has_stencil || !look.highlight_ids.empty() || caps_;
   if (!ensure_target(scene_, w * plan.scale, h * plan.scale, plan.samples, true, with_ids, stencil,
                      error))
     return false;
@@ -191,6 +222,7 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
   // The ground first: what stands on it is drawn over it, and what is blended (see-through
   // triangles, centrelines' feathered edges) blends over it rather than being painted over.
   if (look.ground) draw_ground(view, look.model_bounds, with_ids);
+  set_clipping(false);
   final_ = nullptr;
   return true;
 }
@@ -204,5 +236,12 @@ void GlBackend::finish_frame(const FrameView& view, bool with_ids, bool wait) {
 }
 
 void GlBackend::wait() { glFinish(); }
+
+void GlBackend::set_clipping(bool on) const {
+  for (int i = 0; i < kMaxClipHalfSpaces; ++i) {
+    if (on && i < clip_count_) glEnable(GLenum(GL_CLIP_DISTANCE0 + i));
+    else glDisable(GLenum(GL_CLIP_DISTANCE0 + i));
+  }
+}
 
 }  // namespace plantview::detail

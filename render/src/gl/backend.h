@@ -45,6 +45,23 @@
 //     when anything needs it (supersampling, the edge filter, ambient occlusion); object ids
 //     follow one sample per output pixel.
 //   - Object ids are written only when read back (with_ids).
+//   - Sections (Look::section): its planes, then the faces of its box that cut the model, as
+//     camera-relative half-spaces (offsets computed in double precision from the eye), are
+//     clipped per vertex by gl_ClipDistance in every program that draws the model and the
+//     ground (section_clip.glsl; the closed solids of objects it does not cut, kClosed, are
+//     drawn unclipped by the plain surface program): at most kMaxClipHalfSpaces, the rest of
+//     a box's faces (three planes or more and a box cutting the model on every side) only
+//     cull whole objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
+//     (Section::capped): the closed solids of the objects the section cuts (kClosedCut) are
+//     drawn after the other closed solids with both sides, a front face that passes the depth
+//     test clearing stencil bit kCapStencilBit and a back face setting it: at the end it is
+//     set where a back face is seen, which happens only where a solid is cut open. Their back
+//     faces are then drawn again through the cap program where marked, each fragment moved
+//     onto the cut (cap.frag.glsl), and the marks cleared. The cap's depth, colour and id are
+//     written like a surface's. Where a non-convex solid's cut leaves air between the cut
+//     plane and a face behind it, the cap covers that too (stencil capping by parity would
+//     not). Cost: the cut objects' back faces rasterised, their vertices twice, the cap pass's
+//     fragments tested late (it writes gl_FragDepth) where the stencil lets them.
 // Units: arena offsets and sizes in vertices; buffer capacities in bytes; pixels; metres.
 // Threads: the thread whose GL context was current at init(), which must stay current for
 //   every call and for the destructor.
@@ -96,10 +113,20 @@ inline constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32
 // GlBackend::draw_triangles).
 inline constexpr size_t kSoftwarePieceTriangles = size_t(1) << 17;
 
+// Half-spaces a section clips on the GPU at most (GL_MAX_CLIP_DISTANCES is at least 8).
+inline constexpr int kMaxClipHalfSpaces = 8;
+// The stencil bit marking the pixels where a cut solid shows its inside (highlights use bit 0).
+inline constexpr uint32_t kCapStencilBit = 2;
+// A section's half-spaces relative to `eye_m` (x, y, z, w: removed where dot(xyz, p) + w > 0):
+// its planes, then the faces of its box that cut `model_bounds`, at most kMaxClipHalfSpaces.
+int section_half_spaces(const Section& section, const glm::dvec3& eye_m, const DAabb& model_bounds,
+                        std::array<glm::vec4, 8>& out);
+
 using GlName = uint32_t;  // a GLuint: the name of a GL object (0: none)
 
-// The frame's index lists, in this order in the index buffer.
-enum IndexList : uint8_t { kClosed, kOpen, kTransparent, kLines, kIndexListCount };
+// The frame's index lists, in this order in the index buffer. kClosedCut: the closed solids of
+// objects the section cuts (Draw::cut; capped, see the rules above).
+enum IndexList : uint8_t { kClosed, kClosedCut, kOpen, kTransparent, kLines, kIndexListCount };
 using IndexCounts = std::array<size_t, kIndexListCount>;
 
 // How a frame looks: RenderOptions' look, and the model's bounds for the ground.
@@ -110,6 +137,7 @@ struct Look {
   bool ground = true;
   bool ambient_occlusion = true;
   std::span<const uint64_t> highlight_ids;  // any order; valid for the draw call
+  const Section* section = nullptr;         // null or empty: none; valid for the frame
   DAabb model_bounds;                       // world metres (the ground lies at min.z)
 };
 Look look_of(const RenderOptions& options, const DAabb& model_bounds);
@@ -235,6 +263,12 @@ class GlBackend {
   // ahead, so that at most two are held. Measured (llvmpipe, 2 cores, render --path): peak
   // resident memory about 100 MB lower, drawing 5-9% slower, images identical.
   void draw_triangles(size_t first, size_t count) const;
+  // The cut closed solids (`count` indices from `first`) with their caps, in highlight mode
+  // `mode` (see the rules above).
+  void draw_cut_capped(size_t first, size_t count, int mode);
+  // Enables the section's clip distances (begin_pass) or disables them (passes that do not
+  // write them).
+  void set_clipping(bool on) const;
   // Resolves multisampling and runs the finishing pass into output_.
   void finish(const FrameView& view, const Plan& plan, bool with_ids);
   // The table with the context ghosted for a highlight: colours lightened and desaturated,
@@ -252,11 +286,22 @@ class GlBackend {
   static void ensure_grid(Grid& g, uint32_t gl_format, uint32_t w, uint32_t h);
   static void release_grid(Grid& g);
 
+  // The frame's section as camera-relative half-spaces (section_clip.glsl), from
+  // begin_frame().
+  std::array<glm::vec4, 8> clip_{};
+  int clip_count_ = 0;
+  bool caps_ = false;
+
   uint64_t budget_vertices_ = 0;
   bool software_ = false;  // llvmpipe and the like: fragments are the cost
   bool bounded_drawing_ = false;
   std::array<GlName, kProgramCount> programs_{};  // linked at init(), by ProgramId
   GlName gl_program(ProgramId id) const { return programs_[size_t(id)]; }
+  // Surface, proxy, centreline or ground as this frame draws with it: the section variant
+  // when the frame has a section.
+  GlName drawing_program(ProgramId id) const {
+    return gl_program(clip_count_ > 0 ? sections_variant(id) : id);
+  }
   GlName box_buffer_ = 0, seen_buffer_ = 0;
   size_t box_capacity_ = 0, seen_capacity_ = 0;  // bytes
   GlName vao_ = 0, empty_vao_ = 0, arena_ = 0, arena_objects_ = 0, table_buffer_ = 0,

@@ -24,7 +24,7 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   const glm::dvec2 centre = 0.5 * glm::dvec2(bounds.min.x + bounds.max.x, bounds.min.y + bounds.max.y) -
                             glm::dvec2(view.eye_m);
   const glm::dvec2 phase(std::fmod(view.eye_m.x, 10 * grid), std::fmod(view.eye_m.y, 10 * grid));
-  const GLuint p = gl_program(ProgramId::ground);
+  const GLuint p = drawing_program(ProgramId::ground);
   glProgramUniform1f(p, at(p, "u_ground_z"), float(ground_z));
   glProgramUniform2f(p, at(p, "u_grid_phase"), float(phase.x), float(phase.y));
   glProgramUniform1f(p, at(p, "u_grid_m"), float(grid));

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
 
@@ -78,6 +79,7 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
     draw_lists(counts, proxy_tables.size(), 2, kSeeThroughAlpha, with_ids);
     glDisable(GL_STENCIL_TEST);
   }
+  set_clipping(false);
   if (wait) glFinish();
 }
 
@@ -110,9 +112,16 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                         glm::mat3(glm::vec3(view.aspect / view.focal, 0, 0),
                                   glm::vec3(0, 1.0f / view.focal, 0), glm::vec3(0, 0, 1));
   const float focal_px = float(view.focal_px * plan.scale);
-  const GLuint centreline = gl_program(ProgramId::centreline);
-  for (const GLuint program : {gl_program(ProgramId::surface), gl_program(ProgramId::proxy),
-                               centreline, gl_program(ProgramId::ground)}) {
+  const GLuint centreline = drawing_program(ProgramId::centreline);
+  glProgramUniformMatrix4fv(gl_program(ProgramId::cap_plane),
+                            at(gl_program(ProgramId::cap_plane), "u_view_projection"), 1, GL_FALSE,
+                            glm::value_ptr(view.view_projection));
+  for (const GLuint program :
+       {drawing_program(ProgramId::surface), drawing_program(ProgramId::proxy), centreline,
+        drawing_program(ProgramId::ground), gl_program(ProgramId::surface)}) {
+    glProgramUniform1i(program, at(program, "u_clip_count"), clip_count_);
+    if (clip_count_)
+      glProgramUniform4fv(program, at(program, "u_clip"), clip_count_, glm::value_ptr(clip_[0]));
     glProgramUniformMatrix4fv(program, at(program, "u_view_projection"), 1, GL_FALSE,
                               glm::value_ptr(view.view_projection));
     glProgramUniform3fv(program, at(program, "u_key"), 1, glm::value_ptr(key));
@@ -122,6 +131,7 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
   glProgramUniform2f(centreline, at(centreline, "u_viewport"), float(w), float(h));
   glProgramUniform1f(centreline, at(centreline, "u_focal_px"), focal_px);
   glProgramUniform1f(centreline, at(centreline, "u_near"), float(kNearPlaneM));
+  set_clipping(true);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, table_buffer_);
 }
 
@@ -143,15 +153,87 @@ void GlBackend::draw_triangles(size_t first, size_t count) const {
   if (previous) glDeleteSync(previous);
 }
 
+void GlBackend::draw_cut_capped(size_t first, size_t count, int mode) {
+  // Highlight modes (gl/shaders/object_table.glsl): the context (2) is drawn only where the
+  // subject (stencil bit 0) is not; the subject (1) marks its pixels in bit 0.
+  const GLuint not_subject = mode == 2 ? 1u : 0u, subject = mode == 1 ? 1u : 0u;
+  const GLenum test = mode == 2 ? GL_EQUAL : GL_ALWAYS;
+  const GLuint surface = drawing_program(ProgramId::surface);
+  glEnable(GL_STENCIL_TEST);
+  // 1. Both sides, back faces shaded as caps: a front face drawn clears the mark, a back face
+  //    sets it.
+  glStencilFuncSeparate(GL_FRONT, test, GLint(subject), not_subject);
+  glStencilFuncSeparate(GL_BACK, test, GLint(kCapStencilBit | subject), not_subject);
+  glStencilMask(kCapStencilBit | subject);
+  glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  glProgramUniform1i(surface, at(surface, "u_cap"), 1);
+  draw_triangles(first, count);
+  glProgramUniform1i(surface, at(surface, "u_cap"), 0);
+  // 2. Where marked, the depth moved onto the cut: a square on each plane the eye is on the
+  //    removed side of, the first drawn over whatever is there, the others only where farther
+  //    (the ray enters the kept region at the farthest of them); the last clears the marks.
+  std::vector<int> entries;
+  for (int i = 0; i < clip_count_; ++i)
+    if (clip_[size_t(i)].w > 0) entries.push_back(i);
+  glStencilMask(kCapStencilBit);
+  if (entries.empty()) {
+    // The eye is in the kept region: a back face seen is the inside of a solid it is in.
+    const GLint zero = 0;
+    glClearNamedFramebufferiv(scene_.framebuffer, GL_STENCIL, 0, &zero);
+  } else {
+    const GLuint cap_plane = gl_program(ProgramId::cap_plane);
+    glUseProgram(cap_plane);
+    glBindVertexArray(empty_vao_);
+    set_clipping(false);
+    glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    glStencilFunc(GL_EQUAL, GLint(kCapStencilBit), kCapStencilBit);
+    for (size_t e = 0; e < entries.size(); ++e) {
+      const glm::vec3 n(clip_[size_t(entries[e])]);
+      const float w = clip_[size_t(entries[e])].w;
+      const glm::vec3 foot = -w * n;  // the plane's nearest point to the eye
+      const glm::vec3 u = glm::normalize(
+          glm::cross(n, std::abs(n.z) < 0.9f ? glm::vec3(0, 0, 1) : glm::vec3(1, 0, 0)));
+      const glm::vec3 v = glm::cross(n, u);
+      const float reach = 1e4f + w;  // metres: beyond any ray crossing that matters
+      const glm::vec3 corners[4] = {foot - reach * (u + v), foot + reach * (u - v),
+                                    foot - reach * (u - v), foot + reach * (u + v)};
+      glProgramUniform3fv(cap_plane, at(cap_plane, "u_corners"), 4, glm::value_ptr(corners[0]));
+      glDepthFunc(e == 0 ? GL_ALWAYS : GL_LESS);
+      const bool last = e + 1 == entries.size();
+      glStencilOp(GL_KEEP, last ? GL_ZERO : GL_KEEP, last ? GL_ZERO : GL_KEEP);
+      glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+    }
+    glDepthFunc(GL_GREATER);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    set_clipping(true);
+    glBindVertexArray(vao_);
+    glUseProgram(surface);
+  }
+  glStencilMask(0xff);
+  // The highlight's stencil state back (draw_phase).
+  if (mode == 0) {
+    glDisable(GL_STENCIL_TEST);
+  } else if (mode == 1) {
+    glStencilFunc(GL_ALWAYS, 1, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  } else {
+    glStencilFunc(GL_EQUAL, 0, 0xff);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+  }
+}
+
 void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, float alpha,
                            bool with_ids) {
-  const size_t n_closed = counts[kClosed], n_open = counts[kOpen];
-  const size_t n_opaque = n_closed + n_open, n_transparent = counts[kTransparent],
+  const size_t n_closed = counts[kClosed], n_cut = counts[kClosedCut], n_open = counts[kOpen];
+  const size_t n_opaque = n_closed + n_cut + n_open, n_transparent = counts[kTransparent],
                n_lines = counts[kLines];
   const bool see_through = alpha < 1.0f;
-  const GLuint surface = gl_program(ProgramId::surface), proxy = gl_program(ProgramId::proxy),
-               centreline = gl_program(ProgramId::centreline);
-  for (const GLuint program : {surface, proxy, centreline}) {
+  const GLuint surface = drawing_program(ProgramId::surface),
+               proxy = drawing_program(ProgramId::proxy),
+               centreline = drawing_program(ProgramId::centreline);
+  // The closed solids the section does not cut need no clipping: the plain program (cheaper).
+  const GLuint plain = gl_program(ProgramId::surface);
+  for (const GLuint program : {surface, proxy, centreline, plain}) {
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
   }
@@ -164,15 +246,25 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   } else {
     glDisablei(GL_BLEND, 0);
   }
-  glUseProgram(surface);
   glBindVertexArray(vao_);
   if (n_closed) {
     // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
+    glUseProgram(plain);
+    if (plain != surface) set_clipping(false);  // (it writes no clip distance)
     glEnable(GL_CULL_FACE);
     draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
+    if (plain != surface) set_clipping(true);
   }
-  if (n_open) draw_triangles(n_closed, n_open);
+  glUseProgram(surface);
+  if (n_cut && caps_ && !see_through) {
+    draw_cut_capped(n_closed, n_cut, mode);
+  } else if (n_cut) {
+    glEnable(GL_CULL_FACE);
+    draw_triangles(n_closed, n_cut);
+    glDisable(GL_CULL_FACE);
+  }
+  if (n_open) draw_triangles(n_closed + n_cut, n_open);
   if (proxies) {
     // Only the faces the eye sees are drawn (kProxyVertex).
     glUseProgram(proxy);

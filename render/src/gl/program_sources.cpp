@@ -50,6 +50,21 @@ ShaderSource shader(ShaderStage stage, std::initializer_list<const ShaderFile*> 
   return s;
 }
 
+// `program` with SECTIONS defined in each shader that takes sections (after the version line).
+ProgramSource with_sections(ProgramSource program) {
+  program.name = program.name == std::string_view("surface")      ? "surface (sections)"
+                 : program.name == std::string_view("proxy")      ? "proxy (sections)"
+                 : program.name == std::string_view("centreline") ? "centreline (sections)"
+                                                                  : "ground (sections)";
+  for (ShaderSource& s : program.shaders)
+    for (const ShaderPart& p : s.parts)
+      if (p.name == kSectionClip.name || p.name == kSurfaceFrag.name) {
+        s.parts.insert(s.parts.begin() + 1, ShaderPart{"(sections)", "#define SECTIONS 1\n"});
+        break;
+      }
+  return program;
+}
+
 }  // namespace
 
 std::string_view stage_name(ShaderStage stage) {
@@ -66,20 +81,23 @@ ProgramSource program_source(ProgramId id) {
   switch (id) {
     case ProgramId::surface:
       return {"surface",
-              {shader(vertex, {&kTieConstants, &kObjectTable, &kSurfaceVert}),
+              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kSurfaceVert}),
                shader(fragment, {&kSurfaceFrag}), shader(fragment, {&kLighting})}};
+    case ProgramId::cap_plane:
+      return {"cap plane", {shader(vertex, {&kCapPlaneVert}), shader(fragment, {&kCapPlaneFrag})}};
     case ProgramId::proxy:
       return {"proxy",
-              {shader(vertex, {&kTieConstants, &kObjectTable, &kProxyVert}),
+              {shader(vertex, {&kTieConstants, &kObjectTable, &kSectionClip, &kProxyVert}),
                shader(vertex, {&kBoxFace}), shader(fragment, {&kSurfaceFrag}),
                shader(fragment, {&kLighting})}};
     case ProgramId::centreline:
       return {"centreline",
               {shader(vertex, {&kTieConstants, &kObjectTable, &kCentrelineVert}),
-               shader(geometry, {&kCentrelineGeom}), shader(fragment, {&kCentrelineFrag}),
+               shader(geometry, {&kSectionClip, &kCentrelineGeom}),
+               shader(fragment, {&kCentrelineFrag}),
                shader(fragment, {&kLighting})}};
     case ProgramId::ground:
-      return {"ground", {shader(vertex, {&kTieConstants, &kGroundVert}),
+      return {"ground", {shader(vertex, {&kTieConstants, &kSectionClip, &kGroundVert}),
                          shader(fragment, {&kGroundFrag})}};
     case ProgramId::ambient_occlusion:
       return {"ambient occlusion", {shader(vertex, {&kFullScreenVert}),
@@ -89,12 +107,29 @@ ProgramSource program_source(ProgramId id) {
     case ProgramId::depth_reduction: return depth_reduction_source(false, std::nullopt);
     case ProgramId::depth_reduction_multisampled:
       return depth_reduction_source(true, std::nullopt);
+    case ProgramId::surface_sections: return with_sections(program_source(ProgramId::surface));
+    case ProgramId::proxy_sections: return with_sections(program_source(ProgramId::proxy));
+    case ProgramId::centreline_sections:
+      return with_sections(program_source(ProgramId::centreline));
+    case ProgramId::ground_sections: return with_sections(program_source(ProgramId::ground));
     case ProgramId::box_test:
       return {"box test", {shader(vertex, {&kBoxTestVert}), shader(vertex, {&kBoxFace}),
                            shader(fragment, {&kBoxTestFrag})}};
   }
   assert(false && "program_source: not a ProgramId");
   return {};
+}
+
+ProgramId sections_variant(ProgramId id) {
+  switch (id) {
+    case ProgramId::surface: return ProgramId::surface_sections;
+    case ProgramId::proxy: return ProgramId::proxy_sections;
+    case ProgramId::centreline: return ProgramId::centreline_sections;
+    case ProgramId::ground: return ProgramId::ground_sections;
+    default: break;
+  }
+  assert(false && "sections_variant: not surface, proxy, centreline or ground");
+  return id;
 }
 
 ProgramSource depth_reduction_source(bool multisampled, std::optional<ReductionStep> step) {

@@ -6,6 +6,8 @@
 //
 // Programs
 //   - surface: every triangle of the objects, lit per fragment;
+//   - cap plane: a square on a cutting plane, moving the depth of caps onto the cut
+//     (gl/backend.h: sections);
 //   - proxy: the faces the eye sees of each proxy box, lit as surfaces;
 //   - centreline: pipes drawn as their centreline, expanded by a geometry shader into a
 //     screen-aligned quad as wide as the pipe's projected diameter;
@@ -60,6 +62,7 @@ struct ProgramSource {
 // The programs the backend links at init, in that order.
 enum class ProgramId : uint8_t {
   surface,
+  cap_plane,
   proxy,
   centreline,
   ground,
@@ -68,8 +71,18 @@ enum class ProgramId : uint8_t {
   depth_reduction,
   depth_reduction_multisampled,
   box_test,
+  // The section variants of surface, proxy, centreline and ground (SECTIONS defined: clipped,
+  // and surfaces capped), linked when a frame first has a section.
+  surface_sections,
+  proxy_sections,
+  centreline_sections,
+  ground_sections,
 };
-inline constexpr size_t kProgramCount = size_t(ProgramId::box_test) + 1;
+inline constexpr size_t kProgramCount = size_t(ProgramId::ground_sections) + 1;
+// The programs init() links: those before the section variants.
+inline constexpr size_t kProgramsAtInit = size_t(ProgramId::surface_sections);
+// The section variant of surface, proxy, centreline or ground.
+ProgramId sections_variant(ProgramId id);
 
 ProgramSource program_source(ProgramId id);
 

@@ -217,6 +217,14 @@ bool OcclusionCulling::rasterise_occluders(DecodedObjects& objects, const FrameV
         // holding a whole cell of the buffer on screen: else the piece covers none (most
         // pieces: small on screen or off it), and its points are not even transformed.
         const glm::vec3 lo = offset + k.occluder.bounds[2 * piece], hi = offset + k.occluder.bounds[2 * piece + 1];
+        // A piece the section cuts hides less than its shape: not used (conservative).
+        if (!options.section.empty() &&
+            !section_keeps_all(options.section,
+                               DAabb{k.origin_m + glm::dvec3(k.occluder.bounds[2 * piece]),
+                                     k.origin_m + glm::dvec3(k.occluder.bounds[2 * piece + 1])})) {
+          first = end;
+          continue;
+        }
         std::array<glm::vec3, 8> corners;
         float nearest_m = std::numeric_limits<float>::infinity();
         for (int c = 0; c < 8; ++c) {

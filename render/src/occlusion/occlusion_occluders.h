@@ -17,7 +17,8 @@
 //   - At most kMaxPieces pieces an object, the largest kept.
 //   - Each piece keeps its primitive's bounds, so that it is left out when the drawn solid may
 //     not hide what is behind it: when the bounds reach the near plane (the eye inside the
-//     solid sees nothing of it, its back faces being culled).
+//     solid sees nothing of it, its back faces being culled), and when a section cuts them
+//     (RenderOptions::section: what is drawn of the piece may be less than its shape).
 // Units: metres, points relative to the object's origin (Known::origin_m).
 // Threads: any (pure).
 #pragma once

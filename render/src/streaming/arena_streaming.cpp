@@ -404,7 +404,8 @@ void ArenaStreaming::place(Draw& d, const FrameView& view, FrameStats& stats) {
   for (const Known::Part& part : k.parts) {
     const uint32_t l = part.plan->clamp_level(level);
     const uint32_t n = part.plan->index_count(l);
-    const IndexList list = list_of(k, part);
+    IndexList list = list_of(k, part);
+    if (list == kClosed && d.cut) list = kClosedCut;
     counts_[list] += n;
     const MeshPlan& plan = part.resident_plan ? *part.resident_plan : *part.plan;
     segments_.push_back({&plan, d.arena_first + part.resident_first, plan.index_count(level),

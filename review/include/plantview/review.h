@@ -91,6 +91,11 @@ struct ReviewViewOptions {
   double aspect = 16.0 / 9.0;     // width / height of the images to come
   double fov_deg = 50.0;
   double fill = kReviewFill;      // (the overview uses kOverviewFill)
+  // "subject": each view but the overview gets a section box around its subject's bounds grown
+  // by section_margin_m on every side (walls, decks and whatever else lies outside it are cut
+  // away); "none": no section.
+  std::string section = "none";
+  double section_margin_m = 1.0;  // >= 0
 };
 struct ReviewViewsSummary {
   uint64_t subjects = 0;    // of the kind, before `select`

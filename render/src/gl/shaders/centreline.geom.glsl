@@ -53,6 +53,7 @@ void main() {
       gl_Position = vec4(c.xy + offset * c.w, c.z * g_tie[0], c.w);
       v_across = float(side) * reach;
       v_position = i == 0 ? p0 : p1;
+      clip_section(v_position);  // section_clip.glsl, ahead in the same shader
       EmitVertex();
     }
   }

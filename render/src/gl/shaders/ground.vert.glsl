@@ -11,6 +11,8 @@ uniform float u_reach_m;   // half the square's side: where the fade ends
 void main() {
   const vec2 kCorners[6] = vec2[](vec2(-1.0, -1.0), vec2(1.0, -1.0), vec2(1.0, 1.0),
                                   vec2(-1.0, -1.0), vec2(1.0, 1.0), vec2(-1.0, 1.0));
-  gl_Position = u_view_projection * vec4(u_centre + kCorners[gl_VertexID] * u_reach_m, u_ground_z, 1.0);
+  vec3 p = vec3(u_centre + kCorners[gl_VertexID] * u_reach_m, u_ground_z);
+  clip_section(p);  // section_clip.glsl, ahead in the same shader
+  gl_Position = u_view_projection * vec4(p, 1.0);
   gl_Position.z *= 1.0 - 2.0 * float((1u << (32u - kTieShift)) - 1u) * kTieStep;
 }

@@ -1,7 +1,8 @@
 // Surfaces: every triangle of the objects from the vertex arena (position in object-local
 // metres, normal, object-table index), placed camera-relative by the object's table entry.
 // Depth is reversed and infinite (depth = near / distance along the view axis), the object's
-// tie-break applied to clip z. Follows object_table.glsl in the same shader.
+// tie-break applied to clip z, clipped by the section (section_clip.glsl). Follows
+// object_table.glsl and section_clip.glsl in the same shader.
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec4 a_normal;
 layout(location = 2) in uint a_object;
@@ -21,6 +22,7 @@ void main() {
   vec3 p = a_position * e.scale + e.offset;
   v_normal = a_normal.xyz;
   v_colour = e.colour;
+  clip_section(p);
   gl_Position = u_view_projection * vec4(p, 1.0);
   gl_Position.z *= e.tie;
 }
