@@ -10,11 +10,11 @@ frame it), says which quality the frame has (as the server reports it, where it 
 back to the model's camera on Home. Leaves a screenshot of the page with the found object.
 
 Then the review tools: a section box (its top face dragged down: the frame request carries box=
-and, where the renderer cuts, the image changes), a BCF viewpoint saved (the downloaded .bcf
+and the image changes), a BCF viewpoint saved (the downloaded .bcf
 unzips and its XML holds the camera, the box as six planes and the selection), the permalink
 opened in a fresh window (the same request and the same pixels), and on a second store of two
-boxes 1.25 m apart the clearance measured through /api/measure (exact to 1 mm). Checks that need
-a server feature this one lacks (sections that cut, /api/measure) say NOTE and are left out.
+boxes 1.25 m apart two picked points and the clearance measured through /api/measure (exact to
+1 mm).
 
     tests/browser/test_viewer.py --plantview build/service/plantview [--store DIR]
                                  [--screenshot build/browser/viewer.png] [--port 0]
@@ -400,14 +400,6 @@ def search_for(driver, server, state, wait_state, obj):
           f"{drawn} px; readout: {found['stats'].splitlines()[-2].strip()!r}", flush=True)
 
 
-def server_cuts_sections(server):
-    """Whether the server's renderer obeys box= (a box far from the plant leaves nothing
-    visible); a server without the parameter (400) does not."""
-    far = "1e6,1e6,1e6,1000001,1000001,1000001"
-    status, reply = http_json(f"{server}/api/stats?w=64&h=48&box={far}", timeout=FRAME_S, token=TOKEN)
-    return status == 200 and isinstance(reply, dict) and reply.get("objects_visible") == 0
-
-
 def wait_download(directory, timeout_s):
     """The first finished .bcf file in directory, or None after timeout_s."""
     deadline = time.monotonic() + timeout_s
@@ -527,13 +519,9 @@ def review_tools(driver, server, state, wait_state, obj, text, downloads, tmp, s
     after = driver.js(FRAME_SIGNATURE_JS)
     change = mean_difference(before, after)
     driver.screenshot(screenshot)
-    if server_cuts_sections(server):
-        if change < 1.0:
-            raise Failure(f"the section box cut nothing: the image changed by {change:.2f} grey levels")
-        print(f"section box: top {box0['max'][2]:.3f} -> {box['max'][2]:.3f} m, image changed by {change:.1f}", flush=True)
-    else:
-        print(f"NOTE: this server's renderer does not cut sections; box= sent (top {box0['max'][2]:.3f} -> "
-              f"{box['max'][2]:.3f} m), image change {change:.2f} not checked", flush=True)
+    if change < 1.0:
+        raise Failure(f"the section box cut nothing: the image changed by {change:.2f} grey levels")
+    print(f"section box: top {box0['max'][2]:.3f} -> {box['max'][2]:.3f} m, image changed by {change:.1f}", flush=True)
 
     # Colour by an attribute every object of preset a has, and the selection highlighted.
     driver.click("#style-tool > summary")
