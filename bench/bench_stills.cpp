@@ -229,13 +229,27 @@ int main(int argc, char** argv) {
   slab.section.planes.push_back({{0, 0, bounds.min.z + 1.0}, {0, 0, -1}});
   RenderOptions open_slab = slab;  // what capping costs
   open_slab.section.capped = false;
+  // And both as interactive frames (aliased, no ambient occlusion, no ground), where the
+  // finishing passes that cost the same whatever is drawn are left out.
+  RenderOptions whole_fast = whole;
+  whole_fast.antialias = false;
+  whole_fast.ambient_occlusion = false;
+  whole_fast.ground = false;
+  whole_fast.pixel_error = kInteractivePixelError;
+  RenderOptions slab_fast = whole_fast;
+  slab_fast.section = slab.section;
   double whole_ms = 1e300, slab_ms = 1e300, open_ms = 1e300;
+  double whole_fast_ms = 1e300, slab_fast_ms = 1e300;
   uint64_t slab_clipped = 0, whole_triangles = 0, slab_triangles = 0;
   std::string whole_json, slab_json;  // the last frame of each, for where the time goes
   for (int r = 0; r <= repeats; ++r) {
-    for (const int part : {0, 1, 2}) {
+    for (const int part : {0, 1, 2, 3, 4}) {
       const bool cut = part > 0;
-      renderer->set_options(part == 0 ? whole : part == 1 ? slab : open_slab);
+      renderer->set_options(part == 0   ? whole
+                            : part == 1 ? slab
+                            : part == 2 ? open_slab
+                            : part == 3 ? whole_fast
+                                        : slab_fast);
       Image image;
       FrameStats stats;
       if (!renderer->render(views[0], width, height, false, image, stats, error)) {
@@ -247,9 +261,13 @@ int main(int argc, char** argv) {
           write_image(out_dir + (cut ? "/section-slab.png" : "/section-whole.png"), image, 90, error);
         continue;
       }
-      double& best = part == 0 ? whole_ms : part == 1 ? slab_ms : open_ms;
+      double& best = part == 0   ? whole_ms
+                     : part == 1 ? slab_ms
+                     : part == 2 ? open_ms
+                     : part == 3 ? whole_fast_ms
+                                 : slab_fast_ms;
       best = std::min(best, stats.ms.total);
-      if (part == 2) continue;
+      if (part >= 2) continue;
       (cut ? slab_json : whole_json) = stats.to_json();
       (cut ? slab_triangles : whole_triangles) = stats.triangles;
       if (cut) slab_clipped = stats.objects_clipped;
@@ -309,11 +327,17 @@ int main(int argc, char** argv) {
               whole_ms, (unsigned long long)whole_triangles, slab_ms,
               (unsigned long long)slab_triangles, (unsigned long long)slab_clipped,
               slab_ms / whole_ms, open_ms);
+  std::printf("section, interactive frames (aliased, no ambient occlusion, no ground, 1 px): "
+              "overview %.1f ms, slab %.1f ms: ratio %.2f\n",
+              whole_fast_ms, slab_fast_ms, slab_fast_ms / whole_fast_ms);
   std::printf("section frames:\n  overview %s\n  slab %s\n", whole_json.c_str(), slab_json.c_str());
   summary["section"] = {{"overview_ms", whole_ms},
                         {"slab_ms", slab_ms},
                         {"ratio", slab_ms / whole_ms},
                         {"uncapped_ms", open_ms},
+                        {"interactive_overview_ms", whole_fast_ms},
+                        {"interactive_slab_ms", slab_fast_ms},
+                        {"interactive_ratio", slab_fast_ms / whole_fast_ms},
                         {"objects_clipped", slab_clipped}};
   std::printf("json: %s\n", summary.dump().c_str());
   own.clear();

@@ -12,7 +12,8 @@
 namespace plantview::detail {
 
 // The ground: where nothing else was drawn (it lies below the whole model, so an eye above it
-// sees it only there), and only from above.
+// sees it only there), and only from above. A section never clips it: it is a cue of where the
+// plant stands, not part of the model, and a plan slab reads best over its floor grid.
 void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool with_ids) {
   if (bounds.empty()) return;
   const double ground_z = bounds.min.z - view.eye_m.z;
@@ -24,7 +25,7 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   const glm::dvec2 centre = 0.5 * glm::dvec2(bounds.min.x + bounds.max.x, bounds.min.y + bounds.max.y) -
                             glm::dvec2(view.eye_m);
   const glm::dvec2 phase(std::fmod(view.eye_m.x, 10 * grid), std::fmod(view.eye_m.y, 10 * grid));
-  const GLuint p = drawing_program(ProgramId::ground);
+  const GLuint p = gl_program(ProgramId::ground);  // the plain program: it writes no clip distance
   glProgramUniform1f(p, at(p, "u_ground_z"), float(ground_z));
   glProgramUniform2f(p, at(p, "u_grid_phase"), float(phase.x), float(phase.y));
   glProgramUniform1f(p, at(p, "u_grid_m"), float(grid));
@@ -35,9 +36,12 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, colour_only);
   glEnablei(GL_BLEND, 0);
   glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  const bool clipping = clip_count_ > 0 && glIsEnabled(GL_CLIP_DISTANCE0);
+  if (clipping) set_clipping(false);
   glUseProgram(p);
   glBindVertexArray(empty_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 6);
+  if (clipping) set_clipping(true);
   glDisablei(GL_BLEND, 0);
   const GLenum restored[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, restored);
