@@ -9,6 +9,7 @@
 //     python3's zipfile, imports with a report;
 //   - bad files (truncated, not a zip, a '../' entry, a viewpoint without camera, a missing
 //     snapshot) fail with exit 1, a message naming what and where, and nothing written.
+#include <algorithm>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -180,6 +181,40 @@ TEST_F(Bcf, ExportIsStableAndAtomic) {
   r = run(plantview("render --store " + store() + " --out " + (dir() / "x.png").string() + " --bcf y.bcf"),
           dir());
   EXPECT_EQ(r.status, 2);
+}
+
+TEST_F(Bcf, ColouringSaysTheColoursTheSnapshotShows) {
+  // The coloured view's Coloring gives each value the colour its rendered frame's legend shows.
+  const fs::path script = dir() / "colours.py";
+  std::ofstream(script) << R"(import glob, json, sys, zipfile
+import xml.etree.ElementTree as ET
+images, bcf = sys.argv[1], sys.argv[2]
+legend = None
+for part in glob.glob(images + '/manifest.*-of-*.json'):
+    for record in json.load(open(part))['views']:
+        if 'legend' in record.get('stats', {}):
+            legend = record['stats']['legend']
+drawn = {e['colour'][1:].upper() for e in legend['entries']}
+written = set()
+with zipfile.ZipFile(bcf) as z:
+    for name in z.namelist():
+        if name.endswith('.bcfv'):
+            for colour in ET.fromstring(z.read(name)).iter('Color'):
+                written.add(colour.get('Color').upper())
+print(json.dumps({'drawn': sorted(drawn), 'written': sorted(written), 'key': legend['key']}))
+)";
+  const Outcome r = run("python3 " + script.string() + " " + (dir() / "images").string() + " " +
+                            (dir() / "out.bcf").string(),
+                        dir());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json colours = json::parse(r.out);
+  EXPECT_EQ(colours["key"], "Material");
+  EXPECT_FALSE(colours["written"].empty()) << r.out;
+  // Every colour the frame drew a value in is written for that value (values of objects out of
+  // the view take BCF's own palette as well).
+  for (const json& c : colours["drawn"])
+    EXPECT_NE(std::find(colours["written"].begin(), colours["written"].end(), c), colours["written"].end())
+        << c << " in " << r.out;
 }
 
 TEST_F(Bcf, IndependentReaderSeesEveryTopicCameraPlaneComponentAndSnapshot) {

@@ -3,6 +3,8 @@
 #include <string>
 #include <string_view>
 
+#include <nlohmann/json.hpp>
+
 #include "frame_stats.h"
 #include "plantview/render.h"
 
@@ -119,6 +121,66 @@ std::string FrameLegend::to_json() const {
     out += "],\"other_objects\":" + std::to_string(other_objects);
   }
   return out + ",\"missing_objects\":" + std::to_string(missing_objects) + "}";
+}
+
+namespace {
+
+bool colour_from_hex(const nlohmann::json& j, Colour& out) {
+  if (!j.is_string()) return false;
+  const std::string text = j.get<std::string>();
+  unsigned r = 0, g = 0, b = 0;
+  if (text.size() != 7 || text[0] != '#' || std::sscanf(text.c_str() + 1, "%2x%2x%2x", &r, &g, &b) != 3)
+    return false;
+  out = {uint8_t(r), uint8_t(g), uint8_t(b), 255};
+  return true;
+}
+
+}  // namespace
+
+bool FrameLegend::from_json(std::string_view json, FrameLegend& out, std::string& error) {
+  const nlohmann::json j = nlohmann::json::parse(json, nullptr, false);
+  const auto fail = [&](const std::string& what) {
+    error = "legend: " + what;
+    return false;
+  };
+  if (!j.is_object()) return fail("not a JSON object");
+  FrameLegend legend;
+  if (!j.contains("key") || !j["key"].is_string()) return fail("'key' must be a string");
+  legend.key = j["key"].get<std::string>();
+  const std::string kind = j.value("kind", std::string());
+  if (kind == "ramp") {
+    legend.kind = Kind::ramp;
+    if (!j.contains("min") || !j["min"].is_number() || !j.contains("max") || !j["max"].is_number())
+      return fail("a ramp needs numbers 'min' and 'max'");
+    legend.min = j["min"].get<double>();
+    legend.max = j["max"].get<double>();
+    if (j.contains("unit") && j["unit"].is_string()) legend.unit = j["unit"].get<std::string>();
+    if (j.contains("colours") && j["colours"].is_array())
+      for (const auto& c : j["colours"]) {
+        Colour colour;
+        if (!colour_from_hex(c, colour)) return fail("'colours' must be \"#rrggbb\" strings");
+        legend.colours.push_back(colour);
+      }
+  } else if (kind == "categories") {
+    if (!j.contains("entries") || !j["entries"].is_array()) return fail("'entries' must be a list");
+    for (const auto& e : j["entries"]) {
+      Entry entry;
+      if (!e.is_object() || !e.contains("value") || !e["value"].is_string() || !e.contains("colour") ||
+          !colour_from_hex(e["colour"], entry.colour))
+        return fail("each entry needs a string 'value' and a \"#rrggbb\" 'colour'");
+      entry.value = e["value"].get<std::string>();
+      if (e.contains("objects") && e["objects"].is_number_unsigned()) entry.objects = e["objects"].get<uint64_t>();
+      legend.entries.push_back(std::move(entry));
+    }
+    if (j.contains("other_objects") && j["other_objects"].is_number_unsigned())
+      legend.other_objects = j["other_objects"].get<uint64_t>();
+  } else {
+    return fail("'kind' must be categories or ramp");
+  }
+  if (j.contains("missing_objects") && j["missing_objects"].is_number_unsigned())
+    legend.missing_objects = j["missing_objects"].get<uint64_t>();
+  out = std::move(legend);
+  return true;
 }
 
 namespace detail {

@@ -219,3 +219,20 @@ bool FrameColouring::make(const std::string& key, std::span<Known* const> known,
 }
 
 }  // namespace plantview::detail
+
+namespace plantview {
+
+std::optional<Colour> FrameLegend::colour_of(std::string_view value) const {
+  if (kind == Kind::categories) {
+    for (const Entry& e : entries)
+      if (e.value == value) return e.colour;
+    return std::nullopt;
+  }
+  double number = 0;
+  std::string value_unit;
+  if (!detail::parse_numeric_value(value, number, value_unit) || value_unit != unit)
+    return std::nullopt;
+  return detail::ramp_colour(max > min ? (number - min) / (max - min) : 0.5);
+}
+
+}  // namespace plantview

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -102,6 +103,23 @@ bool export_views_bcf(const std::vector<ReviewView>& views, const fs::path& imag
   }
   BcfWriteOptions options;
   options.seed = seed;
+  // Each coloured view's legend, as its render recorded it in the manifest parts of `images`, so
+  // that Coloring says the colours the snapshot shows (none recorded: BCF's own palette).
+  std::map<std::string, nlohmann::json> records;
+  std::string manifest_error;
+  if (farm::read_newest_records(images, records, manifest_error)) {
+    options.legends.resize(views.size());
+    for (size_t i = 0; i < views.size(); ++i) {
+      const auto record = records.find(views[i].name);
+      if (views[i].style.colour_by.empty() || record == records.end() ||
+          !record->second.contains("stats") || !record->second["stats"].contains("legend"))
+        continue;
+      std::string why;
+      if (!FrameLegend::from_json(record->second["stats"]["legend"].dump(), options.legends[i], why))
+        std::cerr << "plantview: bcf " << out.string() << ": view '" << views[i].name << "': " << why
+                  << " (its Coloring uses BCF's own palette)\n";
+    }
+  }
   BcfWriteReport report;
   if (!write_bcf(out, views, snapshots, store, options, report, error)) return false;
   for (const std::string& note : report.notes)

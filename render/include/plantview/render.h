@@ -73,6 +73,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -210,6 +211,13 @@ struct FrameLegend {
   //  "other_objects": N, "missing_objects": N} or {"key", "kind": "ramp", "unit", "min",
   //  "max", "colours": [5 stops], "objects", "missing_objects"}; one line.
   std::string to_json() const;
+  // Reads what to_json wrote (other fields are ignored). False with a message naming the field.
+  static bool from_json(std::string_view json, FrameLegend& out, std::string& error);
+  // The colour the frame gives an object whose colour_by attribute is `value`: its category's
+  // entry; on a ramp its place between min and max (clamped). Nothing for a category the legend
+  // does not list (in no drawn object, or beyond the palette) or, on a ramp, a value that is not
+  // a number in the ramp's unit.
+  std::optional<Colour> colour_of(std::string_view value) const;
 };
 
 struct FrameStats {

@@ -31,7 +31,10 @@
 //         exceptions (the report says so);
 //       Coloring: with style.colour_by, one Color (RGB hex, "RRGGBB") per attribute value over
 //         the objects the style shows, for at most max_listed objects in all (else none,
-//         reported). The colours are BCF's alone (a fixed palette by hash of the value).
+//         reported). Each value's colour is the one its snapshot shows it in (the rendered
+//         frame's legend, BcfWriteOptions::legends); a value the legend does not list (no object
+//         of it in view, or beyond its palette) or a view without a legend takes a colour of a
+//         fixed palette by hash of the value.
 //     Visibility and Coloring need the store (they list objects); without one they are left
 //     at DefaultVisibility true and no Coloring, and the report says so.
 //   - What BCF cannot state (the camera's target distance, kind, name, attributes, capped, the
@@ -67,6 +70,7 @@
 #include <string>
 #include <vector>
 
+#include "plantview/render.h"
 #include "plantview/review.h"
 
 namespace plantview {
@@ -78,6 +82,10 @@ struct BcfWriteOptions {
   std::string author = "plantview";  // CreationAuthor
   std::string date;                  // CreationDate, ISO 8601 with zone; "" now (UTC)
   size_t max_listed = 1000;          // most objects listed in Visibility, or in Coloring
+  // The legends of the rendered views' frames (FrameStats::legend), parallel to the views, or
+  // empty: Coloring then gives each value the colour its snapshot shows it in. A view whose
+  // legend is missing (key empty or another key) falls back to the fixed palette.
+  std::vector<FrameLegend> legends;
 };
 
 // What was written, and what could not be said exactly (one line each, for stderr).

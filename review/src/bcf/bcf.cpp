@@ -9,9 +9,11 @@
 #include <cassert>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <unordered_map>
 #include <unordered_set>
@@ -98,6 +100,12 @@ struct ObjectFacts {
 // A fixed palette, distinct on white and on the model's greys.
 const char* kPalette[] = {"E6194B", "3CB44B", "FFE119", "4363D8", "F58231", "911EB4",
                           "46F0F0", "F032E6", "BCF60C", "FABEBE", "008080", "9A6324"};
+
+std::string rgb_hex(const Colour& c) {
+  char text[8];
+  std::snprintf(text, sizeof text, "%02X%02X%02X", c.r, c.g, c.b);
+  return text;
+}
 
 std::string colour_of(const std::string& value) {
   return kPalette[mix(fnv1a(value, 14695981039346656037ull)) % (sizeof kPalette / sizeof kPalette[0])];
@@ -333,8 +341,12 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
           // Values of one colour share a group (the schema allows one Color per colour).
           std::map<std::string, bcf::ColourGroup> by_colour;
           for (auto& [value, components] : groups) {
-            bcf::ColourGroup& g = by_colour[colour_of(value)];
-            g.rgb_hex = colour_of(value);
+            std::optional<Colour> drawn;
+            if (i < options.legends.size() && options.legends[i].key == view.style.colour_by)
+              drawn = options.legends[i].colour_of(value);
+            const std::string hex = drawn ? rgb_hex(*drawn) : colour_of(value);
+            bcf::ColourGroup& g = by_colour[hex];
+            g.rgb_hex = hex;
             g.components.insert(g.components.end(), components.begin(), components.end());
           }
           for (auto& [colour, group] : by_colour) vp.colours.push_back(std::move(group));
