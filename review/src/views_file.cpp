@@ -69,7 +69,8 @@ bool parse_section(const Json& json, Section& out, const Fail& fail) {
         return false;
       const double length = glm::length(plane.normal);
       if (!(length > 1e-12)) return fail("'" + name + ".normal' has no direction (zero length)");
-      plane.normal /= length;
+      // (A unit normal is kept bit for bit, so that a file reads back as it was written.)
+      if (std::abs(length - 1.0) > 1e-12) plane.normal /= length;
       section.planes.push_back(plane);
     }
   }

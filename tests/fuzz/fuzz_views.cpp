@@ -1,7 +1,7 @@
 // Fuzz harness for the views file (plantview/review.h: parse_review_views). For any input:
 //   - a failure leaves the output alone and says "views file" and what is wrong;
 //   - whatever is accepted holds the file's rules (safe, unique names; known kinds; cameras
-//     validate_camera accepts; a positive aspect), and written back it reads back the same, bit
+//     validate_camera accepts; a positive aspect; sections validate_section accepts), and written back it reads back the same, bit
 //     for bit, and writes again to the same text.
 #include <cstddef>
 #include <cstdint>
@@ -21,7 +21,8 @@ void check(bool condition) {
 
 bool same(const plantview::ReviewView& a, const plantview::ReviewView& b) {
   return a.name == b.name && a.title == b.title && a.kind == b.kind && a.camera == b.camera &&
-         a.aspect == b.aspect && a.subject == b.subject && a.attributes == b.attributes;
+         a.aspect == b.aspect && a.subject == b.subject && a.attributes == b.attributes &&
+         a.section == b.section && a.style == b.style;
 }
 
 }  // namespace
@@ -44,6 +45,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::string why;
     check(plantview::validate_camera(v.camera, why));
     check(v.aspect > 0);
+    check(plantview::validate_section(v.section, why));
   }
   const std::string written = plantview::review_views_json(views, "area");
   std::vector<plantview::ReviewView> again;
