@@ -26,6 +26,7 @@
 #include "support/box_row.h"
 #include "support/http_client.h"
 #include "support/measure_oracle.h"
+#include "support/serve_process.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -443,46 +444,9 @@ TEST(MeasureCommand, TextJsonAndExitCodes) {
   EXPECT_EQ(run_plantview({"measure", "--store", "/nonexistent/store", "--a", "A", "--b", "B"}, out, err), 1);
 }
 
-// A server on the box store (as test_service.cpp starts it).
-class Server {
- public:
-  Server() {
-    int out[2];
-    EXPECT_EQ(pipe(out), 0);
-    pid_ = fork();
-    if (pid_ == 0) {
-      dup2(out[1], 1);
-      close(out[0]);
-      std::vector<std::string> args = {PLANTVIEW_BIN, "serve", "--store", box_store(), "--listen",
-                                       "127.0.0.1:0", "--vertex-budget", "64"};
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      execvp(argv[0], argv.data());
-      _exit(127);
-    }
-    close(out[1]);
-    std::string line;
-    char c;
-    pollfd pfd{out[0], POLLIN, 0};
-    while (line.find('\n') == std::string::npos && poll(&pfd, 1, 30000) > 0 && read(out[0], &c, 1) == 1) line += c;
-    close(out[0]);
-    const size_t colon = line.rfind(':');
-    if (colon != std::string::npos) port_ = std::atoi(line.c_str() + colon + 1);
-    EXPECT_GT(port_, 0) << "server did not start: '" << line << "'";
-  }
-  ~Server() {
-    if (pid_ > 0) {
-      kill(pid_, SIGTERM);
-      int status = 0;
-      waitpid(pid_, &status, 0);
-    }
-  }
-  int port() const { return port_; }
-
- private:
-  pid_t pid_ = 0;
-  int port_ = 0;
+// A server on the box store.
+struct Server : test::ServeProcess {
+  Server() : ServeProcess(PLANTVIEW_BIN, box_store()) {}
 };
 
 TEST(MeasureService, MeasureAndPickPoint) {

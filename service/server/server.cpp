@@ -31,6 +31,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -121,6 +122,8 @@ class Server final : public ConnectionHost {
   void submit_render(Connection& c, const std::shared_ptr<Pending>& p, RenderJob job);
   void look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ObjectLookup lookup);
   void measure(Connection& c, const std::shared_ptr<Pending>& p, MeasureLookup lookup);
+  void answer_from_store(Connection& c, const std::shared_ptr<Pending>& p,
+                         std::function<ObjectAnswer(const ReadView&)> answer);
   void on_render_done(RenderResult&& r);
   void deliver(RenderResult& r);
   void begin_shutdown();
@@ -228,91 +231,65 @@ void Server::submit_render(Connection& c, const std::shared_ptr<Pending>& p, Ren
   }
 }
 
-// Object look-ups run on libuv's pool, each in a read view of its own: the render thread's
-// view belongs to the render thread, and a look-up must not wait behind frames.
-struct ObjectWork {
+// Object look-ups and measurements run on libuv's pool, each in a read view of its own: the
+// render thread's view belongs to the render thread, and neither must wait behind frames (two
+// objects of 5,000 primitives take tens of milliseconds to measure). `answer` runs on the pool
+// and makes the JSON reply; the loop thread sends it if the connection is still there.
+struct StoreWork {
   uv_work_t req{};
   Server* server = nullptr;
   const Store* store = nullptr;
-  ObjectLookup lookup;
+  std::function<ObjectAnswer(const ReadView&)> answer;
   uint64_t ticket = 0;
-  ObjectAnswer answer;
+  ObjectAnswer result;
 };
 
-void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ObjectLookup lookup) {
-  auto* work = new ObjectWork;
+void Server::answer_from_store(Connection& c, const std::shared_ptr<Pending>& p,
+                               std::function<ObjectAnswer(const ReadView&)> answer) {
+  auto* work = new StoreWork;
   work->server = this;
   work->store = store.get();
-  work->lookup = std::move(lookup);
+  work->answer = std::move(answer);
   work->ticket = add_ticket(c, p);
   work->req.data = work;
   ++works_in_flight;
   uv_queue_work(
       loop, &work->req,
       [](uv_work_t* req) {
-        auto* w = static_cast<ObjectWork*>(req->data);
+        auto* w = static_cast<StoreWork*>(req->data);
         std::string error;
         const auto view = w->store->read(error);
-        w->answer = view ? object_answer(*view, w->lookup.id, w->lookup.name) : ObjectAnswer{500, error_body(error)};
+        w->result = view ? w->answer(*view) : ObjectAnswer{500, error_body(error)};
       },
       [](uv_work_t* req, int) {
-        const std::unique_ptr<ObjectWork> w(static_cast<ObjectWork*>(req->data));
+        const std::unique_ptr<StoreWork> w(static_cast<StoreWork*>(req->data));
         --w->server->works_in_flight;
         const Ticket t = w->server->take_ticket(w->ticket);
         if (!t.connection) return;
-        t.connection->answer(t.pending, text_reply("application/json", std::move(w->answer.body), w->answer.status));
+        t.connection->answer(t.pending, text_reply("application/json", std::move(w->result.body), w->result.status));
       });
 }
 
-// Measurements run on libuv's pool like object look-ups (a read view of their own), off the
-// loop and the render thread: two objects of 5,000 primitives take tens of milliseconds.
-struct MeasureWork {
-  uv_work_t req{};
-  Server* server = nullptr;
-  const Store* store = nullptr;
-  MeasureLookup lookup;
-  uint64_t ticket = 0;
-  int status = 200;
-  std::string body;
-};
+void Server::look_up_object(Connection& c, const std::shared_ptr<Pending>& p, ObjectLookup lookup) {
+  answer_from_store(c, p, [lookup = std::move(lookup)](const ReadView& view) {
+    return object_answer(view, lookup.id, lookup.name);
+  });
+}
 
 void Server::measure(Connection& c, const std::shared_ptr<Pending>& p, MeasureLookup lookup) {
-  auto* work = new MeasureWork;
-  work->server = this;
-  work->store = store.get();
-  work->lookup = std::move(lookup);
-  work->ticket = add_ticket(c, p);
-  work->req.data = work;
-  ++works_in_flight;
-  uv_queue_work(
-      loop, &work->req,
-      [](uv_work_t* req) {
-        auto* w = static_cast<MeasureWork*>(req->data);
-        std::string error;
-        const auto view = w->store->read(error);
-        if (!view) {
-          w->status = 500;
-          w->body = error_body(error);
-          return;
-        }
-        const StoreMeasurement m = measure_in_store(*view, w->lookup.a, w->lookup.b);
-        using Outcome = StoreMeasurement::Outcome;
-        switch (m.outcome) {
-          case Outcome::measured: w->body = clearance_json(m.a, m.b, m.clearance) + "\n"; return;
-          case Outcome::unknown: w->status = 404; break;
-          case Outcome::ambiguous: w->status = 409; break;
-          case Outcome::no_geometry: w->status = 422; break;
-          case Outcome::failed: w->status = 500; break;
-        }
-        w->body = error_body(m.message);
-      },
-      [](uv_work_t* req, int) {
-        const std::unique_ptr<MeasureWork> w(static_cast<MeasureWork*>(req->data));
-        --w->server->works_in_flight;
-        const Ticket t = w->server->take_ticket(w->ticket);
-        if (!t.connection) return;
-        t.connection->answer(t.pending, text_reply("application/json", std::move(w->body), w->status));
-      });
+  answer_from_store(c, p, [lookup = std::move(lookup)](const ReadView& view) {
+    const StoreMeasurement m = measure_in_store(view, lookup.a, lookup.b);
+    using Outcome = StoreMeasurement::Outcome;
+    int status = 500;
+    switch (m.outcome) {
+      case Outcome::measured: return ObjectAnswer{200, clearance_json(m.a, m.b, m.clearance) + "\n"};
+      case Outcome::unknown: status = 404; break;
+      case Outcome::ambiguous: status = 409; break;
+      case Outcome::no_geometry: status = 422; break;
+      case Outcome::failed: status = 500; break;
+    }
+    return ObjectAnswer{status, error_body(m.message)};
+  });
 }
 
 // The first frame after start-up: the renderer is warm, and the server ready.
