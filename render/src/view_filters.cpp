@@ -121,6 +121,26 @@ bool parse_section_box(std::string_view text, std::string_view what, DAabb& out,
   return true;
 }
 
+bool parse_section_options(const std::vector<std::string>& clips, std::string_view box, Section& out,
+                           std::string& error) {
+  if (clips.size() > kMaxClipPlanes) {
+    error = "--clip: at most " + std::to_string(kMaxClipPlanes) + " planes, got " +
+            std::to_string(clips.size());
+    return false;
+  }
+  Section section = out;
+  section.planes.clear();
+  for (const std::string& text : clips) {
+    ClipPlane plane;
+    if (!parse_clip_plane(text, "--clip", plane, error)) return false;
+    section.planes.push_back(plane);
+  }
+  section.has_box = !box.empty();
+  if (section.has_box && !parse_section_box(box, "--section-box", section.box, error)) return false;
+  out = std::move(section);
+  return true;
+}
+
 bool validate_section(const Section& section, std::string& error) {
   if (section.planes.size() > kMaxClipPlanes) {
     error = "a section has at most " + std::to_string(kMaxClipPlanes) + " clip planes, not " +

@@ -116,19 +116,7 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
   if ((!a.hide.empty() && !parse_word_list(a.hide, "--hide", plan.options.style.hide, error)) ||
       (!a.only.empty() && !parse_word_list(a.only, "--only", plan.options.style.only, error)))
     return usage_error(error);
-  if (a.clip.size() > kMaxClipPlanes)
-    return usage_error("--clip: at most " + std::to_string(kMaxClipPlanes) + " planes, got " +
-                       std::to_string(a.clip.size()));
-  for (const std::string& text : a.clip) {
-    ClipPlane plane;
-    if (!parse_clip_plane(text, "--clip", plane, error)) return usage_error(error);
-    plan.options.section.planes.push_back(plane);
-  }
-  if (!a.section_box.empty()) {
-    if (!parse_section_box(a.section_box, "--section-box", plan.options.section.box, error))
-      return usage_error(error);
-    plan.options.section.has_box = true;
-  }
+  if (!parse_section_options(a.clip, a.section_box, plan.options.section, error)) return usage_error(error);
   plan.options.section.capped = !a.no_caps;
   if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
     return usage_error("give one of --camera, --path and --views");

@@ -238,19 +238,8 @@ int gltf_options(const ExportOptions& o, GltfExportOptions& g) {
     if (!parse_box(o.box, box, error)) return usage_error("export: --" + error);
     g.selection.box = box;
   }
-  if (o.clip.size() > kMaxClipPlanes)
-    return usage_error("export: --clip: at most " + std::to_string(kMaxClipPlanes) + " planes, got " +
-                       std::to_string(o.clip.size()));
-  for (const std::string& text : o.clip) {
-    ClipPlane plane;
-    if (!parse_clip_plane(text, "--clip", plane, error)) return usage_error("export: " + error);
-    g.selection.section.planes.push_back(plane);
-  }
-  if (!o.section_box.empty()) {
-    if (!parse_section_box(o.section_box, "--section-box", g.selection.section.box, error))
-      return usage_error("export: " + error);
-    g.selection.section.has_box = true;
-  }
+  if (!parse_section_options(o.clip, o.section_box, g.selection.section, error))
+    return usage_error("export: " + error);
   if (!parse_gltf_split(o.split, g.split))
     return usage_error("export: --split must be site, zone, pipeline or equipment, got '" + o.split + "'");
   return 0;

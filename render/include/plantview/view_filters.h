@@ -64,6 +64,11 @@ bool parse_clip_plane(std::string_view text, std::string_view what, ClipPlane& o
 // "MINX,MINY,MINZ,MAXX,MAXY,MAXZ". Errors: not six finite numbers, min > max on an axis.
 bool parse_section_box(std::string_view text, std::string_view what, DAabb& out,
                        std::string& error);
+// The planes and box of the command line's `--clip` options (each "PX,PY,PZ,NX,NY,NZ") and
+// `--section-box` ("" for none) into `out`'s planes and box (`capped` is left as it is). Errors:
+// as the two parsers above (naming --clip or --section-box), and more than kMaxClipPlanes planes.
+bool parse_section_options(const std::vector<std::string>& clips, std::string_view box, Section& out,
+                           std::string& error);
 // At most kMaxClipPlanes planes, unit finite normals, finite points, a box with min <= max.
 bool validate_section(const Section& section, std::string& error);
 
