@@ -21,6 +21,7 @@
 #include "plantview/review.h"
 #include "plantview/store.h"
 #include "support/gl_context.h"
+#include "support/stores.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -53,15 +54,7 @@ Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin, 
   return o;
 }
 
-std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>& objects) {
-  std::string error;
-  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
-  EXPECT_TRUE(store) << error;
-  if (!store) return nullptr;
-  const IngestResult result = ingest_objects(*store, objects);
-  EXPECT_TRUE(result) << result.error().message;
-  return store;
-}
+using test::make_store;
 
 bool render(Renderer& r, const Camera& camera, uint32_t w, uint32_t h, Image& image,
             FrameStats& stats) {

@@ -21,6 +21,7 @@
 #include "plantview/render.h"
 #include "plantview/store.h"
 #include "support/gl_context.h"
+#include "support/stores.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -32,13 +33,8 @@ class Style : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new test::TempDir;
-    std::string error;
-    store_ = Store::open(dir_->str(), Store::Mode::read_write, error).release();
-    ASSERT_TRUE(store_) << error;
-    GenerateOptions options;
-    options.preset = 'c';
-    const IngestResult result = ingest_generated(*store_, options);
-    ASSERT_TRUE(result) << result.error().message;
+    store_ = test::generated_store(*dir_, 'c').release();
+    ASSERT_TRUE(store_);
   }
   static void TearDownTestSuite() {
     delete store_;

@@ -25,6 +25,7 @@
 #include "plantview/store.h"
 #include "support/gl_context.h"
 #include "support/image_fill.h"
+#include "support/stores.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -366,15 +367,7 @@ Object box_object(const std::string& name, ObjectClass cls, glm::dvec3 centre, g
   return o;
 }
 
-std::unique_ptr<Store> make_store(const TempDir& dir, const std::vector<Object>& objects) {
-  std::string error;
-  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
-  EXPECT_TRUE(store) << error;
-  if (!store) return nullptr;
-  const IngestResult result = ingest_objects(*store, objects);
-  EXPECT_TRUE(result) << result.error().message;
-  return store;
-}
+using test::make_store;
 
 std::vector<ReviewView> views_of(const Store& store, ReviewViewOptions options,
                                  ReviewViewsSummary* summary = nullptr) {
