@@ -10,12 +10,14 @@ namespace plantview::cli::rendering {
 
 namespace {
 
+// `s` is a whole number, all of it.
+bool number(std::string_view s, uint32_t& v) {
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  return ec == std::errc() && end == s.data() + s.size();
+}
+
 bool parse_size(const std::string& text, uint32_t& w, uint32_t& h, std::string& error) {
   const size_t x = text.find('x');
-  const auto number = [](std::string_view s, uint32_t& v) {
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    return ec == std::errc() && end == s.data() + s.size();
-  };
   if (x == std::string::npos || !number(std::string_view(text).substr(0, x), w) ||
       !number(std::string_view(text).substr(x + 1), h)) {
     error = "--size: expected WxH, got '" + text + "'";
@@ -30,10 +32,6 @@ bool parse_size(const std::string& text, uint32_t& w, uint32_t& h, std::string& 
 
 bool parse_shard(const std::string& text, uint32_t& index, uint32_t& count, std::string& error) {
   const size_t slash = text.find('/');
-  const auto number = [](std::string_view s, uint32_t& v) {
-    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    return ec == std::errc() && end == s.data() + s.size();
-  };
   if (slash == std::string::npos || !number(std::string_view(text).substr(0, slash), index) ||
       !number(std::string_view(text).substr(slash + 1), count) || count == 0 || index >= count) {
     error = "--shard: expected I/N with 0 <= I < N, got '" + text + "'";
