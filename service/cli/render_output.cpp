@@ -192,7 +192,12 @@ void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines
     lines.push_back("Colour by " + legend.key);
     swatches.emplace_back();
   }
-  if (legend.kind == FrameLegend::Kind::ramp) {
+  if (legend.kind == FrameLegend::Kind::ramp && legend.min == legend.max && !legend.colours.empty()) {
+    // One value: drawn in the ramp's middle colour, named once.
+    const std::string unit = legend.unit.empty() ? "" : " " + legend.unit;
+    lines.push_back(number_text(legend.min) + unit + "  (" + std::to_string(legend.objects) + ")");
+    swatches.push_back(swatch(legend.colours[legend.colours.size() / 2]));
+  } else if (legend.kind == FrameLegend::Kind::ramp) {
     CaptionSwatch bar;
     for (const Colour& c : legend.colours) bar.rgb.push_back({c.r, c.g, c.b});
     const std::string unit = legend.unit.empty() ? "" : " " + legend.unit;
