@@ -26,11 +26,15 @@ PACKAGES=(
   libfcl-dev                                            # distances between primitives (measure, clash)
   libzip-dev                                            # BCF files (zip archives of viewpoints)
   libxml2-utils                                         # xmllint: the BCF test checks files against the BCF 2.1 XSDs
+  libxxhash-dev                                         # content hashes of objects (store revisions)
+  libavcodec-dev libavutil-dev libswscale-dev           # video coding of streamed frames (H.264, VP8)
+  python3-websockets                                    # an independent WebSocket client (stream tests)
+  iproute2                                              # tc and network namespaces (bench_stream's slow link)
 )
 
 # npm tools, installed into an ignored folder of the repository (not system-wide).
 NPM_DIR="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/.tools/npm"
-NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10 @parametricos/bcf-js@0.2.6)   # glTF validator; an independent BCF reader
+NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10 @parametricos/bcf-js@0.2.6 ws@8.18.0)   # glTF validator; an independent BCF reader; a WebSocket client
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -115,6 +115,9 @@ struct IngestControl {
   std::function<void(const IngestProgress&)> progress;
   // Default: never stops.
   std::stop_token stop;
+  // Recorded with the revision this call commits (Import::set_note, set_keep_revisions).
+  std::string note;
+  uint32_t keep_revisions = kDefaultKeepRevisions;
 };
 
 struct IngestError {

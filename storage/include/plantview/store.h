@@ -41,6 +41,14 @@
 //                                consecutive in the Morton order of their centres; the top says
 //                                which of the two databases holds the committed blocks
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
+//   revisions   u32 revision  -> JSON: the Revision (below) that commit made; kept for ever (a
+//                                few hundred bytes each)
+//   changes     u32 revision, u64 id -> the change that revision made to that object (kind,
+//                                class, name, content hashes before and after); kept for the
+//                                last keep_revisions revisions
+//   history     u32 revision, u64 id -> zstd: the object's record and attributes as they were
+//                                before that revision removed or modified it (what a change image
+//                                draws as a ghost); kept as the changes are
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
 // the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
@@ -202,6 +210,46 @@ inline void entry_bounds(const SpatialNode& leaf, const SpatialEntry& entry, flo
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Revisions (format 6). Every committed import (import, generate, ingest_objects) makes one
+// revision: 1 for the first commit, then 2, 3, ... An object's change between two revisions is
+// found by its id and its content hash: a 64-bit XXH3 of its stored record and its stored
+// attributes (geometry, colour, name, class, topology, source, attributes), so putting an object
+// again unchanged changes nothing, and re-importing an unchanged file makes a revision with no
+// changes. Objects whose id is new are added, ids that went are removed, ids whose hash differs
+// are modified (a slot that moved alone is not a change). The previous record of every removed
+// or modified object is kept for the last keep_revisions revisions (Import::set_keep_revisions,
+// default kDefaultKeepRevisions), with each revision's change list; older ones are pruned at a
+// later commit, and their Revision says changes_kept = false. Revisions themselves are kept for
+// ever.
+
+inline constexpr uint32_t kDefaultKeepRevisions = 10;
+
+struct Revision {
+  uint32_t number = 0;            // 1, 2, ... in commit order; 0: nothing committed yet
+  int64_t time_unix_ms = 0;       // when it was committed (UTC, milliseconds since 1970)
+  std::vector<std::string> sources;  // the sources the import touched, sorted (store.h sources)
+  std::string note;               // Import::set_note(); may be empty
+  uint64_t added = 0, removed = 0, modified = 0;  // objects, by the content hash rule above
+  uint64_t objects = 0;           // objects in the store after it
+  bool changes_kept = true;       // its change list and previous records are still kept
+};
+
+enum class ChangeKind : uint8_t { added, removed, modified };
+// "added", "removed", "modified".
+std::string_view change_kind_name(ChangeKind kind);
+
+// An object's net change between two revisions (ReadView::changes()).
+struct ObjectChange {
+  uint64_t id = 0;
+  ChangeKind kind = ChangeKind::added;
+  std::string name;                     // as at the later revision (removed: as it was)
+  ObjectClass object_class = ObjectClass::other;  // the same
+  std::optional<uint32_t> slot;         // its slot in this view's snapshot; none when removed
+  uint64_t hash_before = 0, hash_after = 0;  // content hashes (0 where it did not exist)
+  uint32_t revision = 0;                // the last revision in the range that changed it
+};
+
 // What `plantview info` shows.
 struct StoreInfo {
   uint32_t format_version = 0;
@@ -213,6 +261,10 @@ struct StoreInfo {
   // in the same order give the same id; any other change another one, whatever the statistics
   // say (an object recoloured or moved within the bounds). 0: nothing committed yet.
   uint64_t commit_id = 0;
+  // The snapshot's revision (Revision::number; 0 when nothing is committed) and when it was
+  // committed.
+  uint32_t revision = 0;
+  int64_t revision_time_unix_ms = 0;
 };
 
 // The statistics as one JSON object: objects, primitives and triangles (full resolution), each
@@ -249,6 +301,13 @@ class Import {
   // statistics, and commits. Afterwards the Import is spent, whether
   // the commit succeeded or not (a failed commit leaves the store as it was).
   bool commit(std::string& error);
+
+  // A note recorded with this commit's revision (Revision::note): what the revision is, e.g.
+  // "E3D export 2026-12-06". Any time before commit().
+  void set_note(std::string note);
+  // How many revisions (this one included) keep their change lists and previous records; older
+  // ones are pruned by this commit. At least 1 (0 is a caller bug and asserts).
+  void set_keep_revisions(uint32_t revisions);
 
   uint64_t objects_put() const;
   // The statistics of the objects put so far, bounds included (what they replaced or removed is
@@ -325,6 +384,27 @@ class ReadView {
   // Object chunks this view has decompressed (found neither among its own nor among the shared
   // ones): what reading objects cost it, for benches and tests.
   uint64_t chunks_decompressed() const;
+
+  // Revisions (see "Revisions" above). The snapshot's own revision is info().revision.
+  // Every revision ever committed, oldest first. False with a message naming the store on a
+  // read error.
+  bool revisions(std::vector<Revision>& out, std::string& error) const;
+  // The net change of every object that differs between the state at revision `from` and the
+  // state at `to` (from < to <= info().revision; from may be 0, the empty store), in id order:
+  // an object added then removed within the range is left out; removed then added again with
+  // the same hash is left out; otherwise the kind compares the two ends. False with a message
+  // naming the revision when one in (from, to] is not kept any more ("revision 3's changes were
+  // pruned: the store keeps the last 10 (--keep-revisions)") or never existed.
+  bool changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& out,
+               std::string& error) const;
+  // The object with this id as it was at revision `revision` (< info().revision): from the
+  // previous records of the first revision after it that changed the object, or its current
+  // record if none did. `found` false when it did not exist then. False with a message on a
+  // read error or when the records needed were pruned.
+  bool object_at(uint32_t revision, uint64_t id, Object& out, bool& found, bool with_attributes,
+                 std::string& error) const;
+  // The content hash of the object in a slot (the rule above). False as object() is.
+  bool content_hash(uint32_t slot, uint64_t& hash, std::string& error) const;
 
   // Decodes the object in a slot (attributes included when asked). False if there is none or
   // its record is corrupt (error says which). Cost: decompressing the slot's chunk (two
