@@ -426,3 +426,17 @@ std::unique_ptr<ReadView> Store::read(std::string& error) const {
 }
 
 }  // namespace plantview
+
+namespace plantview {
+
+uint64_t ReadView::commit() const { return uint64_t(mdb_txn_id(state_->txn.get())); }
+
+uint64_t Store::last_commit() const {
+  MDB_envinfo info;
+  // mdb_env_info reads the newer of the two meta pages through the map: no lock, no system
+  // call. It fails only for null arguments.
+  if (mdb_env_info(state_->env.get(), &info) != MDB_SUCCESS) return 0;
+  return uint64_t(info.me_last_txnid);
+}
+
+}  // namespace plantview

@@ -337,6 +337,10 @@ class ReadView {
   // (LMDB starts a read at the latest commit, so the snapshot cannot be had again), or when no
   // read can start (every reader slot of the store taken). Costs a read transaction.
   std::unique_ptr<ReadView> sibling(std::string& error) const;
+  // LMDB's number of the commit this snapshot reads (its transaction id): equal to
+  // Store::last_commit() while no import has committed since the view began. Not a revision
+  // (info().revision): any commit counts, and the numbers are the environment's, not the plant's.
+  uint64_t commit() const;
 
   // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
   // decoded on demand. Spans are valid while this view lives; no work per call once the top is
@@ -473,6 +477,13 @@ class Store {
   // Starts a read snapshot. May be called from any thread; the view stays on that thread. Reads
   // metadata only (see "Transactions and lifetimes").
   std::unique_ptr<ReadView> read(std::string& error) const;
+  // LMDB's number of the newest commit (ReadView::commit() of a view begun now), read from the
+  // environment's meta pages without a transaction, a lock or a system call: cheap enough to ask
+  // before every frame, so that a reader notices an import's commit and moves to it (a view
+  // held open keeps every page its snapshot uses, and the file grows while imports repeat).
+  // Any thread. A store opened without the lock file (see "Read-only copies") answers too, but
+  // must not be written while it is read.
+  uint64_t last_commit() const;
 
   const std::string& directory() const;
   // True when a read-only store was opened without LMDB's lock file (see "Read-only copies").
