@@ -464,6 +464,15 @@ bool describe_model(const Store& store, ModelDescription& out, std::string& erro
                             {"target", {camera.target_m.x, camera.target_m.y, camera.target_m.z}},
                             {"up", {camera.up.x, camera.up.y, camera.up.z}},
                             {"fov", camera.fov_deg}}}};
+  // What the revision changed (ReadView::revisions: kept for ever, a few hundred bytes each).
+  std::vector<Revision> revisions;
+  if (!view->revisions(revisions, error)) return false;
+  for (const Revision& r : revisions) {
+    if (r.number != info.revision) continue;
+    model["changes"] = {{"added", r.added}, {"removed", r.removed}, {"modified", r.modified}};
+    model["note"] = r.note;
+    model["sources"] = r.sources;
+  }
   const DAabb& b = out.bounds;
   if (!b.empty()) model["bounds"] = {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
   out.model_json = model.dump() + "\n";
