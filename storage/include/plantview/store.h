@@ -503,8 +503,10 @@ class Store {
   // environment's meta pages without a transaction, a lock or a system call: cheap enough to ask
   // before every frame, so that a reader notices an import's commit and moves to it (a view
   // held open keeps every page its snapshot uses, and the file grows while imports repeat).
-  // Any thread. A store opened without the lock file (see "Read-only copies") answers too, but
-  // must not be written while it is read.
+  // Any thread. LMDB writes the meta page a moment (microseconds) before it lets readers begin
+  // at it, so a view begun just after this changed may still read the commit before: compare
+  // its commit() and look again later. A store opened without the lock file (see "Read-only
+  // copies") answers too, but must not be written while it is read.
   uint64_t last_commit() const;
 
   const std::string& directory() const;
