@@ -1457,8 +1457,27 @@
     const from = revision;
     api('api/model', { cache: 'no-store' })
       .then((response) => (response.ok ? response.json() : null))
-      .then((described) => {
+      .then(async (described) => {
         if (!described || !(described.revision > revision)) return;
+        // The selection as the new revision has it (moved, say), or none if it was removed: a
+        // highlight of an id the revision lacks would fail every frame.
+        let gone = false;
+        if (selected) {
+          const id = selected.id;
+          const found = await api(`api/objects/${encodeURIComponent(id)}`, { cache: 'no-store' });
+          if (selected && selected.id === id) {
+            if (found.ok) {
+              const object = await found.json();
+              select(object);
+              showPick(object);
+            } else if (found.status === 404) {
+              gone = true;
+              pickSeq += 1;
+              select(null);
+              showPick(undefined);
+            }
+          }
+        }
         model = described;
         revision = described.revision;
         updatedFrom = from;
@@ -1467,7 +1486,7 @@
         const count = (c.added ?? 0) + (c.removed ?? 0) + (c.modified ?? 0);
         updateText.textContent = `model updated: revision ${revision}, ` +
           `${count.toLocaleString('en-US')} object${count === 1 ? '' : 's'} changed` +
-          `${described.note ? ` (${described.note})` : ''}`;
+          `${described.note ? ` (${described.note})` : ''}${gone ? '; the selection is gone' : ''}`;
         changesButton.textContent = showChanges ? 'hide changes' : 'show changes';
         updateBar.hidden = false;
         shown = null;          // redraw the same view from the new revision
