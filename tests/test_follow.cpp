@@ -128,7 +128,17 @@ TEST(Follow, AnImportFromAnotherProcessIsServedWithinASecond) {
       ASSERT_EQ(m.status, 200);
       model_seen = json_of(m)["objects"] == 8;
       if (model_seen) {
-        EXPECT_EQ(json_of(m)["bounds"]["max"][0], 34.0);
+        const auto described = json_of(m);
+        EXPECT_EQ(described["bounds"]["max"][0], 34.0);
+        // What the revision changed, and when (ISO 8601, UTC).
+        EXPECT_EQ(described["changes"]["added"], 2);
+        EXPECT_EQ(described["changes"]["removed"], 0);
+        EXPECT_EQ(described["changes"]["modified"], 0);
+        EXPECT_EQ(described["sources"].size(), 1u);
+        ASSERT_TRUE(described["revision_time"].is_string());
+        const std::string time = described["revision_time"];
+        EXPECT_EQ(time.size(), 24u) << time;  // 2026-12-06T09:30:00.123Z
+        EXPECT_EQ(time.back(), 'Z') << time;
         if (first > 0) { EXPECT_EQ(revision_of(m), first + 1); }
       }
     }
