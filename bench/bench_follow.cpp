@@ -124,6 +124,8 @@ struct Answer {
   Clock::time_point at;
   int status = 0;
   int revision = -1;
+  double ms = 0;       // from the request to the answer
+  bool frame = false;  // a frame (else /api/model)
 };
 
 }  // namespace
@@ -218,8 +220,10 @@ int main(int argc, char** argv) {
       for (uint64_t n = 0; !done; ++n) {
         const std::string target = n % 4 == 3 ? "/api/model"
                                               : "/api/frame?w=320&h=180&mode=interactive&px=3&quality=60";
+        const auto asked = Clock::now();
         const test_support::HttpResponse r = client->request(target);
-        Answer a{Clock::now(), r.status, -1};
+        Answer a{Clock::now(), r.status, -1, 0, n % 4 != 3};
+        a.ms = std::chrono::duration<double, std::milli>(a.at - asked).count();
         const auto it = r.headers.find("x-plantview-revision");
         if (it != r.headers.end()) a.revision = std::atoi(it->second.c_str());
         answers[size_t(c)].push_back(a);
@@ -262,6 +266,16 @@ int main(int argc, char** argv) {
     }
     delays_ms.push_back(std::chrono::duration<double, std::milli>(first->at - at).count());
   }
+  // Frame latency within 250 ms of each commit (the renderers start afresh: refresh() forgets
+  // what they decoded) against the rest.
+  std::vector<double> after_commit_ms, other_ms;
+  for (const Answer& a : all) {
+    if (!a.frame || a.status != 200) continue;
+    bool near = false;
+    for (const auto& [revision, at] : committed)
+      near = near || (a.at >= at && a.at - at < std::chrono::milliseconds(250));
+    (near ? after_commit_ms : other_ms).push_back(a.ms);
+  }
   const double max_delay = delays_ms.empty() ? 0 : *std::max_element(delays_ms.begin(), delays_ms.end());
   const uint64_t fresh_last = fresh_bytes[imports % 2];
   std::printf("load: preset %c, %d clients, %d imports (%d failed), %zu commits seen\n", preset, clients,
@@ -273,12 +287,16 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(failed));
   std::printf("  commit -> first answer carrying it: median %.0f ms, max %.0f ms, never %d\n",
               median(delays_ms), max_delay, never);
+  std::printf("  frame ms, median: %.0f answered within 250 ms of a commit (%zu frames), %.0f otherwise (%zu)\n",
+              median(after_commit_ms), after_commit_ms.size(), median(other_ms), other_ms.size());
   std::printf("  data file %.2f MB after, fresh import %.2f MB: %.2fx\n", served_bytes / 1e6, fresh_last / 1e6,
               double(served_bytes) / double(fresh_last));
   nlohmann::json load = {{"preset", std::string(1, preset)}, {"clients", clients}, {"imports", imports},
                          {"import_failures", import_failures}, {"requests", total}, {"failed", failed},
                          {"delay_ms_median", median(delays_ms)}, {"delay_ms_max", max_delay},
-                         {"revisions_never_served", never}, {"data_bytes", served_bytes},
+                         {"revisions_never_served", never},
+                         {"frame_ms_median_after_commit", median(after_commit_ms)},
+                         {"frame_ms_median_otherwise", median(other_ms)}, {"data_bytes", served_bytes},
                          {"fresh_bytes", fresh_last}};
   std::printf("json: %s\n", nlohmann::json({{"load", load}}).dump().c_str());
 
