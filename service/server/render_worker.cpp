@@ -2,6 +2,7 @@
 #include "server/render_worker.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string_view>
@@ -273,13 +274,35 @@ void RenderWorker::run(Thread* self, const Store* store) {
   started_.notify_all();
   if (!renderer) return;
 
+  // Following imports (render_worker.h): the commit last looked at, and the revision drawn.
+  uint64_t seen_commit = renderer->read_view().commit();
+  uint32_t revision = renderer->read_view().info().revision;
+  const auto follow = [&] {
+    const uint64_t newest = store->last_commit();
+    if (newest == seen_commit) return;
+    std::string refresh_error;
+    if (renderer->refresh(refresh_error)) {
+      seen_commit = renderer->read_view().commit();  // a commit since makes the next look move again
+      revision = renderer->read_view().info().revision;
+    } else {
+      seen_commit = newest;  // not tried again until the next commit
+      std::fprintf(stderr, "plantview serve: a renderer keeps revision %u: %s\n", revision,
+                   refresh_error.c_str());
+    }
+  };
+
   for (;;) {
     RenderJob job;
     Degradation degradation;
     size_t waiting = 0;
     {
       std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || !self->ok || waiting_ > 0; });
+      if (!wake_.wait_for(lock, kFollowIntervalMs * std::chrono::milliseconds(1),
+                          [&] { return stopping_ || !self->ok || waiting_ > 0; })) {
+        lock.unlock();
+        follow();  // idle: let go of an old snapshot promptly
+        continue;
+      }
       if (!self->ok || waiting_ == 0) break;  // dismissed, or stopping with every queued job answered
       // Round-robin: the first client's first job; the client goes to the back of the line.
       ClientLine line = std::move(lines_.front());
@@ -292,7 +315,9 @@ void RenderWorker::run(Thread* self, const Store* store) {
       degradation = choose_degradation(job, waiting_ + running_ + 1, std::max<size_t>(serving_, 1));
       ++running_;
     }
+    follow();  // between frames, never within one
     RenderResult result = execute_job(job, degradation, waiting, *renderer);
+    result.headers.emplace_back("X-Plantview-Revision", std::to_string(revision));
     {
       std::lock_guard lock(mutex_);
       done_.push_back(std::move(result));

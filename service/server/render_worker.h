@@ -41,6 +41,15 @@
 //     uv_async_send).
 // Picks read their object from the snapshot of the renderer that drew them: the commit the
 // frame was drawn from.
+// Following imports: each renderer moves to the store's newest commit between jobs, never within
+// one: before every job it compares Store::last_commit() with its view's commit (no read, no
+// lock), and an idle one looks every kFollowIntervalMs, so that no renderer holds an old read
+// transaction (LMDB keeps every page a reader's snapshot uses: the file would grow with each
+// import). On a change it refresh()es: a new snapshot, and what it decoded and made resident
+// forgotten (slots of re-imported objects change). A refresh that fails (the new commit cannot
+// be read) keeps the old snapshot, says so on stderr, and is tried again at the next commit.
+// Every result carries X-Plantview-Revision: the revision (StoreInfo::revision) of the snapshot
+// the job read.
 // View filters: each job sets its renderer's section, style and highlight ids (RenderOptions)
 // from the job's own, so nothing of one job's view carries over to the next. Highlight words
 // are resolved through the renderer's read view (object_words.h), the snapshot it draws.
@@ -101,6 +110,10 @@ Degradation choose_degradation(const RenderJob& job, size_t demand, size_t rende
 // The JPEG quality of a degraded interactive frame at most (as the remote-rendering views of
 // vtk.js and trame use while the user interacts).
 constexpr int kDegradedJpegQuality = 60;
+
+// How often an idle renderer looks for a new commit (milliseconds): a revision is served within
+// this of its commit, and an old snapshot let go.
+constexpr int kFollowIntervalMs = 100;
 
 class RenderWorker {
  public:
