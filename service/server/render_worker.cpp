@@ -70,6 +70,10 @@ std::string format_number(double value) {
 
 }  // namespace
 
+bool is_change_range_error(std::string_view message) {
+  return message.substr(0, 8) == "changes ";
+}
+
 bool is_view_filter_error(std::string_view message) {
   static constexpr std::string_view kPrefixes[] = {"colour_by", "colour by", "--colour-by", "hide",
                                                    "only", "style", "section", "clip", "box",
@@ -322,6 +326,7 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
   options.section = job.section;
   options.style = job.style;
   options.highlight_ids.clear();
+  options.changes = job.changes;
   std::string error;
   r.headers.emplace_back("X-Plantview-Client", job.client_id);
   bool unknown = false;
@@ -338,7 +343,8 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
                       : renderer.render(job.camera, width, height, job.kind == RenderJob::Kind::pick,
                                         image, r.stats, error);
   if (!ok) {
-    r.status = is_view_filter_error(error) ? 400 : 500;
+    // A change range the store cannot draw (pruned, never made, not its revision): 422.
+    r.status = is_view_filter_error(error) ? 400 : is_change_range_error(error) ? 422 : 500;
     r.content_type = "application/json";
     r.body = error_body(error);
     return r;
@@ -386,6 +392,9 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
       // Coloured by an attribute: the frame's legend (FrameLegend::to_json, one line).
       if (!r.stats.legend.key.empty())
         r.headers.emplace_back("X-Plantview-Legend", r.stats.legend.to_json());
+      // A change image: its caption (the range and its counts).
+      if (r.stats.changes.shown)
+        r.headers.emplace_back("X-Plantview-Changes", change_caption(r.stats.changes));
       break;
     }
   }
