@@ -363,9 +363,10 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
         break;
       }
       std::string json;
-      if (!object_json(renderer.read_view(), id, json, error)) {
+      if (!object_json(renderer.read_view(), id, json, error) &&
+          !(options.changes && object_at_json(renderer.read_view(), options.changes->from, id, json, error))) {
         // Picked, but not an object of the store (a merged pipeline run has its pipeline's id,
-        // which is one): report the id alone.
+        // which is one; a change image's removed object is answered as it was): the id alone.
         json = "{\"id\":\"" + std::to_string(id) + "\"}";
       }
       r.body = "{\"object\":" + json +
