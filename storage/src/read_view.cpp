@@ -488,9 +488,12 @@ bool ReadView::changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& ou
   out.clear();
   const uint32_t newest = info().revision;
   if (to > newest || from >= to) {
-    error = "store " + s.store->directory + ": no changes from revision " + std::to_string(from) +
-            " to " + std::to_string(to) + " (revisions 0 to " + std::to_string(newest) +
-            ", from before to)";
+    const uint32_t missing = from > newest ? from : to;
+    error = "store " + s.store->directory + ": " +
+            (missing > newest ? "no revision " + std::to_string(missing) + " (the newest is " +
+                                    std::to_string(newest) + ")"
+                              : "no changes from revision " + std::to_string(from) + " to " +
+                                    std::to_string(to) + ": the first must come before the second");
     return false;
   }
   for (uint32_t n = from + 1; n <= to; ++n) {
