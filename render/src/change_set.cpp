@@ -58,6 +58,7 @@ bool ChangeSet::load(const ReadView& view, const ChangeRange& range, std::string
   subject_ids_.clear();
   subject_colours_.clear();
   ghosts_ = GhostMesh{};
+  ghosts_left_out_ = 0;
   summary_ = FrameStats::Changes{true, range.from, revision, 0, 0, 0};
   Object previous, current;
   for (const ObjectChange& c : changes) {
@@ -77,7 +78,8 @@ bool ChangeSet::load(const ReadView& view, const ChangeRange& range, std::string
       if (!view.object(*c.slot, current, false, error)) return false;
       if (same_shape(previous, current)) continue;
     }
-    add_ghost(previous, c.kind == ChangeKind::removed ? kRemovedColour : kPreviousColour);
+    if (!add_ghost(previous, c.kind == ChangeKind::removed ? kRemovedColour : kPreviousColour))
+      ++ghosts_left_out_;
   }
   std::sort(subject_ids_.begin(), subject_ids_.end());
   std::sort(subject_colours_.begin(), subject_colours_.end());
@@ -93,7 +95,13 @@ bool ChangeSet::load(const ReadView& view, const ChangeRange& range, std::string
   return true;
 }
 
-void ChangeSet::add_ghost(const Object& previous, Colour colour) {
+bool ChangeSet::add_ghost(const Object& previous, Colour colour) {
+  size_t vertices = 0;
+  for (const Primitive& primitive : previous.primitives) {
+    const MeshPlan plan = plan_mesh(primitive);
+    if (plan.topology == Topology::triangles) vertices += plan.vertex_count;
+  }
+  if (ghosts_.vertices.size() + vertices > kMaxGhostVertices) return false;
   const uint32_t ghost = uint32_t(ghosts_.ghosts.size());
   ghosts_.ghosts.push_back({previous.id, previous.origin_m, colour});
   for (const Primitive& primitive : previous.primitives) {
@@ -110,6 +118,7 @@ void ChangeSet::add_ghost(const Object& previous, Colour colour) {
     ghosts_.indices.resize(at + plan.index_count(level));
     write_indices(plan, level, base, std::span<uint32_t>(ghosts_.indices).subspan(at));
   }
+  return true;
 }
 
 }  // namespace plantview::detail

@@ -11,6 +11,9 @@
 //     edit) gets no ghost: the ghost would only veil it.
 //   - Ghosts are tessellated at the finest level whose error is under kGhostErrorM, with their
 //     vertices on the surface; line primitives are left out (a ghost is a surface).
+//   - The ghosts' mesh holds at most kMaxGhostVertices (64 MB): a revision that moves a whole
+//     plant draws the ghosts that fit, in id order, and leaves the rest out (ghosts_left_out();
+//     the changed objects themselves are all drawn).
 //   - Counts (FrameStats::changes, the legend) are the range's, over the whole store.
 // Units: metres; vertices relative to each ghost's origin (double precision until the frame
 //   subtracts the eye).
@@ -33,6 +36,7 @@ class ReadView;
 namespace plantview::detail {
 
 inline constexpr double kGhostErrorM = 0.005;
+inline constexpr size_t kMaxGhostVertices = size_t(1) << 22;
 
 // The ghosts' mesh: triangles over vertices that carry a ghost's index (GhostMesh::ghosts).
 struct GhostMesh {
@@ -65,6 +69,7 @@ class ChangeSet {
     return subject_colours_;
   }
   const GhostMesh& ghosts() const { return ghosts_; }
+  uint64_t ghosts_left_out() const { return ghosts_left_out_; }
   const FrameStats::Changes& summary() const { return summary_; }
   const FrameLegend& legend() const { return legend_; }
   void reset() { loaded_ = false; }
@@ -75,10 +80,12 @@ class ChangeSet {
   std::vector<uint64_t> subject_ids_;
   std::vector<std::pair<uint64_t, uint32_t>> subject_colours_;
   GhostMesh ghosts_;
+  uint64_t ghosts_left_out_ = 0;
   FrameStats::Changes summary_;
   FrameLegend legend_;
   std::vector<PackedVertex> scratch_;
-  void add_ghost(const Object& previous, Colour colour);
+  // False (nothing added) when its vertices would not fit under kMaxGhostVertices.
+  bool add_ghost(const Object& previous, Colour colour);
 };
 
 // RGBA8 as TableEntry::colour holds it.
