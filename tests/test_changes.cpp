@@ -349,7 +349,22 @@ TEST_F(Changes, TheServiceAnswers422ForARangeTheStoreCannotDrawAndPicksAChangedO
   // Answered as it was (it is no object of the store any more).
   EXPECT_NE(result.body.find("\"name\":\"/GONE\""), std::string::npos) << result.body;
   EXPECT_NE(result.body.find("\"revision\":1"), std::string::npos) << result.body;
+  // Statistics say the range and its counts.
+  job.kind = service::RenderJob::Kind::stats;
+  result = service::execute_job(job, {}, 0, *r);
+  EXPECT_EQ(result.status, 200) << result.body;
+  EXPECT_NE(result.body.find("\"changes\":{\"from\":1,\"to\":2,"), std::string::npos) << result.body;
+  // Frames carry the caption.
+  job.kind = service::RenderJob::Kind::frame;
+  result = service::execute_job(job, {}, 0, *r);
+  EXPECT_EQ(result.status, 200) << result.body;
+  bool captioned = false;
+  for (const auto& [name, value] : result.headers)
+    captioned = captioned || (name == "X-Plantview-Changes" &&
+                              value == "Changes since revision 1 (to 2): 1 added, 3 modified, 1 removed");
+  EXPECT_TRUE(captioned);
   // The next job without a range draws no change image.
+  job.kind = service::RenderJob::Kind::pick;
   job.changes.reset();
   result = service::execute_job(job, {}, 0, *r);
   EXPECT_EQ(result.body, "{\"object\":null}\n");

@@ -314,6 +314,11 @@ TEST(ChangeLooks, AChangeImageMatchesItsReference) {
   EXPECT_EQ(stats.changes.modified, 2u);
   EXPECT_EQ(stats.changes.removed, 2u);
   expect_matches_reference(image, "changes");
+  if (const char* out = std::getenv("PLANTVIEW_CHANGES_IMAGES")) {
+    // A larger copy to look at.
+    ASSERT_TRUE(r->render(camera, 960, 540, false, image, stats, error)) << error;
+    EXPECT_TRUE(write_image((fs::path(out) / "changes-look.png").string(), image, 90, error)) << error;
+  }
 }
 
 }  // namespace
