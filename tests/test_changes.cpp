@@ -475,6 +475,26 @@ TEST_F(Changes, TheCommandLineDrawsAChangeImageAndRefusesBadRanges) {
           fs::path(out.str()));
   EXPECT_EQ(r.status, 2) << r.err;
   EXPECT_NE(r.err.find("--from"), std::string::npos) << r.err;
+  // A view per change, rendered as the farm renders them: a change image each.
+  const fs::path views = fs::path(out.str()) / "changes.json", sheet = fs::path(out.str()) / "sheet";
+  r = run("views " + store + "--per change --from 1 --group equipment --size 320x180 --out " + views.string(),
+          fs::path(out.str()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("render " + store + "--views " + views.string() + " --size 320x180 --out " + sheet.string(),
+          fs::path(out.str()));
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* name : {"GONE", "MOVED", "NEW", "RECOLOURED"})
+    EXPECT_TRUE(fs::is_regular_file(sheet / (std::string(name) + ".png"))) << name;
+  std::ifstream stats(sheet / "stats.jsonl");
+  std::string line;
+  size_t lines = 0;
+  while (std::getline(stats, line)) {
+    ++lines;
+    // (The manifest writes the statistics' keys sorted.)
+    EXPECT_NE(line.find("\"changes\":{\"added\":1,\"from\":1,\"modified\":3,\"removed\":1,\"to\":2}"),
+              std::string::npos) << line;
+  }
+  EXPECT_EQ(lines, 4u);
 }
 
 }  // namespace
