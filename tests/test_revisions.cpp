@@ -260,6 +260,47 @@ TEST(Revisions, AnObjectPutTwiceInOneImportIsOneChangeOfItsLastVersion) {
   EXPECT_EQ(revisions_of(*store).back().note, "twice");
 }
 
+// Change lists are kept in blocks of 256 objects: lookups across many blocks.
+TEST(Revisions, ManyChangesAcrossBlocksAreAllFound) {
+  TempDir dir;
+  auto store = open_store(dir);
+  std::vector<Object> objects = boxes(1500);
+  ingest(*store, objects);
+  std::map<std::string, std::string> expected;
+  for (size_t i = 0; i < objects.size(); i += 3) {
+    objects[i].origin_m.y = 5;
+    expected[objects[i].name] = "modified";
+  }
+  for (int i = 0; i < 400; ++i) {
+    objects.push_back(box(2000 + i, 0));
+    expected[objects.back().name] = "added";
+  }
+  for (size_t i = 1; i < 1500; i += 50) expected[objects[i].name] = "removed";
+  std::vector<Object> kept;
+  for (const Object& o : objects) {
+    auto it = expected.find(o.name);
+    if (it == expected.end() || it->second != "removed") kept.push_back(o);
+  }
+  ingest(*store, kept);
+  EXPECT_EQ(changes_of(*store, 1, 2), expected);
+  std::string error;
+  auto view = store->read(error);
+  const std::vector<Object> first = boxes(1500);
+  for (size_t i = 0; i < first.size(); i += 7) {
+    Object o;
+    bool found = false;
+    ASSERT_TRUE(view->object_at(1, first[i].id, o, found, true, error)) << error;
+    ASSERT_TRUE(found) << i;
+    EXPECT_TRUE(o == first[i]) << i;
+  }
+  for (int i = 0; i < 400; i += 13) {
+    Object o;
+    bool found = true;
+    ASSERT_TRUE(view->object_at(1, box(2000 + i, 0).id, o, found, false, error)) << error;
+    EXPECT_FALSE(found) << i;
+  }
+}
+
 TEST(Revisions, OldChangeListsArePrunedAndABadRangeIsNamed) {
   TempDir dir;
   auto store = open_store(dir);
