@@ -14,9 +14,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "import_runs.h"
 #include "plantview/ingest.h"
 #include "plantview/store.h"
+#include "plantview/xml.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -257,6 +260,47 @@ TEST(Revisions, AnObjectPutTwiceInOneImportIsOneChangeOfItsLastVersion) {
   EXPECT_EQ(revisions_of(*store).back().note, "twice");
 }
 
+// Change lists are kept in blocks of 256 objects: lookups across many blocks.
+TEST(Revisions, ManyChangesAcrossBlocksAreAllFound) {
+  TempDir dir;
+  auto store = open_store(dir);
+  std::vector<Object> objects = boxes(1500);
+  ingest(*store, objects);
+  std::map<std::string, std::string> expected;
+  for (size_t i = 0; i < objects.size(); i += 3) {
+    objects[i].origin_m.y = 5;
+    expected[objects[i].name] = "modified";
+  }
+  for (int i = 0; i < 400; ++i) {
+    objects.push_back(box(2000 + i, 0));
+    expected[objects.back().name] = "added";
+  }
+  for (size_t i = 1; i < 1500; i += 50) expected[objects[i].name] = "removed";
+  std::vector<Object> kept;
+  for (const Object& o : objects) {
+    auto it = expected.find(o.name);
+    if (it == expected.end() || it->second != "removed") kept.push_back(o);
+  }
+  ingest(*store, kept);
+  EXPECT_EQ(changes_of(*store, 1, 2), expected);
+  std::string error;
+  auto view = store->read(error);
+  const std::vector<Object> first = boxes(1500);
+  for (size_t i = 0; i < first.size(); i += 7) {
+    Object o;
+    bool found = false;
+    ASSERT_TRUE(view->object_at(1, first[i].id, o, found, true, error)) << error;
+    ASSERT_TRUE(found) << i;
+    EXPECT_TRUE(o == first[i]) << i;
+  }
+  for (int i = 0; i < 400; i += 13) {
+    Object o;
+    bool found = true;
+    ASSERT_TRUE(view->object_at(1, box(2000 + i, 0).id, o, found, false, error)) << error;
+    EXPECT_FALSE(found) << i;
+  }
+}
+
 TEST(Revisions, OldChangeListsArePrunedAndABadRangeIsNamed) {
   TempDir dir;
   auto store = open_store(dir);
@@ -280,7 +324,7 @@ TEST(Revisions, OldChangeListsArePrunedAndABadRangeIsNamed) {
                        "(--keep-revisions)"), std::string::npos) << error;
   EXPECT_NE(error.find(dir.str()), std::string::npos) << error;
   EXPECT_FALSE(view->changes(4, 5, changes, error));
-  EXPECT_NE(error.find("revision"), std::string::npos) << error;
+  EXPECT_NE(error.find("no revision 5 (the newest is 4)"), std::string::npos) << error;
   Object o;
   bool found;
   EXPECT_FALSE(view->object_at(1, objects[0].id, o, found, false, error));
@@ -487,6 +531,165 @@ TEST(Revisions, AnImportKilledMidwayLeavesTheLastCommit) {
   std::vector<Object> changed = boxes(51);
   ingest(*store, changed);
   EXPECT_EQ(changes_of(*store, 1, 2), (std::map<std::string, std::string>{{"/BOX-50", "added"}}));
+}
+
+// ---- the commands (the built plantview binary)
+
+struct Outcome {
+  int status = -1;
+  std::string out, err;
+};
+
+Outcome run(const TempDir& scratch, const std::string& args) {
+  const std::string out = scratch.str() + "/stdout", err = scratch.str() + "/stderr";
+  std::filesystem::create_directories(scratch.path());
+  const std::string cmd = std::string(PLANTVIEW_BIN) + " " + args + " >" + out + " 2>" + err;
+  const int raw = std::system(cmd.c_str());
+  Outcome r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = read_all(out);
+  r.err = read_all(err);
+  return r;
+}
+
+std::string write_plant(const TempDir& scratch, const std::string& name,
+                        const std::vector<Object>& objects) {
+  std::string text;
+  XmlError error;
+  EXPECT_TRUE(write_xml(objects, text, error)) << error.message;
+  std::filesystem::create_directories(scratch.path());
+  const std::string path = scratch.str() + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(RevisionsCli, ImportRevisionsChangesAndInfo) {
+  TempDir scratch, store;
+  std::vector<Object> objects = boxes(5);
+  for (Object& o : objects) o.source = "plant.xml";
+  for (Object& o : objects) o.id = object_id(o.source, o.name);
+  const std::string s = " --store " + store.str();
+  const std::string first = write_plant(scratch, "plant.xml", objects);
+  EXPECT_EQ(run(scratch, "import " + first + s + " --keep-revisions 0").status, 2);
+  Outcome r = run(scratch, "import " + first + s + " --note 'first export' --keep-revisions 2");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("(revision 1: 5 added, 0 removed, 0 modified)"), std::string::npos) << r.err;
+  objects[1].origin_m.z = 4;
+  objects.pop_back();
+  write_plant(scratch, "plant.xml", objects);
+  r = run(scratch, "import " + first + s + " --keep-revisions 2");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("(revision 2: 0 added, 1 removed, 1 modified)"), std::string::npos) << r.err;
+
+  r = run(scratch, "revisions --json" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto revisions = nlohmann::json::parse(r.out);
+  ASSERT_EQ(revisions.size(), 2u);
+  EXPECT_EQ(revisions[0]["revision"], 1);
+  EXPECT_EQ(revisions[0]["note"], "first export");
+  EXPECT_EQ(revisions[0]["added"], 5);
+  EXPECT_EQ(revisions[1]["modified"], 1);
+  ASSERT_EQ(revisions[1]["sources"].size(), 1u);  // the file's canonical path
+  EXPECT_EQ(revisions[1]["sources"][0], std::filesystem::canonical(first).string());
+  r = run(scratch, "revisions" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("first export; " + std::filesystem::canonical(first).string()),
+            std::string::npos) << r.out;
+
+  r = run(scratch, "changes --from 1 --json" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto changes = nlohmann::json::parse(r.out);
+  EXPECT_EQ(changes["from"], 1);
+  EXPECT_EQ(changes["to"], 2);
+  ASSERT_EQ(changes["changes"].size(), 2u);
+  for (const auto& c : changes["changes"]) {
+    EXPECT_TRUE((c["tag"] == "/BOX-1" && c["kind"] == "modified" && c["class"] == "equipment") ||
+                (c["tag"] == "/BOX-4" && c["kind"] == "removed" && c["class"] == "structure"))
+        << c.dump();
+    EXPECT_EQ(c["revision"], 2);
+    EXPECT_TRUE(c["id"].is_string());
+  }
+  r = run(scratch, "changes --from 0 --to 1" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("5 added, 0 removed, 0 modified"), std::string::npos) << r.out;
+  r = run(scratch, "changes --from 2" + s);  // nothing since the newest
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("0 added, 0 removed, 0 modified"), std::string::npos) << r.out;
+
+  // Bad arguments: 2; a revision that does not exist or was pruned: 1, naming it.
+  EXPECT_EQ(run(scratch, "changes" + s).status, 2);
+  EXPECT_EQ(run(scratch, "changes --from x" + s).status, 2);
+  EXPECT_EQ(run(scratch, "changes --from -1" + s).status, 2);
+  EXPECT_EQ(run(scratch, "changes --from 2 --to 1" + s).status, 2);
+  r = run(scratch, "changes --from 1 --to 7" + s);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("no revision 7 (the newest is 2)"), std::string::npos) << r.err;
+  r = run(scratch, "changes --from 5" + s);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("no revision 5 (the newest is 2)"), std::string::npos) << r.err;
+  r = run(scratch, "import " + first + s + " --keep-revisions 2");  // 3: prunes 1
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run(scratch, "changes --from 0" + s);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("revision 1's changes were pruned: the store keeps the last 2"),
+            std::string::npos) << r.err;
+
+  r = run(scratch, "info --json" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto info = nlohmann::json::parse(r.out);
+  EXPECT_EQ(info["revision"], 3);
+  EXPECT_EQ(info["format_version"], 6);
+  EXPECT_EQ(info["revision_time"].get<std::string>().size(), 20u);
+  r = run(scratch, "info" + s);
+  EXPECT_NE(r.out.find("revision 3, committed "), std::string::npos) << r.out;
+}
+
+TEST(RevisionsCli, UpgradeAndNoWait) {
+  TempDir scratch, store;
+  {
+    auto opened = open_store(store);
+    ingest(*opened, boxes(3));
+  }
+  make_format_5(store.str());
+  const std::string s = " --store " + store.str();
+  Outcome r = run(scratch, "info" + s);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("format 5, run `plantview upgrade --store"), std::string::npos) << r.err;
+  r = run(scratch, "upgrade" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run(scratch, "revisions --json" + s);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)[0]["note"], "upgraded from format 5");
+
+  // An import while another holds the store: --no-wait fails at once, naming it.
+  int go[2], ready[2];
+  ASSERT_EQ(pipe(go), 0);
+  ASSERT_EQ(pipe(ready), 0);
+  const pid_t holder = fork();
+  ASSERT_GE(holder, 0);
+  if (holder == 0) {
+    set_import_threads(1);
+    std::string error;
+    auto opened = Store::open(store.str(), Store::Mode::read_write, error);
+    auto import = opened ? opened->begin_import(error) : nullptr;
+    char c = import ? 'y' : 'n';
+    if (write(ready[1], &c, 1) != 1 || read(go[0], &c, 1) != 1) _exit(2);
+    _exit(0);  // abandoned
+  }
+  char c = 0;
+  ASSERT_EQ(read(ready[0], &c, 1), 1);
+  ASSERT_EQ(c, 'y');
+  const std::string file = write_plant(scratch, "more.xml", {box(20, 60)});
+  r = run(scratch, "import " + file + s + " --no-wait");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("busy: the import by pid " + std::to_string(holder)), std::string::npos)
+      << r.err;
+  ASSERT_EQ(write(go[1], &c, 1), 1);
+  int status;
+  ASSERT_EQ(waitpid(holder, &status, 0), holder);
+  r = run(scratch, "import " + file + s + " --no-wait");
+  EXPECT_EQ(r.status, 0) << r.err;
+  for (int fd : {go[0], go[1], ready[0], ready[1]}) close(fd);
 }
 
 }  // namespace

@@ -71,6 +71,10 @@ std::string format_number(double value) {
 
 }  // namespace
 
+bool is_change_range_error(std::string_view message) {
+  return message.substr(0, 8) == "changes ";
+}
+
 bool is_view_filter_error(std::string_view message) {
   static constexpr std::string_view kPrefixes[] = {"colour_by", "colour by", "--colour-by", "hide",
                                                    "only", "style", "section", "clip", "box",
@@ -347,6 +351,7 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
   options.section = job.section;
   options.style = job.style;
   options.highlight_ids.clear();
+  options.changes = job.changes;
   std::string error;
   r.headers.emplace_back("X-Plantview-Client", job.client_id);
   bool unknown = false;
@@ -363,7 +368,8 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
                       : renderer.render(job.camera, width, height, job.kind == RenderJob::Kind::pick,
                                         image, r.stats, error);
   if (!ok) {
-    r.status = is_view_filter_error(error) ? 400 : 500;
+    // A change range the store cannot draw (pruned, never made, not its revision): 422.
+    r.status = is_view_filter_error(error) ? 400 : is_change_range_error(error) ? 422 : 500;
     r.content_type = "application/json";
     r.body = error_body(error);
     return r;
@@ -382,9 +388,10 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
         break;
       }
       std::string json;
-      if (!object_json(renderer.read_view(), id, json, error)) {
+      if (!object_json(renderer.read_view(), id, json, error) &&
+          !(options.changes && object_at_json(renderer.read_view(), options.changes->from, id, json, error))) {
         // Picked, but not an object of the store (a merged pipeline run has its pipeline's id,
-        // which is one): report the id alone.
+        // which is one; a change image's removed object is answered as it was): the id alone.
         json = "{\"id\":\"" + std::to_string(id) + "\"}";
       }
       r.body = "{\"object\":" + json +
@@ -411,6 +418,9 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
       // Coloured by an attribute: the frame's legend (FrameLegend::to_json, one line).
       if (!r.stats.legend.key.empty())
         r.headers.emplace_back("X-Plantview-Legend", r.stats.legend.to_json());
+      // A change image: its caption (the range and its counts).
+      if (r.stats.changes.shown)
+        r.headers.emplace_back("X-Plantview-Changes", change_caption(r.stats.changes));
       break;
     }
   }

@@ -57,7 +57,8 @@
 // or one of an explicit number of renderers cannot. A job fails with the renderer's message:
 // 404 when a highlight word names no object; 400 when the renderer refuses the job's view
 // filters (is_view_filter_error: its message starts with the filter's name, e.g. "colour_by
-// 'Foo': ... keys: ..."); 500 otherwise.
+// 'Foo': ... keys: ..."); 422 when the store cannot draw a change range (is_change_range_error:
+// a revision pruned, never made, or not the snapshot's); 500 otherwise.
 #pragma once
 
 #include <condition_variable>
@@ -89,6 +90,9 @@ struct RenderWorkerOptions {
 // colour_by, "colour by", --colour-by, hide, only, style, section, clip, box, caps (or their --
 // forms). The renderer's messages for a bad style or section must start so.
 bool is_view_filter_error(std::string_view message);
+// Whether a renderer's error message is a change range the store cannot draw: it starts with
+// "changes " (render/src/change_set.h: ChangeSet::load).
+bool is_change_range_error(std::string_view message);
 
 // Renderers on a software renderer when the number is automatic, for `cores` cores (measured on
 // llvmpipe with bench_service: see render_worker.cpp).

@@ -9,7 +9,6 @@ namespace plantview {
 
 using detail::ChangeItem;
 using detail::ChangeKey;
-using detail::ChangeValue;
 
 namespace {
 // Chunks of the previous state a commit keeps decompressed while it copies previous records.
@@ -39,8 +38,19 @@ bool Import::State::write_revision(std::string& error) {
   detail::ChunkCache before_attributes(dbs.attributes, kBeforeChunks, kBeforeChunkBytes);
   detail::ZstdDCtx before_dctx(ZSTD_createDCtx());
   std::vector<uint8_t> history;
-  std::string change_bytes, after_name, before_name;
+  std::string after_name, before_name;
 
+  // The change list, a block of kChangesPerBlock entries at a time (revisions.h).
+  std::vector<uint8_t> block;
+  uint64_t block_first = 0;
+  size_t block_entries = 0;
+  const auto flush_block = [&]() {
+    if (block_entries == 0) return true;
+    const ChangeKey key(revision.number, block_first);
+    block_entries = 0;
+    return put_frame(dbs.changes, key.val(), block, MDB_APPEND,
+                     "the changes of revision " + std::to_string(revision.number), error);
+  };
   const auto emit = [&](ChangeKind kind, const ChangeItem* was, const ChangeItem* now) {
     const ChangeItem& named = now ? *now : *was;
     std::string& name = now ? after_name : before_name;
@@ -48,20 +58,16 @@ bool Import::State::write_revision(std::string& error) {
       error = message(why);
       return false;
     }
-    ChangeValue change;
-    change.kind = kind;
-    change.object_class = named.object_class;
-    change.hash_before = was ? was->hash : 0;
-    change.hash_after = now ? now->hash : 0;
-    change.name = name;
-    detail::encode_change(change, change_bytes);
-    const ChangeKey key(revision.number, named.id);
-    MDB_val k = key.val(), v = detail::as_val(change_bytes);
-    int rc = mdb_put(t, dbs.changes, &k, &v, MDB_APPEND);
-    if (rc != MDB_SUCCESS) {
-      error = fail("writing the changes of revision " + std::to_string(revision.number), rc);
-      return false;
+    if (block_entries == 0) {
+      block.clear();
+      block_first = named.id;
     }
+    detail::append_change(named.id, kind, named.object_class, was ? was->hash : 0,
+                          now ? now->hash : 0, name, block);
+    if (++block_entries == detail::kChangesPerBlock && !flush_block()) return false;
+    const ChangeKey key(revision.number, named.id);
+    MDB_val k = key.val();
+    int rc;
     if (kind == ChangeKind::added) return true;
     // The previous record and attributes, as committed.
     if (!before.get()) {
@@ -129,6 +135,7 @@ bool Import::State::write_revision(std::string& error) {
       have_p = next_put();
     }
   }
+  if (!flush_block()) return false;
   before.abort();
 
   // Pruning: revisions up to `limit` keep no changes any more.

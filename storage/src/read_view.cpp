@@ -480,6 +480,49 @@ bool changes_readable(MDB_txn* txn, MDB_dbi revisions, const std::string& direct
   return true;
 }
 
+// The change revision `number` made to object `id` (`found` false: none), from the block of
+// changes/ that would hold it (the greatest key not above (number, id)).
+bool find_change(MDB_txn* txn, MDB_dbi changes, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
+                 detail::ChangeEntry& out, bool& found, std::string& why) {
+  found = false;
+  detail::LmdbCursor cursor;
+  int rc = cursor.open(txn, changes);
+  const detail::ChangeKey key(number, id);
+  MDB_val k = key.val(), v;
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  uint32_t n = 0;
+  uint64_t first = 0;
+  const bool exact = rc == MDB_SUCCESS && detail::ChangeKey::decode(k, n, first) &&
+                     n == number && first == id;
+  if (!exact && (rc == MDB_SUCCESS || rc == MDB_NOTFOUND)) {
+    rc = mdb_cursor_get(cursor.get(), &k, &v, rc == MDB_NOTFOUND ? MDB_LAST : MDB_PREV);
+    if (rc == MDB_NOTFOUND) return true;
+  }
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+    return false;
+  }
+  if (!detail::ChangeKey::decode(k, n, first)) {
+    why = "a malformed key";
+    return false;
+  }
+  if (n != number) return true;
+  std::vector<uint8_t> raw;
+  std::vector<detail::ChangeEntry> entries;
+  if (!detail::inflate_frame(dctx, std::span(static_cast<const uint8_t*>(v.mv_data), v.mv_size),
+                             raw, why) ||
+      !detail::decode_change_block(raw, entries, why)) {
+    return false;
+  }
+  for (detail::ChangeEntry& e : entries) {
+    if (e.id != id) continue;
+    out = std::move(e);
+    found = true;
+    break;
+  }
+  return true;
+}
+
 }  // namespace
 
 bool ReadView::changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& out,
@@ -488,9 +531,12 @@ bool ReadView::changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& ou
   out.clear();
   const uint32_t newest = info().revision;
   if (to > newest || from >= to) {
-    error = "store " + s.store->directory + ": no changes from revision " + std::to_string(from) +
-            " to " + std::to_string(to) + " (revisions 0 to " + std::to_string(newest) +
-            ", from before to)";
+    const uint32_t missing = from > newest ? from : to;
+    error = "store " + s.store->directory + ": " +
+            (missing > newest ? "no revision " + std::to_string(missing) + " (the newest is " +
+                                    std::to_string(newest) + ")"
+                              : "no changes from revision " + std::to_string(from) + " to " +
+                                    std::to_string(to) + ": the first must come before the second");
     return false;
   }
   for (uint32_t n = from + 1; n <= to; ++n) {
@@ -510,27 +556,33 @@ bool ReadView::changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& ou
   const detail::ChangeKey first(from + 1, 0);
   MDB_val k = first.val(), v;
   if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  std::vector<uint8_t> raw;
+  std::vector<detail::ChangeEntry> entries;
   while (rc == MDB_SUCCESS) {
     uint32_t number;
-    uint64_t id;
-    detail::ChangeValue change;
-    if (!detail::ChangeKey::decode(k, number, id) || !detail::decode_change(v, change)) {
-      error = "store " + s.store->directory + ": a damaged change of revision " +
-              std::to_string(k.mv_size == 12 ? detail::read_be32(k.mv_data) : 0);
+    uint64_t first_id;
+    std::string why = "a malformed key";
+    if (!detail::ChangeKey::decode(k, number, first_id) ||
+        !detail::inflate_read_once(v, s.dctx.get(), raw, why) ||
+        !detail::decode_change_block(raw, entries, why)) {
+      error = "store " + s.store->directory + ": the changes of revision " +
+              std::to_string(k.mv_size == 12 ? detail::read_be32(k.mv_data) : 0) + ": " + why;
       return false;
     }
     if (number > to) break;
-    auto [it, is_new] = net.try_emplace(id);
-    Net& n = it->second;
-    if (is_new) {
-      n.existed = change.kind != ChangeKind::added;
-      n.hash_before = change.hash_before;
+    for (detail::ChangeEntry& change : entries) {
+      auto [it, is_new] = net.try_emplace(change.id);
+      Net& n = it->second;
+      if (is_new) {
+        n.existed = change.kind != ChangeKind::added;
+        n.hash_before = change.hash_before;
+      }
+      n.exists = change.kind != ChangeKind::removed;
+      n.hash_after = change.hash_after;
+      n.object_class = change.object_class;
+      n.name = std::move(change.name);
+      n.revision = number;
     }
-    n.exists = change.kind != ChangeKind::removed;
-    n.hash_after = change.hash_after;
-    n.object_class = change.object_class;
-    n.name.assign(change.name);
-    n.revision = number;
     rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
   }
   if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
@@ -562,24 +614,21 @@ bool ReadView::object_at(uint32_t revision, uint64_t id, Object& out, bool& foun
   assert(revision <= newest && "object_at() of a revision after the view's");
   for (uint32_t n = revision + 1; n <= newest; ++n) {
     if (!changes_readable(s.txn.get(), s.store->dbs.revisions, s.store->directory, n, newest, error)) return false;
+    detail::ChangeEntry change;
+    bool changed;
+    std::string why;
+    if (!find_change(s.txn.get(), s.store->dbs.changes, s.dctx.get(), n, id, change, changed,
+                     why)) {
+      error = "store " + s.store->directory + ": the changes of revision " + std::to_string(n) +
+              ": " + why;
+      return false;
+    }
+    if (!changed) continue;
+    if (change.kind == ChangeKind::added) return true;  // it did not exist then
     const detail::ChangeKey key(n, id);
     MDB_val k = key.val(), v;
-    int rc = mdb_get(s.txn.get(), s.store->dbs.changes, &k, &v);
-    if (rc == MDB_NOTFOUND) continue;
-    detail::ChangeValue change;
-    if (rc != MDB_SUCCESS) {
-      error = lmdb_message(s.store->directory, "reading the changes of revision " + std::to_string(n), rc);
-      return false;
-    }
-    if (!detail::decode_change(v, change)) {
-      error = "store " + s.store->directory + ": a damaged change of revision " + std::to_string(n);
-      return false;
-    }
-    if (change.kind == ChangeKind::added) return true;  // it did not exist then
-    k = key.val();
-    rc = mdb_get(s.txn.get(), s.store->dbs.history, &k, &v);
+    int rc = mdb_get(s.txn.get(), s.store->dbs.history, &k, &v);
     std::vector<uint8_t> raw;
-    std::string why;
     const std::string what = "store " + s.store->directory + ": the record of object " +
                              std::to_string(id) + " before revision " + std::to_string(n);
     if (rc != MDB_SUCCESS) {

@@ -108,24 +108,50 @@ bool ChangeKey::decode(const MDB_val& k, uint32_t& revision, uint64_t& id) {
   return true;
 }
 
-void encode_change(const ChangeValue& change, std::string& out) {
-  out.resize(18);
-  out[0] = char(change.kind);
-  out[1] = char(change.object_class);
-  std::memcpy(out.data() + 2, &change.hash_before, 8);
-  std::memcpy(out.data() + 10, &change.hash_after, 8);
-  out.append(change.name);
+void append_change(uint64_t id, ChangeKind kind, uint8_t object_class, uint64_t hash_before,
+                   uint64_t hash_after, std::string_view name, std::vector<uint8_t>& block) {
+  const auto put = [&](const void* data, size_t bytes) {
+    const auto* p = static_cast<const uint8_t*>(data);
+    block.insert(block.end(), p, p + bytes);
+  };
+  put(&id, 8);
+  block.push_back(uint8_t(kind));
+  block.push_back(object_class);
+  if (kind != ChangeKind::added) put(&hash_before, 8);
+  if (kind != ChangeKind::removed) put(&hash_after, 8);
+  const uint32_t name_bytes = uint32_t(name.size());
+  put(&name_bytes, 4);
+  put(name.data(), name.size());
 }
 
-bool decode_change(const MDB_val& v, ChangeValue& out) {
-  if (v.mv_size < 18) return false;
-  const auto* b = static_cast<const unsigned char*>(v.mv_data);
-  if (b[0] > uint8_t(ChangeKind::modified) || b[1] >= kObjectClassCount) return false;
-  out.kind = ChangeKind(b[0]);
-  out.object_class = b[1];
-  std::memcpy(&out.hash_before, b + 2, 8);
-  std::memcpy(&out.hash_after, b + 10, 8);
-  out.name = std::string_view(reinterpret_cast<const char*>(b + 18), v.mv_size - 18);
+bool decode_change_block(const std::vector<uint8_t>& block, std::vector<ChangeEntry>& out,
+                         std::string& why) {
+  out.clear();
+  size_t at = 0;
+  const auto get = [&](void* data, size_t bytes) {
+    if (block.size() - at < bytes) return false;
+    std::memcpy(data, block.data() + at, bytes);
+    at += bytes;
+    return true;
+  };
+  while (at < block.size()) {
+    ChangeEntry e;
+    uint8_t kind = 0;
+    uint32_t name_bytes = 0;
+    bool ok = get(&e.id, 8) && get(&kind, 1) && get(&e.object_class, 1) &&
+              kind <= uint8_t(ChangeKind::modified) && e.object_class < kObjectClassCount;
+    e.kind = ChangeKind(kind);
+    if (ok && e.kind != ChangeKind::added) ok = get(&e.hash_before, 8);
+    if (ok && e.kind != ChangeKind::removed) ok = get(&e.hash_after, 8);
+    ok = ok && get(&name_bytes, 4) && block.size() - at >= name_bytes;
+    if (!ok) {
+      why = "a malformed change entry at byte " + std::to_string(at);
+      return false;
+    }
+    e.name.assign(reinterpret_cast<const char*>(block.data() + at), name_bytes);
+    at += name_bytes;
+    out.push_back(std::move(e));
+  }
   return true;
 }
 

@@ -78,15 +78,23 @@ struct ChangeKey {
   static bool decode(const MDB_val& k, uint32_t& revision, uint64_t& id);
 };
 
-// A changes/ value.
-struct ChangeValue {
+// changes/ holds each revision's changes in id order, in blocks of up to kChangesPerBlock
+// entries keyed by (revision, first id): a zstd frame of entries, each u64 id, u8 kind, u8
+// class, u64 hash before (not for added), u64 hash after (not for removed), u32 name bytes, the
+// name (little-endian). Ids and hashes do not compress; blocks spare LMDB's 20-odd bytes a key.
+inline constexpr size_t kChangesPerBlock = 256;
+struct ChangeEntry {
+  uint64_t id = 0;
   ChangeKind kind = ChangeKind::added;
   uint8_t object_class = 0;
   uint64_t hash_before = 0, hash_after = 0;
-  std::string_view name;
+  std::string name;
 };
-void encode_change(const ChangeValue& change, std::string& out);
-bool decode_change(const MDB_val& v, ChangeValue& out);
+void append_change(uint64_t id, ChangeKind kind, uint8_t object_class, uint64_t hash_before,
+                   uint64_t hash_after, std::string_view name, std::vector<uint8_t>& block);
+// The entries of an inflated block; false with `why` when it is malformed.
+bool decode_change_block(const std::vector<uint8_t>& block, std::vector<ChangeEntry>& out,
+                         std::string& why);
 
 // A revisions/ value. `changes_unknown`: a revision made by upgrading a format 5 store, whose
 // changes were never recorded.

@@ -47,11 +47,11 @@
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
 //   revisions   u32 revision  -> JSON: the Revision (below) that commit made; kept for ever (a
 //                                few hundred bytes each)
-//   changes     u32 revision, u64 id -> the change that revision made to that object: u8 kind,
-//                                u8 class, u64 content hash before, u64 after (little-endian), the
-//                                name (after; removed: before) to the end; kept for the last
-//                                keep_revisions revisions (appended in key order: about 40 bytes
-//                                an object changed)
+//   changes     u32 revision, u64 first id -> zstd: the changes that revision made, in id
+//                                order, 256 objects a value: each u64 id, u8 kind, u8 class, u64
+//                                content hash before (not for added), u64 after (not for
+//                                removed), u32 length and name (after; removed: before),
+//                                little-endian; kept for the last keep_revisions revisions
 //   history     u32 revision, u64 id -> zstd: u32 record bytes, the object's record, its
 //                                attribute record, as they were before that revision removed or
 //                                modified it (what a change image draws as a ghost); kept as the
