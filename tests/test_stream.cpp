@@ -33,6 +33,8 @@ extern "C" {
 #include "support/box_row.h"
 #include "support/http_client.h"
 #include "support/serve_process.h"
+#include "server/stream.h"
+#include "server/websocket.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -236,6 +238,49 @@ class RawClient {
 
 const std::string kView =
     R"({"type":"view","seq":1,"params":{"eye":"-6,-12,8","target":"7.5,0,0","w":160,"h":90,"mode":"interactive"}})";
+
+// --- the pieces ---------------------------------------------------------------------------------
+
+TEST(StreamParts, AcceptKeyAndUtf8) {
+  // RFC 6455 section 1.3's example.
+  EXPECT_EQ(service::ws::accept_key("dGhlIHNhbXBsZSBub25jZQ=="), "s3pPLMBiTxaQ9kYGzzhZRbK+xOo=");
+  EXPECT_TRUE(service::ws::valid_client_key("dGhlIHNhbXBsZSBub25jZQ=="));
+  EXPECT_FALSE(service::ws::valid_client_key("dGhlIHNhbXBsZSBub25jZQ="));
+  EXPECT_TRUE(service::ws::valid_utf8("plain \xC3\xA9 \xF0\x9F\x98\x80"));
+  EXPECT_FALSE(service::ws::valid_utf8("\xC0\xAF"));          // overlong
+  EXPECT_FALSE(service::ws::valid_utf8("\xF4\x90\x80\x80"));  // over U+10FFFF
+  EXPECT_FALSE(service::ws::valid_utf8("\xE2\x82"));          // cut short
+}
+
+TEST(StreamParts, ViewMessages) {
+  service::ClientMessage m;
+  std::string error;
+  ASSERT_TRUE(service::parse_client_message(
+      R"({"type":"view","seq":4,"params":{"eye":[1,2.5,3],"w":640,"clip":[[0,0,1,0,0,1],"1,1,1,0,1,0"]}})", m, error))
+      << error;
+  EXPECT_EQ(m.seq, 4u);
+  const service::Fields expected = {{"clip", "0,0,1,0,0,1"}, {"clip", "1,1,1,0,1,0"}, {"eye", "1,2.5,3"}, {"w", "640"}};
+  EXPECT_EQ(m.params, expected);
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"view","seq":4,"params":{"w":true}})", m, error));
+  EXPECT_NE(error.find("'w'"), std::string::npos) << error;
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"view","params":{}})", m, error));
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"ack","frame":-1})", m, error));
+  EXPECT_FALSE(service::parse_client_message("[]", m, error));
+}
+
+TEST(StreamParts, BitRateFollowsTheAcks) {
+  service::BitrateControl control(8000);
+  EXPECT_EQ(control.target_kbps(), 4000u);
+  uint64_t now = 0;
+  for (int i = 0; i < 20; ++i) control.on_ack(60, now += 1000);  // on time: up 5% a second
+  EXPECT_GT(control.target_kbps(), 7000u);
+  EXPECT_LE(control.target_kbps(), 8000u);
+  const uint32_t before = control.target_kbps();
+  for (int i = 0; i < 10; ++i) control.on_ack(400, now += 500);  // queueing: down 15% each 500 ms
+  EXPECT_LT(control.target_kbps(), before / 4);
+  for (int i = 0; i < 100; ++i) control.on_ack(900, now += 500);
+  EXPECT_EQ(control.target_kbps(), service::BitrateControl::kMinKbps);
+}
 
 // --- the protocol against independent clients ----------------------------------------------------
 

@@ -473,6 +473,9 @@ void Server::on_ws_message(Connection& c, bool text, std::string& payload) {
       request.method = "GET";
       request.path = "/api/frame";
       request.query = std::move(m.params);
+      // A view is a moving camera unless it says otherwise: interactive (degradable) frames.
+      if (std::none_of(request.query.begin(), request.query.end(), [](const auto& f) { return f.first == "mode"; }))
+        request.query.emplace_back("mode", "interactive");
       if (!routes.token.empty()) request.authorization = "Bearer " + routes.token;
       Routed routed = route(request, routes, false, c.id());
       if (auto* refused = std::get_if<Reply>(&routed.decision)) {
