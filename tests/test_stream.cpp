@@ -13,8 +13,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -130,10 +132,12 @@ class RawClient {
     return true;
   }
   // Sends the upgrade and reads the response head; its status line.
-  std::string upgrade(const std::string& extra_headers = "") {
-    send_all("GET /api/stream HTTP/1.1\r\nHost: test\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+  // `before`: bytes sent ahead of it (pipelined requests); `after`: bytes sent with it (frames).
+  std::string upgrade(const std::string& extra_headers = "", const std::string& before = "",
+                      const std::string& after = "") {
+    send_all(before + "GET /api/stream HTTP/1.1\r\nHost: test\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
-             extra_headers + "\r\n");
+             extra_headers + "\r\n" + after);
     while (buffer_.find("\r\n\r\n") == std::string::npos)
       if (!fill(10000)) break;
     const size_t end = buffer_.find("\r\n\r\n");
@@ -143,6 +147,19 @@ class RawClient {
     return head_.substr(0, head_.find("\r\n"));
   }
   const std::string& head() const { return head_; }
+  // After upgrade() read another answer's head (a pipelined one before it): skips that answer's
+  // body ("alive\n") and reads the next head; its status line.
+  std::string upgrade_rest() {
+    const std::string body = "alive\n";
+    while (buffer_.size() < body.size() || buffer_.find("\r\n\r\n") == std::string::npos)
+      if (!fill(10000)) break;
+    if (buffer_.rfind(body, 0) == 0) buffer_.erase(0, body.size());
+    const size_t end = buffer_.find("\r\n\r\n");
+    if (end == std::string::npos) return {};
+    head_ = buffer_.substr(0, end + 4);
+    buffer_.erase(0, end + 4);
+    return head_.substr(0, head_.find("\r\n"));
+  }
 
   // A client frame: masked unless told otherwise.
   static std::string frame(uint8_t first_byte, std::string_view payload, bool masked = true) {
@@ -447,6 +464,20 @@ TEST(Stream, MalformedFramesGetTheirCloseCodes) {
   // The server still serves HTTP.
   test_support::HttpClient http(server.port());
   EXPECT_EQ(http.request("/api/frame?w=32&h=32").status, 200);
+}
+
+// Frames sent with the upgrade request, in the same packet, are the stream's first messages;
+// a request pipelined before the upgrade is answered first.
+TEST(Stream, FramesWithTheUpgradeAndPipelinedRequestsBeforeIt) {
+  Server server;
+  RawClient c(server.port());
+  const std::string status = c.upgrade("", "GET /healthz HTTP/1.1\r\nHost: test\r\n\r\n", RawClient::frame(0x81, kView));
+  ASSERT_EQ(status, "HTTP/1.1 200 OK");
+  // The health answer's body ("alive\n"), then the 101.
+  EXPECT_EQ(c.upgrade_rest(), "HTTP/1.1 101 Switching Protocols");
+  const auto header = c.next_frame_header();
+  ASSERT_TRUE(header.is_object());
+  EXPECT_EQ(header["seq"], 1);
 }
 
 TEST(Stream, BadViewsAreAnsweredAndTheStreamStaysOpen) {

@@ -139,6 +139,13 @@ void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
   }
   if (n > 0) last_read_ms_ = uv_now(tcp_.loop);
   if (n > 0 && websocket_) return read_ws(std::string_view(buf->base, size_t(n)));
+  if (n > 0 && upgrading_) {
+    // Frames sent before the 101 is written (answers owed before it): kept for the deframer,
+    // within the message limit.
+    if (early_bytes_.size() + size_t(n) > host_.connection_limits().max_message_bytes + 16) return close();
+    early_bytes_.append(buf->base, size_t(n));
+    return;
+  }
   if (n > 0 && !no_more_) read_bytes(std::string_view(buf->base, size_t(n)));
 }
 
@@ -171,7 +178,7 @@ void Connection::read_bytes(std::string_view bytes) {
       p->keep_alive = false;
     }
     host_.on_request(*this, request, p);
-    if (closing_) return;
+    if (closing_ || request.upgrade) return;  // the rest of the bytes, if any, are WebSocket's
     if (!p->keep_alive) no_more_ = true;
   }
 }
