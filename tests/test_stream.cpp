@@ -286,12 +286,12 @@ TEST(StreamParts, ViewMessages) {
 }
 
 TEST(StreamParts, BitRateFollowsTheAcks) {
-  service::BitrateControl control(8000);
-  EXPECT_EQ(control.target_kbps(), 4000u);
+  service::BitrateControl control(12000);
+  EXPECT_EQ(control.target_kbps(), 8000u);
   uint64_t now = 0;
   for (int i = 0; i < 20; ++i) control.on_ack(60, now += 1000);  // on time: up 5% a second
-  EXPECT_GT(control.target_kbps(), 7000u);
-  EXPECT_LE(control.target_kbps(), 8000u);
+  EXPECT_GT(control.target_kbps(), 11000u);
+  EXPECT_LE(control.target_kbps(), 12000u);
   const uint32_t before = control.target_kbps();
   for (int i = 0; i < 10; ++i) control.on_ack(400, now += 500);  // queueing: down 15% each 500 ms
   EXPECT_LT(control.target_kbps(), before / 4);

@@ -99,6 +99,7 @@ struct Stream {
   uint64_t last_view_seq = 0;
   uint64_t last_view_ms = 0;
   bool still_due = false;  // a moving frame of last_view went out, and no still since
+  uint64_t moving_sent_ms = 0;  // when that frame went out: the rest counts from it too
   struct Sent {
     uint64_t frame = 0, sent_ms = 0;
   };
@@ -638,7 +639,10 @@ void Server::stream_rendered(Ticket& t, RenderResult&& r) {
         s.connection->send_ws(ws::Opcode::binary, message);
         s.unacked.push_back({frame, uv_now(server.loop)});
         // A moving frame of the newest view: its still follows once the camera rests.
-        if (!w->still && w->seq == s.last_view_seq) s.still_due = true;
+        if (!w->still && w->seq == s.last_view_seq) {
+          s.still_due = true;
+          s.moving_sent_ms = uv_now(server.loop);
+        }
         if (w->still) s.still_due = false;
         server.stream_pump(s);
       });
@@ -674,7 +678,10 @@ void Server::stream_tick() {
       s.last_ping_ms = now;
       c.send_ws(ws::Opcode::ping, {});
     }
-    if (s.still_due && !s.next && !s.busy && s.last_view && now - s.last_view_ms >= kStreamRestMs) {
+    // At rest: no view since the newest one's moving frame went out, for kStreamRestMs after
+    // both (a slow render must not make its own frame look like a camera at rest).
+    if (s.still_due && !s.next && !s.busy && s.last_view &&
+        now - std::max(s.last_view_ms, s.moving_sent_ms) >= kStreamRestMs) {
       RenderJob still = *s.last_view;
       still.mode = FrameMode::still;
       still.format = ImageFormat::png;
