@@ -89,10 +89,10 @@ struct Stream {
   BitrateControl bitrate;
   std::unique_ptr<VideoEncoder> encoder;  // used by one pool thread at a time (while busy)
   bool want_key = true;
-  // The latest view not yet submitted (a newer one replaces it), and whether it is the still.
+  // The latest view not yet submitted (a newer one replaces it; the still is a view with
+  // mode=still) and its seq.
   std::optional<RenderJob> next;
   uint64_t next_seq = 0;
-  bool next_still = false;
   bool busy = false;  // a job of this stream renders or encodes
   uint64_t pending_seq = 0;  // the view seq of that job
   std::optional<RenderJob> last_view;  // the newest view accepted: what the still shows
@@ -496,7 +496,6 @@ void Server::on_ws_message(Connection& c, bool text, std::string& payload) {
       s.still_due = false;
       s.next = std::move(job);
       s.next_seq = m.seq;
-      s.next_still = false;
       return stream_pump(s);
     }
     case ClientMessage::Type::ack: {
@@ -687,7 +686,6 @@ void Server::stream_tick() {
       still.format = ImageFormat::png;
       s.next = std::move(still);
       s.next_seq = s.last_view_seq;
-      s.next_still = true;
       s.still_due = false;
     }
     stream_pump(s);
