@@ -595,6 +595,35 @@ TEST(Stream, HalfOpenUpgradesDoNotStopTheService) {
   for (const int fd : fds) close(fd);
 }
 
+// The server pings; a client that answers stays; one that sends nothing, not even pongs, is
+// closed with 1001 after 3 pings.
+TEST(Stream, KeepalivePingsAndTheSilentClientIsClosed) {
+  Server server({"--stream-ping", "0.5"});
+  RawClient silent(server.port());
+  ASSERT_EQ(silent.upgrade(), "HTTP/1.1 101 Switching Protocols");
+  RawClient alive(server.port());
+  ASSERT_EQ(alive.upgrade(), "HTTP/1.1 101 Switching Protocols");
+  const auto start = std::chrono::steady_clock::now();
+  int pings = 0;
+  while (std::chrono::steady_clock::now() - start < 2500ms) {
+    const auto m = alive.next(3000);
+    ASSERT_NE(m.opcode, -1);
+    ASSERT_NE(m.opcode, 8) << "a client that answers pings is not closed";
+    if (m.opcode == 9) {
+      ++pings;
+      alive.send_all(RawClient::frame(0x8A, m.payload));
+    }
+  }
+  EXPECT_GE(pings, 3);
+  int code = 0;
+  for (int i = 0; i < 20 && code == 0; ++i) {
+    const auto m = silent.next(3000);
+    if (m.opcode < 0) break;
+    if (m.opcode == 8) code = (uint8_t(m.payload[0]) << 8) | uint8_t(m.payload[1]);
+  }
+  EXPECT_EQ(code, 1001);
+}
+
 TEST(Stream, DrainClosesStreamsWithGoingAway) {
   Server server;
   RawClient c(server.port());

@@ -24,8 +24,8 @@
 //     HTTP frames; at most one job of a stream renders or encodes at a time, and at most
 //     kStreamWindow frames are sent and not acknowledged; a newer view replaces one not yet
 //     submitted. Its frames are encoded on libuv's pool with the stream's encoder (one frame at a
-//     time). One timer (kStreamTickMs) serves every stream: the still at rest, pings, the idle
-//     close and the close of a stream whose frames go unacknowledged past the write timeout.
+//     time). One timer (kStreamTickMs) serves every stream: the still at rest, pings (stream_ping_ms),
+//     the idle close (3 pings unanswered) and the close of a stream whose frames go unacknowledged past the write timeout.
 //   - Shutdown: stop accepting and reading; streams get a close frame (1001); answer what was read; close connections as they
 //     finish, or all of them at the shutdown deadline; once no connection, pool work or render
 //     job is left, stop the render thread and close the handles, so that uv_run returns and the
@@ -71,8 +71,6 @@ constexpr size_t kMaxServedAddresses = 16384;
 constexpr size_t kStreamWindow = 2;          // frames sent and not acknowledged, at most
 constexpr uint64_t kStreamTickMs = 50;
 constexpr uint64_t kStreamRestMs = 300;      // no view for this long after a moving frame: a still
-constexpr uint64_t kStreamPingMs = 15000;
-constexpr uint64_t kStreamIdleMs = 45000;    // nothing from the client (not even a pong): closed
 constexpr uint16_t kUnsupportedData = 1003;  // a binary message from the client
 
 struct Ticket {
@@ -662,9 +660,10 @@ void Server::stream_tick() {
     Stream& s = *stream;
     if (!s.connection || s.connection->ws_closing()) continue;
     Connection& c = *s.connection;
-    if (now - c.last_read_ms() >= kStreamIdleMs) {
+    // Nothing from the client (not even a pong) for 3 pings: closed.
+    if (now - c.last_read_ms() >= 3 * uint64_t(options.stream_ping_ms)) {
       metrics.timed_out_connections += 1;
-      c.close_ws(ws::going_away, "no message or pong for 45 s");
+      c.close_ws(ws::going_away, "no message or pong for 3 pings");
       continue;
     }
     if (!s.unacked.empty() && now - s.unacked.front().sent_ms >= limits.write_timeout_ms) {
@@ -673,7 +672,7 @@ void Server::stream_tick() {
       c.close_ws(ws::policy, "frames not acknowledged within the write timeout");
       continue;
     }
-    if (now - s.last_ping_ms >= kStreamPingMs) {
+    if (now - s.last_ping_ms >= options.stream_ping_ms) {
       s.last_ping_ms = now;
       c.send_ws(ws::Opcode::ping, {});
     }
