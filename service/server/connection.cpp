@@ -310,8 +310,8 @@ void Connection::on_written(size_t bytes, int status) {
   if (status < 0) return close();
   if (closing_) return;
   if (unsent_bytes_ == 0) uv_timer_stop(&write_timer_);
-  // A slow reader has caught up: read its next requests.
   if (websocket_ && ws_close_sent_ && unsent_bytes_ == 0) return close();  // the close frame is out
+  // A slow reader has caught up: read its next requests.
   if (!reading_ && !no_more_ && unsent_bytes_ <= host_.connection_limits().max_unsent_bytes / 4 &&
       pending_.size() < kMaxAnswersOwed && !host_.shutting_down())
     start_reading();
@@ -338,6 +338,8 @@ void Connection::flush() {
       uv_timer_stop(&timer_);
       last_read_ms_ = uv_now(tcp_.loop);
       pending_.clear();
+      // Upgraded while the server drains (the request was read before): going away at once.
+      if (host_.shutting_down()) return close_ws(ws::going_away, "the server is shutting down");
       std::string early = std::move(early_bytes_);
       if (!early.empty()) read_ws(early);
       if (!closing_ && !ws_close_sent_ && !reading_) start_reading();
