@@ -82,7 +82,10 @@
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
 //     have been killed). commit() merges the runs into the ids and names databases (a commit
 //     that changes their key width first moves their entries into the same runs) and, with the
-//     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
+//     committed blocks, into new blocks. For the revision, each object put and each committed
+//     object removed goes the same way (id, content hash, slot, class: two buffers of 32 MB; the
+//     names to a log file through 1 MB), merged by id at commit ("Revisions"). Besides the
+//     buffers (about 260 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
