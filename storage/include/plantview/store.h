@@ -52,10 +52,11 @@
 //                                content hash before (not for added), u64 after (not for
 //                                removed), u32 length and name (after; removed: before),
 //                                little-endian; kept for the last keep_revisions revisions
-//   history     u32 revision, u64 id -> zstd: u32 record bytes, the object's record, its
-//                                attribute record, as they were before that revision removed or
-//                                modified it (what a change image draws as a ghost); kept as the
-//                                changes are
+//   history     u32 revision, u64 first id -> zstd: the records and attribute records of the
+//                                objects that revision removed or modified, as they were before
+//                                (what a change image draws as a ghost), in id order, up to 256
+//                                objects or 64 KB a value: each u64 id, u32 record bytes, u32
+//                                attribute bytes, the two records; kept as the changes are
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
 // the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
