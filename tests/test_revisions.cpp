@@ -301,6 +301,48 @@ TEST(Revisions, ManyChangesAcrossBlocksAreAllFound) {
   }
 }
 
+std::string g_store_dir, g_run_files_seen;  // for a stage hook (a plain function)
+
+// The change items spill to run files, and the names past the name log's 1 MB buffer to its
+// file: the same changes.
+TEST(Revisions, SpilledChangeItemsAndNamesGiveTheSameChanges) {
+  detail::set_import_run_bytes(4096);
+  struct Restore {
+    ~Restore() { detail::set_import_run_bytes(size_t(64) << 20); }
+  } restore;
+  TempDir dir;
+  g_store_dir = dir.str();
+  detail::set_import_stage_hook([](const char* stage) {
+    if (std::strcmp(stage, "ids merged") != 0) return;
+    for (const auto& entry : std::filesystem::directory_iterator(g_store_dir))
+      g_run_files_seen += entry.path().filename().string() + " ";
+  });
+  auto store = open_store(dir);
+  std::vector<Object> objects;
+  const std::string padding(900, 'x');
+  for (int i = 0; i < 1500; ++i) {
+    Object o = box(i, i * 3.0);
+    o.name += "/" + padding;
+    o.id = object_id(o.source, o.name);
+    objects.push_back(o);
+  }
+  ingest(*store, objects);
+  std::map<std::string, std::string> expected;
+  for (size_t i = 0; i < objects.size(); i += 11) {
+    objects[i].colour.g = 7;
+    expected[objects[i].name] = "modified";
+  }
+  ingest(*store, objects);
+  EXPECT_EQ(changes_of(*store, 1, 2), expected);
+  EXPECT_EQ(changes_of(*store, 0, 1).size(), 1500u);
+  EXPECT_NE(g_run_files_seen.find("-puts-"), std::string::npos) << g_run_files_seen;
+  EXPECT_NE(g_run_files_seen.find("-removals-"), std::string::npos) << g_run_files_seen;
+  EXPECT_NE(g_run_files_seen.find("-changenames.run"), std::string::npos) << g_run_files_seen;
+  detail::set_import_stage_hook(nullptr);
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    EXPECT_NE(entry.path().extension(), ".run") << "left behind: " << entry.path();
+}
+
 TEST(Revisions, OldChangeListsArePrunedAndABadRangeIsNamed) {
   TempDir dir;
   auto store = open_store(dir);

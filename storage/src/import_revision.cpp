@@ -51,6 +51,16 @@ bool Import::State::write_revision(std::string& error) {
     return put_frame(dbs.changes, key.val(), block, MDB_APPEND,
                      "the changes of revision " + std::to_string(revision.number), error);
   };
+  // The previous records, in blocks too (revisions.h).
+  uint64_t history_first = 0;
+  size_t history_entries = 0;
+  const auto flush_history = [&]() {
+    if (history_entries == 0) return true;
+    const ChangeKey key(revision.number, history_first);
+    history_entries = 0;
+    return put_frame(dbs.history, key.val(), history, MDB_APPEND,
+                     "the previous records of revision " + std::to_string(revision.number), error);
+  };
   const auto emit = [&](ChangeKind kind, const ChangeItem* was, const ChangeItem* now) {
     const ChangeItem& named = now ? *now : *was;
     std::string& name = now ? after_name : before_name;
@@ -65,13 +75,10 @@ bool Import::State::write_revision(std::string& error) {
     detail::append_change(named.id, kind, named.object_class, was ? was->hash : 0,
                           now ? now->hash : 0, name, block);
     if (++block_entries == detail::kChangesPerBlock && !flush_block()) return false;
-    const ChangeKey key(revision.number, named.id);
-    MDB_val k = key.val();
-    int rc;
     if (kind == ChangeKind::added) return true;
     // The previous record and attributes, as committed.
     if (!before.get()) {
-      rc = before.begin(store->env.get(), MDB_RDONLY);
+      const int rc = before.begin(store->env.get(), MDB_RDONLY);
       if (rc != MDB_SUCCESS) {
         error = fail("starting a read of the previous revision", rc);
         return false;
@@ -80,9 +87,15 @@ bool Import::State::write_revision(std::string& error) {
     std::span<const uint8_t> record, old_attributes;
     bool ok = before_objects.record(before.get(), before_dctx.get(), was->slot, record, why);
     if (ok && record.empty()) ok = false, why = "no record";
-    history.resize(4);
+    if (history_entries == 0) {
+      history.clear();
+      history_first = was->id;
+    }
+    const size_t at = history.size();
+    history.resize(at + 16);
     const uint32_t record_bytes = uint32_t(record.size());
-    std::memcpy(history.data(), &record_bytes, 4);
+    std::memcpy(history.data() + at, &was->id, 8);
+    std::memcpy(history.data() + at + 8, &record_bytes, 4);
     history.insert(history.end(), record.begin(), record.end());
     if (ok) ok = before_attributes.record(before.get(), before_dctx.get(), was->slot, old_attributes, why);
     if (!ok) {
@@ -90,9 +103,13 @@ bool Import::State::write_revision(std::string& error) {
                       std::to_string(was->slot) + "): " + why);
       return false;
     }
+    const uint32_t attribute_bytes = uint32_t(old_attributes.size());
+    std::memcpy(history.data() + at + 12, &attribute_bytes, 4);
     history.insert(history.end(), old_attributes.begin(), old_attributes.end());
-    return put_frame(dbs.history, k, history, MDB_APPEND,
-                     "the previous record of object " + std::to_string(was->id), error);
+    ++history_entries;
+    return (history_entries < detail::kHistoryPerBlock &&
+            history.size() < detail::kHistoryBlockBytes) ||
+           flush_history();
   };
 
   // Both lists in id order: an id is removed at most once (a slot is), and of the puts only the
@@ -135,7 +152,7 @@ bool Import::State::write_revision(std::string& error) {
       have_p = next_put();
     }
   }
-  if (!flush_block()) return false;
+  if (!flush_block() || !flush_history()) return false;
   before.abort();
 
   // Pruning: revisions up to `limit` keep no changes any more.

@@ -106,8 +106,8 @@ struct Import::State {
         objects(store->directory, "object", store->dbs.objects, detail::kObjectShape),
         attributes(store->directory, "attributes", store->dbs.attributes,
                    detail::kAttributeShape),
-        put_items(store->directory, "puts", run_bytes / sizeof(detail::ChangeItem)),
-        removed_items(store->directory, "removals", run_bytes / sizeof(detail::ChangeItem)),
+        put_items(store->directory, "puts", run_bytes / 2 / sizeof(detail::ChangeItem)),
+        removed_items(store->directory, "removals", run_bytes / 2 / sizeof(detail::ChangeItem)),
         change_names(store->directory) {}
 
   std::string fail(std::string_view what, int rc) const { return store->fail(what, rc); }

@@ -480,13 +480,14 @@ bool changes_readable(MDB_txn* txn, MDB_dbi revisions, const std::string& direct
   return true;
 }
 
-// The change revision `number` made to object `id` (`found` false: none), from the block of
-// changes/ that would hold it (the greatest key not above (number, id)).
-bool find_change(MDB_txn* txn, MDB_dbi changes, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
-                 detail::ChangeEntry& out, bool& found, std::string& why) {
+// The block of `dbi` (changes/ or history/: keys (revision, first id)) that would hold object
+// `id` of revision `number`, inflated into `raw`: the value of the greatest key not above
+// (number, id). `found` false when revision `number` has no such block.
+bool find_block(MDB_txn* txn, MDB_dbi dbi, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
+                std::vector<uint8_t>& raw, bool& found, std::string& why) {
   found = false;
   detail::LmdbCursor cursor;
-  int rc = cursor.open(txn, changes);
+  int rc = cursor.open(txn, dbi);
   const detail::ChangeKey key(number, id);
   MDB_val k = key.val(), v;
   if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
@@ -507,13 +508,19 @@ bool find_change(MDB_txn* txn, MDB_dbi changes, ZSTD_DCtx* dctx, uint32_t number
     return false;
   }
   if (n != number) return true;
+  found = true;
+  return detail::inflate_frame(dctx, std::span(static_cast<const uint8_t*>(v.mv_data), v.mv_size),
+                               raw, why);
+}
+
+// The change revision `number` made to object `id` (`found` false: none).
+bool find_change(MDB_txn* txn, MDB_dbi changes, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
+                 detail::ChangeEntry& out, bool& found, std::string& why) {
   std::vector<uint8_t> raw;
   std::vector<detail::ChangeEntry> entries;
-  if (!detail::inflate_frame(dctx, std::span(static_cast<const uint8_t*>(v.mv_data), v.mv_size),
-                             raw, why) ||
-      !detail::decode_change_block(raw, entries, why)) {
-    return false;
-  }
+  if (!find_block(txn, changes, dctx, number, id, raw, found, why)) return false;
+  if (found && !detail::decode_change_block(raw, entries, why)) return false;
+  found = false;
   for (detail::ChangeEntry& e : entries) {
     if (e.id != id) continue;
     out = std::move(e);
@@ -625,26 +632,18 @@ bool ReadView::object_at(uint32_t revision, uint64_t id, Object& out, bool& foun
     }
     if (!changed) continue;
     if (change.kind == ChangeKind::added) return true;  // it did not exist then
-    const detail::ChangeKey key(n, id);
-    MDB_val k = key.val(), v;
-    int rc = mdb_get(s.txn.get(), s.store->dbs.history, &k, &v);
     std::vector<uint8_t> raw;
+    std::span<const uint8_t> record, attributes;
+    bool in_block = false, listed = false;
     const std::string what = "store " + s.store->directory + ": the record of object " +
                              std::to_string(id) + " before revision " + std::to_string(n);
-    if (rc != MDB_SUCCESS) {
-      error = lmdb_message(s.store->directory, what.substr(what.find(": ") + 2), rc);
-      return false;
-    }
-    uint32_t record_bytes = 0;
-    bool ok = detail::inflate_frame(s.dctx.get(),
-                                    std::span(static_cast<const uint8_t*>(v.mv_data), v.mv_size),
-                                    raw, why);
-    if (ok && raw.size() >= 4) std::memcpy(&record_bytes, raw.data(), 4);
-    if (ok && (raw.size() < 4 || raw.size() - 4 < record_bytes)) ok = false, why = "cut short";
-    ok = ok && detail::decode_object(raw.data() + 4, record_bytes, out, why);
+    bool ok = find_block(s.txn.get(), s.store->dbs.history, s.dctx.get(), n, id, raw, in_block,
+                         why) &&
+              (!in_block || detail::find_history(raw, id, record, attributes, listed, why));
+    if (ok && !listed) ok = false, why = "missing from the history";
+    ok = ok && detail::decode_object(record.data(), record.size(), out, why);
     if (ok && with_attributes) {
-      ok = detail::decode_attributes(raw.data() + 4 + record_bytes, raw.size() - 4 - record_bytes,
-                                     out.attributes, why);
+      ok = detail::decode_attributes(attributes.data(), attributes.size(), out.attributes, why);
     }
     if (!ok) {
       error = what + ": " + why;

@@ -155,6 +155,32 @@ bool decode_change_block(const std::vector<uint8_t>& block, std::vector<ChangeEn
   return true;
 }
 
+bool find_history(const std::vector<uint8_t>& block, uint64_t id, std::span<const uint8_t>& record,
+                  std::span<const uint8_t>& attributes, bool& found, std::string& why) {
+  found = false;
+  size_t at = 0;
+  while (at < block.size()) {
+    uint64_t entry_id;
+    uint32_t record_bytes, attribute_bytes;
+    if (block.size() - at < 16) break;
+    std::memcpy(&entry_id, block.data() + at, 8);
+    std::memcpy(&record_bytes, block.data() + at + 8, 4);
+    std::memcpy(&attribute_bytes, block.data() + at + 12, 4);
+    at += 16;
+    if (block.size() - at < uint64_t(record_bytes) + attribute_bytes) break;
+    if (entry_id == id) {
+      record = std::span(block.data() + at, record_bytes);
+      attributes = std::span(block.data() + at + record_bytes, attribute_bytes);
+      found = true;
+      return true;
+    }
+    at += uint64_t(record_bytes) + attribute_bytes;
+  }
+  if (at == block.size()) return true;
+  why = "a malformed entry at byte " + std::to_string(at);
+  return false;
+}
+
 std::string revision_json(const Revision& r, bool changes_unknown) {
   nlohmann::json j;
   j["number"] = r.number;

@@ -96,6 +96,17 @@ void append_change(uint64_t id, ChangeKind kind, uint8_t object_class, uint64_t 
 bool decode_change_block(const std::vector<uint8_t>& block, std::vector<ChangeEntry>& out,
                          std::string& why);
 
+// history/ holds the previous records of a revision's removed and modified objects in id order,
+// in blocks keyed by (revision, first id): a zstd frame of up to kHistoryPerBlock entries (cut
+// after kHistoryBlockBytes), each u64 id, u32 record bytes, u32 attribute bytes, the record,
+// the attribute record. Compressed together, about as small as the objects' own chunks.
+inline constexpr size_t kHistoryPerBlock = 256;
+inline constexpr size_t kHistoryBlockBytes = size_t(64) << 10;
+// The record and attribute record of `id` in an inflated history block (`found` false when it
+// is not there); false with `why` when the block is malformed.
+bool find_history(const std::vector<uint8_t>& block, uint64_t id, std::span<const uint8_t>& record,
+                  std::span<const uint8_t>& attributes, bool& found, std::string& why);
+
 // A revisions/ value. `changes_unknown`: a revision made by upgrading a format 5 store, whose
 // changes were never recorded.
 std::string revision_json(const Revision& revision, bool changes_unknown);

@@ -52,10 +52,11 @@
 //                                content hash before (not for added), u64 after (not for
 //                                removed), u32 length and name (after; removed: before),
 //                                little-endian; kept for the last keep_revisions revisions
-//   history     u32 revision, u64 id -> zstd: u32 record bytes, the object's record, its
-//                                attribute record, as they were before that revision removed or
-//                                modified it (what a change image draws as a ghost); kept as the
-//                                changes are
+//   history     u32 revision, u64 first id -> zstd: the records and attribute records of the
+//                                objects that revision removed or modified, as they were before
+//                                (what a change image draws as a ghost), in id order, up to 256
+//                                objects or 64 KB a value: each u64 id, u32 record bytes, u32
+//                                attribute bytes, the two records; kept as the changes are
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
 // the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
@@ -82,7 +83,10 @@
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
 //     have been killed). commit() merges the runs into the ids and names databases (a commit
 //     that changes their key width first moves their entries into the same runs) and, with the
-//     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
+//     committed blocks, into new blocks. For the revision, each object put and each committed
+//     object removed goes the same way (id, content hash, slot, class: two buffers of 32 MB; the
+//     names to a log file through 1 MB), merged by id at commit ("Revisions"). Besides the
+//     buffers (about 260 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
