@@ -183,6 +183,10 @@ struct RenderOptions {
                                                    // is drawn first (conservative: nothing
                                                    // visible is ever left out; step 1b)
   OcclusionTest occlusion_test = OcclusionTest::automatic;
+  // Fill FrameStats::drawn_slots and drawn_regions (what the image was drawn from: the farm's
+  // incremental re-render, docs/farm.md). Off for interactive frames: it costs a pass over the
+  // frame's draws.
+  bool record_drawn = false;
 
   bool operator==(const RenderOptions&) const = default;
 };
@@ -279,6 +283,16 @@ struct FrameStats {
   // drawn), and the legend when colour_by is set (key empty otherwise).
   uint64_t objects_hidden = 0;
   FrameLegend legend;
+  // RenderOptions::record_drawn (else empty): every object that gave the image pixels, as its
+  // slot in the renderer's snapshot (read_view()): drawn one by one at any level, as its
+  // centreline or as a box for the arena's budget, or as a member of a merged pipeline run
+  // (every member, in view or not: the run's cylinder spans them); unordered, possibly
+  // repeated. Objects culled, under the pixel error, hidden by their style or left out by
+  // occlusion (which leaves out nothing visible) gave none. And the nodes drawn whole (far-field
+  // proxies, node boxes), as model-space bounds: any object beneath one gave it pixels. Not in
+  // to_json.
+  std::vector<uint32_t> drawn_slots;
+  std::vector<DAabb> drawn_regions;
   // One JSON object (one line): the fields above, times under "ms"; "legend" only when set.
   std::string to_json() const;
 };
