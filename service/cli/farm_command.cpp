@@ -57,12 +57,14 @@ std::vector<std::string> passed_render_args(const SubmitArgs& a) {
 // compared (the render options are not known here): `farm submit` re-renders views whose
 // settings changed as well.
 struct StaleViews {
+  uint32_t revision = 0;  // the store's
   size_t done = 0;
   std::map<std::string, size_t> by_reason;
   std::vector<std::tuple<std::string, std::string, std::string>> views;  // name, reason, detail
 };
 bool stale_views(const fs::path& dir, const ReadView& read, StaleViews& out, std::string& error) {
   out = StaleViews{};
+  out.revision = read.info().revision;
   const std::string identity = farm::store_identity(read);
   if (!farm::ensure_objects_file(dir, identity, read, error)) return false;
   std::map<std::string, nlohmann::json> newest;
@@ -88,12 +90,12 @@ nlohmann::json stale_json(const StaleViews& stale) {
   nlohmann::json views = nlohmann::json::array();
   for (const auto& [name, reason, detail] : stale.views)
     views.push_back({{"name", name}, {"reason", reason}, {"detail", detail}});
-  return {{"done", stale.done}, {"stale", stale.views.size()}, {"by_reason", stale.by_reason}, {"views", views}};
+  return {{"revision", stale.revision}, {"done", stale.done}, {"stale", stale.views.size()}, {"by_reason", stale.by_reason}, {"views", views}};
 }
 
 std::string stale_summary(const StaleViews& stale) {
   std::string text = std::to_string(stale.views.size()) + " of " + std::to_string(stale.done) +
-                     " done views stale at the store's current state";
+                     " done views stale at the store's revision " + std::to_string(stale.revision);
   std::string reasons;
   for (const auto& [reason, count] : stale.by_reason)
     reasons += (reasons.empty() ? "" : ", ") + reason + ": " + std::to_string(count);

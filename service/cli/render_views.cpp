@@ -128,6 +128,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
   if (!farm::read_newest_records(out, previous, error)) return fail(error);
   const std::string store_identity = farm::store_identity(*read);
   const DAabb model_bounds = read->info().statistics.bounds;
+  const uint32_t revision = read->info().revision;  // (shown; the state is store_identity)
   if (!farm::ensure_objects_file(out, store_identity, *read, error)) return fail(error);
   std::vector<farm::ObjectState> store_objects;
   if (!farm::read_objects_file(farm::objects_file(out, store_identity), store_objects, error)) return fail(error);
@@ -160,6 +161,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       if (record.value("store", "") != store_identity) {
         // Drawn at an earlier state whose changes cannot reach it: its image is this state's.
         record["store"] = store_identity;
+        record["revision"] = revision;
         record["checked_unix_ms"] = farm::unix_ms_now();
         ++kept_after_change;
       }
@@ -191,6 +193,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       auto record = std::make_shared<nlohmann::json>(view_record(view, file, hashes[to_render[n]], plan));
       const RenderOptions view_options = review_render_options(plan.options, view);
       (*record)["store"] = store_identity;
+      (*record)["revision"] = revision;
       (*record)["global"] = globals[to_render[n]];
       (*record)["global_uses_bounds"] = farm::uses_model_bounds(view_options);
       (*record)["size"] = {{"width", plan.width}, {"height", plan.height}};

@@ -8,13 +8,6 @@
 #include "cli/farm/output_dir.h"
 #include "plantview/store.h"
 
-// The store's record encoders (storage/src/record.h): the stand-in content hash hashes what the
-// store writes, as ReadView::content_hash will (remove with it).
-namespace plantview::detail {
-void encode_object(const Object& object, std::vector<uint8_t>& out);
-void encode_attributes(const std::vector<Attribute>& attributes, std::vector<uint8_t>& out);
-}  // namespace plantview::detail
-
 namespace plantview::cli::farm {
 
 namespace fs = std::filesystem;
@@ -112,25 +105,30 @@ bool box_enters(const Frustum& f, const DAabb& b) {
 
 }  // namespace
 
-uint64_t object_content_hash(const Object& object) {
-  std::vector<uint8_t> bytes;
-  detail::encode_object(object, bytes);
-  uint64_t h = fnv1a(bytes.data(), bytes.size());
-  bytes.clear();
-  detail::encode_attributes(object.attributes, bytes);
-  return fnv1a(bytes.data(), bytes.size(), h);
-}
-
 bool store_objects(const ReadView& read, std::vector<ObjectState>& out, std::string& error) {
   out.clear();
+  bool hashed = true;
+  std::vector<std::pair<uint64_t, uint64_t>> in_branches;  // (member id, pipeline id)
   const bool ok = read.for_each_object(
-      [&](uint32_t, Object&& object) {
-        out.push_back({object.id, object_content_hash(object), object.pipeline_id, object_bounds(object)});
-        return true;
+      [&](uint32_t slot, Object&& object) {
+        uint64_t hash = 0;
+        hashed = read.content_hash(slot, hash, error);
+        out.push_back({object.id, hash, object.pipeline_id, object_bounds(object)});
+        for (const Branch& branch : object.branches)
+          for (const uint64_t member : branch.members) in_branches.emplace_back(member, object.id);
+        return hashed;
       },
-      true, error);
-  if (!ok) return false;
+      false, error);
+  if (!ok || !hashed) return false;
   std::sort(out.begin(), out.end(), [](const ObjectState& a, const ObjectState& b) { return a.id < b.id; });
+  // A pipe joins its pipeline's runs only where a branch lists it (render/src/hlod.h): the
+  // others keep no pipeline here, so that changing them reaches no run.
+  std::sort(in_branches.begin(), in_branches.end());
+  for (ObjectState& o : out) {
+    if (o.pipeline_id == 0) continue;
+    const auto it = std::lower_bound(in_branches.begin(), in_branches.end(), std::make_pair(o.id, o.pipeline_id));
+    if (it == in_branches.end() || *it != std::make_pair(o.id, o.pipeline_id)) o.pipeline_id = 0;
+  }
   return true;
 }
 

@@ -20,13 +20,13 @@
 //   - its global inputs changed;
 //   - an object it drew was modified or removed, or a node it drew whole held one (the old
 //     bounds of a removed or modified object meet the node's bounds), or a pipeline it drew a
-//     member of gained, lost or changed a member (pipeline runs merge members out of view);
+//     member of changed or gained, lost or changed a member its branches list (pipeline runs
+//     merge such members, in view or not);
 //   - an added or modified object's new bounds enter its frustum (no far plane, a margin of a
 //     few pixels) and are not wholly removed by its section.
 // Otherwise its image is byte-identical to what rendering it at C would write (the renderer
 // draws by id, not by slot: render.h), and it is kept.
-// Content hashes: object_content_hash below (until the store's own, ReadView::content_hash,
-// is implemented: the same rule, a hash of the stored record and attributes).
+// Content hashes: the store's (ReadView::content_hash: its record and attributes).
 // Errors: false with a message naming the file or the object.
 #pragma once
 
@@ -50,12 +50,9 @@ namespace plantview::cli::farm {
 // One object of a store state.
 struct ObjectState {
   uint64_t id = 0, hash = 0;
-  uint64_t pipeline_id = 0;  // (0: none)
+  uint64_t pipeline_id = 0;  // whose branches list it (0: none; pipeline HLOD runs)
   DAabb bounds;  // model space; empty for objects without geometry
 };
-
-// The content hash of an object as the store keeps it (record and attributes).
-uint64_t object_content_hash(const Object& object);
 
 // Every object of the snapshot, by id (one pass over the store).
 bool store_objects(const ReadView& read, std::vector<ObjectState>& out, std::string& error);

@@ -15,7 +15,7 @@
 // "failed", with "error"), settings_hash (the view, size, format and render options), shard,
 // finished_unix_ms, ms (the view's cost split: frame, caption, encode, write, total;
 // store_open_ms once per process), stats (FrameStats); and what the incremental farm judges it
-// by (incremental.h): store (the store state it holds for), global and global_uses_bounds,
+// by (incremental.h): store (the store state it holds for) and revision (its number), global and global_uses_bounds,
 // size {width, height}, section, drawn {file, objects, regions, pipelines, digest}; where it
 // was rendered again, rendered_because ("changed object: ..."); where a later state was found
 // not to change it, checked_unix_ms.
