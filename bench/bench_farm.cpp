@@ -234,10 +234,14 @@ int bench_revision(const std::string& program, const std::string& preset, const 
   const size_t n = json::parse(slurp(views))["views"].size();
   const std::string submit = program + " farm submit --scheduler local --tasks 2 --store " + store.string() +
                              " --views " + views.string() + " --size " + size + " --out ";
+  // Wall seconds, and CPU seconds of the run's processes (what a busy machine distorts least).
+  std::map<std::string, double> cpu;
   const auto timed = [&](const fs::path& out, double& seconds) {
     const auto t = Clock::now();
+    const double cpu_before = children_cpu_s();
     const int rc = shell(submit + out.string(), log);
     seconds = std::chrono::duration<double>(Clock::now() - t).count();
+    cpu[out.filename().string() + (cpu.count(out.filename().string()) ? "_again" : "")] = children_cpu_s() - cpu_before;
     return rc == 0;
   };
   double first_s = 0, incremental_s = 0, full_s = 0;
@@ -260,11 +264,18 @@ int bench_revision(const std::string& program, const std::string& preset, const 
   const auto after = done_times(incremental);
   size_t rendered = 0, identical = 0, images = 0;
   std::map<std::string, size_t> reasons;
+  // The full run's view time (ms.total) of the views rendered again, over all of it: the share
+  // of the work the incremental run had to do (wide views, which draw more, are stale more often).
+  std::map<std::string, double> full_view_ms;
+  double all_view_ms = 0, stale_view_ms = 0;
+  for (const json& v : json::parse(slurp(full / "manifest.json"), nullptr, false).value("views", json::array()))
+    all_view_ms += full_view_ms[v.value("name", "")] = v.value("ms", json::object()).value("total", 0.0);
   const json manifest = json::parse(slurp(incremental / "manifest.json"), nullptr, false);
   for (const json& v : manifest.value("views", json::array())) {
     const std::string name = v.value("name", "");
     if (!before.count(name) || !after.count(name) || before.at(name) != after.at(name)) {
       ++rendered;
+      stale_view_ms += full_view_ms[name];
       const std::string why = v.value("rendered_because", "?");
       ++reasons[why.substr(0, why.find(':'))];
     }
@@ -279,11 +290,14 @@ int bench_revision(const std::string& program, const std::string& preset, const 
   std::printf("after the revision: incremental %.1f s rendering %zu of %zu views; full %.1f s (%.2fx)\n",
               incremental_s, rendered, n, full_s, full_s / incremental_s);
   for (const auto& [why, k] : reasons) std::printf("  rendered again, %s: %zu\n", why.c_str(), k);
+  std::printf("their share of the full run's view time: %.0f%%\n", 100.0 * stale_view_ms / all_view_ms);
+  std::printf("CPU s: first run %.1f, incremental %.1f, full %.1f (%.2fx)\n", cpu["incremental"],
+              cpu["incremental_again"], cpu["full"], cpu["full"] / cpu["incremental_again"]);
   std::printf("images byte-identical to the full run: %zu of %zu\n", identical, images);
   std::printf("json: %s\n", json{{"preset", preset}, {"size", size}, {"views", n}, {"moved_equipment", moved_count},
                                   {"added_pipes", added_count}, {"first_s", first_s}, {"status_s", status_s},
                                   {"incremental_s", incremental_s}, {"rendered", rendered},
-                                  {"full_s", full_s}, {"reasons", reasons}, {"identical", identical},
+                                  {"full_s", full_s}, {"reasons", reasons}, {"cpu_s", cpu}, {"stale_view_time_share", stale_view_ms / all_view_ms}, {"identical", identical},
                                   {"images", images}}.dump().c_str());
   return identical == images && images == n ? 0 : 1;
 }

@@ -1,6 +1,7 @@
 #include "cli/farm/incremental.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 
