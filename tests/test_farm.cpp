@@ -22,6 +22,8 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
+#include <utility>
 
 #include "support/temp_dir.h"
 
@@ -77,6 +79,38 @@ std::map<std::string, int64_t> done_times(const fs::path& dir) {
   for (const json& v : manifest.value("views", json::array()))
     if (v.value("status", "") == "done") times[v["name"]] = v["finished_unix_ms"].get<int64_t>();
   return times;
+}
+
+// The text of `<object id="ID" ...>...</object>` in a plantview XML document: [begin, end).
+std::pair<size_t, size_t> object_span(const std::string& xml, const std::string& id_hex) {
+  const size_t begin = xml.find("<object id=\"" + id_hex + "\"");
+  if (begin == std::string::npos) return {std::string::npos, std::string::npos};
+  return {begin, xml.find("</object>", begin) + std::string("</object>").size()};
+}
+
+// Replaces the value of attribute `name` in the first tag of `element`.
+std::string with_attribute(std::string element, const std::string& name, const std::string& value) {
+  const size_t at = element.find(" " + name + "=\"");
+  const size_t first = at + name.size() + 3, last = element.find('"', first);
+  return element.replace(first, last - first, value);
+}
+
+// `origin_m="x y z"` moved by (dx, dy, dz).
+std::string moved(const std::string& element, double dx, double dy, double dz) {
+  const size_t at = element.find(" origin_m=\"") + 11;
+  std::istringstream in(element.substr(at, element.find('"', at) - at));
+  double x = 0, y = 0, z = 0;
+  in >> x >> y >> z;
+  std::ostringstream out;
+  out.precision(17);
+  out << x + dx << " " << y + dy << " " << z + dz;
+  return with_attribute(element, "origin_m", out.str());
+}
+
+std::string id_hex(uint64_t id) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(id));
+  return hex;
 }
 
 // A store of preset a and a views file of 24 of its equipment items (ids, names and origins
@@ -196,9 +230,9 @@ TEST_F(Farm, ARenderAgainSkipsWhatIsDoneAndForceRendersAgain) {
   EXPECT_EQ(summary["skipped"], 0);
 }
 
-TEST_F(Farm, ARenderAgainAfterAnImportThatKeptEveryCountRendersAgain) {
+TEST_F(Farm, ARenderAgainAfterAnImportThatKeptEveryCountRendersWhatItReaches) {
   // A copy of the plant's store, rendered; then every object imported again with one
-  // recoloured: the same counts and bounds, other images.
+  // recoloured: the same counts and bounds, other images where it was drawn.
   const fs::path store = scratch_.path() / "store", out = scratch_.path() / "out";
   fs::copy(store_, store, fs::copy_options::recursive);
   const std::string render = "render --store " + store.string() + " --views " + views_.string() +
@@ -230,11 +264,122 @@ TEST_F(Farm, ARenderAgainAfterAnImportThatKeptEveryCountRendersAgain) {
   }
   EXPECT_EQ(before, after) << "the statistics alone cannot tell the two stores apart";
 
+  // The views that drew the recoloured object are rendered again, the others kept: every image
+  // is what a render of the new state into an empty directory writes.
+  const Outcome status = run("farm status --json " + out.string() + " --store " + store.string());
+  ASSERT_EQ(status.status, 0) << status.err;
   const Outcome again = run(render);
   ASSERT_EQ(again.status, 0) << again.err;
   const json summary = json::parse(again.out);
-  EXPECT_EQ(summary["rendered"], 6);
-  EXPECT_EQ(summary["skipped"], 0);
+  EXPECT_EQ(summary["rendered"], json::parse(status.out)["stale"]["stale"]) << status.out;
+  EXPECT_EQ(summary["rendered"].get<int>() + summary["skipped"].get<int>(), 6);
+  const fs::path fresh = scratch_.path() / "fresh";
+  const Outcome whole = run("render --store " + store.string() + " --views " + views_.string() + " --out " +
+                            fresh.string() + " --size " + kSize + " --shard 0/4");
+  ASSERT_EQ(whole.status, 0) << whole.err;
+  EXPECT_EQ(images_in(out), images_in(fresh));
+}
+
+// A revision of the plant as an import would bring it (every object put again, so every slot
+// changes): view `changed`'s subject recoloured, and a copy of view `added`'s subject (a new id)
+// 3 m above it. Returns the ids of the two objects.
+std::pair<uint64_t, uint64_t> write_revision(const fs::path& xml_path, const json& views, size_t changed,
+                                             size_t added) {
+  std::string xml = slurp(xml_path);
+  const uint64_t changed_id = views["views"][changed]["subject"][0].get<uint64_t>();
+  const uint64_t copied_id = views["views"][added]["subject"][0].get<uint64_t>();
+  const uint64_t new_id = 0x00f0f0f0f0f0f0f0ull;
+  auto [begin, end] = object_span(xml, id_hex(changed_id));
+  EXPECT_NE(begin, std::string::npos);
+  xml.replace(begin, end - begin, with_attribute(xml.substr(begin, end - begin), "colour", "#ff00ffff"));
+  std::tie(begin, end) = object_span(xml, id_hex(copied_id));
+  EXPECT_NE(begin, std::string::npos);
+  std::string copy = moved(xml.substr(begin, end - begin), 0, 0, 3);
+  copy = with_attribute(with_attribute(copy, "id", id_hex(new_id)), "name", "/ADDED-1");
+  xml.insert(xml.rfind("</plantview>"), copy + "\n");
+  std::ofstream(xml_path) << xml;
+  return {changed_id, new_id};
+}
+
+TEST_F(Farm, AfterARevisionOnlyTheViewsItCanChangeAreRenderedAgainByteIdenticalToAFullRender) {
+  // The plant imported from its XML; 24 views rendered by 2 local shards.
+  const fs::path store = scratch_.path() / "store", out = scratch_.path() / "out", full = scratch_.path() / "full";
+  const fs::path xml = scratch_.path() / "plant.xml";
+  fs::copy_file(plant_->path() / "plant.xml", xml);
+  Outcome r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string submit = "farm submit --scheduler local --tasks 2 --views " + views_.string() + " --store " +
+                             store.string() + " --size " + kSize + " --out ";
+  r = run(submit + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(json::parse(r.out)["done"], 24);
+  const json first = json::parse(slurp(out / "manifest.json"));
+  for (const json& v : first["views"]) {
+    EXPECT_GT(v["drawn"]["objects"].get<int>(), 0) << v["name"];
+    EXPECT_TRUE(fs::exists(out / v["drawn"]["file"].get<std::string>())) << v["name"];
+  }
+  // Nothing changed: nothing is stale.
+  r = run("farm status --json " + out.string() + " --store " + store.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["stale"]["stale"], 0) << r.out;
+
+  // The revision: view 0's subject recoloured, an object added above view 12's subject.
+  const json views = json::parse(slurp(views_));
+  const auto [changed_id, added_id] = write_revision(xml, views, 0, 12);
+  r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+
+  // farm status says which views are stale and why.
+  r = run("farm status --json " + out.string() + " --store " + store.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json stale = json::parse(r.out)["stale"];
+  std::map<std::string, std::string> stale_reasons;
+  for (const json& v : stale["views"]) stale_reasons[v["name"]] = v["reason"];
+  ASSERT_TRUE(stale_reasons.count(names_[0])) << r.out;
+  EXPECT_EQ(stale_reasons[names_[0]], "changed object") << r.out;
+  ASSERT_TRUE(stale_reasons.count(names_[12])) << r.out;
+  EXPECT_EQ(stale_reasons[names_[12]], "added object in view") << r.out;
+  EXPECT_LT(stale_reasons.size(), 24u / 2) << "a revision of two objects leaves most views as they are: " << r.out;
+  for (const auto& [name, reason] : stale_reasons)
+    EXPECT_TRUE(reason == "changed object" || reason == "added object in view") << name << ": " << reason;
+  const Outcome text = run("farm status " + out.string() + " --store " + store.string());
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find(std::to_string(stale_reasons.size()) + " of 24 done views stale"), std::string::npos)
+      << text.out;
+
+  // Submitted again: exactly the stale views are rendered, the rest kept.
+  const auto before = done_times(out);
+  r = run(submit + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto after = done_times(out);
+  ASSERT_EQ(after.size(), 24u);
+  std::set<std::string> rendered;
+  for (const auto& [name, time] : after)
+    if (time != before.at(name)) rendered.insert(name);
+  std::set<std::string> expected;
+  for (const auto& [name, reason] : stale_reasons) expected.insert(name);
+  EXPECT_EQ(rendered, expected);
+  const json second = json::parse(slurp(out / "manifest.json"));
+  for (const json& v : second["views"])
+    if (expected.count(v["name"])) {
+      EXPECT_TRUE(v.contains("rendered_because")) << v["name"];
+    }
+
+  // Every image, kept or rendered again, is byte for byte what a full render of this revision
+  // writes.
+  r = run(submit + full.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto incremental = images_in(out), whole = images_in(full);
+  ASSERT_EQ(incremental.size(), 24u);
+  for (const auto& [name, bytes] : whole)
+    EXPECT_TRUE(incremental.count(name) && incremental.at(name) == bytes) << name << " differs from a full render";
+
+  // And a third run renders nothing.
+  r = run(submit + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(done_times(out), after);
+  (void)changed_id;
+  (void)added_id;
 }
 
 TEST_F(Farm, LocalShardsWriteTheSameBytesAsOneProcess) {
@@ -527,6 +672,44 @@ TEST_F(Farm, SlurmArrayRendersTheSameImagesResumesAndCompletesACancelledTask) {
   const auto completed = done_times(cut);
   EXPECT_EQ(completed.size(), 24u);
   for (const auto& [name, time] : kept) EXPECT_EQ(completed.at(name), time) << name << " rendered twice";
+
+  // After a revision, a Slurm run renders again only the views it can change, and every image
+  // is what a full render of the revision writes.
+  const fs::path store = scratch_.path() / "revised-store", xml = scratch_.path() / "revised.xml";
+  const fs::path incremental = scratch_.path() / "incremental", full = scratch_.path() / "full";
+  fs::copy_file(plant_->path() / "plant.xml", xml);
+  r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string revised_submit = " --views " + views_.string() + " --store " + store.string() +
+                                     " --size " + kSize + " --out ";
+  r = run("farm submit --scheduler slurm --tasks 2" + revised_submit + incremental.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_TRUE(cluster.wait_for_job(r.out.substr(0, r.out.find('\n')), std::chrono::seconds(90)));
+  write_revision(xml, json::parse(slurp(views_)), 0, 12);
+  r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("farm status --json " + incremental.string() + " --store " + store.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json status = json::parse(r.out);
+  std::set<std::string> stale;
+  for (const json& v : status["stale"]["views"]) stale.insert(v["name"].get<std::string>());
+  EXPECT_TRUE(stale.count(names_[0]) && stale.count(names_[12])) << r.out;
+  EXPECT_LT(stale.size(), 12u) << r.out;
+  const auto before = done_times(incremental);
+  ASSERT_EQ(before.size(), 24u);
+  r = run("farm submit --scheduler slurm --tasks 2" + revised_submit + incremental.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_TRUE(cluster.wait_for_job(r.out.substr(0, r.out.find('\n')), std::chrono::seconds(90)));
+  r = run("farm status --json " + incremental.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto after = done_times(incremental);
+  std::set<std::string> rendered;
+  for (const auto& [name, time] : after)
+    if (!before.count(name) || time != before.at(name)) rendered.insert(name);
+  EXPECT_EQ(rendered, stale);
+  r = run("farm submit --scheduler local --tasks 2" + revised_submit + full.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(images_in(incremental), images_in(full));
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <deque>
 #include <cassert>
+#include <cstring>
 #include <mutex>
 #include <optional>
 #include <unordered_set>
@@ -251,6 +252,22 @@ void group_bounds(const std::vector<Primitive>& primitives, std::vector<Aabb>& b
   split(split, 0, each.size(), kMaxTestBoxes);
 }
 
+// Known::order_key: 32 well-mixed bits of an object's id (splitmix64's finaliser), or of a
+// merged run's pipeline id and start point.
+uint32_t order_key_of(uint64_t id, const PipelineRun* run) {
+  uint64_t x = id;
+  if (run) {
+    for (const double c : {run->start_m.x, run->start_m.y, run->start_m.z}) {
+      uint64_t bits;
+      std::memcpy(&bits, &c, sizeof bits);
+      x = (x ^ bits) * 0x9e3779b97f4a7c15ull;
+    }
+  }
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return uint32_t(x ^ (x >> 31));
+}
+
 }  // namespace
 
 // Makes the Known of `key` from an object (its primitives moved out of it): its parts, their
@@ -259,7 +276,8 @@ Known& DecodedObjects::add(uint32_t key, Object& o, bool keeps_primitives) {
   Known* existing = directory_.find(key);
   Known& k = existing ? *existing : insert(key);
   k.id = o.id;
-  k.order_key = key & kRunKeyBit ? runs_[key & ~kRunKeyBit].members.front() : key;
+  k.order_key = order_key_of(key & kRunKeyBit ? runs_[key & ~kRunKeyBit].pipeline_id : o.id,
+                             key & kRunKeyBit ? &runs_[key & ~kRunKeyBit] : nullptr);
   k.object_class = o.object_class;
   k.colour = o.colour;
   k.origin_m = o.origin_m;

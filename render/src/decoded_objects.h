@@ -96,8 +96,10 @@ struct alignas(64) Known {
   uint32_t arena_offset = 0;        // while resident: its first vertex in the arena
   uint32_t vertex_count = 0;
   int32_t run = -1;                 // the pipeline run it belongs to, if any
-  // Breaks ties in the draw order the same way whatever was decoded before: the slot, or for a
-  // merged run its first member's slot (run indices depend on the order pipelines were met).
+  // Breaks ties in the draw order (and coincident surfaces' depth: gl/backend.h tie_of) the same
+  // way whatever was decoded before and wherever the store put the object: a mix of its id, or
+  // for a merged run of its pipeline's id and start (run indices depend on the order pipelines
+  // were met; slots change when an import puts an object again, ids do not).
   uint32_t order_key = 0;
   uint32_t resident_centreline_first = 0;
   float pipe_diameter_m = 0;

@@ -117,6 +117,8 @@ struct Renderer::State {
   bool stream_phase(const FrameView& frame_view, uint64_t frame, bool second_phase, bool indices,
                     bool next, FrameStats& stats, StageTimes& times, Stopwatch& clock,
                     std::string& error);
+  // Appends the phase's draws and node boxes to stats (RenderOptions::record_drawn).
+  void record_drawn(FrameStats& stats) const;
 };
 
 void Renderer::State::look_ahead(const Camera& next, uint32_t w, uint32_t h, bool exact) {
@@ -344,6 +346,7 @@ bool Renderer::State::phase(const FrameView& frame_view, const Look* look, bool 
                            times, clock, error)) {
     return false;
   }
+  if (options.record_drawn) record_drawn(stats);
   if (!look) return true;
   if (!second_phase && !backend.begin_frame(frame_view, *look, with_ids, error)) return false;
   backend.draw_phase(frame_view, streaming.index_counts(), streaming.table().entries(),
@@ -351,6 +354,24 @@ bool Renderer::State::phase(const FrameView& frame_view, const Look* look, bool 
                      wait);
   times.draw += clock.lap();
   return true;
+}
+
+void Renderer::State::record_drawn(FrameStats& stats) const {
+  for (const Draw& d : plan.draws()) {
+    if (d.key & kRunKeyBit) {
+      const PipelineRun& run = objects.run(d.key & ~kRunKeyBit);
+      stats.drawn_slots.insert(stats.drawn_slots.end(), run.members.begin(), run.members.end());
+    } else {
+      stats.drawn_slots.push_back(d.key);
+    }
+  }
+  const glm::dvec3 origin = view->spatial_origin();
+  for (const NodeBox& b : plan.node_boxes()) {
+    DAabb region;
+    region.min = origin + glm::dvec3(b.min[0], b.min[1], b.min[2]);
+    region.max = origin + glm::dvec3(b.max[0], b.max[1], b.max[2]);
+    stats.drawn_regions.push_back(region);
+  }
 }
 
 bool Renderer::State::stream_phase(const FrameView& frame_view, uint64_t frame,

@@ -5,10 +5,13 @@
 
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/farm/incremental.h"
 #include "cli/farm/job_inputs.h"
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
@@ -47,6 +50,56 @@ std::vector<std::string> passed_render_args(const SubmitArgs& a) {
   // One word each, so that a plane whose point starts with a minus stays a value.
   for (const std::string& plane : a.clip) args.push_back("--clip=" + plane);
   return args;
+}
+
+// The done views of DIR that the store's current state makes stale, and why
+// (farm/incremental.h); writes DIR's objects file of that state if missing. Settings are not
+// compared (the render options are not known here): `farm submit` re-renders views whose
+// settings changed as well.
+struct StaleViews {
+  uint32_t revision = 0;  // the store's
+  size_t done = 0;
+  std::map<std::string, size_t> by_reason;
+  std::vector<std::tuple<std::string, std::string, std::string>> views;  // name, reason, detail
+};
+bool stale_views(const fs::path& dir, const ReadView& read, StaleViews& out, std::string& error) {
+  out = StaleViews{};
+  out.revision = read.info().revision;
+  const std::string identity = farm::store_identity(read);
+  if (!farm::ensure_objects_file(dir, identity, read, error)) return false;
+  std::map<std::string, nlohmann::json> newest;
+  if (!farm::read_newest_records(dir, newest, error)) return false;
+  const DAabb bounds = read.info().statistics.bounds;
+  farm::StalenessJudge judge(dir, identity);
+  std::error_code ec;
+  for (const auto& [name, record] : newest) {
+    if (record.value("status", "") != "done" || !fs::is_regular_file(dir / record.value("file", ""), ec))
+      continue;
+    ++out.done;
+    farm::Staleness staleness;
+    const std::string global = farm::global_inputs_hash(bounds, record.value("global_uses_bounds", true));
+    if (!judge.judge(record, "", global, staleness, error)) return false;
+    if (staleness.reason == farm::Staleness::Reason::fresh) continue;
+    ++out.by_reason[farm::staleness_name(staleness.reason)];
+    out.views.emplace_back(name, farm::staleness_name(staleness.reason), staleness.detail);
+  }
+  return true;
+}
+
+nlohmann::json stale_json(const StaleViews& stale) {
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& [name, reason, detail] : stale.views)
+    views.push_back({{"name", name}, {"reason", reason}, {"detail", detail}});
+  return {{"revision", stale.revision}, {"done", stale.done}, {"stale", stale.views.size()}, {"by_reason", stale.by_reason}, {"views", views}};
+}
+
+std::string stale_summary(const StaleViews& stale) {
+  std::string text = std::to_string(stale.views.size()) + " of " + std::to_string(stale.done) +
+                     " done views stale at the store's revision " + std::to_string(stale.revision);
+  std::string reasons;
+  for (const auto& [reason, count] : stale.by_reason)
+    reasons += (reasons.empty() ? "" : ", ") + reason + ": " + std::to_string(count);
+  return reasons.empty() ? text : text + " (" + reasons + ")";
 }
 
 int run_submit(const SubmitArgs& a) {
@@ -98,6 +151,8 @@ int run_submit(const SubmitArgs& a) {
   const bool out_existed = fs::exists(job.out, ec);
   const bool logs_existed = fs::exists(job.out / "logs", ec);
   const bool views_copy_existed = fs::exists(job.out / farm::kViewsCopyName, ec);
+  const bool objects_dir_existed = fs::exists(job.out / "objects", ec);
+  fs::path objects_written;
   const auto take_back = [&](const fs::path& script) {
     std::error_code ignored;
     fs::remove(script, ignored);
@@ -107,9 +162,24 @@ int run_submit(const SubmitArgs& a) {
     }
     if (!views_copy_existed) fs::remove(job.out / farm::kViewsCopyName, ignored);
     if (!logs_existed) fs::remove(job.out / "logs", ignored);  // only if still empty
+    if (!objects_written.empty()) fs::remove(objects_written, ignored);
+    if (!objects_dir_existed) fs::remove(job.out / "objects", ignored);  // only if still empty
   };
   if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
     return fail(error);
+  {
+    // The store's objects at this state, once for every shard; and what an earlier run left
+    // that this state makes stale (the shards judge each view again, settings included).
+    auto store = Store::open(job.store.string(), Store::Mode::read_only, error);
+    if (!store) return fail(error);
+    auto read = store->read(error);
+    if (!read) return fail(error);
+    const fs::path objects = farm::objects_file(job.out, farm::store_identity(*read));
+    if (!fs::exists(objects, ec)) objects_written = objects;
+    StaleViews stale;
+    if (!stale_views(job.out, *read, stale, error)) return fail(error);
+    if (stale.done > 0) std::cerr << "plantview: " << stale_summary(stale) << "\n";
+  }
   if (!fs::equivalent(a.views, job.out / farm::kViewsCopyName, ec) &&
       !farm::write_file_atomically(job.out / farm::kViewsCopyName, text, error))
     return fail(error);
@@ -139,15 +209,24 @@ int run_submit(const SubmitArgs& a) {
   return 0;
 }
 
-int run_status(const std::string& dir, bool json) {
+int run_status(const std::string& dir, const std::string& store_dir, bool json) {
   std::string error;
   std::error_code ec;
   if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec))
     return fail(dir + ": not a farm output directory (no " + farm::kViewsCopyName + ")");
   farm::FarmSummary summary;
   if (!farm::merge_manifests(dir, summary, error)) return fail(error);
+  StaleViews stale;
+  if (!store_dir.empty()) {
+    auto store = Store::open(store_dir, Store::Mode::read_only, error);
+    if (!store) return fail(error);
+    auto read = store->read(error);
+    if (!read || !stale_views(dir, *read, stale, error)) return fail(error);
+  }
   if (json) {
-    std::cout << farm::summary_json(summary).dump() << "\n";
+    nlohmann::json out = farm::summary_json(summary);
+    if (!store_dir.empty()) out["stale"] = stale_json(stale);
+    std::cout << out.dump() << "\n";
     return 0;
   }
   std::cout << summary.views << " views: " << summary.done.size() << " done, " << summary.failed.size()
@@ -160,6 +239,11 @@ int run_status(const std::string& dir, bool json) {
   };
   list("failed", summary.failed);
   list("missing", summary.missing);
+  if (!store_dir.empty()) {
+    std::cout << stale_summary(stale) << "\n";
+    for (const auto& [name, reason, detail] : stale.views)
+      std::cout << "stale: " << name << ": " << reason << " (" << detail << ")\n";
+  }
   return 0;
 }
 
@@ -217,17 +301,20 @@ Action add_farm_command(CLI::App& app) {
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);
+  auto status_store = std::make_shared<std::string>();
   auto* status = farm->add_subcommand(
       "status", "Done, failed and missing views of an output directory; merges the shards' manifests");
   status->add_option("DIR", *status_dir, "Output directory of a farm job")->required();
   status->add_flag("--json", *status_json, "One JSON object on stdout");
+  status->add_option("--store", *status_store,
+                     "Also say which done views the store's current state makes stale, and why");
 
   return [=]() -> int {
     if (submit->parsed()) {
       for (size_t k = 0; k < a->render_values.size(); ++k) a->render_values[k].second = a->render_storage[k];
       return run_submit(*a);
     }
-    if (status->parsed()) return run_status(*status_dir, *status_json);
+    if (status->parsed()) return run_status(*status_dir, *status_store, *status_json);
     return -1;
   };
 }

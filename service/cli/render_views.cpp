@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/bcf_export.h"
+#include "cli/farm/incremental.h"
 #include "cli/farm/job_inputs.h"
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
@@ -22,6 +23,7 @@ namespace {
 // part they give.
 RenderOptions review_render_options(const RenderOptions& base, const ReviewView& view) {
   RenderOptions options = base;
+  options.record_drawn = true;  // what each image was drawn from (farm/incremental.h)
   options.highlight_ids = view.subject;
   options.style = view.style;
   if (!base.style.colour_by.empty()) options.style.colour_by = base.style.colour_by;
@@ -47,7 +49,8 @@ bool add_review_caption(Image& image, const ReviewView& view, const FrameStats& 
   return add_caption_columns(image, view.title, columns, error);
 }
 
-// What, besides the view and the store's content, an image depends on (the settings hash).
+// What, besides the view, the objects it drew and its global inputs, an image depends on (the
+// settings hash; farm/incremental.h says when a view is rendered again).
 std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
   nlohmann::json settings = {
       {"program", PLANTVIEW_VERSION},
@@ -125,23 +128,53 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       !farm::write_file_atomically(out / farm::kViewsCopyName, text, error))
     return fail(error);
 
-  // Which of this shard's views are done already with the same settings.
+  // Which of this shard's views are done already with the same settings, and of those drawn
+  // at an earlier state of the store, which that state's changes cannot reach
+  // (farm/incremental.h).
   std::map<std::string, nlohmann::json> previous;
   if (!farm::read_newest_records(out, previous, error)) return fail(error);
-  const std::string identity = farm::store_identity(*read) + "\n" + render_settings_text(a, plan) + "\n";
+  const std::string store_identity = farm::store_identity(*read);
+  const DAabb model_bounds = read->info().statistics.bounds;
+  const uint32_t revision = read->info().revision;  // (shown; the state is store_identity)
+  if (!farm::ensure_objects_file(out, store_identity, *read, error)) return fail(error);
+  std::vector<farm::ObjectState> store_objects;
+  if (!farm::read_objects_file(farm::objects_file(out, store_identity), store_objects, error)) return fail(error);
   read.reset();
+  const std::string settings = render_settings_text(a, plan) + "\n";
   const char* extension = plan.format == ImageFormat::png ? ".png" : ".jpg";
   std::vector<nlohmann::json> records;
   std::vector<size_t> to_render;
-  std::vector<std::string> hashes(views.size());
+  std::vector<std::string> hashes(views.size()), globals(views.size()), stale_because(views.size());
+  farm::StalenessJudge judge(out, store_identity);
+  size_t kept_after_change = 0;
   for (size_t i = plan.shard_index; i < views.size(); i += plan.shard_count) {
-    hashes[i] = farm::hash_hex(identity + review_views_json({views[i]}, views[i].kind));
+    hashes[i] = farm::hash_hex(settings + review_views_json({views[i]}, views[i].kind));
+    globals[i] = farm::global_inputs_hash(
+        model_bounds, farm::uses_model_bounds(review_render_options(plan.options, views[i])));
     const auto found = previous.find(views[i].name);
-    if (!a.force && found != previous.end() && found->second.value("status", "") == "done" &&
-        found->second.value("settings_hash", "") == hashes[i] &&
-        fs::is_regular_file(out / found->second.value("file", ""), ec)) {
-      records.push_back(found->second);  // kept in this shard's part when it is written again
+    farm::Staleness staleness;
+    if (a.force) {
+      staleness.reason = farm::Staleness::Reason::settings;
+      staleness.detail = "--force";
+    } else if (found == previous.end() || found->second.value("status", "") != "done" ||
+               !fs::is_regular_file(out / found->second.value("file", ""), ec)) {
+      staleness.reason = farm::Staleness::Reason::no_record;
+      staleness.detail = "not done";
+    } else if (!judge.judge(found->second, hashes[i], globals[i], staleness, error)) {
+      return fail(error);
+    }
+    if (staleness.reason == farm::Staleness::Reason::fresh) {
+      nlohmann::json record = found->second;  // kept in this shard's part when it is written again
+      if (record.value("store", "") != store_identity) {
+        // Drawn at an earlier state whose changes cannot reach it: its image is this state's.
+        record["store"] = store_identity;
+        record["revision"] = revision;
+        record["checked_unix_ms"] = farm::unix_ms_now();
+        ++kept_after_change;
+      }
+      records.push_back(std::move(record));
     } else {
+      stale_because[i] = std::string(farm::staleness_name(staleness.reason)) + ": " + staleness.detail;
       to_render.push_back(i);
     }
   }
@@ -152,6 +185,8 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
     const auto t_context = std::chrono::steady_clock::now();
     RenderSession session;
     if (!start_rendering(a.device, *store, plan.options, session, error)) return fail(error);
+    if (farm::store_identity(session.renderer->read_view()) != store_identity)
+      return fail(a.store + ": the store changed (an import committed) while this shard started; run it again");
     const double context_ms = ms_since(t_context);
     Progress progress("render");
     // Each view's image is encoded and written while the next renders; its record follows in
@@ -163,13 +198,35 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
       const auto t_view = std::chrono::steady_clock::now();
       const std::string file = view.name + extension;
       auto record = std::make_shared<nlohmann::json>(view_record(view, file, hashes[to_render[n]], plan));
+      const RenderOptions view_options = review_render_options(plan.options, view);
+      (*record)["store"] = store_identity;
+      (*record)["revision"] = revision;
+      (*record)["global"] = globals[to_render[n]];
+      (*record)["global_uses_bounds"] = farm::uses_model_bounds(view_options);
+      (*record)["size"] = {{"width", plan.width}, {"height", plan.height}};
+      (*record)["section"] = farm::section_json(view_options.section);
+      if (!stale_because[to_render[n]].empty()) (*record)["rendered_because"] = stale_because[to_render[n]];
       FrameStats stats;
       Image image = writer.take_buffer();
-      session.renderer->set_options(review_render_options(plan.options, view));
+      session.renderer->set_options(view_options);
       if (n + 1 < to_render.size()) session.renderer->expect(views[to_render[n + 1]].camera);
       bool ok = session.renderer->render(view.camera, plan.width, plan.height, false, image, stats, error);
       const auto t_caption = std::chrono::steady_clock::now();
       ok = ok && add_review_caption(image, view, stats, error);
+      if (ok) {
+        // What the image was drawn from, beside it (read before the next view's frame).
+        farm::DrawnSet drawn;
+        const fs::path drawn_path = farm::drawn_file(out, view.name);
+        ok = farm::drawn_set(session.renderer->read_view(), stats, store_objects, drawn, error) &&
+             farm::write_drawn_file(drawn_path, drawn, error);
+        (*record)["drawn"] = {{"file", fs::relative(drawn_path, out).string()},
+                              {"objects", drawn.objects.size()},
+                              {"regions", drawn.regions.size()},
+                              {"pipelines", drawn.pipelines.size()},
+                              {"digest", farm::drawn_digest(drawn)}};
+        stats.drawn_slots = {};
+        stats.drawn_regions = {};
+      }
       const double caption_ms = ms_since(t_caption);
       // Recorded once written (or at once, failed).
       const auto finish_view = [&, n, t_view, caption_ms, record](bool written, const std::string& why,
@@ -233,6 +290,7 @@ int render_views(const RenderArgs& a, const RenderPlan& plan) {
                         {"views", to_render.size() + skipped},
                         {"rendered", to_render.size() - failed},
                         {"skipped", skipped},
+                        {"kept_after_store_change", kept_after_change},
                         {"failed", failed},
                         {"job", farm::summary_json(summary)}};
   if (!bcf_status.empty()) result["bcf"] = bcf_status;

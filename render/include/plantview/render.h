@@ -200,6 +200,10 @@ struct RenderOptions {
   // would draw a changed pipe in its neighbours' colour). A range the store cannot draw (a
   // revision pruned, never made, or not the snapshot's) fails the frame with the store's message.
   std::optional<ChangeRange> changes;
+  // Fill FrameStats::drawn_slots and drawn_regions (what the image was drawn from: the farm's
+  // incremental re-render, docs/farm.md). Off for interactive frames: it costs a pass over the
+  // frame's draws.
+  bool record_drawn = false;
 
   bool operator==(const RenderOptions&) const = default;
 };
@@ -304,6 +308,16 @@ struct FrameStats {
     uint32_t from = 0, to = 0;
     uint64_t added = 0, modified = 0, removed = 0;
   } changes;
+  // RenderOptions::record_drawn (else empty): every object that gave the image pixels, as its
+  // slot in the renderer's snapshot (read_view()): drawn one by one at any level, as its
+  // centreline or as a box for the arena's budget, or as a member of a merged pipeline run
+  // (every member, in view or not: the run's cylinder spans them); unordered, possibly
+  // repeated. Objects culled, under the pixel error, hidden by their style or left out by
+  // occlusion (which leaves out nothing visible) gave none. And the nodes drawn whole (far-field
+  // proxies, node boxes), as model-space bounds: any object beneath one gave it pixels. Not in
+  // to_json.
+  std::vector<uint32_t> drawn_slots;
+  std::vector<DAabb> drawn_regions;
   // One JSON object (one line): the fields above, times under "ms"; "legend" only when set;
   // "changes": {"from", "to", "added", "modified", "removed"} only when shown.
   std::string to_json() const;

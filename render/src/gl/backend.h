@@ -106,7 +106,7 @@ static_assert(sizeof(TableEntry) == 32);
 inline constexpr uint32_t kTieBits = 6;
 inline constexpr uint32_t kTieStepInverse = 1u << 22;  // 1 / kTieStep
 inline constexpr uint32_t kPickLimit = 1u << (32 - kTieBits);  // picks in a frame, at most
-// The tie-break of an object from its order key (Known::order_key: its slot), spread.
+// The tie-break of an object from its order key (Known::order_key: from its id), spread.
 inline uint32_t tie_of(uint32_t order_key) { return (order_key * 2654435761u) >> (32 - kTieBits); }
 
 inline constexpr uint64_t kBytesPerVertex = sizeof(PackedVertex) + sizeof(uint32_t);

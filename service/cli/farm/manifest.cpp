@@ -54,8 +54,13 @@ bool read_newest_records(const fs::path& dir, std::map<std::string, json>& newes
         return false;
       }
       json& kept = newest[record["name"].get<std::string>()];
-      if (kept.is_null() || kept["finished_unix_ms"].get<int64_t>() <= record["finished_unix_ms"].get<int64_t>())
-        kept = record;
+      // The newest; of two records of one image, the one checked last against the store
+      // (incremental.h: a kept view's record is rewritten with the store state it holds for).
+      const auto newer = [](const json& r, const json& than) {
+        const int64_t f = r["finished_unix_ms"].get<int64_t>(), g = than["finished_unix_ms"].get<int64_t>();
+        return f != g ? f > g : r.value("checked_unix_ms", int64_t(0)) >= than.value("checked_unix_ms", int64_t(0));
+      };
+      if (kept.is_null() || newer(record, kept)) kept = record;
     }
   }
   if (ec) {

@@ -12,9 +12,15 @@
 //   stats.jsonl               the merge's LOD statistics, one line per rendered view
 //   index.html                the contact sheet (contact_sheet.h)
 // A record: name, title, kind, file (relative to DIR), camera, aspect, subject, status ("done" or
-// "failed", with "error"), settings_hash, shard, finished_unix_ms, ms (the view's cost split:
-// frame, caption, encode, write, total; store_open_ms once per process), stats (FrameStats).
-// A view counts as done when its newest record says done and its image file exists.
+// "failed", with "error"), settings_hash (the view, size, format and render options), shard,
+// finished_unix_ms, ms (the view's cost split: frame, caption, encode, write, total;
+// store_open_ms once per process), stats (FrameStats); and what the incremental farm judges it
+// by (incremental.h): store (the store state it holds for) and revision (its number), global and global_uses_bounds,
+// size {width, height}, section, drawn {file, objects, regions, pipelines, digest}; where it
+// was rendered again, rendered_because ("changed object: ..."); where a later state was found
+// not to change it, checked_unix_ms.
+// A view counts as done when its newest record (finished last; of equal ones, checked last)
+// says done and its image file exists.
 // Threads: plain functions; merges of one DIR are serialised across processes (DirLock).
 #pragma once
 
