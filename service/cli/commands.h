@@ -60,4 +60,7 @@ Action add_devices_command(CLI::App& app);
 // `plantview measure --store DIR --a TAG|ID --b TAG|ID [--json]`: clearance between two objects.
 Action add_measure_command(CLI::App& app);
 
+// `plantview clash --store DIR [...]` and `clash merge`: clash detection (plantview/clash.h).
+Action add_clash_command(CLI::App& app);
+
 }  // namespace plantview::cli
