@@ -58,7 +58,7 @@ int main(int argc, char** argv) {
     std::printf("generated preset %c x%u in %.1f s\n", generate.preset, generate.scale,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   }
-  const auto view = store->read(error);
+  auto view = store->read(error);
   if (!view) {
     std::fprintf(stderr, "bench_clash: %s\n", error.c_str());
     return 1;

@@ -160,7 +160,9 @@ TEST(Clash, PlantedDepthsAndGapsFoundExactly) {
     const Planted& p = cases.at(key(c.a.id, c.b.id));
     if (c.kind != ClashKind::clearance) continue;
     ++clearance;
-    EXPECT_NEAR(c.distance_m, std::max(0.0, -p.depth_m), 1 * kMm) << p.kind;
+    // Within 1 mm, or the tessellation error the clash states (a large dish's finest mesh).
+    EXPECT_NEAR(c.distance_m, std::max(0.0, -p.depth_m), std::max(1 * kMm, c.error_m)) << p.kind;
+    EXPECT_LE(c.error_m, 3 * kMm) << p.kind;
   }
   EXPECT_EQ(clearance, 2 * std::size(kKinds));
   EXPECT_EQ(near.clashes.size(), cases.size());

@@ -18,7 +18,7 @@
 //     exact FCL primitives for boxes, cylinders, cones and spheres, else meshes within
 //     kMeasureMeshErrorM, stated as error_m). Overlapping parts give contact points and a
 //     depth: between two exact convex parts FCL's penetration depth; where a part is a mesh, the
-//     deepest vertex of either part inside the other (box corners and 32 points on each circular
+//     deepest vertex (a mesh's on the true surface) of either part inside the other (box corners and 32 points on each circular
 //     rim count as an exact part's vertices), measured to the other's surface (a mesh's inside
 //     is behind its nearest triangle). A part buried in a mesh part without any vertex inside
 //     is not seen (measure.h: meshes are surfaces).

@@ -37,7 +37,7 @@ struct Query {
 };
 
 // The points that stand for a part's surface in the vertex depth (frame coordinates): a
-// mesh's vertices, a box's corners, points on a cylinder's or cone's rims and a cone's apex.
+// mesh's vertices on the surface, a box's corners, points on a cylinder's or cone's rims and a cone's apex.
 std::vector<fcl::Vector3d> part_points(MeasureShapes::Impl& set, MeasurePart& part) {
   std::vector<fcl::Vector3d> out;
   const fcl::CollisionGeometryd& g = set.geometry(part);
@@ -48,9 +48,12 @@ std::vector<fcl::Vector3d> part_points(MeasureShapes::Impl& set, MeasurePart& pa
     }
   };
   if (part.mesh) {
-    const auto& mesh = static_cast<const Mesh&>(g);
-    out.reserve(size_t(mesh.num_vertices));
-    for (int i = 0; i < mesh.num_vertices; ++i) out.push_back(part.transform * mesh.vertices[i]);
+    // The tessellation's vertices on the true surface (the mesh's are fitted to straddle it).
+    const Primitive& primitive = set.primitives[part.primitive];
+    const PrimitiveTriangles on_surface =
+        primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level, kOnSurface);
+    out.reserve(on_surface.positions.size());
+    for (const glm::vec3& p : on_surface.positions) out.push_back(part.transform * fcl::Vector3d(p.x, p.y, p.z));
   } else if (const auto* box = dynamic_cast<const fcl::Boxd*>(&g)) {
     for (int i = 0; i < 8; ++i)
       out.push_back(part.transform * fcl::Vector3d((i & 1 ? 0.5 : -0.5) * box->side[0],
