@@ -33,8 +33,9 @@ int main(int argc, char** argv) {
     else if (a == "--scale" && value) generate.scale = uint32_t(std::atoi(argv[++i]));
     else if (a == "--threads" && value) settings.threads = unsigned(std::atoi(argv[++i]));
     else if (a == "--clearance" && value) settings.clearance_m = std::atof(argv[++i]) / 1000;
+    else if (a == "--mesh-error" && value) settings.mesh_error_m = std::atof(argv[++i]) / 1000;
     else {
-      std::fprintf(stderr, "usage: bench_clash [--store DIR] [--preset c] [--scale N] [--threads N] [--clearance MM]\n");
+      std::fprintf(stderr, "usage: bench_clash [--store DIR] [--preset c] [--scale N] [--threads N] [--clearance MM] [--mesh-error MM]\n");
       return 2;
     }
   }

@@ -72,7 +72,8 @@ struct Worker {
   }
   const MeasureShapes& shape(uint32_t slot, const Object& o) {
     auto& s = shapes[slot];
-    if (!s) s = std::make_unique<MeasureShapes>(o.primitives, o.origin_m, frame_origin, settings->mesh_error_m);
+    if (!s) s = std::make_unique<MeasureShapes>(o.primitives, o.origin_m, frame_origin, settings->mesh_error_m,
+                                               !(settings->clearance_m > 0));
     return *s;
   }
   // The tag of the object's owner: its pipeline's, else its own (clash.h, groups).

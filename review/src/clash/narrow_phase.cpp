@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <unordered_map>
 
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/box.h>
@@ -11,8 +12,6 @@
 #include <fcl/geometry/shape/cylinder.h>
 #include <fcl/geometry/shape/sphere.h>
 #include <fcl/narrowphase/collision.h>
-#include <fcl/narrowphase/distance.h>
-#include <fcl/geometry/shape/sphere.h>
 
 #include "clash/clash_internal.h"
 #include "measure/measure_internal.h"
@@ -27,13 +26,6 @@ constexpr int kRimPoints = 32;
 struct Contact {
   fcl::Vector3d point;
   double depth_m = 0;
-};
-
-struct Query {
-  MeasureShapes::Impl* a = nullptr;
-  MeasureShapes::Impl* b = nullptr;
-  std::vector<Contact> contacts;
-  double error_m = 0;
 };
 
 // The points that stand for a part's surface in the vertex depth (frame coordinates): a
@@ -91,28 +83,72 @@ fcl::Vector3d closest_on_triangle(const fcl::Vector3d& p, const fcl::Vector3d& a
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
+// A mesh's triangles with their bounds (the mesh's frame), made once per part and pair.
+struct TriangleSet {
+  std::vector<fcl::Vector3d> corners;  // three a triangle
+  std::vector<fcl::AABBd> bounds;
+};
+
+template <typename BV>
+void triangle_set(const fcl::BVHModel<BV>& mesh, TriangleSet& out) {
+  out.corners.reserve(size_t(mesh.num_tris) * 3);
+  out.bounds.reserve(size_t(mesh.num_tris));
+  for (int t = 0; t < mesh.num_tris; ++t) {
+    const fcl::Triangle& tri = mesh.tri_indices[t];
+    const fcl::Vector3d &v0 = mesh.vertices[tri[0]], &v1 = mesh.vertices[tri[1]], &v2 = mesh.vertices[tri[2]];
+    out.corners.insert(out.corners.end(), {v0, v1, v2});
+    fcl::AABBd box(v0, v1);
+    box += v2;
+    out.bounds.push_back(box);
+  }
+}
+
+// How deep a point (the mesh's frame) lies behind a mesh: the distance to its nearest triangle
+// when behind that triangle (outward winding), else 0.
+double depth_in_mesh(const TriangleSet& mesh, const fcl::Vector3d& p) {
+  double best = std::numeric_limits<double>::infinity();
+  double depth = 0;
+  for (size_t t = 0; t < mesh.bounds.size(); ++t) {
+    // The triangle's bounds are no nearer than the best: it cannot be nearer.
+    const fcl::AABBd& b = mesh.bounds[t];
+    const double gap = (b.min_ - p).cwiseMax(p - b.max_).cwiseMax(0.0).squaredNorm();
+    if (gap >= best * best) continue;
+    const fcl::Vector3d &v0 = mesh.corners[3 * t], &v1 = mesh.corners[3 * t + 1], &v2 = mesh.corners[3 * t + 2];
+    const fcl::Vector3d q = closest_on_triangle(p, v0, v1, v2);
+    const double d = (p - q).norm();
+    if (d < best) {
+      best = d;
+      depth = (p - q).dot((v1 - v0).cross(v2 - v0)) < 0 ? d : 0.0;
+    }
+  }
+  return depth;
+}
+
+struct Query {
+  MeasureShapes::Impl* a = nullptr;
+  MeasureShapes::Impl* b = nullptr;
+  std::vector<Contact> contacts;
+  double error_m = 0;
+  std::unordered_map<const MeasurePart*, TriangleSet> triangles;  // meshes' triangles, once
+};
+
 // How deep a point (frame coordinates) lies inside a part: the distance to its surface, 0
 // outside. Exact kinds analytically; a mesh by its nearest triangle, inside when behind it.
-double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vector3d& p_frame) {
+double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vector3d& p_frame,
+                    std::unordered_map<const MeasurePart*, TriangleSet>& triangles) {
   const fcl::AABBd& box = part.proxy->getAABB();
   if ((p_frame.array() < box.min_.array()).any() || (p_frame.array() > box.max_.array()).any()) return 0;
   const fcl::CollisionGeometryd& g = set.geometry(part);
   const fcl::Vector3d p = part.transform.inverse() * p_frame;
   if (part.mesh) {
-    const auto& mesh = static_cast<const Mesh&>(g);
-    fcl::Sphered point(1e-9);
-    fcl::DistanceRequestd request(true);
-    request.gjk_solver_type = fcl::GST_INDEP;
-    fcl::DistanceResultd result;
-    fcl::distance(&point, fcl::Transform3d(fcl::Translation3d(p)), &mesh, fcl::Transform3d::Identity(),
-                  request, result);
-    const intptr_t t = result.b2 >= 0 ? result.b2 : result.b1;
-    if (t < 0 || t >= mesh.num_tris) return 0;
-    const fcl::Triangle& tri = mesh.tri_indices[t];
-    const fcl::Vector3d &v0 = mesh.vertices[tri[0]], &v1 = mesh.vertices[tri[1]], &v2 = mesh.vertices[tri[2]];
-    const fcl::Vector3d q = closest_on_triangle(p, v0, v1, v2);
-    const fcl::Vector3d normal = (v1 - v0).cross(v2 - v0);
-    return (p - q).dot(normal) < 0 ? (p - q).norm() : 0.0;
+    auto [it, added] = triangles.try_emplace(&part);
+    if (added) {
+      if (set.collide_only)
+        triangle_set(static_cast<const fcl::BVHModel<fcl::AABBd>&>(g), it->second);
+      else
+        triangle_set(static_cast<const Mesh&>(g), it->second);
+    }
+    return depth_in_mesh(it->second, p);
   }
   if (const auto* b = dynamic_cast<const fcl::Boxd*>(&g)) {
     const fcl::Vector3d h = b->side * 0.5;
@@ -135,8 +171,8 @@ double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vect
 double part_depth(Query& q, MeasurePart& pa, MeasurePart& pb, double ccd_depth_m) {
   if (!pa.mesh && !pb.mesh && ccd_depth_m > 0) return ccd_depth_m;
   double depth = 0;
-  for (const fcl::Vector3d& p : part_points(*q.a, pa)) depth = std::max(depth, depth_inside(*q.b, pb, p));
-  for (const fcl::Vector3d& p : part_points(*q.b, pb)) depth = std::max(depth, depth_inside(*q.a, pa, p));
+  for (const fcl::Vector3d& p : part_points(*q.a, pa)) depth = std::max(depth, depth_inside(*q.b, pb, p, q.triangles));
+  for (const fcl::Vector3d& p : part_points(*q.b, pb)) depth = std::max(depth, depth_inside(*q.a, pa, p, q.triangles));
   return depth;
 }
 
