@@ -69,6 +69,7 @@
 #include <glm/glm.hpp>
 
 #include "plantview/model.h"
+#include "plantview/review.h"
 
 namespace plantview {
 
@@ -184,5 +185,14 @@ std::string clash_report_json(const ClashReport& report);
 // Reads it back; false with a message for text that is not JSON, truncated, another version,
 // or a missing or mistyped field (naming it and the clash index).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
+
+// Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
+// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted), its
+// camera fit_camera from the isometric direction on the clash region (the points' bounds grown
+// by kClashViewMarginM), a section box of that region grown by another half margin, and
+// caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
+// (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
+inline constexpr double kClashViewMarginM = 1.5;
+std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
 
 }  // namespace plantview
