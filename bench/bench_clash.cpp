@@ -77,14 +77,15 @@ int main(int argc, char** argv) {
   size_t hard = 0;
   for (const Clash& c : report.clashes) hard += c.kind == ClashKind::hard;
   std::printf("objects %llu: %.2f s, %zu clashes (%zu hard), block pairs %llu, candidate pairs %llu, narrow %llu, "
-              "skipped same_pipeline %llu connected %llu support %llu, peak RSS %.0f MB\n",
+              "skipped same_pipeline %llu connected %llu support %llu nozzle %llu, peak RSS %.0f MB\n",
               static_cast<unsigned long long>(report.objects), seconds, report.clashes.size(), hard,
               static_cast<unsigned long long>(report.counts.block_pairs),
               static_cast<unsigned long long>(report.counts.candidate_pairs),
               static_cast<unsigned long long>(report.counts.narrow_pairs),
               static_cast<unsigned long long>(report.counts.skipped_by_rule[0]),
               static_cast<unsigned long long>(report.counts.skipped_by_rule[1]),
-              static_cast<unsigned long long>(report.counts.skipped_by_rule[2]), usage.ru_maxrss / 1024.0);
+              static_cast<unsigned long long>(report.counts.skipped_by_rule[2]),
+              static_cast<unsigned long long>(report.counts.skipped_by_rule[3]), usage.ru_maxrss / 1024.0);
   view.reset();
   store.reset();
   if (temporary) std::filesystem::remove_all(directory);

@@ -217,6 +217,12 @@ std::vector<Object> piping_case(bool moved) {
   out.push_back(support);
   out.push_back(object_of("/BEAM-1", ObjectClass::structure, {at(Box{6, 0.3f, 0.4f}, {0, 0, 0})}, {2, 100, 1.5}));
   out.push_back(object_of("/BEAM-2", ObjectClass::structure, {at(Box{6, 0.3f, 0.4f}, {0, 0, 0})}, {2, 110, 0.35}));
+  // An equipment item whose nozzle P-1 starts from, 20 mm into PIPE-1 (the nozzle rule; the
+  // nozzle's direction is not opposite the pipe's, so that the connection rule does not apply).
+  Object item = object_of("/E-1", ObjectClass::equipment, {at(Box{1, 1, 1}, {0, 0, 0})}, {-0.48, 100, 2});
+  item.connections = {{{0.48f, 0, 0}, {-1, 0, 0}, 0.2f}};
+  out.push_back(item);
+  line.branches = {{"/P-1-B1", {out[0].id, out[1].id}}};
   out.push_back(line);
   return out;
 }
@@ -229,10 +235,11 @@ TEST(Clash, RulesKeepAPipelinesOwnPartsAndSupportsOut) {
   for (const Clash& c : report.clashes) ADD_FAILURE() << c.a.tag << " x " << c.b.tag << " " << c.depth_m;
   EXPECT_GT(report.counts.skipped_by_rule[int(ClashRule::connected)], 0u);
   EXPECT_GT(report.counts.skipped_by_rule[int(ClashRule::support)], 0u);
+  EXPECT_EQ(report.counts.skipped_by_rule[int(ClashRule::nozzle)], 1u);
   ClashSettings all;
   all.include_connected = true;
   const ClashReport everything = run(*store, dir.str(), all);
-  EXPECT_GE(everything.clashes.size(), 2u);  // the squeezed flanges, the support in the pipe
+  EXPECT_GE(everything.clashes.size(), 3u);  // the squeezed flanges, the support in the pipe, the nozzle
 }
 
 TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {

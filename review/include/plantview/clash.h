@@ -36,6 +36,11 @@
 //   - support: a pipe support (attribute Type "SUPP", or a name whose last part starts with
 //     "SUPP") and a pipe or component that its connection point lies on (within the larger of
 //     its centreline's radius and 5 cm of a centreline segment): the support carrying the pipe.
+//   - nozzle: a pipe or component and an equipment item that its own pipeline connects to (a
+//     branch's first or last member has a connection point within 2 mm of one of the item's),
+//     where every clash point lies within 0.5 m + 2 nozzle diameters of such a nozzle: the
+//     line's flanges and elbows at the nozzle it starts from (decided after the narrow phase,
+//     from the points).
 //   - An object and itself is never a pair (not switchable).
 //
 // Ids, groups and status
@@ -84,9 +89,10 @@ inline constexpr double kClashMatchM = 1.0;
 // a usage error in the CLI).
 inline constexpr double kClashMaxDistanceM = 10.0;
 
-enum class ClashRule : uint8_t { same_pipeline, connected, support };
-inline constexpr int kClashRuleCount = 3;
-std::string_view clash_rule_name(ClashRule rule);  // "same_pipeline", "connected", "support"
+enum class ClashRule : uint8_t { same_pipeline, connected, support, nozzle };
+inline constexpr int kClashRuleCount = 4;
+// "same_pipeline", "connected", "support", "nozzle"
+std::string_view clash_rule_name(ClashRule rule);
 
 // A set of objects for --between / --and: a class name (model.h) or a glob (fnmatch) on the
 // name (as stored, or without its leading '/') or the Tag attribute. Empty: every object.

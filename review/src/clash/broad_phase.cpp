@@ -92,6 +92,49 @@ struct Worker {
     return it->second;
   }
 
+  // The connection points of the first and last members of the pipeline's branches (model
+  // space), looked up once per pipeline.
+  std::unordered_map<uint64_t, std::vector<glm::dvec3>> line_ends;
+  const std::vector<glm::dvec3>& ends(uint64_t pipeline_id) {
+    auto it = line_ends.find(pipeline_id);
+    if (it != line_ends.end()) return it->second;
+    std::vector<glm::dvec3> points;
+    std::string error;
+    Object line;
+    if (const auto slot = view->slot_of(pipeline_id); slot && view->object(*slot, line, false, error)) {
+      for (const Branch& branch : line.branches) {
+        if (branch.members.empty()) continue;
+        for (const uint64_t id : {branch.members.front(), branch.members.back()}) {
+          Object member;
+          if (const auto s = view->slot_of(id); s && view->object(*s, member, false, error))
+            for (const ConnectionPoint& c : member.connections)
+              points.push_back(member.origin_m + glm::dvec3(c.position_m));
+        }
+      }
+    }
+    return line_ends.emplace(pipeline_id, std::move(points)).first->second;
+  }
+  // The nozzle rule (clash.h) for a clash between `piece` and `item` at `points`.
+  bool at_own_nozzle(const Object& piece, const Object& item, const std::vector<glm::dvec3>& points) {
+    if (piece.pipeline_id == 0 || item.object_class != ObjectClass::equipment) return false;
+    std::vector<std::pair<glm::dvec3, double>> nozzles;  // position, reach
+    for (const ConnectionPoint& c : item.connections) {
+      const glm::dvec3 p = item.origin_m + glm::dvec3(c.position_m);
+      for (const glm::dvec3& e : ends(piece.pipeline_id))
+        if (glm::length(e - p) <= 0.002) {
+          nozzles.emplace_back(p, 0.5 + 2.0 * double(c.diameter_m));
+          break;
+        }
+    }
+    if (nozzles.empty()) return false;
+    for (const glm::dvec3& point : points) {
+      bool near_one = false;
+      for (const auto& [p, reach] : nozzles) near_one = near_one || glm::length(point - p) <= reach;
+      if (!near_one) return false;
+    }
+    return true;
+  }
+
   bool pair(uint32_t slot_a, uint32_t slot_b, std::string& error);
   bool task(uint32_t block_a, uint32_t block_b, std::string& error);
 };
@@ -138,6 +181,10 @@ bool Worker::pair(uint32_t slot_a, uint32_t slot_b, std::string& error) {
   ++counts.narrow_pairs;
   std::optional<PairClash> found = clash_detail::narrow_phase(sa, sb, settings->tolerance_m, settings->clearance_m);
   if (!found) return true;
+  if (rules && (at_own_nozzle(*a, *b, found->points_m) || at_own_nozzle(*b, *a, found->points_m))) {
+    ++counts.skipped_by_rule[int(ClashRule::nozzle)];
+    return true;
+  }
   Clash c;
   const bool swap = b->id < a->id;
   const Object& lo = swap ? *b : *a;

@@ -13,6 +13,7 @@ std::string_view clash_rule_name(ClashRule rule) {
     case ClashRule::same_pipeline: return "same_pipeline";
     case ClashRule::connected: return "connected";
     case ClashRule::support: return "support";
+    case ClashRule::nozzle: return "nozzle";
   }
   return "?";
 }
