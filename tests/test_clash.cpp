@@ -219,7 +219,7 @@ std::vector<Object> piping_case(bool moved) {
   out.push_back(object_of("/BEAM-2", ObjectClass::structure, {at(Box{6, 0.3f, 0.4f}, {0, 0, 0})}, {2, 110, 0.35}));
   // An equipment item whose nozzle P-1 starts from, 20 mm into PIPE-1 (the nozzle rule; the
   // nozzle's direction is not opposite the pipe's, so that the connection rule does not apply).
-  Object item = object_of("/E-1", ObjectClass::equipment, {at(Box{1, 1, 1}, {0, 0, 0})}, {-0.48, 100, 2});
+  Object item = object_of("/E-1", ObjectClass::equipment, {at(Box{1, 0.5f, 0.5f}, {0, 0, 0})}, {-0.48, 100, 2});
   item.connections = {{{0.48f, 0, 0}, {-1, 0, 0}, 0.2f}};
   out.push_back(item);
   line.branches = {{"/P-1-B1", {out[0].id, out[1].id}}};
