@@ -369,6 +369,13 @@ TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
   ASSERT_TRUE(test::make_store(other, piping_case(false)));
   EXPECT_EQ(run_plantview({"clash", "--store", other.str(), "--since", first, "--out", never}, out, err), 1);
   EXPECT_NE(err.find("another store"), std::string::npos) << err;
+  // A store without topology (boxes alone): the rules cannot apply.
+  const test::TempDir bare;
+  ASSERT_TRUE(test::make_store(bare, {planted("box-box", 0, 0.01).a, planted("box-box", 0, 0.01).b}));
+  EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--out", never}, out, err), 2);
+  EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--include-connected"}, out, err), 0) << err;
+  EXPECT_NE(out.find("1 clashes"), std::string::npos) << out;
   EXPECT_FALSE(std::filesystem::exists(never));
 }
 

@@ -2,7 +2,8 @@
 // [--include-connected] [--since FILE] [--out FILE] [--json] [--shard I/N] [--threads N]` and
 // `plantview clash merge A.json B.json ... --out FILE`: clash detection (plantview/clash.h).
 // Exit 2 for bad arguments (a tolerance or clearance out of range, a set that matches nothing,
-// --between without --and, a bad --shard), 1 for a store that cannot be read, a --since file
+// --between without --and, a bad --shard, a store without piping topology unless
+// --include-connected), 1 for a store that cannot be read, a --since file
 // that is truncated, damaged, from another store or other settings, or an output that cannot be
 // written. --out is written through a temporary file and a rename: never half a file.
 #include <unistd.h>
@@ -159,6 +160,12 @@ int run_clash(const ClashArgs& a) {
   if (!store) return fail(error);
   const auto view = store->read(error);
   if (!view) return fail(error);
+  if (!settings.include_connected && view->info().objects > 0 &&
+      view->info().statistics.objects_by_class[int(ObjectClass::pipeline)] == 0)
+    return usage_error("clash: the store " + a.store +
+                       " has no piping topology (no pipeline objects: an RVM file without its attributes?), so "
+                       "the rules that exempt a line's own parts, connected ends, supports and nozzles cannot "
+                       "apply: run with --include-connected to report every contact");
   for (const auto& [option, set] : {std::pair{"--between", &settings.between}, std::pair{"--and", &settings.with}}) {
     bool matches = false;
     if (!clash_set_matches(*view, *set, matches, error)) return fail(error);
