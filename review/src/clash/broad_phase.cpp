@@ -343,9 +343,13 @@ bool find_clashes(const ReadView& view, const std::string& directory, const Clas
     error = first_error;
     return false;
   }
+  size_t total = 0;
+  for (const Worker& w : workers) total += w.clashes.size();
+  out.clashes.reserve(total);
   for (Worker& w : workers) {
     out.clashes.insert(out.clashes.end(), std::make_move_iterator(w.clashes.begin()),
                        std::make_move_iterator(w.clashes.end()));
+    std::vector<Clash>().swap(w.clashes);  // each worker's list goes as it is moved over
     out.counts.candidate_pairs += w.counts.candidate_pairs;
     out.counts.narrow_pairs += w.counts.narrow_pairs;
     for (int r = 0; r < kClashRuleCount; ++r) out.counts.skipped_by_rule[r] += w.counts.skipped_by_rule[r];
