@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   actions.push_back(plantview::cli::add_bcf_command(app));
   actions.push_back(plantview::cli::add_measure_command(app));
   actions.push_back(plantview::cli::add_revisions_commands(app));
+  actions.push_back(plantview::cli::add_clash_command(app));
 
   try {
     app.parse(argc, argv);

@@ -232,9 +232,9 @@ TEST(ViewsFile, ErrorsNameTheViewAndTheField) {
   using Json = nlohmann::ordered_json;
   EXPECT_EQ(error_after([](Json& j) { j["version"] = 2; }), "views file: 'version' must be 1");
   EXPECT_EQ(error_after([](Json& j) { j["per"] = "valve"; }),
-            "views file: 'per' must be one of overview, equipment, pipeline, area, change");
+            "views file: 'per' must be one of overview, equipment, pipeline, area, change, clash");
   EXPECT_EQ(error_after([](Json& j) { j["views"][1]["kind"] = "zone"; }),
-            "views file: view 1 ('unit_2.zone-B'): 'kind' is 'zone' (overview, equipment, pipeline, area, change)");
+            "views file: view 1 ('unit_2.zone-B'): 'kind' is 'zone' (overview, equipment, pipeline, area, change, clash)");
   EXPECT_EQ(error_after([](Json& j) { j["views"][0]["name"] = "../P-101A"; }),
             "views file: view 0 ('../P-101A'): 'name' must be 1 to 200 of A-Z a-z 0-9 . _ - and not "
             "start with '.'");

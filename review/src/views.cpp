@@ -63,7 +63,7 @@ constexpr size_t kMaxBaseNameChars = 190;
 bool make_review_views(const Store& store, const ReviewViewOptions& options,
                        std::vector<ReviewView>& out, ReviewViewsSummary& summary,
                        std::string& error, const std::function<void(double)>& progress) {
-  assert(is_review_kind(options.per) && (options.sides == 1 || options.sides == 4));
+  assert(is_review_kind(options.per) && options.per != "clash" && (options.sides == 1 || options.sides == 4));
   assert(options.aspect > 0 && options.fov_deg > 0 && options.fov_deg < 179);
   assert(options.fill > 0 && options.fill <= 1);
   assert((options.section == "none" || options.section == "subject") &&

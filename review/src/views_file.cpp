@@ -161,7 +161,7 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   if (!is_safe_view_name(v.name))
     return fail("'name' must be 1 to 200 of A-Z a-z 0-9 . _ - and not start with '.'");
   if (!is_review_kind(v.kind))
-    return fail("'kind' is '" + v.kind + "' (overview, equipment, pipeline, area, change)");
+    return fail("'kind' is '" + v.kind + "' (overview, equipment, pipeline, area, change, clash)");
 
   if (!item.contains("camera")) return fail("'camera' is missing");
   const Json& cam = item["camera"];
@@ -231,7 +231,7 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
 
 bool is_review_kind(std::string_view kind) {
   return kind == "overview" || kind == "equipment" || kind == "pipeline" || kind == "area" ||
-         kind == "change";
+         kind == "change" || kind == "clash";
 }
 
 bool is_safe_view_name(std::string_view name) {
@@ -293,7 +293,7 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
   }
   if (!file.contains("per") || !file["per"].is_string() ||
       !is_review_kind(file["per"].get<std::string>())) {
-    error = "views file: 'per' must be one of overview, equipment, pipeline, area, change";
+    error = "views file: 'per' must be one of overview, equipment, pipeline, area, change, clash";
     return false;
   }
   if (!file.contains("views") || !file["views"].is_array()) {

@@ -77,5 +77,7 @@ int apply_revision_options(const std::string& command, const RevisionOptions& op
 // "revision 14: 3 added, 0 removed, 37 modified" for the store's newest revision ("" when it
 // cannot be read).
 std::string newest_revision_summary(const std::string& directory);
+// `plantview clash --store DIR [...]` and `clash merge`: clash detection (plantview/clash.h).
+Action add_clash_command(CLI::App& app);
 
 }  // namespace plantview::cli

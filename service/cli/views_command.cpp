@@ -16,6 +16,7 @@
 #include "cli/commands.h"
 #include "cli/progress.h"
 #include "plantview/camera.h"
+#include "plantview/clash.h"
 #include "plantview/review.h"
 #include "plantview/store.h"
 
@@ -28,9 +29,13 @@ struct ViewsArgs {
   double section_margin_m = 1.0;
   int sides = 1;
   std::string colour_by, hide, only;  // written into every view (view_filters.h: ObjectStyle)
+<<<<<<< HEAD
   // --per change: the range and the grouping (review.h: ReviewViewOptions).
   int64_t from = -1, to = 0;
   std::string group = "object";
+=======
+  std::string clashes;                // --per clash: the clashes file (clash.h)
+>>>>>>> clash
 };
 
 int fail(const std::string& message) {
@@ -117,7 +122,16 @@ int run_views(const ViewsArgs& a) {
   if (!store) return fail(error);
   std::vector<ReviewView> views;
   ReviewViewsSummary summary;
-  {
+  if (options.per == "clash") {  // one view a clash of the clashes file (clash.h)
+    if (a.clashes.empty()) return usage_error("views --per clash: --clashes FILE (from plantview clash --out)");
+    std::ifstream file(a.clashes, std::ios::binary);
+    if (!file) return fail("cannot read " + a.clashes);
+    const std::string text((std::istreambuf_iterator<char>(file)), {});
+    ClashReport report;
+    if (!parse_clash_report(text, report, error)) return fail(a.clashes + ": " + error);
+    views = clash_views(report, options.aspect);
+    summary.subjects = views.size();
+  } else {
     Progress progress("views");
     if (!make_review_views(*store, options, views, summary, error,
                            [&](double f) { progress.update(f); }))
@@ -137,6 +151,7 @@ Action add_views_command(CLI::App& app) {
   auto args = std::make_shared<ViewsArgs>();
   auto* views = app.add_subcommand("views", "Make named, fitted review views of a store's subjects");
   views->add_option("--store", args->store, "Store directory")->required();
+<<<<<<< HEAD
   views->add_option("--per", args->per, "overview, equipment, pipeline, area or change")
       ->required()
       ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "change"}));
@@ -150,6 +165,12 @@ Action add_views_command(CLI::App& app) {
                     "changed equipment item")
       ->check(CLI::IsMember({"object", "pipeline", "equipment"}))
       ->capture_default_str();
+=======
+  views->add_option("--per", args->per, "overview, equipment, pipeline, area or clash")
+      ->required()
+      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "clash"}));
+  views->add_option("--clashes", args->clashes, "--per clash: the clashes.json of plantview clash");
+>>>>>>> clash
   views->add_option("--select", args->select,
                     "Only subjects whose view name or tag/path matches this shell glob");
   views->add_option("--sides", args->sides, "1: isometric; 4: from north, east, south and west")

@@ -64,8 +64,12 @@ class MeasureShapes {
  public:
   // The primitives of an object whose origin is object_origin_m (placements relative to it),
   // positioned relative to frame_origin_m. Two sets queried together must share frame_origin_m.
+  // `collide_only`: meshes get axis-aligned bounding-volume trees, several times cheaper to
+  // build, which answer overlap queries (FCL collide: the clash pass) but not distances
+  // (measure_clearance asserts that neither set was made so).
   MeasureShapes(std::span<const Primitive> primitives, const glm::dvec3& object_origin_m,
-                const glm::dvec3& frame_origin_m, double mesh_error_m = kMeasureMeshErrorM);
+                const glm::dvec3& frame_origin_m, double mesh_error_m = kMeasureMeshErrorM,
+                bool collide_only = false);
   ~MeasureShapes();
   MeasureShapes(MeasureShapes&&) noexcept;
   MeasureShapes& operator=(MeasureShapes&&) noexcept;
@@ -76,6 +80,7 @@ class MeasureShapes {
   const glm::dvec3& frame_origin_m() const;
   // The largest stated error of a part (0 when every part is exact).
   double error_m() const;
+  bool collide_only() const;
 
   struct Impl;
   Impl& impl() const { return *impl_; }

@@ -132,7 +132,8 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
 // itself is drawn by add_caption, plantview/image.h.)
 std::vector<std::string> caption_lines(const ReviewView& view);
 
-// True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area.
+// True for the kinds a view (and `per`) may name: overview, equipment, pipeline, area, clash
+// (clash views come from a clashes file: clash.h's clash_views, not make_review_views).
 bool is_review_kind(std::string_view kind);
 // True if `name` is safe as a file name: 1..200 of [A-Za-z0-9._-], not starting with '.'.
 bool is_safe_view_name(std::string_view name);

@@ -360,7 +360,7 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
         markup.description += (markup.description.empty() ? "" : "\n") + line;
       markup.date = date;
       markup.author = options.author;
-      markup.topic_type = "Review";
+      markup.topic_type = view.kind == "clash" ? "Clash" : "Review";
       markup.documents.push_back({kDocumentName, "plantview review view (views-file format)"});
       markup.viewpoints.push_back({vp.guid, "viewpoint.bcfv", snapshots[i].empty() ? "" : "snapshot.png"});
 

@@ -121,6 +121,7 @@ bool measure_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* da
 Clearance measure_clearance(const MeasureShapes& a, const MeasureShapes& b) {
   assert(!a.empty() && !b.empty());
   assert(a.frame_origin_m() == b.frame_origin_m());
+  assert(!a.collide_only() && !b.collide_only());
   Query q;
   q.a = &a.impl();
   q.b = &b.impl();

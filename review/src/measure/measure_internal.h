@@ -32,6 +32,7 @@ struct MeasureShapes::Impl {
   std::vector<Primitive> primitives;
   std::vector<MeasurePart> parts;
   double error_m = 0;
+  bool collide_only = false;  // meshes are BVHModel<AABBd> (else BVHModel<OBBRSSd>)
   fcl::DynamicAABBTreeCollisionManagerd manager;
 
   // The part's geometry, building its mesh if it has none yet.

@@ -130,7 +130,6 @@ const fcl::CollisionGeometryd& MeasureShapes::Impl::geometry(MeasurePart& part) 
   const Primitive& primitive = primitives[part.primitive];
   const PrimitiveTriangles triangles =
       primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level, part.mesh_level);
-  auto model = std::make_shared<fcl::BVHModel<fcl::OBBRSSd>>();
   std::vector<fcl::Vector3d> points;
   points.reserve(triangles.positions.size());
   for (const glm::vec3& p : triangles.positions) points.emplace_back(p.x, p.y, p.z);
@@ -138,18 +137,25 @@ const fcl::CollisionGeometryd& MeasureShapes::Impl::geometry(MeasurePart& part) 
   faces.reserve(triangles.indices.size() / 3);
   for (size_t i = 0; i + 2 < triangles.indices.size(); i += 3)
     faces.emplace_back(triangles.indices[i], triangles.indices[i + 1], triangles.indices[i + 2]);
-  model->beginModel(int(faces.size()), int(points.size()));
-  model->addSubModel(points, faces);
-  model->endModel();
-  model->computeLocalAABB();
-  part.geometry = std::move(model);
+  const auto build = [&](auto model) {
+    model->beginModel(int(faces.size()), int(points.size()));
+    model->addSubModel(points, faces);
+    model->endModel();
+    model->computeLocalAABB();
+    part.geometry = std::move(model);
+  };
+  if (collide_only)
+    build(std::make_shared<fcl::BVHModel<fcl::AABBd>>());
+  else
+    build(std::make_shared<fcl::BVHModel<fcl::OBBRSSd>>());
   return *part.geometry;
 }
 
 MeasureShapes::MeasureShapes(std::span<const Primitive> primitives, const glm::dvec3& object_origin_m,
-                             const glm::dvec3& frame_origin_m, double mesh_error_m)
+                             const glm::dvec3& frame_origin_m, double mesh_error_m, bool collide_only)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
+  m.collide_only = collide_only;
   m.frame_origin_m = frame_origin_m;
   m.object_offset_m = object_origin_m - frame_origin_m;
   m.primitives.assign(primitives.begin(), primitives.end());
@@ -201,5 +207,6 @@ MeasureShapes& MeasureShapes::operator=(MeasureShapes&&) noexcept = default;
 size_t MeasureShapes::size() const { return impl_->parts.size(); }
 const glm::dvec3& MeasureShapes::frame_origin_m() const { return impl_->frame_origin_m; }
 double MeasureShapes::error_m() const { return impl_->error_m; }
+bool MeasureShapes::collide_only() const { return impl_->collide_only; }
 
 }  // namespace plantview

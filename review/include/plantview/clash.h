@@ -1,0 +1,204 @@
+// plantview/clash.h: clash detection. Every place where two objects of a store interpenetrate
+// deeper than a tolerance (hard clashes) or come closer than a clearance (clearance clashes),
+// less what the model's topology says is meant to touch; with stable ids, so that a later run
+// says which clashes are new, still active or resolved.
+//
+// How clashes are found
+//   - Broad phase on the store's spatial index, out of core: the work is a list of block pairs
+//     (a block with itself, and with every later block whose top bounds come within the
+//     clearance of its own), taken in block order by a pool of threads, each with its own
+//     sibling view; a task holds its two blocks and the objects of its candidate pairs, and
+//     drops them when done, so memory follows the threads, not the plant. Candidates: entries
+//     whose bounds (the index's, rounded outward) come within the clearance of each other.
+//   - Each object lies in one block, so each pair is met by exactly one task; a shard I/N takes
+//     the tasks whose first block lies in the I-th of N consecutive runs of blocks (blocks follow
+//     the Morton order of their objects: a run is a spatial region), so N shards check each pair
+//     exactly once, and their merged results equal one process's.
+//   - Narrow phase per candidate pair on the objects' primitives (measure.h's MeasureShapes:
+//     exact FCL primitives for boxes, cylinders, cones and spheres, else meshes within
+//     kMeasureMeshErrorM, stated as error_m). Overlapping parts give contact points and a
+//     depth: between two exact convex parts FCL's penetration depth; where a part is a mesh, the
+//     deepest vertex (a mesh's on the true surface) of either part inside the other (box corners and 32 points on each circular
+//     rim count as an exact part's vertices), measured to the other's surface (a mesh's inside
+//     is behind its nearest triangle). A part buried in a mesh part without any vertex inside
+//     is not seen (measure.h: meshes are surfaces).
+//   - Hard clash: depth > tolerance_m. Clearance clash (clearance_m > 0): not a hard clash and
+//     the distance < clearance_m (touching or shallower than the tolerance: distance 0).
+//   - One clash per pair of objects, however many places they meet: `points_m` lists the
+//     places (contact points at least kClashPointSpacingM apart, deepest first, at most
+//     kClashMaxPoints; a clearance clash: the midpoint of the two closest points).
+//
+// What is not a clash (each a named rule, ClashRule; include_connected switches them all off)
+//   - same_pipeline: two pipes or components (fittings, valves, supports) of one pipeline
+//     (pipeline_id equal and not 0): the line's own parts meet by construction.
+//   - connected: two objects with a connection point in common (positions within 2 mm,
+//     directions opposite): flanges bolted face to face, a pipe's end on an equipment nozzle.
+//   - support: a pipe support (attribute Type "SUPP", or a name whose last part starts with
+//     "SUPP") and a pipe or component that its connection point lies on (within the larger of
+//     its centreline's radius and 5 cm of a centreline segment): the support carrying the pipe.
+//   - nozzle: a pipe or component and an equipment item that its own pipeline connects to (a
+//     branch's first or last member has a connection point within 2 mm of one of the item's),
+//     where every clash point lies within 0.5 m + 2 nozzle diameters of such a nozzle: the
+//     line's flanges and elbows at the nozzle it starts from (decided after the narrow phase,
+//     from the points).
+//   - An object and itself is never a pair (not switchable).
+//
+// Ids, groups and status
+//   - A clash's id: 64-bit FNV-1a of the two object ids (lower first) and its first point
+//     quantised to kClashIdGridM, written as 16 hex digits. With a previous result (status), a
+//     clash that matches a previous one (same pair, first points within kClashMatchM) is
+//     "active" and keeps the previous id, so an id survives small edits across runs chained by
+//     --since; others are "new"; previous clashes matched by none are "resolved" (listed with
+//     their previous values). Without a previous result every clash is "new".
+//   - Group: each object's owner (a pipe's or component's pipeline, else the object itself),
+//     named by its tag; a clash's group is the two owners' tags, sorted, joined by " x ". Clashes
+//     of the same two pipelines or equipment items share a group.
+//   - Order: clashes sorted by (group, object a id, object b id, id): the same for the same store
+//     and settings, whatever the threads or shards.
+//   - Hook for revisions (store.h): a later step can name, for a new clash, the object of the
+//     pair that changed since the previous run's revision (Clash::changed_id, 0 for now).
+//
+// Units: metres, model space. Threads: find_clashes runs a pool of its own (settings.threads,
+// 0 = hardware threads) and calls progress from its workers one at a time. Errors: false with
+// a message naming the store, block or object that could not be read, or the set that matches
+// nothing.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "plantview/model.h"
+#include "plantview/review.h"
+
+namespace plantview {
+
+class ReadView;
+
+inline constexpr double kClashDefaultToleranceM = 0.001;
+inline constexpr double kClashPointSpacingM = 0.25;
+inline constexpr uint32_t kClashMaxPoints = 8;
+inline constexpr double kClashIdGridM = 1.0;
+inline constexpr double kClashMatchM = 1.0;
+// The largest tolerance or clearance accepted (an absurd one is a caller bug in the library,
+// a usage error in the CLI).
+inline constexpr double kClashMaxDistanceM = 10.0;
+
+enum class ClashRule : uint8_t { same_pipeline, connected, support, nozzle };
+inline constexpr int kClashRuleCount = 4;
+// "same_pipeline", "connected", "support", "nozzle"
+std::string_view clash_rule_name(ClashRule rule);
+
+// A set of objects for --between / --and: a class name (model.h) or a glob (fnmatch) on the
+// name (as stored, or without its leading '/') or the Tag attribute. Empty: every object.
+struct ClashSet {
+  std::string word;
+  bool empty() const { return word.empty(); }
+  bool contains(const Object& object) const;
+};
+
+struct ClashShard {
+  uint32_t index = 0, count = 1;  // index < count
+};
+
+struct ClashSettings {
+  double tolerance_m = kClashDefaultToleranceM;  // 0 <= tolerance_m <= kClashMaxDistanceM
+  double clearance_m = 0;                        // 0: off; else > tolerance-free distance
+  ClashSet between, with;     // pairs with one object in each (both empty: all pairs)
+  bool include_connected = false;
+  ClashShard shard;
+  unsigned threads = 0;       // 0: hardware threads
+  double mesh_error_m = 0.0005;
+  // Fraction of block pairs done, (0, 1], from a worker thread (serialised).
+  std::function<void(double fraction, uint64_t clashes)> progress;
+};
+
+struct ClashObject {
+  uint64_t id = 0;
+  std::string tag;
+  ObjectClass object_class = ObjectClass::other;
+  uint64_t pipeline_id = 0;
+};
+
+enum class ClashKind : uint8_t { hard, clearance };
+enum class ClashStatus : uint8_t { new_clash, active, resolved };
+std::string_view clash_status_name(ClashStatus status);  // "new", "active", "resolved"
+
+struct Clash {
+  uint64_t id = 0;
+  ClashKind kind = ClashKind::hard;
+  ClashStatus status = ClashStatus::new_clash;
+  ClashObject a, b;               // a.id < b.id
+  double depth_m = 0;             // hard: the deepest penetration found
+  double distance_m = 0;          // clearance: the minimum distance (0 touching)
+  double error_m = 0;             // bound on depth/distance from tessellation (0: exact parts)
+  std::vector<glm::dvec3> points_m;  // at least one
+  std::string group;
+  uint64_t changed_id = 0;        // revisions hook: the object that caused a new clash (0: unknown)
+};
+
+struct ClashCounts {
+  uint64_t block_pairs = 0, candidate_pairs = 0, narrow_pairs = 0;
+  uint64_t skipped_by_rule[kClashRuleCount] = {};
+};
+
+// What a run found, and the store and settings it ran on (clashes.json).
+struct ClashReport {
+  std::string store_directory;   // canonical
+  glm::dvec3 spatial_origin_m{0.0};
+  uint64_t commit_id = 0;
+  uint32_t revision = 0;
+  uint64_t objects = 0;
+  double tolerance_m = kClashDefaultToleranceM, clearance_m = 0;
+  std::string between, with;
+  bool include_connected = false;
+  ClashShard shard;
+  std::vector<Clash> clashes;    // sorted (above); resolved ones last, after status
+  ClashCounts counts;
+};
+
+// Finds the clashes of the view's snapshot. `directory` is recorded as the store's identity.
+bool find_clashes(const ReadView& view, const std::string& directory, const ClashSettings& settings,
+                  ClashReport& out, std::string& error);
+
+// Whether any object of the snapshot is in the set: a class from the statistics, a glob by a
+// pass over the objects that stops at the first match. False with a message on a read error.
+bool clash_set_matches(const ReadView& view, const ClashSet& set, bool& matches, std::string& error);
+
+// Sets each clash's status against a previous report of the same store (new, active keeping
+// its previous id, and appends the previous clashes no longer found as resolved), then sorts.
+// False, naming the reason, when `previous` comes from another store (directory or spatial
+// origin differ) or other settings (tolerance, clearance, sets).
+bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error);
+
+// Sorts the clashes (the order above); merge_reports() and find_clashes() call it.
+void sort_clashes(std::vector<Clash>& clashes);
+
+// The shards' reports as one: the same store and settings (else false, naming the file index),
+// each shard index once; clashes merged and sorted; counts summed; shard 0/1.
+bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error);
+
+// clashes.json (version 1): {"version":1,"store":{...},"settings":{...},"counts":{...},
+//  "clashes":[{"id":"hex16","status":"new","kind":"hard","a":{"id":"..","tag":"..",
+//  "class":".."},"b":{..},"depth_m":..|"distance_m":..,"error_m":..,"points_m":[[x,y,z]],
+//  "group":".."}]}. Pretty-printed with two spaces, ids as decimal strings.
+std::string clash_report_json(const ClashReport& report);
+// Reads it back; false with a message for text that is not JSON, truncated, another version,
+// or a missing or mistyped field (naming it and the clash index).
+bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
+
+// Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
+// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted), its
+// camera fit_camera from the isometric direction on the clash region (the points' bounds grown
+// by kClashViewMarginM), a section box of that region grown by another half margin, and
+// caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
+// (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
+inline constexpr double kClashViewMarginM = 1.5;
+std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
+
+}  // namespace plantview

@@ -1,0 +1,308 @@
+// clashes.json, status against a previous run, and merging shards (plantview/clash.h).
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "clash/clash_internal.h"
+#include "plantview/store.h"
+
+namespace plantview {
+
+namespace {
+
+using nlohmann::json;
+
+json xyz(const glm::dvec3& p) { return json::array({p.x, p.y, p.z}); }
+
+std::string hex(uint64_t v) {
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
+json side(const ClashObject& o) {
+  return {{"id", std::to_string(o.id)},
+          {"tag", o.tag},
+          {"class", std::string(class_name(o.object_class))},
+          {"pipeline_id", std::to_string(o.pipeline_id)}};
+}
+
+// Reading: each getter throws a message naming the field; parse_clash_report catches it.
+struct Bad {
+  std::string message;
+};
+
+const json& field(const json& j, const char* key, const std::string& where) {
+  if (!j.is_object() || !j.contains(key)) throw Bad{where + ": '" + key + "' is missing"};
+  return j.at(key);
+}
+double number(const json& j, const char* key, const std::string& where) {
+  const json& v = field(j, key, where);
+  if (!v.is_number()) throw Bad{where + ": '" + key + "' must be a number"};
+  return v.get<double>();
+}
+std::string text(const json& j, const char* key, const std::string& where) {
+  const json& v = field(j, key, where);
+  if (!v.is_string()) throw Bad{where + ": '" + key + "' must be a string"};
+  return v.get<std::string>();
+}
+uint64_t decimal(const json& j, const char* key, const std::string& where, int base = 10) {
+  const std::string s = text(j, key, where);
+  uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v, base);
+  if (s.empty() || ec != std::errc() || end != s.data() + s.size())
+    throw Bad{where + ": '" + key + "' must be a " + (base == 16 ? "hex" : "decimal") + " id"};
+  return v;
+}
+glm::dvec3 point(const json& v, const std::string& where) {
+  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+    throw Bad{where + ": a point must be a list of 3 numbers"};
+  return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
+}
+ClashObject read_side(const json& j, const char* key, const std::string& where) {
+  const json& s = field(j, key, where);
+  const std::string w = where + "." + key;
+  ClashObject o;
+  o.id = decimal(s, "id", w);
+  o.tag = text(s, "tag", w);
+  if (!class_from_name(text(s, "class", w), o.object_class)) throw Bad{w + ": unknown 'class'"};
+  o.pipeline_id = decimal(s, "pipeline_id", w);
+  return o;
+}
+
+}  // namespace
+
+std::string clash_report_json(const ClashReport& r) {
+  json clashes = json::array();
+  for (const Clash& c : r.clashes) {
+    json j = {{"id", hex(c.id)},
+              {"status", std::string(clash_status_name(c.status))},
+              {"kind", c.kind == ClashKind::hard ? "hard" : "clearance"},
+              {"a", side(c.a)},
+              {"b", side(c.b)}};
+    if (c.kind == ClashKind::hard)
+      j["depth_m"] = c.depth_m;
+    else
+      j["distance_m"] = c.distance_m;
+    j["error_m"] = c.error_m;
+    json points = json::array();
+    for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
+    j["points_m"] = std::move(points);
+    j["group"] = c.group;
+    if (c.changed_id) j["changed_id"] = std::to_string(c.changed_id);
+    clashes.push_back(std::move(j));
+  }
+  json rules = json::array();
+  for (int i = 0; i < kClashRuleCount; ++i) rules.push_back(std::string(clash_rule_name(ClashRule(i))));
+  json skipped = json::object();
+  for (int i = 0; i < kClashRuleCount; ++i)
+    skipped[std::string(clash_rule_name(ClashRule(i)))] = r.counts.skipped_by_rule[i];
+  const json out = {
+      {"version", 1},
+      {"store",
+       {{"directory", r.store_directory},
+        {"spatial_origin_m", xyz(r.spatial_origin_m)},
+        {"commit_id", std::to_string(r.commit_id)},
+        {"revision", r.revision},
+        {"objects", r.objects}}},
+      {"settings",
+       {{"tolerance_m", r.tolerance_m},
+        {"clearance_m", r.clearance_m},
+        {"between", r.between},
+        {"and", r.with},
+        {"include_connected", r.include_connected},
+        {"rules", r.include_connected ? json::array() : rules},
+        {"shard", std::to_string(r.shard.index) + "/" + std::to_string(r.shard.count)}}},
+      {"counts",
+       {{"block_pairs", r.counts.block_pairs},
+        {"candidate_pairs", r.counts.candidate_pairs},
+        {"narrow_pairs", r.counts.narrow_pairs},
+        {"skipped_by_rule", skipped}}},
+      {"clashes", std::move(clashes)}};
+  return out.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
+}
+
+bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
+  const json j = json::parse(input, nullptr, false);
+  if (j.is_discarded()) {
+    error = "not JSON (truncated or damaged)";
+    return false;
+  }
+  try {
+    ClashReport r;
+    const json& version = field(j, "version", "clashes file");
+    if (!version.is_number_integer() || version.get<int>() != 1) throw Bad{"clashes file: version must be 1"};
+    const json& store = field(j, "store", "clashes file");
+    r.store_directory = text(store, "directory", "store");
+    r.spatial_origin_m = point(field(store, "spatial_origin_m", "store"), "store.spatial_origin_m");
+    r.commit_id = decimal(store, "commit_id", "store");
+    r.revision = uint32_t(number(store, "revision", "store"));
+    r.objects = uint64_t(number(store, "objects", "store"));
+    const json& settings = field(j, "settings", "clashes file");
+    r.tolerance_m = number(settings, "tolerance_m", "settings");
+    r.clearance_m = number(settings, "clearance_m", "settings");
+    r.between = text(settings, "between", "settings");
+    r.with = text(settings, "and", "settings");
+    const json& connected = field(settings, "include_connected", "settings");
+    if (!connected.is_boolean()) throw Bad{"settings: 'include_connected' must be true or false"};
+    r.include_connected = connected.get<bool>();
+    const std::string shard = text(settings, "shard", "settings");
+    if (std::sscanf(shard.c_str(), "%u/%u", &r.shard.index, &r.shard.count) != 2 || r.shard.count == 0 ||
+        r.shard.index >= r.shard.count)
+      throw Bad{"settings: 'shard' must be I/N"};
+    if (const json& counts = field(j, "counts", "clashes file"); counts.is_object()) {
+      r.counts.block_pairs = uint64_t(number(counts, "block_pairs", "counts"));
+      r.counts.candidate_pairs = uint64_t(number(counts, "candidate_pairs", "counts"));
+      r.counts.narrow_pairs = uint64_t(number(counts, "narrow_pairs", "counts"));
+      const json& skipped = field(counts, "skipped_by_rule", "counts");
+      for (int i = 0; i < kClashRuleCount; ++i)
+        r.counts.skipped_by_rule[i] = uint64_t(number(skipped, std::string(clash_rule_name(ClashRule(i))).c_str(), "counts"));
+    }
+    const json& clashes = field(j, "clashes", "clashes file");
+    if (!clashes.is_array()) throw Bad{"clashes file: 'clashes' must be a list"};
+    for (size_t i = 0; i < clashes.size(); ++i) {
+      const json& c = clashes[i];
+      const std::string where = "clash " + std::to_string(i);
+      Clash k;
+      k.id = decimal(c, "id", where, 16);
+      const std::string status = text(c, "status", where);
+      if (status == "new") k.status = ClashStatus::new_clash;
+      else if (status == "active") k.status = ClashStatus::active;
+      else if (status == "resolved") k.status = ClashStatus::resolved;
+      else throw Bad{where + ": unknown 'status'"};
+      const std::string kind = text(c, "kind", where);
+      if (kind == "hard") k.kind = ClashKind::hard;
+      else if (kind == "clearance") k.kind = ClashKind::clearance;
+      else throw Bad{where + ": unknown 'kind'"};
+      k.a = read_side(c, "a", where);
+      k.b = read_side(c, "b", where);
+      if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
+      else k.distance_m = number(c, "distance_m", where);
+      k.error_m = number(c, "error_m", where);
+      const json& points = field(c, "points_m", where);
+      if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
+      for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
+      k.group = text(c, "group", where);
+      if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
+      r.clashes.push_back(std::move(k));
+    }
+    out = std::move(r);
+    return true;
+  } catch (const Bad& bad) {
+    error = bad.message;
+    return false;
+  }
+}
+
+namespace {
+
+bool same_store(const ClashReport& x, const ClashReport& y, std::string& error) {
+  if (x.store_directory != y.store_directory || x.spatial_origin_m != y.spatial_origin_m) {
+    error = "it comes from another store (" + y.store_directory + ", not " + x.store_directory + ")";
+    return false;
+  }
+  return true;
+}
+
+bool same_settings(const ClashReport& x, const ClashReport& y, std::string& error) {
+  if (x.tolerance_m != y.tolerance_m || x.clearance_m != y.clearance_m || x.between != y.between ||
+      x.with != y.with || x.include_connected != y.include_connected) {
+    error = "it was run with other settings (tolerance, clearance, --between/--and, --include-connected)";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
+  if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
+  std::vector<bool> matched(previous.clashes.size(), false);
+  for (Clash& c : report.clashes) {
+    c.status = ClashStatus::new_clash;
+    // The same id, else the same pair with its first point within kClashMatchM.
+    size_t best = previous.clashes.size();
+    double best_m = kClashMatchM;
+    for (size_t i = 0; i < previous.clashes.size(); ++i) {
+      const Clash& p = previous.clashes[i];
+      if (matched[i] || p.status == ClashStatus::resolved || p.a.id != c.a.id || p.b.id != c.b.id) continue;
+      const double d = p.id == c.id ? -1.0 : glm::length(p.points_m.front() - c.points_m.front());
+      if (d <= best_m) {
+        best = i;
+        best_m = d;
+      }
+    }
+    if (best < previous.clashes.size()) {
+      matched[best] = true;
+      c.status = ClashStatus::active;
+      c.id = previous.clashes[best].id;
+    }
+  }
+  for (size_t i = 0; i < previous.clashes.size(); ++i) {
+    if (matched[i] || previous.clashes[i].status == ClashStatus::resolved) continue;
+    Clash c = previous.clashes[i];
+    c.status = ClashStatus::resolved;
+    report.clashes.push_back(std::move(c));
+  }
+  sort_clashes(report.clashes);
+  return true;
+}
+
+bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error) {
+  if (shards.empty()) {
+    error = "no shard results to merge";
+    return false;
+  }
+  ClashReport merged = shards.front();
+  merged.clashes.clear();
+  merged.counts = ClashCounts();
+  std::vector<bool> seen(shards.front().shard.count, false);
+  for (size_t i = 0; i < shards.size(); ++i) {
+    const ClashReport& s = shards[i];
+    std::string why;
+    if (!same_store(merged, s, why) || !same_settings(merged, s, why) || s.commit_id != merged.commit_id) {
+      error = "shard result " + std::to_string(i + 1) + ": " + (why.empty() ? "another snapshot of the store" : why);
+      return false;
+    }
+    if (s.shard.count != merged.shard.count || s.shard.index >= seen.size() || seen[s.shard.index]) {
+      error = "shard result " + std::to_string(i + 1) + ": shard " + std::to_string(s.shard.index) + "/" +
+              std::to_string(s.shard.count) + " is repeated or does not belong with the others";
+      return false;
+    }
+    seen[s.shard.index] = true;
+    merged.clashes.insert(merged.clashes.end(), s.clashes.begin(), s.clashes.end());
+    merged.counts.block_pairs += s.counts.block_pairs;
+    merged.counts.candidate_pairs += s.counts.candidate_pairs;
+    merged.counts.narrow_pairs += s.counts.narrow_pairs;
+    for (int r = 0; r < kClashRuleCount; ++r) merged.counts.skipped_by_rule[r] += s.counts.skipped_by_rule[r];
+  }
+  for (size_t i = 0; i < seen.size(); ++i)
+    if (!seen[i]) {
+      error = "shard " + std::to_string(i) + "/" + std::to_string(seen.size()) + " is missing";
+      return false;
+    }
+  merged.shard = ClashShard();
+  sort_clashes(merged.clashes);
+  out = std::move(merged);
+  return true;
+}
+
+bool clash_set_matches(const ReadView& view, const ClashSet& set, bool& matches, std::string& error) {
+  matches = set.empty();
+  if (matches) return true;
+  ObjectClass c;
+  if (class_from_name(set.word, c)) {
+    matches = view.info().statistics.objects_by_class[int(c)] > 0;
+    return true;
+  }
+  return view.for_each_object(
+      [&](uint32_t, Object&& o) {
+        matches = set.contains(o);
+        return !matches;
+      },
+      true, error);
+}
+
+}  // namespace plantview

@@ -1,0 +1,383 @@
+// Clash detection (plantview/clash.h): planted pairs of every kind moved into one another by
+// known depths and apart by known gaps, found exactly and measured within 1 mm; a pipeline's own
+// parts and supports never reported; a revision that moves a pipe into a beam makes exactly one
+// new clash, active on the next run; --between; shards merged equal one run; the command's bad
+// input.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <set>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "plantview/clash.h"
+#include "plantview/generate.h"
+#include "plantview/ingest.h"
+#include "plantview/store.h"
+#include "support/stores.h"
+#include "support/temp_dir.h"
+
+namespace plantview {
+namespace {
+
+constexpr double kMm = 0.001;
+
+Primitive at(Shape shape, const glm::vec3& t, const glm::mat3& linear = glm::mat3(1.0f)) {
+  Primitive p;
+  p.shape = std::move(shape);
+  p.placement.linear = linear;
+  p.placement.translation_m = t;
+  return p;
+}
+
+Object object_of(const std::string& name, ObjectClass c, std::vector<Primitive> primitives, const glm::dvec3& origin_m) {
+  Object o;
+  o.name = name;
+  o.source = "test";
+  o.id = object_id(o.source, name);
+  o.object_class = c;
+  o.origin_m = origin_m;
+  o.primitives = std::move(primitives);
+  return o;
+}
+
+glm::mat3 rotation(double angle_rad, const glm::vec3& axis) {
+  return glm::mat3(glm::rotate(glm::mat4(1.0f), float(angle_rad), axis));
+}
+
+// A cube of facets (a facet group of 6 quads), side s, centred.
+FacetGroup facet_cube(float s) {
+  FacetGroup g;
+  const float h = s / 2;
+  const glm::vec3 corners[8] = {{-h, -h, -h}, {h, -h, -h}, {h, h, -h}, {-h, h, -h},
+                                {-h, -h, h},  {h, -h, h},  {h, h, h},  {-h, h, h}};
+  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+  for (const auto& f : faces) {
+    const glm::vec3 n = glm::normalize(glm::cross(corners[f[1]] - corners[f[0]], corners[f[2]] - corners[f[0]]));
+    for (int k = 0; k < 4; ++k) g.vertices.push_back({corners[f[k]], n});
+    g.contour_ends.push_back(uint32_t(g.vertices.size()));
+    g.polygon_ends.push_back(uint32_t(g.contour_ends.size()));
+  }
+  g.triangulate();
+  return g;
+}
+
+// One planted case: two objects whose overlap (depth > 0) or gap (depth < 0) is `depth_m`, at
+// `origin` (cases lie 20 m apart).
+struct Planted {
+  std::string kind;
+  double depth_m;
+  Object a, b;
+};
+
+Planted planted(const std::string& kind, int index, double depth_m) {
+  const glm::dvec3 o(20.0 * index, 0, 5);
+  const std::string n = kind + "-" + std::to_string(index);
+  const float d = float(depth_m);
+  Planted p{kind, depth_m, {}, {}};
+  if (kind == "box-box") {
+    p.a = object_of(n + "-A", ObjectClass::structure, {at(Box{1, 1, 1}, {0, 0, 0})}, o);
+    p.b = object_of(n + "-B", ObjectClass::structure, {at(Box{0.6f, 0.6f, 0.6f}, {0.8f - d, 0.1f, 0.05f})}, o);
+  } else if (kind == "cylinder-box") {  // a pipe along x, its end into a box face
+    p.a = object_of(n + "-A", ObjectClass::structure, {at(Box{1, 1, 1}, {0, 0, 0})}, o);
+    p.b = object_of(n + "-B", ObjectClass::pipe,
+                    {at(Cylinder{0.1f, 2}, {0.5f + 1 - d, 0, 0}, rotation(std::numbers::pi / 2, {0, 1, 0}))}, o);
+  } else if (kind == "cylinder-cylinder") {  // crossing at 60 degrees, axes 0.2 - d apart
+    p.a = object_of(n + "-A", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0}, rotation(std::numbers::pi / 2, {0, 1, 0}))}, o);
+    const glm::mat3 r = rotation(std::numbers::pi / 3, {0, 0, 1}) * rotation(std::numbers::pi / 2, {0, 1, 0});
+    p.b = object_of(n + "-B", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0.2f - d}, r)}, o);
+  } else if (kind == "torus-cylinder") {  // an elbow's outer side into a vertical pipe
+    p.a = object_of(n + "-A", ObjectClass::component, {at(CircularTorus{0.5f, 0.1f, float(std::numbers::pi / 2)}, {0, 0, 0})}, o);
+    const float r = 0.6f + 0.1f - d, c = float(std::cos(std::numbers::pi / 4));
+    p.b = object_of(n + "-B", ObjectClass::pipe, {at(Cylinder{0.1f, 2}, {r * c, r * c, 0})}, o);
+  } else if (kind == "dish-box") {  // a box pressed onto a vessel head's crown
+    p.a = object_of(n + "-A", ObjectClass::equipment, {at(EllipticalDish{0.5f, 0.25f}, {0, 0, 0})}, o);
+    p.b = object_of(n + "-B", ObjectClass::structure, {at(Box{0.4f, 0.4f, 0.2f}, {0, 0, 0.25f + 0.1f - d})}, o);
+  } else if (kind == "facets-box") {  // a box onto a facet cube's top face
+    p.a = object_of(n + "-A", ObjectClass::other, {at(facet_cube(1), {0, 0, 0})}, o);
+    p.b = object_of(n + "-B", ObjectClass::structure, {at(Box{1.4f, 1.4f, 0.4f}, {0.1f, 0, 0.5f + 0.2f - d})}, o);
+  }
+  return p;
+}
+
+const char* const kKinds[] = {"box-box", "cylinder-box", "cylinder-cylinder", "torus-cylinder", "dish-box", "facets-box"};
+
+ClashReport run(const Store& store, const std::string& dir, ClashSettings settings = {}) {
+  std::string error;
+  const auto view = store.read(error);
+  EXPECT_TRUE(view) << error;
+  ClashReport report;
+  EXPECT_TRUE(find_clashes(*view, dir, settings, report, error)) << error;
+  return report;
+}
+
+std::pair<uint64_t, uint64_t> key(uint64_t x, uint64_t y) { return {std::min(x, y), std::max(x, y)}; }
+
+TEST(Clash, PlantedDepthsAndGapsFoundExactly) {
+  // Each kind at 5, 20 and 50 mm deep (found), 0.3 mm deep (under the tolerance) and 30 mm apart.
+  const double depths[] = {0.005, 0.020, 0.050, 0.0003, -0.030};
+  std::vector<Object> objects;
+  std::map<std::pair<uint64_t, uint64_t>, Planted> cases;
+  int index = 0;
+  for (const char* kind : kKinds)
+    for (double depth : depths) {
+      Planted p = planted(kind, index++, depth);
+      objects.push_back(p.a);
+      objects.push_back(p.b);
+      cases.emplace(key(p.a.id, p.b.id), std::move(p));
+    }
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, objects);
+  ASSERT_TRUE(store);
+
+  const ClashReport hard = run(*store, dir.str());
+  std::set<std::pair<uint64_t, uint64_t>> found;
+  for (const Clash& c : hard.clashes) {
+    const auto it = cases.find(key(c.a.id, c.b.id));
+    ASSERT_NE(it, cases.end()) << "unplanted clash " << c.a.tag << " x " << c.b.tag;
+    const Planted& p = it->second;
+    EXPECT_EQ(c.kind, ClashKind::hard);
+    EXPECT_NEAR(c.depth_m, p.depth_m, 1 * kMm) << p.kind << " at " << p.depth_m;
+    EXPECT_FALSE(c.points_m.empty());
+    EXPECT_EQ(c.status, ClashStatus::new_clash);
+    found.insert(it->first);
+  }
+  for (const auto& [k, p] : cases)
+    EXPECT_EQ(found.count(k), p.depth_m > 1 * kMm ? 1u : 0u) << p.kind << " at depth " << p.depth_m;
+
+  // Clearance 50 mm: the 30 mm gaps too (distance within 1 mm), the shallow overlaps as touching.
+  ClashSettings settings;
+  settings.clearance_m = 0.050;
+  const ClashReport near = run(*store, dir.str(), settings);
+  size_t clearance = 0;
+  for (const Clash& c : near.clashes) {
+    const Planted& p = cases.at(key(c.a.id, c.b.id));
+    if (c.kind != ClashKind::clearance) continue;
+    ++clearance;
+    // Within 1 mm, or the tessellation error the clash states (a large dish's finest mesh).
+    EXPECT_NEAR(c.distance_m, std::max(0.0, -p.depth_m), std::max(1 * kMm, c.error_m)) << p.kind;
+    EXPECT_LE(c.error_m, 3 * kMm) << p.kind;
+  }
+  EXPECT_EQ(clearance, 2 * std::size(kKinds));
+  EXPECT_EQ(near.clashes.size(), cases.size());
+
+  // --between a class --and a glob: only the pipe-structure case of cylinder-box.
+  settings = {};
+  settings.between.word = "pipe";
+  settings.with.word = "box-box-*";
+  EXPECT_TRUE(run(*store, dir.str(), settings).clashes.empty());
+  settings.with.word = "cylinder-box-*";
+  const ClashReport between = run(*store, dir.str(), settings);
+  EXPECT_EQ(between.clashes.size(), 3u);
+  for (const Clash& c : between.clashes) EXPECT_EQ(cases.at(key(c.a.id, c.b.id)).kind, "cylinder-box");
+}
+
+// A pipeline of two pipes, a flange pair between them and a support under it, on a beam; and a
+// beam beside it. `moved`: the second pipe lowered into the beam beside.
+std::vector<Object> piping_case(bool moved) {
+  std::vector<Object> out;
+  Object line;
+  line.name = "/P-1";
+  line.source = "test";
+  line.id = object_id("test", line.name);
+  line.object_class = ObjectClass::pipeline;
+  const auto piece = [&](const std::string& name, ObjectClass c, Primitive p, const glm::dvec3& origin,
+                         glm::vec3 in, glm::vec3 out_at) {
+    Object o = object_of("/P-1/" + name, c, {p}, origin);
+    o.pipeline_id = line.id;
+    o.connections = {{in, {-1, 0, 0}, 0.2f}, {out_at, {1, 0, 0}, 0.2f}};
+    o.centreline = {{in, out_at, 0.2f}};
+    return o;
+  };
+  const glm::mat3 along_x = rotation(std::numbers::pi / 2, {0, 1, 0});
+  out.push_back(piece("PIPE-1", ObjectClass::pipe, at(Cylinder{0.1f, 2}, {1, 0, 0}, along_x), {0, 100, 2}, {0, 0, 0}, {2, 0, 0}));
+  out.push_back(piece("FLAN-1", ObjectClass::component, at(Cylinder{0.15f, 0.1f}, {0.05f, 0, 0}, along_x), {2, 100, 2}, {0, 0, 0}, {0.1f, 0, 0}));
+  // The other line's flange, bolted face to face (another pipeline: the connection rule).
+  Object other = object_of("/P-2/FLAN-1", ObjectClass::component, {at(Cylinder{0.15f, 0.1f}, {0.05f, 0, 0}, along_x)}, {2.1, 100, 2});
+  other.pipeline_id = object_id("test", "/P-2");
+  other.connections = {{{0, 0, 0}, {-1, 0, 0}, 0.2f}};
+  // Overlaps the first flange by 2 mm: a gasket's squeeze.
+  other.origin_m.x -= 0.002;
+  other.connections[0].position_m.x += 0.002f;
+  out.push_back(other);
+  Object pipe2 = piece("PIPE-2", ObjectClass::pipe, at(Cylinder{0.1f, 2}, {1, 0, 0}, along_x), {2.2, 100, 2}, {0, 0, 0}, {2, 0, 0});
+  pipe2.pipeline_id = other.pipeline_id;
+  if (moved) pipe2.origin_m = {2.2, 110, 0.6};  // into the beam beside, 50 mm deep
+  out.push_back(pipe2);
+  // A support of another line's make-up (no pipeline id): carries PIPE-1 by its connection point.
+  Object support = object_of("/P-3/SUPP-1", ObjectClass::component, {at(Box{0.2f, 0.2f, 0.21f}, {0, 0, -0.095f})}, {1, 100, 1.9});
+  support.attributes = {{"Type", "SUPP"}};
+  support.connections = {{{0, 0, 0}, {0, 0, -1}, 0.2f}};
+  out.push_back(support);
+  out.push_back(object_of("/BEAM-1", ObjectClass::structure, {at(Box{6, 0.3f, 0.4f}, {0, 0, 0})}, {2, 100, 1.5}));
+  out.push_back(object_of("/BEAM-2", ObjectClass::structure, {at(Box{6, 0.3f, 0.4f}, {0, 0, 0})}, {2, 110, 0.35}));
+  // An equipment item whose nozzle P-1 starts from, 20 mm into PIPE-1 (the nozzle rule; the
+  // nozzle's direction is not opposite the pipe's, so that the connection rule does not apply).
+  Object item = object_of("/E-1", ObjectClass::equipment, {at(Box{1, 0.5f, 0.5f}, {0, 0, 0})}, {-0.48, 100, 2});
+  item.connections = {{{0.48f, 0, 0}, {-1, 0, 0}, 0.2f}};
+  out.push_back(item);
+  line.branches = {{"/P-1-B1", {out[0].id, out[1].id}}};
+  out.push_back(line);
+  return out;
+}
+
+TEST(Clash, RulesKeepAPipelinesOwnPartsAndSupportsOut) {
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const ClashReport report = run(*store, dir.str());
+  for (const Clash& c : report.clashes) ADD_FAILURE() << c.a.tag << " x " << c.b.tag << " " << c.depth_m;
+  EXPECT_GT(report.counts.skipped_by_rule[int(ClashRule::connected)], 0u);
+  EXPECT_GT(report.counts.skipped_by_rule[int(ClashRule::support)], 0u);
+  EXPECT_EQ(report.counts.skipped_by_rule[int(ClashRule::nozzle)], 1u);
+  ClashSettings all;
+  all.include_connected = true;
+  const ClashReport everything = run(*store, dir.str(), all);
+  EXPECT_GE(everything.clashes.size(), 3u);  // the squeezed flanges, the support in the pipe, the nozzle
+}
+
+TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const ClashReport first = run(*store, dir.str());
+  ASSERT_TRUE(first.clashes.empty());
+  ASSERT_TRUE(ingest_objects(*store, piping_case(true)));
+  ClashReport second = run(*store, dir.str());
+  std::string error;
+  ASSERT_TRUE(apply_previous(second, first, error)) << error;
+  ASSERT_EQ(second.clashes.size(), 1u);
+  EXPECT_EQ(second.clashes[0].status, ClashStatus::new_clash);
+  EXPECT_EQ(second.clashes[0].a.tag == "/BEAM-2" || second.clashes[0].b.tag == "/BEAM-2", true);
+  EXPECT_NEAR(second.clashes[0].depth_m, 0.05, 1 * kMm);
+  // Through the file, as --since reads it.
+  ClashReport reread;
+  ASSERT_TRUE(parse_clash_report(clash_report_json(second), reread, error)) << error;
+  ClashReport third = run(*store, dir.str());
+  ASSERT_TRUE(apply_previous(third, reread, error)) << error;
+  ASSERT_EQ(third.clashes.size(), 1u);
+  EXPECT_EQ(third.clashes[0].status, ClashStatus::active);
+  EXPECT_EQ(third.clashes[0].id, second.clashes[0].id);
+  // Moved back: resolved.
+  ASSERT_TRUE(ingest_objects(*store, piping_case(false)));
+  ClashReport fourth = run(*store, dir.str());
+  ASSERT_TRUE(apply_previous(fourth, third, error)) << error;
+  ASSERT_EQ(fourth.clashes.size(), 1u);
+  EXPECT_EQ(fourth.clashes[0].status, ClashStatus::resolved);
+  // Another store's file is refused.
+  ClashReport other = third;
+  other.store_directory = "/elsewhere";
+  EXPECT_FALSE(apply_previous(fourth, other, error));
+  EXPECT_NE(error.find("another store"), std::string::npos) << error;
+}
+
+TEST(Clash, GeneratedPlantShardsEqualOneRunAndNoOwnPartsReported) {
+  const test::TempDir dir;
+  const auto store = test::generated_store(dir, 'a');
+  ASSERT_TRUE(store);
+  const ClashReport whole = run(*store, dir.str());
+  for (const Clash& c : whole.clashes) {
+    EXPECT_FALSE(c.a.pipeline_id != 0 && c.a.pipeline_id == c.b.pipeline_id) << c.a.tag << " x " << c.b.tag;
+  }
+  std::vector<ClashReport> shards;
+  for (uint32_t i = 0; i < 3; ++i) {
+    ClashSettings s;
+    s.shard = {i, 3};
+    shards.push_back(run(*store, dir.str(), s));
+  }
+  ClashReport merged;
+  std::string error;
+  ASSERT_TRUE(merge_reports(shards, merged, error)) << error;
+  EXPECT_EQ(clash_report_json(merged), clash_report_json(whole));
+  shards.pop_back();
+  EXPECT_FALSE(merge_reports(shards, merged, error));
+}
+
+TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, piping_case(true));
+  ASSERT_TRUE(store);
+  const ClashReport report = run(*store, dir.str());
+  const std::string text = clash_report_json(report);
+  ClashReport back;
+  std::string error;
+  ASSERT_TRUE(parse_clash_report(text, back, error)) << error;
+  EXPECT_EQ(clash_report_json(back), text);
+  EXPECT_FALSE(parse_clash_report(text.substr(0, text.size() / 2), back, error));
+}
+
+// Runs the program; its exit status, stdout in `out`, stderr in `err`.
+int run_plantview(const std::vector<std::string>& args, std::string& out, std::string& err) {
+  const test::TempDir scratch;
+  std::filesystem::create_directories(scratch.path());
+  const std::string o = (scratch.path() / "out").string(), e = (scratch.path() / "err").string();
+  std::string command = PLANTVIEW_BIN;
+  for (const std::string& a : args) command += " '" + a + "'";
+  const int status = std::system((command + " >" + o + " 2>" + e).c_str());
+  const auto slurp = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  out = slurp(o);
+  err = slurp(e);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
+  const test::TempDir dir, scratch;
+  std::filesystem::create_directories(scratch.path());
+  ASSERT_TRUE(test::make_store(dir, piping_case(true)));
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    second = (scratch.path() / "second.json").string();
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  EXPECT_NE(out.find("1 clashes (1 hard, 0 clearance): 1 new"), std::string::npos) << out;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", second}, out, err), 0) << err;
+  EXPECT_NE(out.find("0 new, 1 active"), std::string::npos) << out;
+  for (const char* shard : {"0/2", "1/2"})
+    ASSERT_EQ(run_plantview({"clash", "--store", s, "--shard", shard, "--out",
+                             (scratch.path() / (std::string("s") + shard[0] + ".json")).string()}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"clash", "merge", (scratch.path() / "s0.json").string(), (scratch.path() / "s1.json").string(),
+                           "--json"}, out, err), 0) << err;
+  std::ifstream f(first);
+  EXPECT_EQ(out, std::string(std::istreambuf_iterator<char>(f), {}));
+
+  const std::string never = (scratch.path() / "never.json").string();
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--tolerance", "-1", "--out", never}, out, err), 2);
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--tolerance", "50000", "--out", never}, out, err), 2);
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--between", "NOPE-*", "--and", "pipe", "--out", never}, out, err), 2);
+  EXPECT_NE(err.find("NOPE-*"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--between", "pipe", "--out", never}, out, err), 2);
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--shard", "2/2", "--out", never}, out, err), 2);
+  // A truncated previous file, and one from another store.
+  std::string text;
+  {
+    std::ifstream in(first);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const std::string cut = (scratch.path() / "cut.json").string();
+  std::ofstream(cut) << text.substr(0, text.size() / 2);
+  EXPECT_EQ(run_plantview({"clash", "--store", s, "--since", cut, "--out", never}, out, err), 1);
+  EXPECT_NE(err.find("truncated"), std::string::npos) << err;
+  const test::TempDir other;
+  ASSERT_TRUE(test::make_store(other, piping_case(false)));
+  EXPECT_EQ(run_plantview({"clash", "--store", other.str(), "--since", first, "--out", never}, out, err), 1);
+  EXPECT_NE(err.find("another store"), std::string::npos) << err;
+  // A store without topology (boxes alone): the rules cannot apply.
+  const test::TempDir bare;
+  ASSERT_TRUE(test::make_store(bare, {planted("box-box", 0, 0.01).a, planted("box-box", 0, 0.01).b}));
+  EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--out", never}, out, err), 2);
+  EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--include-connected"}, out, err), 0) << err;
+  EXPECT_NE(out.find("1 clashes"), std::string::npos) << out;
+  EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+}  // namespace
+}  // namespace plantview
