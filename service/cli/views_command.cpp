@@ -1,5 +1,5 @@
-// `plantview views --store DIR --per overview|equipment|pipeline|area|change [--select GLOB]
-// [--from R1 [--to R2] [--group object|pipeline|equipment]]
+// `plantview views --store DIR --per overview|equipment|pipeline|area|change|clash [--select GLOB]
+// [--from R1 [--to R2] [--group object|pipeline|equipment]] [--clashes CLASHES.json]
 // [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
 // named, fitted review views of a store's subjects (review.h: make_review_views), for
 // `render --views`.
@@ -29,13 +29,10 @@ struct ViewsArgs {
   double section_margin_m = 1.0;
   int sides = 1;
   std::string colour_by, hide, only;  // written into every view (view_filters.h: ObjectStyle)
-<<<<<<< HEAD
   // --per change: the range and the grouping (review.h: ReviewViewOptions).
   int64_t from = -1, to = 0;
   std::string group = "object";
-=======
   std::string clashes;                // --per clash: the clashes file (clash.h)
->>>>>>> clash
 };
 
 int fail(const std::string& message) {
@@ -151,10 +148,9 @@ Action add_views_command(CLI::App& app) {
   auto args = std::make_shared<ViewsArgs>();
   auto* views = app.add_subcommand("views", "Make named, fitted review views of a store's subjects");
   views->add_option("--store", args->store, "Store directory")->required();
-<<<<<<< HEAD
-  views->add_option("--per", args->per, "overview, equipment, pipeline, area or change")
+  views->add_option("--per", args->per, "overview, equipment, pipeline, area, change or clash")
       ->required()
-      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "change"}));
+      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "change", "clash"}));
   views->add_option("--from", args->from,
                     "With --per change: the revision the changes are since (each view a change image)");
   views->add_option("--to", args->to,
@@ -165,12 +161,7 @@ Action add_views_command(CLI::App& app) {
                     "changed equipment item")
       ->check(CLI::IsMember({"object", "pipeline", "equipment"}))
       ->capture_default_str();
-=======
-  views->add_option("--per", args->per, "overview, equipment, pipeline, area or clash")
-      ->required()
-      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "clash"}));
   views->add_option("--clashes", args->clashes, "--per clash: the clashes.json of plantview clash");
->>>>>>> clash
   views->add_option("--select", args->select,
                     "Only subjects whose view name or tag/path matches this shell glob");
   views->add_option("--sides", args->sides, "1: isometric; 4: from north, east, south and west")
