@@ -3,9 +3,9 @@
 #   1. build/ (GCC, RelWithDebInfo, warnings as errors): everything, and every test (the fuzz
 #      harnesses replaying their corpus, label fuzz, included).
 #   2. build-sanitize/ (clang, AddressSanitizer + UBSan + LeakSanitizer, asserts on, the fuzz
-#      harnesses as libFuzzer programs): the core, storage, service and CLI tests (the plantview
+#      harnesses as libFuzzer programs): the core, storage, service, stream and CLI tests (the plantview
 #      program they run is built the same way) and the fuzzers over their corpus.
-#   3. build-tsan/ (clang, ThreadSanitizer): the service tests (the server, the render workers)
+#   3. build-tsan/ (clang, ThreadSanitizer): the service and stream tests (the server, the render workers)
 #      and the occlusion tests (its tests and box lists run in parts on the renderer's pool).
 # Passes 2 and 3 build only what their tests need (plantview_tests_<label>, tests/CMakeLists.txt).
 # Idempotent: re-running rebuilds only what changed. Exit status: non-zero if anything failed.
@@ -45,7 +45,7 @@ sanitized_build() {  # <dir> <PLANTVIEW_SANITIZE> [cmake options...]
 pass "AddressSanitizer + UBSan (clang, Debug -O1): core, storage, service, CLI, BCF and measure tests and fuzzers"
 sanitized_build build-sanitize address -DPLANTVIEW_FUZZ=ON
 cmake --build build-sanitize -j "$jobs" --target plantview_tests_core plantview_tests_storage \
-  plantview_tests_service plantview_tests_cli plantview_tests_bcf plantview_tests_measure plantview_tests_fuzz
+  plantview_tests_service plantview_tests_cli plantview_tests_bcf plantview_tests_measure plantview_tests_fuzz plantview_tests_stream
 # The brute-force error measurement (test code, run in full above) is the slow part under the
 # sanitizers; there it runs for the as-given placement only.
 # Mesa's software driver, dlopened by EGL, is unloaded again by eglTerminate (the server's
@@ -61,18 +61,18 @@ mesa_driver=/usr/lib/$(gcc -print-multiarch)/dri/swrast_dri.so
 GTEST_FILTER='-*ReportedErrorBoundsTheMeasuredDeviation/*_rotated:*ReportedErrorBoundsTheMeasuredDeviation/*_mirrored' \
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1 \
 LD_PRELOAD=$mesa_driver \
-  ctest --test-dir build-sanitize --output-on-failure -j "$jobs" -L '^(core|storage|service|cli|bcf|measure|fuzz)$'
+  ctest --test-dir build-sanitize --output-on-failure -j "$jobs" -L '^(core|storage|service|stream|cli|bcf|measure|fuzz)$'
 took "AddressSanitizer + UBSan"
 
 pass "ThreadSanitizer (clang, Debug -O1): service and occlusion tests"
 sanitized_build build-tsan thread
-cmake --build build-tsan -j "$jobs" --target plantview_tests_service plantview_occlusion_tests
+cmake --build build-tsan -j "$jobs" --target plantview_tests_service plantview_tests_stream plantview_occlusion_tests
 # Mesa and OpenImageIO are not instrumented: tests/tsan.supp names what TSan misreads in them.
 # Address randomisation off (setarch -R, inherited by the programs the tests start): the store
 # reserves 1 TiB of address space for its map, which with randomisation on often finds no room in
 # the part of the address space TSan leaves to programs (mmap fails with ENOMEM).
 TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=1 second_deadlock_stack=1" \
-  setarch "$(uname -m)" -R ctest --test-dir build-tsan --output-on-failure -j "$jobs" -L '^service$'
+  setarch "$(uname -m)" -R ctest --test-dir build-tsan --output-on-failure -j "$jobs" -L '^(service|stream)$'
 # The occlusion tests one process each: under TSan a store's address space is not all given
 # back when it closes, and a fourth store in one process finds no room.
 occlusion_tests=build-tsan/tests/plantview_occlusion_tests

@@ -29,7 +29,8 @@ std::string peer_address(uv_tcp_t& tcp) {
 }  // namespace
 
 Connection::Connection(ConnectionHost& host, uint64_t id)
-    : host_(host), id_(id), parser_(host.connection_limits().request) {}
+    : host_(host), id_(id), parser_(host.connection_limits().request),
+      deframer_(host.connection_limits().max_message_bytes) {}
 
 void Connection::on_closed(uv_handle_t* h) {
   auto* self = static_cast<Connection*>(h->data);
@@ -119,6 +120,10 @@ void Connection::start_reading() {
 void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
   const std::unique_ptr<char[]> owned(buf->base);
   if (closing_) return;
+  if (n == UV_EOF && websocket_) {
+    close();  // a WebSocket peer that sends no more is gone (it owes a close frame first)
+    return;
+  }
   if (n == UV_EOF) {
     // A half-close: the client sends no more, but may still read. Answer what it completed;
     // a request cut short by the close is dropped.
@@ -132,6 +137,8 @@ void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
     close();  // a reset: answers still owed are dropped with the connection
     return;
   }
+  if (n > 0) last_read_ms_ = uv_now(tcp_.loop);
+  if (n > 0 && websocket_) return read_ws(std::string_view(buf->base, size_t(n)));
   if (n > 0 && !no_more_) read_bytes(std::string_view(buf->base, size_t(n)));
 }
 
@@ -155,10 +162,61 @@ void Connection::read_bytes(std::string_view bytes) {
     const Request& request = parser_.request();
     auto p = push_pending(endpoint_of(request.path));
     p->keep_alive = request.keep_alive;
+    if (request.upgrade) {
+      // Nothing after an upgrade request is HTTP: keep it for the WebSocket, or drop it with the
+      // connection if the host refuses the upgrade.
+      upgrading_ = true;
+      no_more_ = true;
+      early_bytes_.assign(bytes);
+      p->keep_alive = false;
+    }
     host_.on_request(*this, request, p);
     if (closing_) return;
     if (!p->keep_alive) no_more_ = true;
   }
+}
+
+void Connection::accept_websocket(const std::shared_ptr<Pending>& p, std::string response) {
+  p->upgrade = std::move(response);
+  p->keep_alive = true;
+  answer(p, Reply{101, {}, {}, {}, false});
+}
+
+// WebSocket frames: messages to the host, pings answered, a close answered and the connection
+// closed once the answer is written, a broken rule closed with its code.
+void Connection::read_ws(std::string_view bytes) {
+  if (ws_close_sent_) return;
+  std::vector<ws::Event> events;
+  deframer_.feed(bytes, events);
+  for (ws::Event& e : events) {
+    if (closing_ || ws_close_sent_) return;
+    switch (e.kind) {
+      case ws::Event::Kind::message: host_.on_ws_message(*this, e.text, e.payload); break;
+      case ws::Event::Kind::ping: send_ws(ws::Opcode::pong, e.payload); break;
+      case ws::Event::Kind::pong: break;  // last_read_ms_ says the peer is alive
+      case ws::Event::Kind::close:
+        close_ws(e.code == ws::no_status ? uint16_t(ws::normal) : e.code, {});
+        break;
+      case ws::Event::Kind::error: close_ws(e.code, e.reason); break;
+    }
+  }
+}
+
+void Connection::send_ws(ws::Opcode opcode, std::string_view payload) {
+  if (closing_ || !websocket_ || ws_close_sent_) return;
+  write(ws::frame(opcode, payload));
+  // A peer that floods pings and never reads its pongs: stop reading it (the write deadline
+  // closes it if it never catches up).
+  if (reading_ && unsent_bytes_ > host_.connection_limits().max_unsent_bytes) stop_reading();
+}
+
+void Connection::close_ws(uint16_t code, std::string_view reason) {
+  if (closing_ || ws_close_sent_) return;
+  if (!websocket_) return close();
+  ws_close_sent_ = true;
+  no_more_ = true;
+  stop_reading();
+  write(ws::close_frame(code, reason));
 }
 
 void Connection::fail(const RequestError& error) {
@@ -174,7 +232,7 @@ void Connection::restart_timer(uint32_t ms) {
 }
 
 void Connection::on_timer() {
-  if (closing_) return;
+  if (closing_ || websocket_) return;
   if (!no_more_ && parser_.in_request()) {
     // Too slow to send its request: answer and close.
     no_more_ = true;
@@ -246,6 +304,7 @@ void Connection::on_written(size_t bytes, int status) {
   if (closing_) return;
   if (unsent_bytes_ == 0) uv_timer_stop(&write_timer_);
   // A slow reader has caught up: read its next requests.
+  if (websocket_ && ws_close_sent_ && unsent_bytes_ == 0) return close();  // the close frame is out
   if (!reading_ && !no_more_ && unsent_bytes_ <= host_.connection_limits().max_unsent_bytes / 4 &&
       pending_.size() < kMaxAnswersOwed && !host_.shutting_down())
     start_reading();
@@ -262,6 +321,21 @@ void Connection::flush() {
     const bool keep_alive = p->keep_alive && !(host_.shutting_down() && pending_.empty() && !parser_.in_request());
     if (!keep_alive) no_more_ = true;
     const Reply& r = p->reply;
+    if (!p->upgrade.empty()) {
+      // The 101: from here on the connection speaks WebSocket.
+      write(std::move(p->upgrade));
+      if (closing_) return;
+      websocket_ = true;
+      upgrading_ = false;
+      no_more_ = false;
+      uv_timer_stop(&timer_);
+      last_read_ms_ = uv_now(tcp_.loop);
+      pending_.clear();
+      std::string early = std::move(early_bytes_);
+      if (!early.empty()) read_ws(early);
+      if (!closing_ && !ws_close_sent_ && !reading_) start_reading();
+      return;
+    }
     write(http_response(r.status, r.content_type, r.body, keep_alive, r.headers));
     p->reply = Reply{};
     if (closing_) return;

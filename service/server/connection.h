@@ -26,6 +26,14 @@
 //     for the requests it completed, then the connection closes.
 //   - While the host shuts down (drains), the last answer a connection owes says
 //     "Connection: close", and the connection closes once it has been sent.
+//   - WebSocket (websocket.h): a request that asks to upgrade is the last one read as HTTP. The
+//     host either answers it with accept_websocket() (101; once it is written the connection
+//     carries WebSocket frames, and the bytes after the request are the first of them) or with
+//     an error reply, after which the connection closes. On a WebSocket the request and idle
+//     deadlines no longer apply (the host keeps the stream alive: ping, idle close); the write
+//     deadline and max_unsent_bytes still do. Pings are answered with pongs here; messages go
+//     to the host (on_ws_message); a frame that breaks the RFC's rules is answered with a close
+//     frame with its code, and the connection closes once that is sent.
 // Errors: a failed write or a reset closes the connection; answers still owed are dropped.
 #pragma once
 
@@ -38,6 +46,7 @@
 
 #include "server/request_parser.h"
 #include "server/routes.h"
+#include "server/websocket.h"
 
 namespace plantview::service {
 
@@ -47,6 +56,7 @@ struct Pending {
   bool keep_alive = true;
   Reply reply;           // the answer, once ready (made into bytes when it is written)
   std::string endpoint;  // for the metrics
+  std::string upgrade;   // accept_websocket: the 101 response, written as is
 };
 
 struct ConnectionLimits {
@@ -55,6 +65,7 @@ struct ConnectionLimits {
   uint32_t idle_timeout_ms = 120000;
   uint32_t write_timeout_ms = 30000;
   uint64_t max_unsent_bytes = 32ull << 20;
+  size_t max_message_bytes = 65536;  // a WebSocket message from the client (else 1009)
 };
 
 class Connection;
@@ -73,6 +84,8 @@ class ConnectionHost {
   virtual void on_timed_out() = 0;
   // The connection is closing: forget it (its answers owed will not be sent).
   virtual void on_closing(Connection& connection) = 0;
+  // A complete WebSocket message from the client (text: valid UTF-8).
+  virtual void on_ws_message(Connection& /*connection*/, bool /*text*/, std::string& /*payload*/) {}
 
  protected:
   ~ConnectionHost() = default;
@@ -96,6 +109,18 @@ class Connection {
   // what is ready. reply.close, or a request without keep-alive: the connection closes after it.
   void answer(const std::shared_ptr<Pending>& pending, Reply reply, bool count = true);
   void stop_reading();
+  // Answers an upgrade request with `response` (a complete 101 response); the connection speaks
+  // WebSocket once it has been written.
+  void accept_websocket(const std::shared_ptr<Pending>& pending, std::string response);
+  bool websocket() const { return websocket_; }
+  // Sends one message (a text or binary frame, or a ping). Nothing once a close has been sent.
+  void send_ws(ws::Opcode opcode, std::string_view payload);
+  // Sends a close frame and reads no more; the connection closes once it is written (or at the
+  // write deadline).
+  void close_ws(uint16_t code, std::string_view reason);
+  bool ws_closing() const { return ws_close_sent_; }
+  uint64_t last_read_ms() const { return last_read_ms_; }  // uv_now when bytes last arrived
+  uint64_t unsent_bytes() const { return unsent_bytes_; }
   bool finished() const { return pending_.empty() && unsent_bytes_ == 0; }  // nothing owed
   void close();
 
@@ -109,6 +134,7 @@ class Connection {
   void on_timer();
   void on_write_timer();
   void read_bytes(std::string_view bytes);
+  void read_ws(std::string_view bytes);
   void fail(const RequestError& error);  // answers a request that cannot be parsed, and closes
   void write(std::string data);
   void flush();
@@ -133,6 +159,11 @@ class Connection {
   bool no_more_ = false;   // a request said Connection: close, or an error is being answered
   bool peer_done_ = false;  // the client half-closed: answer what it asked, then close
   bool served_ = false;     // a request has completed on this connection
+  // WebSocket: upgrading_ from the upgrade request until its answer is written; then websocket_.
+  bool upgrading_ = false, websocket_ = false, ws_close_sent_ = false;
+  std::string early_bytes_;  // bytes after the upgrade request, for the deframer
+  ws::Deframer deframer_;
+  uint64_t last_read_ms_ = 0;
 };
 
 }  // namespace plantview::service

@@ -80,6 +80,13 @@ std::string metrics_text(const Metrics& m, const MetricsGauges& g) {
   gauge("plantview_timed_out_connections_total",
         "Connections closed because a request, write or shutdown deadline passed.", "counter",
         m.timed_out_connections);
+  gauge("plantview_streams", "Open frame streams (WebSocket /api/stream).", "gauge", g.streams);
+  gauge("plantview_streams_opened_total", "Frame streams opened.", "counter", m.streams_opened);
+  gauge("plantview_stream_frames_total", "Frames sent on streams.", "counter", m.stream_frames);
+  gauge("plantview_stream_bytes_total", "Bytes of frames sent on streams.", "counter", m.stream_bytes);
+  gauge("plantview_stream_drops_total",
+        "Stream views replaced before they were rendered, and frames whose stream closed first.", "counter",
+        m.stream_drops);
   gauge("plantview_ready", "1 when /readyz answers 200 (store open, renderer warm, not draining).", "gauge",
         g.ready ? 1 : 0);
   return o.str();

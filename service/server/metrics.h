@@ -42,6 +42,9 @@ struct Metrics {
   uint64_t superseded = 0, rejected_busy = 0;
   uint64_t refused_connections = 0;  // at accept: too many in all, per address, or unproven
   uint64_t timed_out_connections = 0;  // request, write or shutdown deadline passed
+  // Streams (/api/stream): opened, frames and bytes sent, views and frames dropped (a newer view
+  // replaced one not yet rendered, or the stream closed before its frame was sent).
+  uint64_t streams_opened = 0, stream_frames = 0, stream_bytes = 0, stream_drops = 0;
 
   void count_answer(const std::string& endpoint, int status) { requests[{endpoint, status}] += 1; }
   // A rendered frame, statistics or pick: its time (render and encode) and the arena after it.
@@ -53,6 +56,7 @@ struct MetricsGauges {
   uint64_t arena_budget_bytes = 0;
   uint64_t queue_depth = 0;
   uint64_t connections = 0;
+  uint64_t streams = 0;  // open streams (also counted in connections)
   bool ready = false;  // /readyz would answer 200
 };
 

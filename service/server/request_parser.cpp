@@ -32,6 +32,11 @@ struct RequestParser::State {
   // Keeps what the server uses of a header (the rest is counted, not kept).
   void end_header() {
     if (strcasecmp(field.c_str(), "authorization") == 0) request.authorization = value;
+    else if (strcasecmp(field.c_str(), "upgrade") == 0) request.upgrade_to = value;
+    else if (strcasecmp(field.c_str(), "sec-websocket-key") == 0) request.websocket_key = value;
+    else if (strcasecmp(field.c_str(), "sec-websocket-version") == 0) request.websocket_version = value;
+    else if (strcasecmp(field.c_str(), "sec-websocket-protocol") == 0)
+      request.websocket_protocols += (request.websocket_protocols.empty() ? "" : ",") + value;
     field.clear();
     value.clear();
   }
@@ -41,6 +46,7 @@ struct RequestParser::State {
     request.path = url.substr(0, q);
     request.method = http_method_str(static_cast<http_method>(p->method));
     request.keep_alive = http_should_keep_alive(p) != 0;
+    request.upgrade = p->upgrade != 0;
     if (q != std::string::npos && !parse_query(std::string_view(url).substr(q + 1), request.query, request.query_error))
       request.query.clear();
   }

@@ -38,6 +38,13 @@ struct Request {
   std::string query_error;    // non-empty: the query string is malformed (parse_query's reason)
   std::string authorization;  // the last Authorization header's value, "" if none
   bool keep_alive = true;     // HTTP/1.1 without "Connection: close", or 1.0 with keep-alive
+  // An upgrade (Connection: upgrade and an Upgrade header, as http-parser sees them): nothing
+  // after it is HTTP, so the parser takes no more bytes (feed() is not to be called again).
+  bool upgrade = false;
+  std::string upgrade_to;           // the Upgrade header's value
+  std::string websocket_key;        // Sec-WebSocket-Key
+  std::string websocket_version;    // Sec-WebSocket-Version
+  std::string websocket_protocols;  // every Sec-WebSocket-Protocol value, joined by ","
 };
 
 // Why the bytes are not (or cannot be) a request: a 4xx status and a message for the client.

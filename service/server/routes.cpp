@@ -2,6 +2,7 @@
 #include "server/routes.h"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <initializer_list>
@@ -11,6 +12,8 @@
 #include <vector>
 
 #include <sys/random.h>
+
+#include "server/websocket.h"
 
 namespace plantview::service {
 
@@ -372,6 +375,57 @@ bool token_matches(std::string_view authorization, const std::string& token) {
   return diff == 0;
 }
 
+bool contains_word(std::string_view list, std::string_view word) {
+  size_t at = 0;
+  while (at <= list.size()) {
+    size_t end = std::min(list.find(',', at), list.size());
+    std::string_view item = list.substr(at, end - at);
+    while (!item.empty() && (item.front() == ' ' || item.front() == '\t')) item.remove_prefix(1);
+    while (!item.empty() && (item.back() == ' ' || item.back() == '\t')) item.remove_suffix(1);
+    if (item.size() == word.size() &&
+        std::equal(item.begin(), item.end(), word.begin(), [](char a, char b) { return std::tolower(a) == std::tolower(b); }))
+      return true;
+    at = end + 1;
+  }
+  return false;
+}
+
+// /api/stream: the WebSocket handshake (routes.h).
+std::variant<Reply, StreamUpgrade> route_stream(const Request& request, const RouteConfig& config) {
+  if (request.method != "GET") return error_reply(405, "only GET is served", {{"Allow", "GET"}});
+  if (!request.upgrade || !contains_word(request.upgrade_to, "websocket"))
+    return error_reply(426, "/api/stream is a WebSocket: upgrade to it", {{"Upgrade", "websocket"}}, true);
+  if (request.websocket_version != "13")
+    return error_reply(426, "Sec-WebSocket-Version must be 13", {{"Sec-WebSocket-Version", "13"}}, true);
+  if (!ws::valid_client_key(request.websocket_key))
+    return error_reply(400, "Sec-WebSocket-Key must be base64 of 16 bytes", {}, true);
+  if (!request.query.empty() || !request.query_error.empty())
+    return error_reply(400, "/api/stream takes no parameters (the token goes in a subprotocol or the hello message)", {}, true);
+  StreamUpgrade upgrade;
+  upgrade.authenticated = config.token.empty() || token_matches(request.authorization, config.token);
+  std::string_view protocols = request.websocket_protocols;
+  bool v1 = false;
+  while (!protocols.empty()) {
+    const size_t comma = std::min(protocols.find(','), protocols.size());
+    std::string_view item = protocols.substr(0, comma);
+    protocols.remove_prefix(std::min(comma + 1, protocols.size()));
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    if (item == "plantview.v1") v1 = true;
+    constexpr std::string_view kToken = "plantview.token.";
+    if (item.substr(0, kToken.size()) == kToken && !config.token.empty()) {
+      if (!token_matches("Bearer " + std::string(item.substr(kToken.size())), config.token))
+        return error_reply(401, "the token in the plantview.token subprotocol is wrong", {}, true);
+      upgrade.authenticated = true;
+    }
+  }
+  upgrade.response = "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                     "Sec-WebSocket-Accept: " + ws::accept_key(request.websocket_key) + "\r\n";
+  if (v1) upgrade.response += "Sec-WebSocket-Protocol: plantview.v1\r\n";
+  upgrade.response += "\r\n";
+  return upgrade;
+}
+
 Reply ok(std::string content_type, std::string body) {
   Reply r;
   r.content_type = std::move(content_type);
@@ -388,7 +442,7 @@ std::string endpoint_of(std::string_view path) {
       {"/", "page"},           {"/index.html", "page"},    {"/viewer.js", "viewer.js"},
       {"/viewer.css", "viewer.css"}, {"/api/model", "model"}, {"/api/frame", "frame"},
       {"/api/stats", "stats"}, {"/api/pick", "pick"},      {"/metrics", "metrics"},
-      {"/api/measure", "measure"}};
+      {"/api/measure", "measure"}, {"/api/stream", "stream"}};
   if (path.rfind("/api/objects/", 0) == 0) return "objects";
   for (const auto& [known, name] : kEndpoints)
     if (path == known) return std::string(name);
@@ -446,6 +500,8 @@ Routed route(const Request& request, const RouteConfig& config, bool shutting_do
   const bool page = page_file != config.files.end() && request.method == "GET";
   if (shutting_down) {
     decision = error_reply(503, "the server is shutting down", {}, true);
+  } else if (path == "/api/stream") {
+    std::visit([&](auto&& d) { decision = std::move(d); }, route_stream(request, config));
   } else if (!page && !config.token.empty() && !token_matches(request.authorization, config.token)) {
     decision = error_reply(401, "a valid 'Authorization: Bearer' token is required", {{"WWW-Authenticate", "Bearer"}});
   } else if (request.method != "GET") {

@@ -29,6 +29,14 @@
 //   - /api/objects/{tag-or-id}: the rest of the path, percent-decoded; all digits: an id (or a
 //     name, if no object has that id); anything else a name (tag), as stored, else with the
 //     leading '/' plant names carry ("P-101A" finds "/P-101A").
+//   - /api/stream: a WebSocket upgrade (docs/stream.md), checked after the shutdown and before
+//     the bearer token: GET (405), an upgrade to "websocket" (426 with Upgrade: websocket),
+//     Sec-WebSocket-Version 13 (426 with Sec-WebSocket-Version: 13), a valid Sec-WebSocket-Key
+//     (400), no query string (400: the token never goes in the URL). The token: a subprotocol
+//     plantview.token.<token> (a wrong one: 401) or a matching Authorization header; without
+//     either the upgrade is accepted unauthenticated and the stream's first message must carry
+//     the token (stream.h). The answer names the subprotocol plantview.v1 when the client
+//     offered it, never the token's.
 //   - /api/measure?a=&b=: exactly those two, each non-empty and at most 1024 bytes (400 naming
 //     the parameter otherwise); each names an object as /api/objects does (measure.h).
 // Threads: any; route() reads its inputs and nothing else.
@@ -93,10 +101,15 @@ struct MeasureLookup {
   std::string a, b;  // never empty
 };
 struct MetricsPage {};
+// /api/stream: an upgrade to accept.
+struct StreamUpgrade {
+  std::string response;        // the complete 101 response
+  bool authenticated = false;  // the token came with the upgrade, or none is required
+};
 
 struct Routed {
   std::string endpoint;  // for the metrics: "frame", "objects", "page", "other", ...
-  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage, MeasureLookup> decision;
+  std::variant<Reply, RenderJob, ObjectLookup, MetricsPage, MeasureLookup, StreamUpgrade> decision;
 };
 
 // `connection_id`: the connection the request came on (its latest-wins slot, unless `client`

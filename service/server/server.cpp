@@ -18,7 +18,15 @@
 //     kMaxServedAddresses of them (the oldest are forgotten first).
 //   - Readiness: the store is open before the loop runs; a warm-up frame is queued first, and
 //     /readyz says 200 once it has been drawn, until the shutdown begins.
-//   - Shutdown: stop accepting and reading; answer what was read; close connections as they
+//   - Streams (/api/stream, docs/stream.md): a Stream per upgraded connection, on the loop
+//     thread. Its views become render jobs of the stream's own latest-wins slot
+//     ("stream:<connection>"), so they take part in the round-robin and the degradation like
+//     HTTP frames; at most one job of a stream renders or encodes at a time, and at most
+//     kStreamWindow frames are sent and not acknowledged; a newer view replaces one not yet
+//     submitted. Its frames are encoded on libuv's pool with the stream's encoder (one frame at a
+//     time). One timer (kStreamTickMs) serves every stream: the still at rest, pings, the idle
+//     close and the close of a stream whose frames go unacknowledged past the write timeout.
+//   - Shutdown: stop accepting and reading; streams get a close frame (1001); answer what was read; close connections as they
 //     finish, or all of them at the shutdown deadline; once no connection, pool work or render
 //     job is left, stop the render thread and close the handles, so that uv_run returns and the
 //     store closes.
@@ -28,6 +36,9 @@
 #include <uv.h>
 
 #include <algorithm>
+#include <chrono>
+#include <deque>
+#include <optional>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
@@ -48,6 +59,7 @@
 #include "server/objects_json.h"
 #include "server/render_worker.h"
 #include "server/routes.h"
+#include "server/stream.h"
 
 namespace plantview::service {
 
@@ -55,10 +67,44 @@ namespace {
 
 constexpr size_t kMaxServedAddresses = 16384;
 
+// Streams (docs/stream.md).
+constexpr size_t kStreamWindow = 2;          // frames sent and not acknowledged, at most
+constexpr uint64_t kStreamTickMs = 50;
+constexpr uint64_t kStreamRestMs = 300;      // no view for this long after a moving frame: a still
+constexpr uint64_t kStreamPingMs = 15000;
+constexpr uint64_t kStreamIdleMs = 45000;    // nothing from the client (not even a pong): closed
+constexpr uint16_t kUnsupportedData = 1003;  // a binary message from the client
+
 struct Ticket {
   Connection* connection = nullptr;  // null once the connection has closed
   std::shared_ptr<Pending> pending;
   RenderJob::Kind kind = RenderJob::Kind::frame;  // render tickets: for the metrics
+  bool stream = false;                            // a stream's frame (no pending)
+};
+
+struct Stream {
+  Connection* connection = nullptr;  // null once it has closed
+  bool authenticated = false, said_ready = false, seen_message = false;
+  StreamCodec codec = StreamCodec::jpeg;
+  BitrateControl bitrate;
+  std::unique_ptr<VideoEncoder> encoder;  // used by one pool thread at a time (while busy)
+  bool want_key = true;
+  // The latest view not yet submitted (a newer one replaces it), and whether it is the still.
+  std::optional<RenderJob> next;
+  uint64_t next_seq = 0;
+  bool next_still = false;
+  bool busy = false;  // a job of this stream renders or encodes
+  uint64_t pending_seq = 0;  // the view seq of that job
+  std::optional<RenderJob> last_view;  // the newest view accepted: what the still shows
+  uint64_t last_view_seq = 0;
+  uint64_t last_view_ms = 0;
+  bool still_due = false;  // a moving frame of last_view went out, and no still since
+  struct Sent {
+    uint64_t frame = 0, sent_ms = 0;
+  };
+  std::deque<Sent> unacked;
+  uint64_t next_frame = 1;
+  uint64_t last_ping_ms = 0;
 };
 
 class Server final : public ConnectionHost {
@@ -78,6 +124,9 @@ class Server final : public ConnectionHost {
   std::unordered_map<std::string, uint32_t> admitted_by_address;
   std::unordered_map<std::string, uint64_t> served_addresses;  // address -> when last served (uv_now, ms)
   std::unordered_map<uint64_t, Ticket> tickets;
+  std::unordered_map<Connection*, std::shared_ptr<Stream>> streams;
+  uv_timer_t stream_timer{};
+  bool stream_timer_running = false;
   uint64_t next_ticket = 1, next_connection = 1;
   uint64_t warm_up_ticket = 0;  // the first frame's: readiness waits for it
   int works_in_flight = 0;
@@ -99,7 +148,18 @@ class Server final : public ConnectionHost {
     }
     for (auto& [number, t] : tickets)
       if (t.connection == &c) t.connection = nullptr;
+    if (const auto it = streams.find(&c); it != streams.end()) {
+      it->second->connection = nullptr;
+      streams.erase(it);
+    }
   }
+  void on_ws_message(Connection& c, bool text, std::string& payload) override;
+  void open_stream(Connection& c, const std::shared_ptr<Pending>& p, StreamUpgrade upgrade);
+  void stream_send_text(Stream& s, const std::string& text) { s.connection->send_ws(ws::Opcode::text, text); }
+  void stream_ready(Stream& s);
+  void stream_pump(Stream& s);
+  void stream_rendered(Ticket& t, RenderResult&& r);
+  void stream_tick();
   // Why a new connection from `address` is refused, or "" to admit it.
   std::string admission(const std::string& address) const;
   void remember_served(const std::string& address);
@@ -203,12 +263,15 @@ void Server::on_request(Connection& c, const Request& request, const std::shared
   } else if (std::holds_alternative<MetricsPage>(routed.decision)) {
     metrics.count_answer(p->endpoint, 200);  // counted before it is written, so that it shows
     MetricsGauges gauges{worker.vertex_budget_bytes(), worker.queue_depth(), connections.size()};
+    gauges.streams = streams.size();
     gauges.ready = ready && !stopping;
     c.answer(p, text_reply("text/plain; version=0.0.4", metrics_text(metrics, gauges)), false);
   } else if (auto* lookup = std::get_if<ObjectLookup>(&routed.decision)) {
     look_up_object(c, p, std::move(*lookup));
   } else if (auto* pair = std::get_if<MeasureLookup>(&routed.decision)) {
     measure(c, p, std::move(*pair));
+  } else if (auto* upgrade = std::get_if<StreamUpgrade>(&routed.decision)) {
+    open_stream(c, p, std::move(*upgrade));
   } else {
     submit_render(c, p, std::move(std::get<RenderJob>(routed.decision)));
   }
@@ -326,6 +389,11 @@ void Server::on_render_done(RenderResult&& r) {
     return;
   }
   const auto ticket = tickets.find(r.ticket);
+  if (ticket != tickets.end() && ticket->second.stream) {
+    Ticket t = ticket->second;
+    tickets.erase(ticket);
+    return stream_rendered(t, std::move(r));
+  }
   if (ticket == tickets.end() || !ticket->second.connection) return deliver(r);  // nobody to encode for
   if (!r.needs_encoding) return deliver(r);
   // Encode on libuv's pool: the render thread goes on with the next frame meanwhile.
@@ -343,6 +411,279 @@ void Server::on_render_done(RenderResult&& r) {
       });
 }
 
+// --- streams ------------------------------------------------------------------------------------
+
+void Server::open_stream(Connection& c, const std::shared_ptr<Pending>& p, StreamUpgrade upgrade) {
+  auto stream = std::make_shared<Stream>();
+  stream->connection = &c;
+  stream->authenticated = upgrade.authenticated;
+  stream->last_ping_ms = uv_now(loop);
+  streams[&c] = stream;
+  metrics.streams_opened += 1;
+  c.accept_websocket(p, std::move(upgrade.response));
+  if (!stream_timer_running) {
+    stream_timer_running = true;
+    uv_timer_start(
+        &stream_timer, [](uv_timer_t* t) { static_cast<Server*>(t->data)->stream_tick(); }, kStreamTickMs,
+        kStreamTickMs);
+  }
+}
+
+void Server::stream_ready(Stream& s) {
+  if (s.said_ready) return;
+  s.said_ready = true;
+  const nlohmann::json message = {{"type", "ready"}, {"codec", codec_name(s.codec)}, {"protocol", 1}};
+  stream_send_text(s, message.dump());
+}
+
+void Server::on_ws_message(Connection& c, bool text, std::string& payload) {
+  const auto found = streams.find(&c);
+  if (found == streams.end()) return;
+  const std::shared_ptr<Stream> keep = found->second;
+  Stream& s = *keep;
+  const bool first = !s.seen_message;
+  s.seen_message = true;
+  if (!text) return c.close_ws(kUnsupportedData, "the stream takes text (JSON) messages only");
+  ClientMessage m;
+  std::string error;
+  if (!parse_client_message(payload, m, error)) {
+    if (!s.authenticated) return c.close_ws(ws::policy, "a token is required: send hello with it first");
+    return stream_send_text(s, error_message(error, m.has_seq ? &m.seq : nullptr));
+  }
+  if (m.type == ClientMessage::Type::hello) {
+    if (!first) return stream_send_text(s, error_message("hello must be the first message"));
+    if (!routes.token.empty() && !s.authenticated) {
+      const std::string& expected = routes.token;
+      unsigned diff = unsigned(m.token.size() ^ expected.size());
+      for (size_t i = 0; i < expected.size(); ++i)
+        diff |= unsigned(uint8_t(expected[i]) ^ uint8_t(i < m.token.size() ? m.token[i] : 0));
+      if (!m.has_token || diff != 0) return c.close_ws(ws::policy, "the token is missing or wrong");
+      s.authenticated = true;
+    }
+    StreamCodec codec = StreamCodec::jpeg;
+    if (!m.codec.empty() && codec_from_name(m.codec, codec) && codec_available(codec)) s.codec = codec;
+    s.bitrate = BitrateControl(m.max_kbps);
+    return stream_ready(s);
+  }
+  if (!s.authenticated) return c.close_ws(ws::policy, "a token is required: send hello with it first");
+  const uint64_t now = uv_now(loop);
+  switch (m.type) {
+    case ClientMessage::Type::view: {
+      Request request;
+      request.method = "GET";
+      request.path = "/api/frame";
+      request.query = std::move(m.params);
+      if (!routes.token.empty()) request.authorization = "Bearer " + routes.token;
+      Routed routed = route(request, routes, false, c.id());
+      if (auto* refused = std::get_if<Reply>(&routed.decision)) {
+        const auto body = nlohmann::json::parse(refused->body, nullptr, false);
+        const std::string message = body.is_object() && body.contains("error") && body["error"].is_string()
+                                        ? body["error"].get<std::string>()
+                                        : "the view was refused";
+        return stream_send_text(s, error_message(message, &m.seq));
+      }
+      RenderJob job = std::move(std::get<RenderJob>(routed.decision));
+      job.client = "stream:" + std::to_string(c.id());
+      stream_ready(s);
+      if (s.next) metrics.stream_drops += 1;  // replaced before it was rendered
+      s.last_view = job;
+      s.last_view_seq = m.seq;
+      s.last_view_ms = now;
+      s.still_due = false;
+      s.next = std::move(job);
+      s.next_seq = m.seq;
+      s.next_still = false;
+      return stream_pump(s);
+    }
+    case ClientMessage::Type::ack: {
+      while (!s.unacked.empty() && s.unacked.front().frame <= m.frame) {
+        s.bitrate.on_ack(double(now - s.unacked.front().sent_ms), now);
+        s.unacked.pop_front();
+      }
+      return stream_pump(s);
+    }
+    case ClientMessage::Type::key: s.want_key = true; return;
+    case ClientMessage::Type::hello: return;
+  }
+}
+
+// Submits the stream's next view when nothing of it renders and the window has room.
+void Server::stream_pump(Stream& s) {
+  if (!s.connection || s.busy || !s.next || s.unacked.size() >= kStreamWindow || stopping) return;
+  RenderJob job = std::move(*s.next);
+  job.ticket = next_ticket;
+  uint64_t dropped = 0;
+  RenderJob copy = job;  // kept to retry if the queue is full
+  if (worker.submit(std::move(job), dropped) == RenderWorker::Submitted::busy) {
+    s.next = std::move(copy);  // retried at the next tick
+    return;
+  }
+  s.busy = true;
+  Ticket& t = tickets[next_ticket++];
+  t.connection = s.connection;
+  t.stream = true;
+  t.kind = RenderJob::Kind::frame;
+  s.pending_seq = s.next_seq;
+  s.next.reset();
+}
+
+struct StreamEncodeWork {
+  uv_work_t req{};
+  Server* server = nullptr;
+  std::shared_ptr<Stream> stream;
+  RenderResult result;
+  StreamCodec codec = StreamCodec::jpeg;
+  bool still = false, key = false;
+  uint32_t kbps = 0;
+  uint64_t seq = 0;
+  std::string payload, encoding, error;
+  uint32_t width = 0, height = 0;
+  double encode_ms = 0;
+};
+
+void Server::stream_rendered(Ticket& t, RenderResult&& r) {
+  if (r.rendered) metrics.count_rendered(t.kind, r.stats);
+  const auto found = t.connection ? streams.find(t.connection) : streams.end();
+  if (found == streams.end()) {
+    metrics.stream_drops += 1;
+    return;
+  }
+  const std::shared_ptr<Stream>& stream = found->second;
+  auto* work = new StreamEncodeWork;
+  work->server = this;
+  work->stream = stream;
+  work->result = std::move(r);
+  work->codec = stream->codec;
+  work->still = work->result.headers.end() !=
+                std::find(work->result.headers.begin(), work->result.headers.end(),
+                          std::pair<std::string, std::string>("X-Plantview-Mode", "still"));
+  work->key = stream->want_key;
+  work->kbps = stream->bitrate.target_kbps();
+  work->seq = stream->pending_seq;
+  work->req.data = work;
+  ++works_in_flight;
+  uv_queue_work(
+      loop, &work->req,
+      [](uv_work_t* req) {
+        // On the pool: the stream's encoder is used by this thread alone (the stream is busy).
+        auto& w = *static_cast<StreamEncodeWork*>(req->data);
+        RenderResult& result = w.result;
+        if (!result.needs_encoding) return;
+        w.width = result.image.width;
+        w.height = result.image.height;
+        const auto start = std::chrono::steady_clock::now();
+        if (w.codec == StreamCodec::jpeg || w.still) {
+          encode_frame(result);
+          w.encoding = result.format == ImageFormat::png ? "png" : "jpeg";
+          w.payload = std::move(result.body);
+        } else {
+          if (!w.stream->encoder) w.stream->encoder = VideoEncoder::create(w.codec, w.error);
+          if (w.stream->encoder &&
+              w.stream->encoder->encode(result.image, w.kbps, w.key, w.payload, w.error)) {
+            w.encoding = codec_name(w.codec);
+            w.width = w.stream->encoder->width();
+            w.height = w.stream->encoder->height();
+          }
+          result.image = Image{};
+          result.needs_encoding = false;
+        }
+        w.encode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      },
+      [](uv_work_t* req, int) {
+        const std::unique_ptr<StreamEncodeWork> w(static_cast<StreamEncodeWork*>(req->data));
+        Server& server = *w->server;
+        --server.works_in_flight;
+        Stream& s = *w->stream;
+        s.busy = false;
+        if (!s.connection) {
+          server.metrics.stream_drops += 1;
+          return;
+        }
+        RenderResult& result = w->result;
+        if (result.status != 200 || !w->error.empty()) {
+          std::string message = w->error;
+          if (message.empty()) {
+            const auto body = nlohmann::json::parse(result.body, nullptr, false);
+            message = body.is_object() && body.contains("error") && body["error"].is_string()
+                          ? body["error"].get<std::string>()
+                          : "the frame failed (" + std::to_string(result.status) + ")";
+          }
+          server.stream_send_text(s, error_message(message, &w->seq));
+          if (!w->still) s.still_due = false;
+          return server.stream_pump(s);
+        }
+        if (w->encoding != "jpeg" && w->encoding != "png" && w->key) s.want_key = false;
+        nlohmann::json stats = nlohmann::json::object();
+        for (const auto& [name, value] : result.headers)
+          if (name.rfind("X-", 0) == 0 && name != "X-Plantview-Client") stats[name] = value;
+        const uint64_t frame = s.next_frame++;
+        nlohmann::json header = {{"frame", frame},
+                                 {"seq", w->seq},
+                                 {"encoding", w->encoding},
+                                 {"key", w->encoding == "jpeg" || w->encoding == "png" || w->key},
+                                 {"width", w->width},
+                                 {"height", w->height},
+                                 {"still", w->still},
+                                 {"render_ms", result.stats.ms.total},
+                                 {"encode_ms", w->encode_ms},
+                                 {"stats", stats},
+                                 {"kbps", w->kbps}};
+        const std::string message =
+            pack_frame(header.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), w->payload);
+        server.metrics.stream_frames += 1;
+        server.metrics.stream_bytes += message.size();
+        s.connection->send_ws(ws::Opcode::binary, message);
+        s.unacked.push_back({frame, uv_now(server.loop)});
+        // A moving frame of the newest view: its still follows once the camera rests.
+        if (!w->still && w->seq == s.last_view_seq) s.still_due = true;
+        if (w->still) s.still_due = false;
+        server.stream_pump(s);
+      });
+}
+
+// Every kStreamTickMs: stills at rest, retries of a full queue, pings, idle and unacknowledged
+// closes.
+void Server::stream_tick() {
+  const uint64_t now = uv_now(loop);
+  std::vector<std::shared_ptr<Stream>> all;
+  for (const auto& [c, stream] : streams) all.push_back(stream);
+  if (all.empty()) {
+    uv_timer_stop(&stream_timer);
+    stream_timer_running = false;
+    return;
+  }
+  for (const auto& stream : all) {
+    Stream& s = *stream;
+    if (!s.connection || s.connection->ws_closing()) continue;
+    Connection& c = *s.connection;
+    if (now - c.last_read_ms() >= kStreamIdleMs) {
+      metrics.timed_out_connections += 1;
+      c.close_ws(ws::going_away, "no message or pong for 45 s");
+      continue;
+    }
+    if (!s.unacked.empty() && now - s.unacked.front().sent_ms >= limits.write_timeout_ms) {
+      metrics.timed_out_connections += 1;
+      metrics.stream_drops += 1;
+      c.close_ws(ws::policy, "frames not acknowledged within the write timeout");
+      continue;
+    }
+    if (now - s.last_ping_ms >= kStreamPingMs) {
+      s.last_ping_ms = now;
+      c.send_ws(ws::Opcode::ping, {});
+    }
+    if (s.still_due && !s.next && !s.busy && s.last_view && now - s.last_view_ms >= kStreamRestMs) {
+      RenderJob still = *s.last_view;
+      still.mode = FrameMode::still;
+      still.format = ImageFormat::png;
+      s.next = std::move(still);
+      s.next_seq = s.last_view_seq;
+      s.next_still = true;
+      s.still_due = false;
+    }
+    stream_pump(s);
+  }
+}
+
 // --- shutdown -----------------------------------------------------------------------------------
 
 void Server::begin_shutdown() {
@@ -352,6 +693,9 @@ void Server::begin_shutdown() {
   std::fprintf(stderr, "plantview serve: shutting down (finishing %zu requests)\n", tickets.size());
   uv_close(reinterpret_cast<uv_handle_t*>(&listener), nullptr);
   for (Connection* c : connections) c->stop_reading();
+  std::vector<Connection*> open_streams;
+  for (const auto& [c, stream] : streams) open_streams.push_back(c);
+  for (Connection* c : open_streams) c->close_ws(ws::going_away, "the server is shutting down");
   // Every 50 ms until the work in flight is done.
   uv_timer_start(
       &shutdown_timer,
@@ -375,6 +719,7 @@ bool Server::finish_shutdown() {
   worker.stop();
   uv_close(reinterpret_cast<uv_handle_t*>(&results_ready), nullptr);
   uv_close(reinterpret_cast<uv_handle_t*>(&shutdown_timer), nullptr);
+  uv_close(reinterpret_cast<uv_handle_t*>(&stream_timer), nullptr);
   // Everything is finished; only the store's clean close remains. A repeated signal (a second
   // Ctrl-C, a supervisor's retry) must not cut that short.
   std::signal(SIGINT, SIG_IGN);
@@ -535,6 +880,8 @@ int run_server(const ServerOptions& options, std::string& error) {
   uv_signal_start(&s.sigterm, on_signal, SIGTERM);
   uv_timer_init(&loop, &s.shutdown_timer);
   s.shutdown_timer.data = &s;
+  uv_timer_init(&loop, &s.stream_timer);
+  s.stream_timer.data = &s;
   std::signal(SIGPIPE, SIG_IGN);
 
   uv_run(&loop, UV_RUN_DEFAULT);
