@@ -119,6 +119,7 @@ struct Figures {
   // Interactive frames in which degradation lifted (a lighter rung than the client's frame
   // before): the client's latency and the renderer's time (X-Frame-Ms).
   std::vector<double> lift_ms, lift_render_ms;
+  std::vector<double> render_ms;  // every interactive frame's X-Frame-Ms
   std::vector<int> frames;  // per client
   int errors = 0;
   double seconds = 0;
@@ -218,7 +219,7 @@ int main(int argc, char** argv) {
       threads.emplace_back([&, c] {
         test_support::HttpClient connection(port, 0);  // no receive timeout: frames may be slow
         size_t step = size_t(c) * path.size() / size_t(run.clients);
-        std::vector<double> interactive, still, lift, lift_render;
+        std::vector<double> interactive, still, lift, lift_render, rendered;
         // The rung of the client's frame before: pixel error x (w / rendered width).
         double last_rung = 0;
         const Clock::duration leave_after = std::chrono::duration_cast<Clock::duration>(
@@ -262,6 +263,7 @@ int main(int argc, char** argv) {
             const double pixel_error = std::atof(header("x-plantview-pixel-error").c_str());
             const double rendered_w = std::atof(header("x-plantview-render-size").c_str());
             const double rung = pixel_error * (rendered_w > 0 ? double(w) / rendered_w : 1.0);
+            rendered.push_back(std::atof(header("x-frame-ms").c_str()));
             if (last_rung > 0 && rung < last_rung) {
               lift.push_back(ms);
               lift_render.push_back(std::atof(header("x-frame-ms").c_str()));
@@ -275,6 +277,7 @@ int main(int argc, char** argv) {
         f.still_ms.insert(f.still_ms.end(), still.begin(), still.end());
         f.lift_ms.insert(f.lift_ms.end(), lift.begin(), lift.end());
         f.lift_render_ms.insert(f.lift_render_ms.end(), lift_render.begin(), lift_render.end());
+        f.render_ms.insert(f.render_ms.end(), rendered.begin(), rendered.end());
       });
     }
     for (auto& t : threads) t.join();
@@ -298,14 +301,18 @@ int main(int argc, char** argv) {
                         {"width", w}, {"height", h}, {"seconds", seconds}, {"renderers", renderers}};
     if (run.leaving) {
       std::printf("%-16s frames where degradation lifted: %zu, latency p50 %.0f max %.0f ms, rendered p50 %.0f "
-                  "max %.0f ms; interactive max %.0f ms\n", "", f.lift_ms.size(), percentile(f.lift_ms, 0.5),
-                  lift_max, percentile(f.lift_render_ms, 0.5), lift_render_max,
-                  f.interactive_ms.empty() ? 0.0 : *std::max_element(f.interactive_ms.begin(), f.interactive_ms.end()));
+                  "max %.0f ms; interactive max %.0f ms; every frame rendered p50 %.0f p99 %.0f ms\n", "",
+                  f.lift_ms.size(), percentile(f.lift_ms, 0.5), lift_max, percentile(f.lift_render_ms, 0.5),
+                  lift_render_max,
+                  f.interactive_ms.empty() ? 0.0 : *std::max_element(f.interactive_ms.begin(), f.interactive_ms.end()),
+                  percentile(f.render_ms, 0.5), percentile(f.render_ms, 0.99));
       j["lift_frames"] = f.lift_ms.size();
       j["lift_p50_ms"] = percentile(f.lift_ms, 0.5);
       j["lift_max_ms"] = lift_max;
       j["lift_render_p50_ms"] = percentile(f.lift_render_ms, 0.5);
       j["lift_render_max_ms"] = lift_render_max;
+      j["render_p50_ms"] = percentile(f.render_ms, 0.5);
+      j["render_p99_ms"] = percentile(f.render_ms, 0.99);
     }
     std::printf("json: %s\n", j.dump().c_str());
     std::fflush(stdout);
