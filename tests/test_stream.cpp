@@ -13,8 +13,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -33,6 +35,8 @@ extern "C" {
 #include "support/box_row.h"
 #include "support/http_client.h"
 #include "support/serve_process.h"
+#include "server/stream.h"
+#include "server/websocket.h"
 #include "support/temp_dir.h"
 
 namespace plantview {
@@ -128,10 +132,12 @@ class RawClient {
     return true;
   }
   // Sends the upgrade and reads the response head; its status line.
-  std::string upgrade(const std::string& extra_headers = "") {
-    send_all("GET /api/stream HTTP/1.1\r\nHost: test\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+  // `before`: bytes sent ahead of it (pipelined requests); `after`: bytes sent with it (frames).
+  std::string upgrade(const std::string& extra_headers = "", const std::string& before = "",
+                      const std::string& after = "") {
+    send_all(before + "GET /api/stream HTTP/1.1\r\nHost: test\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
-             extra_headers + "\r\n");
+             extra_headers + "\r\n" + after);
     while (buffer_.find("\r\n\r\n") == std::string::npos)
       if (!fill(10000)) break;
     const size_t end = buffer_.find("\r\n\r\n");
@@ -141,6 +147,19 @@ class RawClient {
     return head_.substr(0, head_.find("\r\n"));
   }
   const std::string& head() const { return head_; }
+  // After upgrade() read another answer's head (a pipelined one before it): skips that answer's
+  // body ("alive\n") and reads the next head; its status line.
+  std::string upgrade_rest() {
+    const std::string body = "alive\n";
+    while (buffer_.size() < body.size() || buffer_.find("\r\n\r\n") == std::string::npos)
+      if (!fill(10000)) break;
+    if (buffer_.rfind(body, 0) == 0) buffer_.erase(0, body.size());
+    const size_t end = buffer_.find("\r\n\r\n");
+    if (end == std::string::npos) return {};
+    head_ = buffer_.substr(0, end + 4);
+    buffer_.erase(0, end + 4);
+    return head_.substr(0, head_.find("\r\n"));
+  }
 
   // A client frame: masked unless told otherwise.
   static std::string frame(uint8_t first_byte, std::string_view payload, bool masked = true) {
@@ -236,6 +255,49 @@ class RawClient {
 
 const std::string kView =
     R"({"type":"view","seq":1,"params":{"eye":"-6,-12,8","target":"7.5,0,0","w":160,"h":90,"mode":"interactive"}})";
+
+// --- the pieces ---------------------------------------------------------------------------------
+
+TEST(StreamParts, AcceptKeyAndUtf8) {
+  // RFC 6455 section 1.3's example.
+  EXPECT_EQ(service::ws::accept_key("dGhlIHNhbXBsZSBub25jZQ=="), "s3pPLMBiTxaQ9kYGzzhZRbK+xOo=");
+  EXPECT_TRUE(service::ws::valid_client_key("dGhlIHNhbXBsZSBub25jZQ=="));
+  EXPECT_FALSE(service::ws::valid_client_key("dGhlIHNhbXBsZSBub25jZQ="));
+  EXPECT_TRUE(service::ws::valid_utf8("plain \xC3\xA9 \xF0\x9F\x98\x80"));
+  EXPECT_FALSE(service::ws::valid_utf8("\xC0\xAF"));          // overlong
+  EXPECT_FALSE(service::ws::valid_utf8("\xF4\x90\x80\x80"));  // over U+10FFFF
+  EXPECT_FALSE(service::ws::valid_utf8("\xE2\x82"));          // cut short
+}
+
+TEST(StreamParts, ViewMessages) {
+  service::ClientMessage m;
+  std::string error;
+  ASSERT_TRUE(service::parse_client_message(
+      R"({"type":"view","seq":4,"params":{"eye":[1,2.5,3],"w":640,"clip":[[0,0,1,0,0,1],"1,1,1,0,1,0"]}})", m, error))
+      << error;
+  EXPECT_EQ(m.seq, 4u);
+  const service::Fields expected = {{"clip", "0,0,1,0,0,1"}, {"clip", "1,1,1,0,1,0"}, {"eye", "1,2.5,3"}, {"w", "640"}};
+  EXPECT_EQ(m.params, expected);
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"view","seq":4,"params":{"w":true}})", m, error));
+  EXPECT_NE(error.find("'w'"), std::string::npos) << error;
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"view","params":{}})", m, error));
+  EXPECT_FALSE(service::parse_client_message(R"({"type":"ack","frame":-1})", m, error));
+  EXPECT_FALSE(service::parse_client_message("[]", m, error));
+}
+
+TEST(StreamParts, BitRateFollowsTheAcks) {
+  service::BitrateControl control(12000);
+  EXPECT_EQ(control.target_kbps(), 8000u);
+  uint64_t now = 0;
+  for (int i = 0; i < 20; ++i) control.on_ack(60, now += 1000);  // on time: up 5% a second
+  EXPECT_GT(control.target_kbps(), 11000u);
+  EXPECT_LE(control.target_kbps(), 12000u);
+  const uint32_t before = control.target_kbps();
+  for (int i = 0; i < 10; ++i) control.on_ack(400, now += 500);  // queueing: down 15% each 500 ms
+  EXPECT_LT(control.target_kbps(), before / 4);
+  for (int i = 0; i < 100; ++i) control.on_ack(900, now += 500);
+  EXPECT_EQ(control.target_kbps(), service::BitrateControl::kMinKbps);
+}
 
 // --- the protocol against independent clients ----------------------------------------------------
 
@@ -404,6 +466,20 @@ TEST(Stream, MalformedFramesGetTheirCloseCodes) {
   EXPECT_EQ(http.request("/api/frame?w=32&h=32").status, 200);
 }
 
+// Frames sent with the upgrade request, in the same packet, are the stream's first messages;
+// a request pipelined before the upgrade is answered first.
+TEST(Stream, FramesWithTheUpgradeAndPipelinedRequestsBeforeIt) {
+  Server server;
+  RawClient c(server.port());
+  const std::string status = c.upgrade("", "GET /healthz HTTP/1.1\r\nHost: test\r\n\r\n", RawClient::frame(0x81, kView));
+  ASSERT_EQ(status, "HTTP/1.1 200 OK");
+  // The health answer's body ("alive\n"), then the 101.
+  EXPECT_EQ(c.upgrade_rest(), "HTTP/1.1 101 Switching Protocols");
+  const auto header = c.next_frame_header();
+  ASSERT_TRUE(header.is_object());
+  EXPECT_EQ(header["seq"], 1);
+}
+
 TEST(Stream, BadViewsAreAnsweredAndTheStreamStaysOpen) {
   Server server;
   RawClient c(server.port());
@@ -517,6 +593,35 @@ TEST(Stream, HalfOpenUpgradesDoNotStopTheService) {
   std::printf("half-open upgrades: %d sockets; a stream frame and an HTTP frame served after %.1f s\n", opened,
               seconds);
   for (const int fd : fds) close(fd);
+}
+
+// The server pings; a client that answers stays; one that sends nothing, not even pongs, is
+// closed with 1001 after 3 pings.
+TEST(Stream, KeepalivePingsAndTheSilentClientIsClosed) {
+  Server server({"--stream-ping", "0.5"});
+  RawClient silent(server.port());
+  ASSERT_EQ(silent.upgrade(), "HTTP/1.1 101 Switching Protocols");
+  RawClient alive(server.port());
+  ASSERT_EQ(alive.upgrade(), "HTTP/1.1 101 Switching Protocols");
+  const auto start = std::chrono::steady_clock::now();
+  int pings = 0;
+  while (std::chrono::steady_clock::now() - start < 2500ms) {
+    const auto m = alive.next(3000);
+    ASSERT_NE(m.opcode, -1);
+    ASSERT_NE(m.opcode, 8) << "a client that answers pings is not closed";
+    if (m.opcode == 9) {
+      ++pings;
+      alive.send_all(RawClient::frame(0x8A, m.payload));
+    }
+  }
+  EXPECT_GE(pings, 3);
+  int code = 0;
+  for (int i = 0; i < 20 && code == 0; ++i) {
+    const auto m = silent.next(3000);
+    if (m.opcode < 0) break;
+    if (m.opcode == 8) code = (uint8_t(m.payload[0]) << 8) | uint8_t(m.payload[1]);
+  }
+  EXPECT_EQ(code, 1001);
 }
 
 TEST(Stream, DrainClosesStreamsWithGoingAway) {

@@ -88,6 +88,10 @@ Action add_serve_command(CLI::App& app) {
       ->check(CLI::Range(1u, 1u << 20))->capture_default_str();
   serve->add_option("--reserved-clients", options->reserved_clients,
                     "Of --max-clients, connections kept for addresses already served (default: a quarter)");
+  auto stream_ping_s = std::make_shared<double>(15.0);
+  serve->add_option("--stream-ping", *stream_ping_s,
+                    "Seconds between pings on a frame stream (/api/stream); silent for 3 times that, it is closed")
+      ->check(CLI::Range(0.05, 3600.0))->capture_default_str();
   return [=]() -> int {
     if (!serve->parsed()) return -1;
     const size_t colon = listen->rfind(':');
@@ -121,6 +125,7 @@ Action add_serve_command(CLI::App& app) {
     o.write_timeout_ms = uint32_t(*write_timeout_s * 1000.0);
     o.idle_timeout_ms = uint32_t(*idle_timeout_s * 1000.0);
     o.shutdown_timeout_ms = uint32_t(*shutdown_timeout_s * 1000.0);
+    o.stream_ping_ms = uint32_t(*stream_ping_s * 1000.0);
     if (serve->count("--reserved-clients") == 0) o.reserved_clients = o.max_clients / 4;
     if (o.reserved_clients >= o.max_clients)
       return usage_error("--reserved-clients must be less than --max-clients (" + std::to_string(o.max_clients) + ")");

@@ -139,6 +139,13 @@ void Connection::on_read(ssize_t n, const uv_buf_t* buf) {
   }
   if (n > 0) last_read_ms_ = uv_now(tcp_.loop);
   if (n > 0 && websocket_) return read_ws(std::string_view(buf->base, size_t(n)));
+  if (n > 0 && upgrading_) {
+    // Frames sent before the 101 is written (answers owed before it): kept for the deframer,
+    // within the message limit.
+    if (early_bytes_.size() + size_t(n) > host_.connection_limits().max_message_bytes + 16) return close();
+    early_bytes_.append(buf->base, size_t(n));
+    return;
+  }
   if (n > 0 && !no_more_) read_bytes(std::string_view(buf->base, size_t(n)));
 }
 
@@ -171,7 +178,7 @@ void Connection::read_bytes(std::string_view bytes) {
       p->keep_alive = false;
     }
     host_.on_request(*this, request, p);
-    if (closing_) return;
+    if (closing_ || request.upgrade) return;  // the rest of the bytes, if any, are WebSocket's
     if (!p->keep_alive) no_more_ = true;
   }
 }
@@ -303,8 +310,8 @@ void Connection::on_written(size_t bytes, int status) {
   if (status < 0) return close();
   if (closing_) return;
   if (unsent_bytes_ == 0) uv_timer_stop(&write_timer_);
-  // A slow reader has caught up: read its next requests.
   if (websocket_ && ws_close_sent_ && unsent_bytes_ == 0) return close();  // the close frame is out
+  // A slow reader has caught up: read its next requests.
   if (!reading_ && !no_more_ && unsent_bytes_ <= host_.connection_limits().max_unsent_bytes / 4 &&
       pending_.size() < kMaxAnswersOwed && !host_.shutting_down())
     start_reading();
@@ -331,6 +338,8 @@ void Connection::flush() {
       uv_timer_stop(&timer_);
       last_read_ms_ = uv_now(tcp_.loop);
       pending_.clear();
+      // Upgraded while the server drains (the request was read before): going away at once.
+      if (host_.shutting_down()) return close_ws(ws::going_away, "the server is shutting down");
       std::string early = std::move(early_bytes_);
       if (!early.empty()) read_ws(early);
       if (!closing_ && !ws_close_sent_ && !reading_) start_reading();

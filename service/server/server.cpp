@@ -24,8 +24,8 @@
 //     HTTP frames; at most one job of a stream renders or encodes at a time, and at most
 //     kStreamWindow frames are sent and not acknowledged; a newer view replaces one not yet
 //     submitted. Its frames are encoded on libuv's pool with the stream's encoder (one frame at a
-//     time). One timer (kStreamTickMs) serves every stream: the still at rest, pings, the idle
-//     close and the close of a stream whose frames go unacknowledged past the write timeout.
+//     time). One timer (kStreamTickMs) serves every stream: the still at rest, pings (stream_ping_ms),
+//     the idle close (3 pings unanswered) and the close of a stream whose frames go unacknowledged past the write timeout.
 //   - Shutdown: stop accepting and reading; streams get a close frame (1001); answer what was read; close connections as they
 //     finish, or all of them at the shutdown deadline; once no connection, pool work or render
 //     job is left, stop the render thread and close the handles, so that uv_run returns and the
@@ -71,8 +71,6 @@ constexpr size_t kMaxServedAddresses = 16384;
 constexpr size_t kStreamWindow = 2;          // frames sent and not acknowledged, at most
 constexpr uint64_t kStreamTickMs = 50;
 constexpr uint64_t kStreamRestMs = 300;      // no view for this long after a moving frame: a still
-constexpr uint64_t kStreamPingMs = 15000;
-constexpr uint64_t kStreamIdleMs = 45000;    // nothing from the client (not even a pong): closed
 constexpr uint16_t kUnsupportedData = 1003;  // a binary message from the client
 
 struct Ticket {
@@ -89,16 +87,17 @@ struct Stream {
   BitrateControl bitrate;
   std::unique_ptr<VideoEncoder> encoder;  // used by one pool thread at a time (while busy)
   bool want_key = true;
-  // The latest view not yet submitted (a newer one replaces it), and whether it is the still.
+  // The latest view not yet submitted (a newer one replaces it; the still is a view with
+  // mode=still) and its seq.
   std::optional<RenderJob> next;
   uint64_t next_seq = 0;
-  bool next_still = false;
   bool busy = false;  // a job of this stream renders or encodes
   uint64_t pending_seq = 0;  // the view seq of that job
   std::optional<RenderJob> last_view;  // the newest view accepted: what the still shows
   uint64_t last_view_seq = 0;
   uint64_t last_view_ms = 0;
   bool still_due = false;  // a moving frame of last_view went out, and no still since
+  uint64_t moving_sent_ms = 0;  // when that frame went out: the rest counts from it too
   struct Sent {
     uint64_t frame = 0, sent_ms = 0;
   };
@@ -473,6 +472,9 @@ void Server::on_ws_message(Connection& c, bool text, std::string& payload) {
       request.method = "GET";
       request.path = "/api/frame";
       request.query = std::move(m.params);
+      // A view is a moving camera unless it says otherwise: interactive (degradable) frames.
+      if (std::none_of(request.query.begin(), request.query.end(), [](const auto& f) { return f.first == "mode"; }))
+        request.query.emplace_back("mode", "interactive");
       if (!routes.token.empty()) request.authorization = "Bearer " + routes.token;
       Routed routed = route(request, routes, false, c.id());
       if (auto* refused = std::get_if<Reply>(&routed.decision)) {
@@ -492,7 +494,6 @@ void Server::on_ws_message(Connection& c, bool text, std::string& payload) {
       s.still_due = false;
       s.next = std::move(job);
       s.next_seq = m.seq;
-      s.next_still = false;
       return stream_pump(s);
     }
     case ClientMessage::Type::ack: {
@@ -635,7 +636,10 @@ void Server::stream_rendered(Ticket& t, RenderResult&& r) {
         s.connection->send_ws(ws::Opcode::binary, message);
         s.unacked.push_back({frame, uv_now(server.loop)});
         // A moving frame of the newest view: its still follows once the camera rests.
-        if (!w->still && w->seq == s.last_view_seq) s.still_due = true;
+        if (!w->still && w->seq == s.last_view_seq) {
+          s.still_due = true;
+          s.moving_sent_ms = uv_now(server.loop);
+        }
         if (w->still) s.still_due = false;
         server.stream_pump(s);
       });
@@ -656,9 +660,10 @@ void Server::stream_tick() {
     Stream& s = *stream;
     if (!s.connection || s.connection->ws_closing()) continue;
     Connection& c = *s.connection;
-    if (now - c.last_read_ms() >= kStreamIdleMs) {
+    // Nothing from the client (not even a pong) for 3 pings: closed.
+    if (now - c.last_read_ms() >= 3 * uint64_t(options.stream_ping_ms)) {
       metrics.timed_out_connections += 1;
-      c.close_ws(ws::going_away, "no message or pong for 45 s");
+      c.close_ws(ws::going_away, "no message or pong for 3 pings");
       continue;
     }
     if (!s.unacked.empty() && now - s.unacked.front().sent_ms >= limits.write_timeout_ms) {
@@ -667,17 +672,19 @@ void Server::stream_tick() {
       c.close_ws(ws::policy, "frames not acknowledged within the write timeout");
       continue;
     }
-    if (now - s.last_ping_ms >= kStreamPingMs) {
+    if (now - s.last_ping_ms >= options.stream_ping_ms) {
       s.last_ping_ms = now;
       c.send_ws(ws::Opcode::ping, {});
     }
-    if (s.still_due && !s.next && !s.busy && s.last_view && now - s.last_view_ms >= kStreamRestMs) {
+    // At rest: no view since the newest one's moving frame went out, for kStreamRestMs after
+    // both (a slow render must not make its own frame look like a camera at rest).
+    if (s.still_due && !s.next && !s.busy && s.last_view &&
+        now - std::max(s.last_view_ms, s.moving_sent_ms) >= kStreamRestMs) {
       RenderJob still = *s.last_view;
       still.mode = FrameMode::still;
       still.format = ImageFormat::png;
       s.next = std::move(still);
       s.next_seq = s.last_view_seq;
-      s.next_still = true;
       s.still_due = false;
     }
     stream_pump(s);

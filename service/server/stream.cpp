@@ -7,6 +7,7 @@
 
 extern "C" {
 #include <libavcodec/avcodec.h>
+#include <libavutil/log.h>
 #include <libavutil/opt.h>
 #include <libswscale/swscale.h>
 }
@@ -207,6 +208,18 @@ void BitrateControl::on_ack(double round_trip_ms, uint64_t now_ms) {
 
 namespace {
 
+// Quality levels: x264's CRF (0..51) and libvpx's constrained quality (cq-level, 0..63), set so
+// that a moving frame has at least the PSNR of a JPEG at quality 60 (measured on preset c at
+// 1280x720 along a walk, docs/stream.md: x264 veryfast CRF 27 34% of the JPEG's bytes, VP8 at
+// cq-level 45..48 about two thirds).
+constexpr const char* kCrfH264 = "27";
+constexpr const char* kCrfVp8 = "48";
+// x264's preset: veryfast, not ultrafast: on these renders (thin, aliased pipes) ultrafast needed
+// 68% of the JPEG's bytes for its PSNR, veryfast 34%, for about twice the encode time (15 ms to
+// 25-45 ms a 720p frame on 2 busy cores).
+constexpr const char* kPresetH264 = "veryfast";
+constexpr double kVbvSeconds = 0.2;  // two frames at the nominal 10 frames/s
+
 const char* encoder_name(StreamCodec codec) { return codec == StreamCodec::h264 ? "libx264" : "libvpx"; }
 
 std::string av_error(int rc) {
@@ -235,10 +248,9 @@ class AvEncoder final : public VideoEncoder {
       if (!open(w, h, kbps, error)) return false;
       key = true;
     } else if (kbps != kbps_) {
-      // libx264 reconfigures itself when these change between frames.
-      context_->bit_rate = int64_t(kbps) * 1000;
-      context_->rc_max_rate = context_->bit_rate;
-      context_->rc_buffer_size = int(context_->bit_rate / 2);
+      // libx264 reconfigures its VBV when these change between frames.
+      context_->rc_max_rate = int64_t(kbps) * 1000;
+      context_->rc_buffer_size = int(context_->rc_max_rate * kVbvSeconds);
       kbps_ = kbps;
     }
     sws_ = sws_getCachedContext(sws_, int(image.width), int(image.height), AV_PIX_FMT_RGBA, int(w), int(h),
@@ -299,18 +311,25 @@ class AvEncoder final : public VideoEncoder {
     context_->framerate = {10, 1};
     context_->gop_size = kKeyInterval;
     context_->max_b_frames = 0;
-    context_->bit_rate = int64_t(kbps) * 1000;
-    context_->rc_max_rate = context_->bit_rate;
-    context_->rc_buffer_size = int(context_->bit_rate / 2);
-    context_->thread_count = 2;
+    // Constant quality, capped: a frame costs what its picture needs (kCrf), and the target is
+    // a ceiling (VBV of kVbvSeconds), so a slow link lowers quality rather than queueing.
+    context_->rc_max_rate = int64_t(kbps) * 1000;
+    context_->rc_buffer_size = int(context_->rc_max_rate * kVbvSeconds);
+    // One thread: the encoders of all streams already run side by side on libuv's pool, and on
+    // busy cores libvpx with 2 threads took 5 times as long (250 ms against 45 ms a 720p frame).
+    context_->thread_count = 1;
     AVDictionary* options = nullptr;
     if (codec_ == StreamCodec::h264) {
-      av_dict_set(&options, "preset", "ultrafast", 0);
+      av_dict_set(&options, "preset", kPresetH264, 0);
       av_dict_set(&options, "tune", "zerolatency", 0);
       av_dict_set(&options, "forced-idr", "1", 0);
+      av_dict_set(&options, "crf", kCrfH264, 0);
     } else {
+      // libvpx's constrained quality: the bit rate is the ceiling, crf the quality level.
+      context_->bit_rate = context_->rc_max_rate;
+      av_dict_set(&options, "crf", kCrfVp8, 0);
       av_dict_set(&options, "deadline", "realtime", 0);
-      av_dict_set(&options, "cpu-used", "8", 0);
+      av_dict_set(&options, "cpu-used", "12", 0);
       av_dict_set(&options, "lag-in-frames", "0", 0);
       av_dict_set(&options, "auto-alt-ref", "0", 0);
     }
@@ -366,6 +385,12 @@ std::unique_ptr<VideoEncoder> VideoEncoder::create(StreamCodec codec, std::strin
     error = std::string("video: no encoder for ") + codec_name(codec);
     return nullptr;
   }
+  // libavcodec's encoders log every open and close on stderr: errors only.
+  static const bool quiet = [] {
+    av_log_set_level(AV_LOG_ERROR);
+    return true;
+  }();
+  (void)quiet;
   return std::make_unique<AvEncoder>(codec);
 }
 

@@ -61,7 +61,7 @@ std::string pack_frame(std::string_view header_json, std::string_view payload);
 
 class BitrateControl {
  public:
-  static constexpr uint32_t kStartKbps = 4000, kMinKbps = 250, kDefaultMaxKbps = 20000;
+  static constexpr uint32_t kStartKbps = 8000, kMinKbps = 250, kDefaultMaxKbps = 20000;
   static constexpr double kQueueDelayMs = 120;
 
   explicit BitrateControl(uint32_t max_kbps = 0);

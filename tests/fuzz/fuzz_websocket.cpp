@@ -7,6 +7,7 @@
 //   - the bytes whole and fed in chunks (sizes chosen from the first two bytes) give the same
 //     events;
 //   - every message, framed again by the server's framer and masked, deframes the same.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>

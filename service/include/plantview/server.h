@@ -83,6 +83,8 @@ struct ServerOptions {
   uint32_t shutdown_timeout_ms = 30000;  // after SIGTERM, connections still open are closed
   uint32_t max_clients_per_address = 32; // open connections from one IP address
   uint32_t reserved_clients = 16;      // of max_clients, kept for addresses already served
+  uint32_t stream_ping_ms = 15000;     // /api/stream: a ping this often; a stream that sends
+                                       // nothing (not even a pong) for 3 times it is closed (1001)
 };
 
 // Runs the service until SIGINT or SIGTERM. Prints "listening on http://HOST:PORT/" on stdout
