@@ -42,10 +42,11 @@ sanitized_build() {  # <dir> <PLANTVIEW_SANITIZE> [cmake options...]
     -DPLANTVIEW_BUILD_BENCH=OFF "$@" >/dev/null
 }
 
-pass "AddressSanitizer + UBSan (clang, Debug -O1): core, storage, service, CLI, BCF and measure tests and fuzzers"
+pass "AddressSanitizer + UBSan (clang, Debug -O1): core, storage, revisions, service, CLI, BCF and measure tests and fuzzers"
 sanitized_build build-sanitize address -DPLANTVIEW_FUZZ=ON
 cmake --build build-sanitize -j "$jobs" --target plantview_tests_core plantview_tests_storage \
-  plantview_tests_service plantview_tests_cli plantview_tests_bcf plantview_tests_measure plantview_tests_fuzz plantview_tests_stream
+  plantview_tests_service plantview_tests_cli plantview_tests_bcf plantview_tests_measure plantview_tests_fuzz \
+  plantview_tests_revisions plantview_tests_stream
 # The brute-force error measurement (test code, run in full above) is the slow part under the
 # sanitizers; there it runs for the as-given placement only.
 # Mesa's software driver, dlopened by EGL, is unloaded again by eglTerminate (the server's
@@ -61,7 +62,7 @@ mesa_driver=/usr/lib/$(gcc -print-multiarch)/dri/swrast_dri.so
 GTEST_FILTER='-*ReportedErrorBoundsTheMeasuredDeviation/*_rotated:*ReportedErrorBoundsTheMeasuredDeviation/*_mirrored' \
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0 UBSAN_OPTIONS=print_stacktrace=1 \
 LD_PRELOAD=$mesa_driver \
-  ctest --test-dir build-sanitize --output-on-failure -j "$jobs" -L '^(core|storage|service|stream|cli|bcf|measure|fuzz)$'
+  ctest --test-dir build-sanitize --output-on-failure -j "$jobs" -L '^(core|storage|revisions|service|stream|cli|bcf|measure|fuzz)$'
 took "AddressSanitizer + UBSan"
 
 pass "ThreadSanitizer (clang, Debug -O1): service and occlusion tests"

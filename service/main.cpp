@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   actions.push_back(plantview::cli::add_devices_command(app));
   actions.push_back(plantview::cli::add_bcf_command(app));
   actions.push_back(plantview::cli::add_measure_command(app));
+  actions.push_back(plantview::cli::add_revisions_commands(app));
 
   try {
     app.parse(argc, argv);

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -299,8 +300,12 @@ std::string file_bytes(const fs::path& p) {
 // command), outside any key or value.
 TEST_F(Ingest, AGeneratedStoreIsTheSameByteForByteWhateverTheThreadCount) {
   struct Restore {
-    ~Restore() { set_import_threads(0); }
+    ~Restore() {
+      set_import_threads(0);
+      unsetenv("SOURCE_DATE_EPOCH");
+    }
   } restore;
+  setenv("SOURCE_DATE_EPOCH", "1765000000", 1);  // the revisions' times (store.h)
   std::vector<std::string> first;
   std::vector<Snapshot> snapshots;
   for (const unsigned threads : {1u, 4u}) {

@@ -6,7 +6,7 @@
 // named). PLANTVIEW_UPDATE_REFERENCES=1 rewrites the references: look at them before committing.
 // And what a highlight means, checked on the pixels: the subject keeps its own hue, in the
 // first frame of a renderer and in every frame after, whatever came before; the rest is
-// desaturated.
+// desaturated. And a change image (a generated plant's second revision).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -253,6 +253,72 @@ TEST_F(Looks, AHighlightedSubjectKeepsItsHueAndTheRestIsDesaturated) {
   render(*lit, view.camera);
   lit->set_options(options);
   expect_highlighted(render(*lit, view.camera), "after a plain frame");
+}
+
+// A change image (render.h: RenderOptions::changes) of preset a after a revision that removes
+// two equipment items, moves two 3 m along x and adds three boxes beside them, seen as the
+// view of those changes would be fitted: removed items as red ghosts, moved ones amber at their
+// new place over an amber-grey ghost at the old, added ones green, the rest ghosted.
+TEST(ChangeLooks, AChangeImageMatchesItsReference) {
+  test::TempDir dir;
+  std::string error;
+  auto store = Store::open(dir.str(), Store::Mode::read_write, error);
+  ASSERT_TRUE(store) << error;
+  GenerateOptions generate;
+  generate.preset = 'a';
+  const PlantModel model = generate_model(generate);
+  ASSERT_TRUE(ingest_objects(*store, model.objects));
+  // Equipment within 30 m of the first item (all of unit 01), in model order.
+  std::vector<size_t> near;
+  glm::dvec3 anchor(0.0);
+  for (size_t i = 0; i < model.objects.size(); ++i) {
+    const Object& o = model.objects[i];
+    if (o.object_class != ObjectClass::equipment) continue;
+    if (near.empty()) anchor = o.origin_m;
+    if (glm::length(o.origin_m - anchor) < 30.0) near.push_back(i);
+  }
+  ASSERT_GE(near.size(), 4u);
+  std::vector<Object> next = model.objects;
+  DAabb changed;
+  for (int k = 0; k < 4; ++k) changed.extend(object_bounds(next[near[size_t(k)]]));
+  for (int k = 2; k < 4; ++k) {
+    next[near[size_t(k)]].origin_m.x += 3.0;
+    changed.extend(object_bounds(next[near[size_t(k)]]));
+  }
+  for (int k = 0; k < 3; ++k) {
+    Object added;
+    added.name = "/NEW-" + std::to_string(k);
+    added.source = next.front().source;
+    added.id = object_id(added.source, added.name);
+    added.object_class = ObjectClass::equipment;
+    added.colour = {150, 150, 150, 255};
+    added.origin_m = changed.max + glm::dvec3(2.0, -3.0 * k - 1.0, -changed.max.z + 1.0);
+    added.primitives.push_back(Primitive{Placement{}, Box{1.5f, 1.5f, 2.0f}});
+    changed.extend(object_bounds(added));
+    next.push_back(std::move(added));
+  }
+  next.erase(next.begin() + std::ptrdiff_t(near[1]));
+  next.erase(next.begin() + std::ptrdiff_t(near[0]));
+  ASSERT_TRUE(ingest_objects(*store, next));
+
+  test::gl_context();
+  RenderOptions options;
+  options.changes = ChangeRange{1, 0};
+  auto r = Renderer::create(*store, options, error);
+  ASSERT_TRUE(r) << error;
+  const Camera camera = default_camera(changed, double(kWidth) / kHeight);
+  Image image;
+  FrameStats stats;
+  ASSERT_TRUE(r->render(camera, kWidth, kHeight, false, image, stats, error)) << error;
+  EXPECT_EQ(stats.changes.added, 3u);
+  EXPECT_EQ(stats.changes.modified, 2u);
+  EXPECT_EQ(stats.changes.removed, 2u);
+  expect_matches_reference(image, "changes");
+  if (const char* out = std::getenv("PLANTVIEW_CHANGES_IMAGES")) {
+    // A larger copy to look at.
+    ASSERT_TRUE(r->render(camera, 960, 540, false, image, stats, error)) << error;
+    EXPECT_TRUE(write_image((fs::path(out) / "changes-look.png").string(), image, 90, error)) << error;
+  }
 }
 
 }  // namespace

@@ -1196,7 +1196,7 @@ TEST(Store, AnEarlierFormatsStoreIsRefusedWithAnInstructionToImportAgain) {
       std::string error;
       EXPECT_FALSE(Store::open(dir.str(), mode, error));
       EXPECT_NE(error.find("store " + dir.str() + " has format " + std::to_string(old_version) +
-                           "; this build reads format 5: import or generate it again"),
+                           "; this build reads format 6: import or generate it again"),
                 std::string::npos) << error;
     }
   }

@@ -232,9 +232,9 @@ TEST(ViewsFile, ErrorsNameTheViewAndTheField) {
   using Json = nlohmann::ordered_json;
   EXPECT_EQ(error_after([](Json& j) { j["version"] = 2; }), "views file: 'version' must be 1");
   EXPECT_EQ(error_after([](Json& j) { j["per"] = "valve"; }),
-            "views file: 'per' must be one of overview, equipment, pipeline, area");
+            "views file: 'per' must be one of overview, equipment, pipeline, area, change");
   EXPECT_EQ(error_after([](Json& j) { j["views"][1]["kind"] = "zone"; }),
-            "views file: view 1 ('unit_2.zone-B'): 'kind' is 'zone' (overview, equipment, pipeline, area)");
+            "views file: view 1 ('unit_2.zone-B'): 'kind' is 'zone' (overview, equipment, pipeline, area, change)");
   EXPECT_EQ(error_after([](Json& j) { j["views"][0]["name"] = "../P-101A"; }),
             "views file: view 0 ('../P-101A'): 'name' must be 1 to 200 of A-Z a-z 0-9 . _ - and not "
             "start with '.'");
@@ -264,7 +264,12 @@ TEST(ViewsFile, ErrorsNameTheViewAndTheField) {
             "views file: view 0 ('P-101A'): 'title' is missing");
   EXPECT_EQ(error_after([](Json& j) { j["views"][1]["aspekt"] = 1.0; }),
             "views file: view 1 ('unit_2.zone-B'): unknown key 'aspekt' (name, title, kind, camera, "
-            "aspect, subject, attributes, section, style)");
+            "aspect, subject, attributes, section, style, changes)");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["changes"] = "5..3"; }),
+            "views file: view 0 ('P-101A'): 'changes': '5..3': the first revision must come before "
+            "the second");
+  EXPECT_EQ(error_after([](Json& j) { j["views"][0]["changes"] = 3; }),
+            "views file: view 0 ('P-101A'): 'changes' must be a string (R1 or R1..R2)");
   EXPECT_EQ(error_after([](Json& j) { j["views"][0]["section"]["planes"][1]["normal"] = Json::array({0, 0, 0}); }),
             "views file: view 0 ('P-101A'): 'section.planes[1].normal' has no direction (zero length)");
   EXPECT_EQ(error_after([](Json& j) { j["views"][0]["section"]["box"]["min"][2] = 7.0; }),

@@ -75,10 +75,13 @@
     }
   }
   // fetch() for the API, with the token where the page was given one.
+  // Every answer says the revision its data came from (X-Plantview-Revision): a newer one than
+  // shown is noticed (noticeRevision, below) whatever asked.
   function api(url, options = {}) {
     const token = sessionStorage.getItem(TOKEN_KEY);
-    if (!token) return fetch(url, options);
-    return fetch(url, { ...options, headers: { ...(options.headers || {}), Authorization: `Bearer ${token}` } });
+    const sent = !token ? fetch(url, options)
+      : fetch(url, { ...options, headers: { ...(options.headers || {}), Authorization: `Bearer ${token}` } });
+    return sent.then((response) => { noticeRevision(response.headers); return response; });
   }
 
   const MOVING = { quality: 60, px: 3 };   // while the camera moves: cheap, coarse frames
@@ -144,6 +147,12 @@
   let flight = null;          // a fly-to in progress: {from, to, startMs}, or null
   let sendMode = true;        // false once a server has refused the mode parameter (an older one)
   const shownTimesMs = [];    // display times of the recent frames, for the achieved rate
+  // Following imports: the revision shown (model.revision), the one an update came from, and
+  // whether frames show what changed since it (changes=R, frames only).
+  let revision = null;
+  let updatedFrom = null;
+  let showChanges = false;
+  let describing = false;     // an /api/model request for a new revision is out
   // The view's filters (sent with every request; see filterParams): the section box {min, max}
   // or null, clip planes [{point, normal}] (from an opened viewpoint), the plan cut's elevation
   // or null, caps; colour by, hide and only as typed; isolate: the selection is highlighted.
@@ -447,6 +456,7 @@
     if (stream.opening) return;  // pump() again once the stream is open or has failed
     inFlight = true;
     const url = `api/frame?${params}&format=jpeg&quality=${q.quality}&lod=screen-space&px=${q.px}` +
+                `${showChanges && updatedFrom !== null ? `&changes=${updatedFrom}` : ''}` +
                 `${sendMode ? `&mode=${still ? 'still' : 'interactive'}` : ''}&client=${encodeURIComponent(clientId)}`;
     const request = { params, camera, w, h, still, px: q.px, quality: q.quality, startMs: nowMs };
     fetchFrame(url, request).finally(() => { inFlight = false; pump(); });
@@ -1537,11 +1547,12 @@
 
   // Sends the view wanted now, unless it is the one sent last.
   function streamView(params, request) {
-    const key = `${params}|${request.still}`;
-    if (key === stream.lastSent) return;
+    const changes = showChanges && updatedFrom !== null ? `&changes=${updatedFrom}` : '';
+    const key = `${params}|${request.still}|${changes}`;
+    if (key === stream.lastSent && shown !== null) return;  // shown = null: redraw (a new revision)
     stream.lastSent = key;
     const query = new URLSearchParams(`${params}&quality=${request.quality}&lod=screen-space&px=${request.px}` +
-                                      `&mode=${request.still ? 'still' : 'interactive'}`);
+                                      `&mode=${request.still ? 'still' : 'interactive'}${changes}`);
     const json = {};
     for (const [k, v] of query) {
       if (k === 'clip') (json.clip ??= []).push(v);
@@ -1618,7 +1629,11 @@
     const latencyMs = performance.now() - request.sentMs;
     hooks.stream.frames += 1;
     hooks.stream.latencyMs = latencyMs;
-    frameShown(new Headers(header.stats ?? {}), request, latencyMs);
+    const headers = new Headers(header.stats ?? {});
+    if (header.revision !== undefined && !headers.has('X-Plantview-Revision'))
+      headers.set('X-Plantview-Revision', String(header.revision));
+    frameShown(headers, request, latencyMs);
+    noticeRevision(headers);  // a frame of a newer revision than shown: describe it (following imports)
   }
 
   // The readout's transport line: the stream's codec, bit rate, frames/s and latency (view sent
@@ -1638,6 +1653,82 @@
     return `stream · ${stream.codec} · ${rate} · ${fps} · latency ${latency}`;
   }
 
+  // ---- following imports ----
+
+  const REVISION_POLL_MS = 5000;  // idle: /api/model this often (its header says the revision)
+  const updateBar = document.createElement('div');
+  updateBar.id = 'model-updated';
+  updateBar.hidden = true;
+  const updateText = document.createElement('span');
+  const changesButton = document.createElement('button');
+  changesButton.type = 'button';
+  changesButton.title = 'Frames show what changed: added green, modified amber, removed red';
+  updateBar.append(updateText, changesButton);
+  document.body.append(updateBar);
+  hooks.revision = null;
+
+  // A newer revision than the one shown: describe it, say so, redraw.
+  function noticeRevision(headers) {
+    const r = parseInt(headers.get('X-Plantview-Revision'), 10);
+    if (!Number.isFinite(r) || revision === null || r <= revision || describing) return;
+    describing = true;
+    const from = revision;
+    api('api/model', { cache: 'no-store' })
+      .then((response) => (response.ok ? response.json() : null))
+      .then(async (described) => {
+        if (!described || !(described.revision > revision)) return;
+        // The selection as the new revision has it (moved, say), or none if it was removed: a
+        // highlight of an id the revision lacks would fail every frame.
+        let gone = false;
+        if (selected) {
+          const id = selected.id;
+          const found = await api(`api/objects/${encodeURIComponent(id)}`, { cache: 'no-store' });
+          if (selected && selected.id === id) {
+            if (found.ok) {
+              const object = await found.json();
+              select(object);
+              showPick(object);
+            } else if (found.status === 404) {
+              gone = true;
+              pickSeq += 1;
+              select(null);
+              showPick(undefined);
+            }
+          }
+        }
+        model = described;
+        revision = described.revision;
+        updatedFrom = from;
+        hooks.revision = revision;
+        const c = described.changes ?? {};
+        const count = (c.added ?? 0) + (c.removed ?? 0) + (c.modified ?? 0);
+        updateText.textContent = `model updated: revision ${revision}, ` +
+          `${count.toLocaleString('en-US')} object${count === 1 ? '' : 's'} changed` +
+          `${described.note ? ` (${described.note})` : ''}${gone ? '; the selection is gone' : ''}`;
+        changesButton.textContent = showChanges ? 'hide changes' : 'show changes';
+        updateBar.hidden = false;
+        shown = null;          // redraw the same view from the new revision
+        failedParams = null;
+        pump();
+      })
+      .catch(() => { /* the next answer or poll tries again */ })
+      .finally(() => { describing = false; });
+  }
+
+  changesButton.addEventListener('click', () => {
+    showChanges = !showChanges;
+    changesButton.textContent = showChanges ? 'hide changes' : 'show changes';
+    shown = null;
+    failedParams = null;
+    pump();
+  });
+
+  // While idle (no frame out, the camera at rest) nothing else would hear of an import.
+  setInterval(() => {
+    if (revision === null || inFlight || performance.now() - lastChangeMs < REVISION_POLL_MS) return;
+    api('api/model', { cache: 'no-store' }).catch(() => {});
+  }, REVISION_POLL_MS);
+
   // ---- start ----
 
   // Loads the model and starts from its camera (or, lacking one, a view of its bounds from the
@@ -1647,6 +1738,8 @@
       const response = await api('api/model', { cache: 'no-store' });
       if (!response.ok) throw new Error(await errorText(response));
       model = await response.json();
+      revision = model.revision ?? 0;
+      hooks.revision = revision;
     } catch (e) {
       showError(`model: ${e.message}; retrying`);
       setTimeout(start, 2000);

@@ -10,6 +10,10 @@ bool Transaction::begin() {
   if (!check_stop()) return false;
   import_ = store_.begin_import(store_error_);
   if (!import_) fail_store();
+  if (import_) {
+    import_->set_note(control_.note);
+    import_->set_keep_revisions(control_.keep_revisions);
+  }
   return import_ != nullptr;
 }
 

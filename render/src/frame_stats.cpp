@@ -52,6 +52,12 @@ std::string FrameStats::to_json() const {
          ",\"objects_evicted\":" + std::to_string(objects_evicted) +
          ",\"objects_hidden\":" + std::to_string(objects_hidden) +
          (legend.key.empty() ? std::string() : ",\"legend\":" + legend.to_json()) +
+         (!changes.shown ? std::string()
+                         : ",\"changes\":{\"from\":" + std::to_string(changes.from) +
+                               ",\"to\":" + std::to_string(changes.to) +
+                               ",\"added\":" + std::to_string(changes.added) +
+                               ",\"modified\":" + std::to_string(changes.modified) +
+                               ",\"removed\":" + std::to_string(changes.removed) + "}") +
          ",\"ms\":" + times + "}";
 }
 

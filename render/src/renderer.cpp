@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "streaming/arena_streaming.h"
+#include "change_set.h"
 #include "decoded_objects.h"
 #include "frame_plan.h"
 #include "frame_stats.h"
@@ -27,11 +28,18 @@ struct Renderer::State {
   // pixel error.)
   RenderOptions given;
   RenderOptions options;
+  // A change image (RenderOptions::changes) turns HLOD off too, and replaces colour-by and the
+  // highlight (its subject: the changed objects, set per frame by use_changes()).
   void use_options(const RenderOptions& o) {
     given = o;
     options = o;
     if (!o.style.hide.empty() || !o.style.only.empty()) options.hlod = false;
-    objects.set_style(o.style);
+    if (o.changes) {
+      options.hlod = false;
+      options.style.colour_by.clear();
+      options.highlight_ids.clear();
+    }
+    objects.set_style(options.style);
   }
   std::unique_ptr<ReadView> view;  // never null once created
   DAabb bounds;
@@ -44,6 +52,8 @@ struct Renderer::State {
   FramePlan plan{&pool};
   ArenaStreaming streaming{backend, pool};
   FrameColouring colouring;  // colour_by: this frame's colours by value
+  ChangeSet changes;         // RenderOptions::changes: read once per range and snapshot
+  std::vector<uint64_t> frame_pick_ids;  // a change image's picks: the frame's, then its ghosts'
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
   std::vector<glm::vec4> test_boxes;  // and its exact test
@@ -83,6 +93,9 @@ struct Renderer::State {
   // the objects the cull found (plan.visible(), decoded here where new), before any phase is
   // drawn; else the objects' own colours.
   bool colour_view(FrameStats& stats, std::string& error);
+  // A change image: its range read (once per range and snapshot), its subject made the
+  // highlight (its summary and legend go into the frame's statistics at its end).
+  bool use_changes(std::string& error);
   bool open_view(std::string& error);
   bool frame(const Camera& camera, uint32_t w, uint32_t h, bool draw, bool with_ids, Image* out,
              FrameStats& stats, std::string& error);
@@ -173,6 +186,13 @@ bool Renderer::State::colour_view(FrameStats& stats, std::string& error) {
   return true;
 }
 
+bool Renderer::State::use_changes(std::string& error) {
+  if (!given.changes) return true;
+  if (!changes.load(*view, *given.changes, error)) return false;
+  options.highlight_ids = changes.subject_ids();
+  return true;
+}
+
 bool Renderer::State::exact_test(const FrameView& frame_view, FrameStats& stats,
                                  StageTimes& times, Stopwatch& clock, std::string& error) {
   times.occlusion += clock.lap();
@@ -196,6 +216,7 @@ bool Renderer::State::open_view(std::string& error) {
   bounds = statistics.bounds;
   objects.reset(*view);
   plan.reset_view();
+  changes.reset();
   made_ahead.reset();
   // A model larger than the budget at full resolution (one that will fill it) gets the whole
   // arena now: growing it later copies it, and the old and new buffers together would exceed
@@ -223,10 +244,12 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
             " is outside 1.." + std::to_string(kMaxImageSide);
     return false;
   }
+  if (!use_changes(error)) return false;
   ++frame_number;
   backend.take_growth_ms();  // (growth outside a frame: opening a view or a look ahead)
   const FrameView frame_view = make_frame_view(camera, w, h, view->spatial_origin());
-  const Look look = look_of(options, bounds);
+  Look look = look_of(options, bounds);
+  if (given.changes) look.subject_colours = changes.subject_colours();
   const Look* drawn = draw ? &look : nullptr;
   clock.lap();
   // What a look ahead streamed is written into the arena now, whether its frame came or not
@@ -279,13 +302,20 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
 
   // Backend: the ground, finishing and read back (render() only).
   if (draw) {
+    std::span<const uint64_t> pick_ids = streaming.table().pick_ids();
+    if (given.changes && !changes.ghosts().empty()) {
+      // The shapes the snapshot does not hold, over the frame; their picks after its own.
+      backend.draw_ghosts(frame_view, changes.ghosts(), uint32_t(pick_ids.size()), with_ids);
+      frame_pick_ids.assign(pick_ids.begin(), pick_ids.end());
+      for (const GhostMesh::Ghost& g : changes.ghosts().ghosts) frame_pick_ids.push_back(g.id);
+      pick_ids = frame_pick_ids;
+    }
     // With the next view expected, its start is made while the GPU draws this one.
     backend.finish_frame(frame_view, with_ids, !next);
     times.draw += clock.lap();
-    std::span<const uint64_t> pick_ids = streaming.table().pick_ids();
     if (next) {
       // (The look ahead may begin the next frame's object table, whatever comes of it.)
-      drawn_pick_ids.assign(pick_ids.begin(), pick_ids.end());
+      drawn_pick_ids.assign(pick_ids.begin(), pick_ids.end());  // (ghosts' included)
       pick_ids = drawn_pick_ids;
       look_ahead(*next, w, h, exact);
       times.ahead = clock.lap();
@@ -294,6 +324,10 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
     }
     if (!backend.read_back(w, h, with_ids, pick_ids, *out, error)) return false;
     times.read_back = clock.lap();
+  }
+  if (given.changes) {
+    stats.changes = changes.summary();
+    stats.legend = changes.legend();
   }
   report_times(times, clock.total(), stats.ms);
   return true;

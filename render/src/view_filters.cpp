@@ -191,4 +191,37 @@ bool parse_word_list(std::string_view text, std::string_view what, std::vector<s
   return true;
 }
 
+namespace {
+
+// `s` is a whole number, all of it.
+bool whole_number(std::string_view s, uint32_t& v) {
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  return !s.empty() && ec == std::errc() && end == s.data() + s.size();
+}
+
+}  // namespace
+
+bool parse_change_range(std::string_view text, ChangeRange& out, std::string& error) {
+  const size_t dots = text.find("..");
+  ChangeRange range;
+  const bool ok = dots == std::string_view::npos
+                      ? whole_number(text, range.from)
+                      : whole_number(text.substr(0, dots), range.from) &&
+                            whole_number(text.substr(dots + 2), range.to);
+  if (!ok) {
+    error = "expected a revision R1 or a range R1..R2 (whole numbers), got '" + std::string(text) + "'";
+    return false;
+  }
+  if (dots != std::string_view::npos && range.from >= range.to) {
+    error = "'" + std::string(text) + "': the first revision must come before the second";
+    return false;
+  }
+  out = range;
+  return true;
+}
+
+std::string change_range_text(const ChangeRange& range) {
+  return std::to_string(range.from) + (range.to ? ".." + std::to_string(range.to) : "");
+}
+
 }  // namespace plantview

@@ -52,7 +52,7 @@ bool selected(const std::string& glob, const std::string& name, const std::strin
 }
 
 std::string plural(std::string_view per) {
-  return per == "equipment" ? "equipment" : std::string(per) + "s";
+  return per == "equipment" ? "equipment" : per == "change" ? "changes" : std::string(per) + "s";
 }
 
 // Leaves room for a repeat's "-NNN" and a side's "-N" within the 200 characters of a name.
@@ -78,9 +78,23 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
   const auto view = store.read(error);
   if (!view) return false;
   std::vector<views::Subject> subjects;
-  if (!views::read_subjects(*view, options.per, subjects, error,
-                            [&](double f) { report(0.5 * f); }))
+  std::optional<ChangeRange> changes;
+  if (options.per == "change") {
+    assert(options.group == "object" || options.group == "pipeline" || options.group == "equipment");
+    changes = options.changes;
+    if (!changes->to) changes->to = view->info().revision;
+    if (!views::read_change_subjects(*view, *changes, options.group, subjects, error)) return false;
+    if (subjects.empty()) {
+      error = store.directory() + ": nothing " +
+              (options.group == "object" ? std::string() : "of a " + options.group + " ") +
+              "changed between revisions " + std::to_string(changes->from) + " and " +
+              std::to_string(changes->to);
+      return false;
+    }
+  } else if (!views::read_subjects(*view, options.per, subjects, error,
+                                   [&](double f) { report(0.5 * f); })) {
     return false;
+  }
   summary.subjects = subjects.size();
   if (subjects.empty()) {
     error = store.directory() + ": the store has no " +
@@ -123,6 +137,7 @@ bool make_review_views(const Store& store, const ReviewViewOptions& options,
       v.aspect = options.aspect;
       v.subject = s.ids;
       v.attributes = s.attributes;
+      v.changes = changes;
       if (options.section == "subject" && s.kind != "overview") {
         v.section.has_box = true;
         v.section.box.min = s.bounds.min - glm::dvec3(options.section_margin_m);

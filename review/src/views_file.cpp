@@ -145,9 +145,11 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   for (const auto& [key, value] : item.items()) {
     (void)value;
     if (key != "name" && key != "title" && key != "kind" && key != "camera" && key != "aspect" &&
-        key != "subject" && key != "attributes" && key != "section" && key != "style")
+        key != "subject" && key != "attributes" && key != "section" && key != "style" &&
+        key != "changes")
       return fail("unknown key '" + key +
-                  "' (name, title, kind, camera, aspect, subject, attributes, section, style)");
+                  "' (name, title, kind, camera, aspect, subject, attributes, section, style, "
+                  "changes)");
   }
   const auto text = [&](const char* key, std::string& out) {
     if (!item.contains(key)) return fail(std::string("'") + key + "' is missing");
@@ -159,7 +161,7 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   if (!is_safe_view_name(v.name))
     return fail("'name' must be 1 to 200 of A-Z a-z 0-9 . _ - and not start with '.'");
   if (!is_review_kind(v.kind))
-    return fail("'kind' is '" + v.kind + "' (overview, equipment, pipeline, area)");
+    return fail("'kind' is '" + v.kind + "' (overview, equipment, pipeline, area, change)");
 
   if (!item.contains("camera")) return fail("'camera' is missing");
   const Json& cam = item["camera"];
@@ -215,13 +217,21 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   }
   if (item.contains("section") && !parse_section(item["section"], v.section, fail)) return false;
   if (item.contains("style") && !parse_style(item["style"], v.style, fail)) return false;
+  if (item.contains("changes")) {
+    if (!item["changes"].is_string()) return fail("'changes' must be a string (R1 or R1..R2)");
+    ChangeRange range;
+    if (!parse_change_range(item["changes"].get<std::string>(), range, why))
+      return fail("'changes': " + why);
+    v.changes = range;
+  }
   return true;
 }
 
 }  // namespace
 
 bool is_review_kind(std::string_view kind) {
-  return kind == "overview" || kind == "equipment" || kind == "pipeline" || kind == "area";
+  return kind == "overview" || kind == "equipment" || kind == "pipeline" || kind == "area" ||
+         kind == "change";
 }
 
 bool is_safe_view_name(std::string_view name) {
@@ -251,6 +261,7 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
                         {"attributes", attributes}});
     if (!v.section.empty()) list.back()["section"] = section_json(v.section);
     if (!v.style.empty()) list.back()["style"] = style_json(v.style);
+    if (v.changes) list.back()["changes"] = change_range_text(*v.changes);
   }
   const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
   // Attribute values are bytes as the model gave them, not always UTF-8: invalid sequences
@@ -282,7 +293,7 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
   }
   if (!file.contains("per") || !file["per"].is_string() ||
       !is_review_kind(file["per"].get<std::string>())) {
-    error = "views file: 'per' must be one of overview, equipment, pipeline, area";
+    error = "views file: 'per' must be one of overview, equipment, pipeline, area, change";
     return false;
   }
   if (!file.contains("views") || !file["views"].is_array()) {

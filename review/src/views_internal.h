@@ -38,6 +38,17 @@ struct Subject {
 bool read_subjects(const ReadView& view, std::string_view per, std::vector<Subject>& out,
                    std::string& error, const std::function<void(double)>& progress);
 
+// The subjects of change views (review.h: per "change"): what changed between range.from and
+// range.to (0: the snapshot's revision), grouped by `group`: "object" (each changed object),
+// "equipment" (each changed equipment object; others left out) or "pipeline" (each pipeline
+// holding a changed object, or changed itself; objects of no pipeline left out). Each is
+// fitted on its objects' bounds now and at range.from; its ids and slots are those the
+// snapshot holds (none for a removed object). Sorted by key. False with the store's message
+// when the range cannot be read (a revision pruned or never made), or a message naming --from
+// when it does not start before the snapshot's revision.
+bool read_change_subjects(const ReadView& view, const ChangeRange& range, std::string_view group,
+                          std::vector<Subject>& out, std::string& error);
+
 // `key` made safe as a view name (review.h: is_safe_view_name): every run of other characters
 // becomes one '-' (none at either end), leading '.' go, the key's own '-' stay; at most
 // `max_chars`; "view" if nothing is left.

@@ -60,4 +60,22 @@ Action add_devices_command(CLI::App& app);
 // `plantview measure --store DIR --a TAG|ID --b TAG|ID [--json]`: clearance between two objects.
 Action add_measure_command(CLI::App& app);
 
+// `plantview revisions`, `changes` and `upgrade`: a store's revisions (plantview/store.h).
+Action add_revisions_commands(CLI::App& app);
+// A revision's time as text, "2026-12-06T10:02:11Z" (UTC).
+std::string revision_time_text(int64_t time_unix_ms);
+// What import and gen share about revisions: --note, --keep-revisions, --no-wait.
+struct RevisionOptions {
+  std::string note;
+  int64_t keep_revisions = 10;  // kDefaultKeepRevisions
+  bool no_wait = false;
+};
+void add_revision_options(CLI::App& command, RevisionOptions& options);
+// Checks them (2 with the message on stderr for a bad --keep-revisions, else 0), and applies
+// --no-wait (set_import_lock_wait).
+int apply_revision_options(const std::string& command, const RevisionOptions& options);
+// "revision 14: 3 added, 0 removed, 37 modified" for the store's newest revision ("" when it
+// cannot be read).
+std::string newest_revision_summary(const std::string& directory);
+
 }  // namespace plantview::cli

@@ -24,6 +24,7 @@ namespace {
 struct ImportOptions {
   std::vector<std::string> files;
   std::string store;
+  RevisionOptions revision;
 };
 
 int fail(const std::string& message) {
@@ -50,6 +51,8 @@ int run(const ImportOptions& o) {
     return 2;
   }
 
+  if (const int status = apply_revision_options("import", o.revision); status != 0) return status;
+
   const auto start = std::chrono::steady_clock::now();
   auto store = Store::open(o.store, Store::Mode::read_write, error);
   if (!store) return fail(error);
@@ -57,6 +60,8 @@ int run(const ImportOptions& o) {
   std::optional<Progress> progress;
   uint32_t progress_file = 0;
   IngestControl control;
+  control.note = o.revision.note;
+  control.keep_revisions = uint32_t(o.revision.keep_revisions);
   control.progress = [&](const IngestProgress& p) {
     if (p.path.empty()) return;
     if (!progress || progress_file != p.file_index) {
@@ -80,9 +85,13 @@ int run(const ImportOptions& o) {
   if (!result) return fail(result.error().message);
   uint64_t objects = 0;
   for (const IngestedFile& f : result.summary().files) objects += f.objects;
-  std::fprintf(stderr, "plantview import: %llu objects committed to %s in %.2f s\n",
-               (unsigned long long)objects, o.store.c_str(),
-               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  store.reset();
+  const std::string revision = newest_revision_summary(o.store);
+  std::fprintf(stderr, "plantview import: %llu objects committed to %s in %.2f s%s\n",
+               (unsigned long long)objects, o.store.c_str(), seconds,
+               revision.empty() ? "" : (" (" + revision + ")").c_str());
   return 0;
 }
 
@@ -94,6 +103,7 @@ Action add_import_command(CLI::App& app) {
       "import", "Import RVM (with attribute files) or plantview XML files into a store");
   sub->add_option("files", options->files, "RVM, attribute (.txt/.att) and XML files")->required();
   sub->add_option("--store", options->store, "Store directory (created if missing)")->required();
+  add_revision_options(*sub, options->revision);
   return [options, sub]() { return sub->parsed() ? run(*options) : -1; };
 }
 

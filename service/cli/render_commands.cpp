@@ -64,7 +64,14 @@ int render_cameras(const RenderArgs& a, const RenderPlan& plan) {
     if (i + plan.shard_count < cameras.size()) session.renderer->expect(cameras[i + plan.shard_count]);
     if (!session.renderer->render(cameras[i], plan.width, plan.height, false, image, stats, error))
       return fail("view " + std::to_string(i) + ": " + error);
-    if (!stats.legend.key.empty()) {
+    if (stats.changes.shown) {
+      // A change image: what it shows, with its legend, in a strip along the bottom.
+      std::vector<CaptionColumn> columns;
+      add_legend_columns(stats.legend, 3, columns, false);
+      std::string why;
+      if (!add_caption_columns(image, change_caption(stats.changes), columns, why))
+        std::cerr << "plantview: view " << i << ": no caption: " << why << "\n";
+    } else if (!stats.legend.key.empty()) {
       // Coloured by an attribute: its legend in a strip along the bottom (a still without it
       // would not say what its colours mean). An image too small for it goes without.
       // In columns of 4 lines, the key's name as the title.

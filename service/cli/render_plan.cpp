@@ -115,6 +115,11 @@ int plan_render(const RenderArgs& a, RenderPlan& plan) {
       (!a.only.empty() && !parse_word_list(a.only, "--only", plan.options.style.only, error)))
     return usage_error(error);
   if (!parse_section_options(a.clip, a.section_box, plan.options.section, error)) return usage_error(error);
+  if (!a.changes.empty()) {
+    ChangeRange range;
+    if (!parse_change_range(a.changes, range, error)) return usage_error("--changes: " + error);
+    plan.options.changes = range;
+  }
   plan.options.section.capped = !a.no_caps;
   if (int(!a.camera.empty()) + int(!a.path.empty()) + int(!a.views.empty()) > 1)
     return usage_error("give one of --camera, --path and --views");
@@ -209,6 +214,11 @@ void add_render_options(CLI::App* render, RenderArgs* args) {
   render->add_option("--colour-by", args->colour_by,
                      "KEY: colour objects by this attribute (categories, or a ramp for numbers "
                      "with a unit), with a legend strip; with --views it replaces the views' own");
+  render->add_option("--changes", args->changes,
+                     "R1 or R1..R2: a change image of what changed after revision R1 (added green, "
+                     "modified amber over their previous shape, removed as red ghosts), with a "
+                     "caption; R2, if given, must be the store's revision (with --views: replaces "
+                     "the views' own)");
   render->add_option("--hide", args->hide,
                      "CLASS|GLOB,...: leave out these classes (equipment, pipeline, pipe, component, "
                      "structure, other) and objects whose name or Tag matches a glob");

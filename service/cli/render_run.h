@@ -36,6 +36,7 @@ struct RenderArgs {
   bool no_centrelines = false, no_hlod = false, no_subpixel = false, force = false;
   bool no_ground = false, no_ambient_occlusion = false;
   std::string colour_by, hide, only;  // view_filters.h: ObjectStyle
+  std::string changes;  // R1 or R1..R2: a change image (render.h: RenderOptions::changes)
   // Sections (view_filters.h): --clip (repeatable, at most kMaxClipPlanes), --section-box,
   // --no-caps.
   std::vector<std::string> clip;

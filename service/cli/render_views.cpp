@@ -28,6 +28,7 @@ RenderOptions review_render_options(const RenderOptions& base, const ReviewView&
   if (!base.style.hide.empty()) options.style.hide = base.style.hide;
   if (!base.style.only.empty()) options.style.only = base.style.only;
   if (!view.section.empty()) options.section = view.section;
+  if (view.changes && !base.changes) options.changes = view.changes;  // (--changes replaces it)
   return options;
 }
 
@@ -37,8 +38,12 @@ bool add_review_caption(Image& image, const ReviewView& view, const FrameStats& 
                         std::string& error) {
   std::vector<CaptionColumn> columns(1);
   columns[0].lines = caption_lines(view);
+  // A change image says what it shows: the range and its counts.
+  if (stats.changes.shown) columns[0].lines.insert(columns[0].lines.begin(), change_caption(stats.changes));
   // The legend in columns beside the view's lines, as many rows as they have (at least 4).
-  add_legend_columns(stats.legend, std::max<size_t>(4, columns[0].lines.size()), columns);
+  // (A change image's legend needs no heading: the first line says what it is.)
+  add_legend_columns(stats.legend, std::max<size_t>(4, columns[0].lines.size()), columns,
+                     !stats.changes.shown);
   return add_caption_columns(image, view.title, columns, error);
 }
 
@@ -61,6 +66,8 @@ std::string render_settings_text(const RenderArgs& a, const RenderPlan& plan) {
       {"ground", plan.options.ground},
       {"ambient_occlusion", plan.options.ambient_occlusion},
       {"caption", true}};
+  if (plan.options.changes)  // --changes (absent otherwise, as the style)
+    settings["changes"] = change_range_text(*plan.options.changes);
   if (!plan.options.style.empty())  // (absent otherwise: earlier runs' hashes hold)
     settings["style"] = {{"colour_by", plan.options.style.colour_by},
                          {"hide", plan.options.style.hide},

@@ -40,6 +40,7 @@ struct GenOptions {
   uint64_t seed = 1;
   unsigned threads = 0;  // 0: the machine's hardware threads
   std::string store, xml;
+  RevisionOptions revision;  // --store only
 };
 
 int run_gen(const GenOptions& o) {
@@ -60,6 +61,7 @@ int run_gen(const GenOptions& o) {
     std::cerr << "plantview gen: --threads must be 0.." << kMaxImportThreads << ", got " << o.threads << "\n";
     return 2;
   }
+  if (const int status = apply_revision_options("gen", o.revision); status != 0) return status;
   set_import_threads(o.threads);
   g.scale = o.scale;
   g.seed = o.seed;
@@ -98,6 +100,8 @@ int run_gen(const GenOptions& o) {
     return 1;
   }
   IngestControl control;
+  control.note = o.revision.note;
+  control.keep_revisions = uint32_t(o.revision.keep_revisions);
   control.progress = [&](const IngestProgress& p) {
     if (p.stage == IngestStage::generating) progress.update(double(p.done) / double(p.total));
     // The commit (indexes, spatial tree) takes a while on a big plant: say so.
@@ -110,9 +114,12 @@ int run_gen(const GenOptions& o) {
   }
   progress.finish();
   const GenerateSummary& summary = result.summary().generated;
-  std::fprintf(stderr, "plantview gen: %llu objects, %llu primitives committed to %s in %.2f s\n",
+  const double seconds = seconds_since(start);
+  store.reset();
+  const std::string revision = newest_revision_summary(o.store);
+  std::fprintf(stderr, "plantview gen: %llu objects, %llu primitives committed to %s in %.2f s%s\n",
                (unsigned long long)summary.objects, (unsigned long long)summary.primitives,
-               o.store.c_str(), seconds_since(start));
+               o.store.c_str(), seconds, revision.empty() ? "" : (" (" + revision + ")").c_str());
   return 0;
 }
 
@@ -141,11 +148,17 @@ int run_info(const InfoOptions& o) {
     char commit_id[17];
     std::snprintf(commit_id, sizeof commit_id, "%016llx", (unsigned long long)info.commit_id);
     j["commit_id"] = commit_id;
+    j["revision"] = info.revision;
+    j["revision_time"] = info.revision == 0 ? "" : revision_time_text(info.revision_time_unix_ms);
     std::cout << j.dump(2) << "\n";
     return 0;
   }
   std::printf("store %s (format %u), %.2f MB on disk\n", o.store.c_str(), info.format_version,
               double(info.store_bytes) / 1e6);
+  if (info.revision != 0) {
+    std::printf("revision %u, committed %s (plantview revisions --store %s)\n", info.revision,
+                revision_time_text(info.revision_time_unix_ms).c_str(), o.store.c_str());
+  }
   std::printf("%llu objects, %llu primitives, %llu triangles at full resolution\n",
               (unsigned long long)s.objects, (unsigned long long)s.primitives,
               (unsigned long long)s.triangles);
@@ -344,6 +357,7 @@ Action add_store_commands(CLI::App& app) {
                       "The store is the same whatever the count");
   gen_cmd->add_option("--store", gen->store, "Store directory to add the plant to");
   gen_cmd->add_option("--xml", gen->xml, "plantview XML file to write instead");
+  add_revision_options(*gen_cmd, gen->revision);
 
   auto info = std::make_shared<InfoOptions>();
   CLI::App* info_cmd = app.add_subcommand("info", "Objects, primitives, triangles, bounds and size of a store");

@@ -1,4 +1,5 @@
-// `plantview views --store DIR --per overview|equipment|pipeline|area [--select GLOB]
+// `plantview views --store DIR --per overview|equipment|pipeline|area|change [--select GLOB]
+// [--from R1 [--to R2] [--group object|pipeline|equipment]]
 // [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
 // named, fitted review views of a store's subjects (review.h: make_review_views), for
 // `render --views`.
@@ -27,6 +28,9 @@ struct ViewsArgs {
   double section_margin_m = 1.0;
   int sides = 1;
   std::string colour_by, hide, only;  // written into every view (view_filters.h: ObjectStyle)
+  // --per change: the range and the grouping (review.h: ReviewViewOptions).
+  int64_t from = -1, to = 0;
+  std::string group = "object";
 };
 
 int fail(const std::string& message) {
@@ -90,6 +94,18 @@ int run_views(const ViewsArgs& a) {
                        std::to_string(a.section_margin_m));
   options.section = a.section;
   options.section_margin_m = a.section_margin_m;
+  if (a.per == "change") {
+    if (a.from < 0) return usage_error("--per change needs --from R1 (the revision the changes are since)");
+    if (a.to != 0 && a.to <= a.from)
+      return usage_error("--to " + std::to_string(a.to) + " must come after --from " + std::to_string(a.from));
+    if (a.from > int64_t(UINT32_MAX) || a.to > int64_t(UINT32_MAX) || a.to < 0)
+      return usage_error("--from and --to are revision numbers");
+    options.changes.from = uint32_t(a.from);
+    options.changes.to = uint32_t(a.to);
+    options.group = a.group;
+  } else if (a.from >= 0 || a.to != 0) {
+    return usage_error("--from and --to go with --per change");
+  }
 
   std::string error;
   ObjectStyle style;
@@ -121,9 +137,19 @@ Action add_views_command(CLI::App& app) {
   auto args = std::make_shared<ViewsArgs>();
   auto* views = app.add_subcommand("views", "Make named, fitted review views of a store's subjects");
   views->add_option("--store", args->store, "Store directory")->required();
-  views->add_option("--per", args->per, "overview, equipment, pipeline or area")
+  views->add_option("--per", args->per, "overview, equipment, pipeline, area or change")
       ->required()
-      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area"}));
+      ->check(CLI::IsMember({"overview", "equipment", "pipeline", "area", "change"}));
+  views->add_option("--from", args->from,
+                    "With --per change: the revision the changes are since (each view a change image)");
+  views->add_option("--to", args->to,
+                    "With --per change: the later revision (default: the store's); the store must be at it "
+                    "when the views are rendered");
+  views->add_option("--group", args->group,
+                    "With --per change: a view per changed object, per pipeline holding a change, or per "
+                    "changed equipment item")
+      ->check(CLI::IsMember({"object", "pipeline", "equipment"}))
+      ->capture_default_str();
   views->add_option("--select", args->select,
                     "Only subjects whose view name or tag/path matches this shell glob");
   views->add_option("--sides", args->sides, "1: isometric; 4: from north, east, south and west")

@@ -13,13 +13,12 @@ namespace {
 // Members a pipeline's bounds are gathered from, at most (a lookup and a decode each).
 constexpr size_t kMaxPipelineMembersBounded = 100000;
 
-// The object in `slot` as JSON; false with the store's message if it cannot be read.
-bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::string& error) {
-  Object o;
-  if (!view.object(slot, o, true, error)) return false;
+// `o` as JSON (a pipeline without geometry bounded by its members in `view`); false with the
+// store's message if a member cannot be read.
+bool json_of(const ReadView& view, const Object& o, nlohmann::json& j, std::string& error) {
   nlohmann::json attributes = nlohmann::json::array();
   for (const auto& a : o.attributes) attributes.push_back({{"key", a.key}, {"value", a.value}});
-  nlohmann::json j = {{"id", std::to_string(o.id)},
+  j = {{"id", std::to_string(o.id)},
                       {"name", o.name},
                       {"class", std::string(class_name(o.object_class))},
                       {"colour", {o.colour.r, o.colour.g, o.colour.b, o.colour.a}},
@@ -42,6 +41,14 @@ bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::stri
   }
   if (!b.empty()) j["bounds"] = {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
   if (o.pipeline_id) j["pipeline_id"] = std::to_string(o.pipeline_id);
+  return true;
+}
+
+// The object in `slot` as JSON; false with the store's message if it cannot be read.
+bool slot_json(const ReadView& view, uint32_t slot, std::string& json, std::string& error) {
+  Object o;
+  nlohmann::json j;
+  if (!view.object(slot, o, true, error) || !json_of(view, o, j, error)) return false;
   // Attribute values are bytes as the source gave them: invalid UTF-8 is replaced, not refused.
   json = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   return true;
@@ -65,6 +72,22 @@ bool object_json(const ReadView& view, uint64_t id, std::string& json, std::stri
     return false;
   }
   return slot_json(view, *slot, json, error);
+}
+
+bool object_at_json(const ReadView& view, uint32_t revision, uint64_t id, std::string& json,
+                    std::string& error) {
+  Object o;
+  bool found = false;
+  if (!view.object_at(revision, id, o, found, true, error)) return false;
+  nlohmann::json j;
+  if (!found) {
+    error = "no object " + std::to_string(id) + " at revision " + std::to_string(revision);
+    return false;
+  }
+  if (!json_of(view, o, j, error)) return false;
+  j["revision"] = revision;
+  json = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  return true;
 }
 
 ObjectAnswer object_answer(const ReadView& view, uint64_t id, std::string_view name) {

@@ -16,6 +16,12 @@ namespace plantview::service {
 // such object ("no object <id>") or it cannot be read (the store's message).
 bool object_json(const ReadView& view, uint64_t id, std::string& json, std::string& error);
 
+// The object as it was at `revision` (ReadView::object_at: a removed object's ghost on a change
+// image), with "revision": that revision. False with a message when it did not exist then, or
+// its records cannot be read (pruned: the store's message).
+bool object_at_json(const ReadView& view, uint32_t revision, uint64_t id, std::string& json,
+                    std::string& error);
+
 // The answer to /api/objects/{tag-or-id} (routes.h: ObjectLookup): by `id` when it is not zero,
 // then by `name` (a tag as stored, then with the leading '/' plant names carry, unless it has
 // one). status 200: body is the object's JSON; 404: no such object (the message names what was

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,9 @@ struct RenderJob {
   // highlight=: object ids or tags, resolved by the render worker through its renderer's read
   // view (object_words.h); empty: nothing highlighted.
   std::vector<std::string> highlight;
+  // changes=R1[..R2]: a change image (render.h: RenderOptions::changes); whether the store
+  // can draw it is the render worker's to say (422).
+  std::optional<ChangeRange> changes;
   // The latest-wins slot (routes.h: a connection's, or the one an issued client id names): the
   // unit of round-robin, and with `kind` the key a newer job replaces a waiting one by. Never
   // empty in a job the routes made.

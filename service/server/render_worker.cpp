@@ -2,6 +2,7 @@
 #include "server/render_worker.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string_view>
@@ -69,6 +70,10 @@ std::string format_number(double value) {
 }
 
 }  // namespace
+
+bool is_change_range_error(std::string_view message) {
+  return message.substr(0, 8) == "changes ";
+}
 
 bool is_view_filter_error(std::string_view message) {
   static constexpr std::string_view kPrefixes[] = {"colour_by", "colour by", "--colour-by", "hide",
@@ -291,13 +296,35 @@ void RenderWorker::run(Thread* self, const Store* store) {
   started_.notify_all();
   if (!renderer) return;
 
+  // Following imports (render_worker.h): the commit last looked at, and the revision drawn.
+  uint64_t seen_commit = renderer->read_view().commit();
+  uint32_t revision = renderer->read_view().info().revision;
+  const auto follow = [&] {
+    const uint64_t newest = store->last_commit();
+    if (newest == seen_commit) return;
+    std::string refresh_error;
+    if (renderer->refresh(refresh_error)) {
+      seen_commit = renderer->read_view().commit();  // a commit since makes the next look move again
+      revision = renderer->read_view().info().revision;
+    } else {
+      seen_commit = newest;  // not tried again until the next commit
+      std::fprintf(stderr, "plantview serve: a renderer keeps revision %u: %s\n", revision,
+                   refresh_error.c_str());
+    }
+  };
+
   for (;;) {
     RenderJob job;
     Degradation degradation;
     size_t waiting = 0;
     {
       std::unique_lock lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || !self->ok || waiting_ > 0; });
+      if (!wake_.wait_for(lock, kFollowIntervalMs * std::chrono::milliseconds(1),
+                          [&] { return stopping_ || !self->ok || waiting_ > 0; })) {
+        lock.unlock();
+        follow();  // idle: let go of an old snapshot promptly
+        continue;
+      }
       if (!self->ok || waiting_ == 0) break;  // dismissed, or stopping with every queued job answered
       // Round-robin: the first client's first job; the client goes to the back of the line.
       ClientLine line = std::move(lines_.front());
@@ -323,7 +350,9 @@ void RenderWorker::run(Thread* self, const Store* store) {
       }
       ++running_;
     }
+    follow();  // between frames, never within one
     RenderResult result = execute_job(job, degradation, waiting, *renderer);
+    result.headers.emplace_back("X-Plantview-Revision", std::to_string(revision));
     {
       std::lock_guard lock(mutex_);
       done_.push_back(std::move(result));
@@ -358,6 +387,7 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
   options.section = job.section;
   options.style = job.style;
   options.highlight_ids.clear();
+  options.changes = job.changes;
   std::string error;
   r.headers.emplace_back("X-Plantview-Client", job.client_id);
   bool unknown = false;
@@ -374,7 +404,8 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
                       : renderer.render(job.camera, width, height, job.kind == RenderJob::Kind::pick,
                                         image, r.stats, error);
   if (!ok) {
-    r.status = is_view_filter_error(error) ? 400 : 500;
+    // A change range the store cannot draw (pruned, never made, not its revision): 422.
+    r.status = is_view_filter_error(error) ? 400 : is_change_range_error(error) ? 422 : 500;
     r.content_type = "application/json";
     r.body = error_body(error);
     return r;
@@ -393,9 +424,10 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
         break;
       }
       std::string json;
-      if (!object_json(renderer.read_view(), id, json, error)) {
+      if (!object_json(renderer.read_view(), id, json, error) &&
+          !(options.changes && object_at_json(renderer.read_view(), options.changes->from, id, json, error))) {
         // Picked, but not an object of the store (a merged pipeline run has its pipeline's id,
-        // which is one): report the id alone.
+        // which is one; a change image's removed object is answered as it was): the id alone.
         json = "{\"id\":\"" + std::to_string(id) + "\"}";
       }
       r.body = "{\"object\":" + json +
@@ -422,6 +454,9 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
       // Coloured by an attribute: the frame's legend (FrameLegend::to_json, one line).
       if (!r.stats.legend.key.empty())
         r.headers.emplace_back("X-Plantview-Legend", r.stats.legend.to_json());
+      // A change image: its caption (the range and its counts).
+      if (r.stats.changes.shown)
+        r.headers.emplace_back("X-Plantview-Changes", change_caption(r.stats.changes));
       break;
     }
   }

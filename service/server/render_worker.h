@@ -41,6 +41,15 @@
 //     uv_async_send).
 // Picks read their object from the snapshot of the renderer that drew them: the commit the
 // frame was drawn from.
+// Following imports: each renderer moves to the store's newest commit between jobs, never within
+// one: before every job it compares Store::last_commit() with its view's commit (no read, no
+// lock), and an idle one looks every kFollowIntervalMs, so that no renderer holds an old read
+// transaction (LMDB keeps every page a reader's snapshot uses: the file would grow with each
+// import). On a change it refresh()es: a new snapshot, and what it decoded and made resident
+// forgotten (slots of re-imported objects change). A refresh that fails (the new commit cannot
+// be read) keeps the old snapshot, says so on stderr, and is tried again at the next commit.
+// Every result carries X-Plantview-Revision: the revision (StoreInfo::revision) of the snapshot
+// the job read.
 // View filters: each job sets its renderer's section, style and highlight ids (RenderOptions)
 // from the job's own, so nothing of one job's view carries over to the next. Highlight words
 // are resolved through the renderer's read view (object_words.h), the snapshot it draws.
@@ -48,7 +57,8 @@
 // or one of an explicit number of renderers cannot. A job fails with the renderer's message:
 // 404 when a highlight word names no object; 400 when the renderer refuses the job's view
 // filters (is_view_filter_error: its message starts with the filter's name, e.g. "colour_by
-// 'Foo': ... keys: ..."); 500 otherwise.
+// 'Foo': ... keys: ..."); 422 when the store cannot draw a change range (is_change_range_error:
+// a revision pruned, never made, or not the snapshot's); 500 otherwise.
 #pragma once
 
 #include <condition_variable>
@@ -81,6 +91,9 @@ struct RenderWorkerOptions {
 // colour_by, "colour by", --colour-by, hide, only, style, section, clip, box, caps (or their --
 // forms). The renderer's messages for a bad style or section must start so.
 bool is_view_filter_error(std::string_view message);
+// Whether a renderer's error message is a change range the store cannot draw: it starts with
+// "changes " (render/src/change_set.h: ChangeSet::load).
+bool is_change_range_error(std::string_view message);
 
 // Renderers on a software renderer when the number is automatic, for `cores` cores (measured on
 // llvmpipe with bench_service: see render_worker.cpp).
@@ -118,6 +131,10 @@ constexpr uint64_t kInteractiveStreamBudgetVertices = 1u << 17;
 // The JPEG quality of a degraded interactive frame at most (as the remote-rendering views of
 // vtk.js and trame use while the user interacts).
 constexpr int kDegradedJpegQuality = 60;
+
+// How often an idle renderer looks for a new commit (milliseconds): a revision is served within
+// this of its commit, and an old snapshot let go.
+constexpr int kFollowIntervalMs = 100;
 
 class RenderWorker {
  public:

@@ -155,7 +155,7 @@ bool percent_decode(std::string_view text, std::string& out, std::string& error)
 
 bool is_view_filter(std::string_view key) {
   return key == "clip" || key == "box" || key == "caps" || key == "colour_by" || key == "highlight" ||
-         key == "hide" || key == "only";
+         key == "hide" || key == "only" || key == "changes";
 }
 
 // One of is_view_filter's parameters into the job; false with a message naming the parameter.
@@ -186,6 +186,13 @@ bool parse_view_filter(std::string_view key, const std::string& value, RenderJob
     return parse_word_list(value, what, job.style.only, error);
   } else if (key == "highlight") {
     return parse_word_list(value, what, job.highlight, error);
+  } else if (key == "changes") {
+    ChangeRange range;
+    if (!parse_change_range(value.substr(0, 64), range, error)) {
+      error = what + ": " + error;
+      return false;
+    }
+    job.changes = range;
   }
   return true;
 }
@@ -195,7 +202,8 @@ bool parse_view_filter(std::string_view key, const std::string& value, RenderJob
 bool parse_view(const RouteConfig& config, const Fields& query, std::initializer_list<std::string_view> allowed,
                 uint64_t connection_id, RenderJob& job, std::string& error) {
   static constexpr std::string_view common[] = {"eye", "target", "up", "fov", "w", "h", "lod", "px", "client",
-                                                "clip", "box", "caps", "colour_by", "highlight", "hide", "only"};
+                                                "clip", "box", "caps", "colour_by", "highlight", "hide", "only",
+                                                "changes"};
   CameraText camera;
   uint64_t slot = connection_id;
   job.width = 1280;

@@ -16,9 +16,10 @@
 //   - View filters, on frame, stats and pick alike (view_filters.h): clip=PX,PY,PZ,NX,NY,NZ
 //     (repeatable, at most kMaxClipPlanes; the normal points into the removed side),
 //     box=MINX,MINY,MINZ,MAXX,MAXY,MAXZ (kept inside), caps=0|1, colour_by=KEY, hide=W[,W],
-//     only=W[,W], highlight=ID|TAG[,...]. Their syntax is checked here (400 naming the
-//     parameter); whether a colour_by key or a highlight word names anything is the render
-//     worker's to say (render_worker.h: 400 and 404).
+//     only=W[,W], highlight=ID|TAG[,...], changes=R1[..R2] (a change image). Their syntax is
+//     checked here (400 naming the parameter); whether a colour_by key or a highlight word
+//     names anything, or the store can draw a change range, is the render worker's to say
+//     (render_worker.h: 400, 404 and 422).
 //   - Latest-wins slots: a render job's slot (RenderJob::client) is its connection's, or the one
 //     named by `client=ID` where ID is a client id this server issued (issue_client_id: the
 //     connection number and a keyed hash of it, so that ids cannot be guessed or forged without

@@ -18,6 +18,13 @@
 //     kMaxServedAddresses of them (the oldest are forgotten first).
 //   - Readiness: the store is open before the loop runs; a warm-up frame is queued first, and
 //     /readyz says 200 once it has been drawn, until the shutdown begins.
+//   - Following imports: the render threads move to each new commit between jobs
+//     (render_worker.h); object look-ups and measurements read a view begun for the request; and
+//     every kFollowIntervalMs the loop compares Store::last_commit() with the commit /api/model
+//     was described from, and on a change describes it again on the pool (the answer, bounds and
+//     default view swapped in on the loop). Answers say which revision their data came from
+//     (X-Plantview-Revision): a render job's, its renderer's snapshot; a look-up's, its view; an
+//     answer of the routes alone (/api/model, refusals), the revision /api/model describes.
 //   - Streams (/api/stream, docs/stream.md): a Stream per upgraded connection, on the loop
 //     thread. Its views become render jobs of the stream's own latest-wins slot
 //     ("stream:<connection>"), so they take part in the round-robin and the degradation like
@@ -40,6 +47,7 @@
 #include <deque>
 #include <optional>
 #include <csignal>
+#include <ctime>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -115,6 +123,7 @@ class Server final : public ConnectionHost {
   uv_tcp_t listener{};
   uv_signal_t sigint{}, sigterm{};
   uv_timer_t shutdown_timer{};
+  uv_timer_t follow_timer{};   // looks for a new commit to describe (/api/model)
   uv_async_t results_ready{};  // the render thread's results, delivered on the loop
   std::unique_ptr<Store> store;
   RenderWorker worker;
@@ -133,6 +142,10 @@ class Server final : public ConnectionHost {
   bool stopping = false;
   uint64_t shutdown_started_ms = 0;
   Metrics metrics;
+  // The commit and revision /api/model (routes) describes; a description on the pool.
+  uint64_t model_commit = 0;
+  uint32_t model_revision = 0;
+  bool describing = false;
 
   const ConnectionLimits& connection_limits() const override { return limits; }
   bool shutting_down() const override { return stopping; }
@@ -184,6 +197,7 @@ class Server final : public ConnectionHost {
   void answer_from_store(Connection& c, const std::shared_ptr<Pending>& p,
                          std::function<ObjectAnswer(const ReadView&)> answer);
   void on_render_done(RenderResult&& r);
+  void follow_commits();
   void deliver(RenderResult& r);
   void begin_shutdown();
   bool finish_shutdown();
@@ -258,6 +272,7 @@ void Server::on_request(Connection& c, const Request& request, const std::shared
   const auto* refused = std::get_if<Reply>(&routed.decision);
   if (!refused || refused->status != 401) remember_served(c.address());  // a wrong token earns no slot
   if (auto* reply = std::get_if<Reply>(&routed.decision)) {
+    if (reply->status != 401) reply->headers.emplace_back("X-Plantview-Revision", std::to_string(model_revision));
     c.answer(p, std::move(*reply));
   } else if (std::holds_alternative<MetricsPage>(routed.decision)) {
     metrics.count_answer(p->endpoint, 200);  // counted before it is written, so that it shows
@@ -304,6 +319,7 @@ struct StoreWork {
   std::function<ObjectAnswer(const ReadView&)> answer;
   uint64_t ticket = 0;
   ObjectAnswer result;
+  uint32_t revision = 0;  // of the view the answer read
 };
 
 void Server::answer_from_store(Connection& c, const std::shared_ptr<Pending>& p,
@@ -322,13 +338,15 @@ void Server::answer_from_store(Connection& c, const std::shared_ptr<Pending>& p,
         std::string error;
         const auto view = w->store->read(error);
         w->result = view ? w->answer(*view) : ObjectAnswer{500, error_body(error)};
+        if (view) w->revision = view->info().revision;
       },
       [](uv_work_t* req, int) {
         const std::unique_ptr<StoreWork> w(static_cast<StoreWork*>(req->data));
         --w->server->works_in_flight;
         const Ticket t = w->server->take_ticket(w->ticket);
         if (!t.connection) return;
-        t.connection->answer(t.pending, text_reply("application/json", std::move(w->result.body), w->result.status));
+        t.connection->answer(t.pending, text_reply("application/json", std::move(w->result.body), w->result.status,
+                                                   {{"X-Plantview-Revision", std::to_string(w->revision)}}));
       });
 }
 
@@ -696,6 +714,7 @@ void Server::stream_tick() {
 void Server::begin_shutdown() {
   if (stopping) return;
   stopping = true;
+  uv_timer_stop(&follow_timer);
   shutdown_started_ms = uv_now(loop);
   std::fprintf(stderr, "plantview serve: shutting down (finishing %zu requests)\n", tickets.size());
   uv_close(reinterpret_cast<uv_handle_t*>(&listener), nullptr);
@@ -726,6 +745,7 @@ bool Server::finish_shutdown() {
   worker.stop();
   uv_close(reinterpret_cast<uv_handle_t*>(&results_ready), nullptr);
   uv_close(reinterpret_cast<uv_handle_t*>(&shutdown_timer), nullptr);
+  uv_close(reinterpret_cast<uv_handle_t*>(&follow_timer), nullptr);
   uv_close(reinterpret_cast<uv_handle_t*>(&stream_timer), nullptr);
   // Everything is finished; only the store's clean close remains. A repeated signal (a second
   // Ctrl-C, a supervisor's retry) must not cut that short.
@@ -754,26 +774,115 @@ bool load_web_files(const std::string& directory, std::map<std::string, StaticFi
   return files.count("/") != 0;
 }
 
-// The /api/model answer and the model's bounds, from a snapshot of the store.
-bool describe_model(const Store& store, RouteConfig& routes, std::string& error) {
+// What the routes know of one commit of the store: the /api/model answer, the bounds and what
+// the default view is fitted to.
+struct ModelDescription {
+  std::string model_json;
+  DAabb bounds;
+  std::vector<DAabb> overview_boxes;
+  uint64_t commit = 0;    // the view's (ReadView::commit)
+  uint32_t revision = 0;  // StoreInfo::revision
+};
+
+// "2026-12-06T09:30:00.123Z" (UTC).
+std::string iso8601_utc(int64_t unix_ms) {
+  const time_t seconds = time_t(unix_ms / 1000);
+  tm utc{};
+  gmtime_r(&seconds, &utc);
+  char text[40];
+  const size_t n = std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%S", &utc);
+  std::snprintf(text + n, sizeof text - n, ".%03dZ", int(unix_ms % 1000));
+  return text;
+}
+
+// The /api/model answer and the model's bounds, from a snapshot of the store. Any thread.
+bool describe_model(const Store& store, ModelDescription& out, std::string& error) {
   auto view = store.read(error);
   if (!view) return false;
   const StoreInfo info = view->info();
-  routes.bounds = info.statistics.bounds;
-  routes.overview_boxes = overview_boxes(*view);
-  const Camera camera = default_camera(routes.overview_boxes, 16.0 / 9.0);
+  out.commit = view->commit();
+  out.revision = info.revision;
+  out.bounds = info.statistics.bounds;
+  out.overview_boxes = overview_boxes(*view);
+  const Camera camera = default_camera(out.overview_boxes, 16.0 / 9.0);
   nlohmann::json model = {{"objects", info.objects},
+                          {"revision", info.revision},
+                          {"revision_time", info.revision_time_unix_ms > 0
+                                                ? nlohmann::json(iso8601_utc(info.revision_time_unix_ms))
+                                                : nlohmann::json(nullptr)},
                           {"statistics", nlohmann::json::parse(statistics_json(info.statistics))},
                           {"camera",
                            {{"eye", {camera.eye_m.x, camera.eye_m.y, camera.eye_m.z}},
                             {"target", {camera.target_m.x, camera.target_m.y, camera.target_m.z}},
                             {"up", {camera.up.x, camera.up.y, camera.up.z}},
                             {"fov", camera.fov_deg}}}};
-  const DAabb& b = routes.bounds;
+  // What the revision changed (ReadView::revisions: kept for ever, a few hundred bytes each).
+  std::vector<Revision> revisions;
+  if (!view->revisions(revisions, error)) return false;
+  for (const Revision& r : revisions) {
+    if (r.number != info.revision) continue;
+    model["changes"] = {{"added", r.added}, {"removed", r.removed}, {"modified", r.modified}};
+    model["note"] = r.note;
+    model["sources"] = r.sources;
+  }
+  const DAabb& b = out.bounds;
   if (!b.empty()) model["bounds"] = {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
-  routes.model_json = model.dump() + "\n";
+  out.model_json = model.dump() + "\n";
   return true;
 }
+
+void use_description(Server& s, ModelDescription&& d) {
+  s.routes.model_json = std::move(d.model_json);
+  s.routes.bounds = d.bounds;
+  s.routes.overview_boxes = std::move(d.overview_boxes);
+  s.model_commit = d.commit;
+  s.model_revision = d.revision;
+}
+
+struct DescribeWork {
+  uv_work_t req{};
+  Server* server = nullptr;
+  uint64_t newest = 0;  // Store::last_commit() when it was queued
+  ModelDescription description;
+  bool ok = false;
+  std::string error;
+};
+
+// On the loop, every kFollowIntervalMs: a new commit is described on the pool, then swapped in.
+void Server::follow_commits() {
+  if (stopping || describing) return;
+  const uint64_t newest = store->last_commit();
+  if (newest == model_commit) return;
+  describing = true;
+  ++works_in_flight;
+  auto* work = new DescribeWork;
+  work->server = this;
+  work->newest = newest;
+  work->req.data = work;
+  uv_queue_work(
+      loop, &work->req,
+      [](uv_work_t* req) {
+        auto* w = static_cast<DescribeWork*>(req->data);
+        w->ok = describe_model(*w->server->store, w->description, w->error);
+      },
+      [](uv_work_t* req, int) {
+        const std::unique_ptr<DescribeWork> w(static_cast<DescribeWork*>(req->data));
+        Server& s = *w->server;
+        --s.works_in_flight;
+        s.describing = false;
+        if (!w->ok) {
+          s.model_commit = w->newest;  // tried again at the next commit
+          std::fprintf(stderr, "plantview serve: still describing revision %u: %s\n", s.model_revision,
+                       w->error.c_str());
+          return;
+        }
+        if (w->description.commit == s.model_commit) return;
+        use_description(s, std::move(w->description));
+        std::fprintf(stderr, "plantview serve: following revision %u (commit %llu)\n", s.model_revision,
+                     static_cast<unsigned long long>(s.model_commit));
+      });
+}
+
 
 bool is_loopback(const std::string& host) {
   return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
@@ -849,7 +958,9 @@ int run_server(const ServerOptions& options, std::string& error) {
     return 1;
   }
   s.store = Store::open(options.store_directory, Store::Mode::read_only, error);
-  if (!s.store || !describe_model(*s.store, s.routes, error)) return 1;
+  ModelDescription description;
+  if (!s.store || !describe_model(*s.store, description, error)) return 1;
+  use_description(s, std::move(description));
   if (s.store->without_lock_file())
     std::fprintf(stderr, "plantview serve: %s is read-only: reading it without LMDB's lock file "
                  "(no import may write to it while this server runs)\n", options.store_directory.c_str());
@@ -887,6 +998,11 @@ int run_server(const ServerOptions& options, std::string& error) {
   uv_signal_start(&s.sigterm, on_signal, SIGTERM);
   uv_timer_init(&loop, &s.shutdown_timer);
   s.shutdown_timer.data = &s;
+  uv_timer_init(&loop, &s.follow_timer);
+  s.follow_timer.data = &s;
+  uv_timer_start(
+      &s.follow_timer, [](uv_timer_t* t) { static_cast<Server*>(t->data)->follow_commits(); },
+      kFollowIntervalMs, kFollowIntervalMs);
   uv_timer_init(&loop, &s.stream_timer);
   s.stream_timer.data = &s;
   std::signal(SIGPIPE, SIG_IGN);

@@ -96,6 +96,16 @@ bool Import::State::remove_slot(uint32_t slot, std::string& error) {
     error = message("object slot " + std::to_string(slot) + ": " + why);
     return false;
   }
+  // A committed object's content hash, for the change list (one put by this import was not
+  // there before it, and is left out).
+  if (slot < first_new_slot) {
+    hasher.record(record);  // (the span stays valid: attributes is another writer)
+    std::span<const uint8_t> old_attributes;
+    if (!attributes.get(txn.get(), slot, old_attributes, error)) return false;
+    if (!add_change_item(removed_items, old, slot, hasher.attributes(old_attributes), error)) {
+      return false;
+    }
+  }
   if (!objects.erase(txn.get(), slot, error) || !attributes.erase(txn.get(), slot, error)) {
     return false;
   }
@@ -154,7 +164,31 @@ bool Import::State::database_empty(MDB_dbi dbi, bool& empty, std::string& error)
   return true;
 }
 
+bool Import::State::add_change_item(
+    detail::SpilledRuns<detail::ChangeItem, detail::ChangeItemLess>& items, const Object& object,
+    uint32_t slot, uint64_t hash, std::string& error) {
+  detail::ChangeItem item;
+  item.id = object.id;
+  item.hash = hash;
+  item.slot = slot;
+  item.object_class = uint8_t(object.object_class);
+  item.name_bytes = uint32_t(object.name.size());
+  std::string why;
+  if (!change_names.add(object.name, item.name_at, why) || !items.add(item, why)) {
+    error = message(why);
+    return false;
+  }
+  return true;
+}
+
 Import::Import(std::unique_ptr<State> state) : state_(std::move(state)) {}
+
+void Import::set_note(std::string note) { state_->note = std::move(note); }
+
+void Import::set_keep_revisions(uint32_t revisions) {
+  assert(revisions >= 1 && "set_keep_revisions(0)");
+  state_->keep_revisions = revisions < 1 ? 1 : revisions;
+}
 Import::~Import() = default;
 uint64_t Import::objects_put() const { return state_->put_count; }
 const ModelStatistics& Import::put_statistics() const { return state_->put_statistics; }
@@ -222,10 +256,13 @@ bool Import::put(const Object& object, std::string& error) {
   detail::encode_object(object, s.raw);
   s.digest(slot);
   s.digest(s.raw);
+  s.hasher.record(s.raw);
   if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
   detail::encode_attributes(object.attributes, s.raw);
   s.digest(s.raw);
+  const uint64_t hash = s.hasher.attributes(s.raw);
   if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  if (!s.add_change_item(s.put_items, object, slot, hash, error)) return false;
   ++s.next_slot;
   if (!runs->empty() && runs->back().first + runs->back().length == slot) {
     ++runs->back().length;
@@ -252,6 +289,7 @@ std::unique_ptr<Import> Store::begin_import(std::string& error) {
     return nullptr;
   }
   auto s = std::make_unique<Import::State>(state_, detail::import_run_bytes());
+  if (!s->writer_lock.acquire(state_->directory, error)) return nullptr;
   int rc = s->txn.begin(state_->env.get(), 0);
   if (rc != MDB_SUCCESS) {
     error = state_->fail("starting an import", rc);

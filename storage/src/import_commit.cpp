@@ -309,6 +309,7 @@ bool Import::commit(std::string& error) {
   // Spent either way: a failed commit leaves the store as it was.
   const bool ok = state_->commit(error);
   state_->txn.abort();
+  state_->writer_lock.release();
   return ok;
 }
 
@@ -318,6 +319,7 @@ bool Import::State::commit(std::string& error) {
   // Ids first: resolving an id put twice removes slots, which the other merges then leave out.
   if (!s.rekey_indexes(error) || !s.merge_ids(error)) return false;
   detail::import_stage("ids merged");
+  if (!s.write_revision(error)) return false;
   if (!s.objects.flush(s.txn.get(), error) || !s.attributes.flush(s.txn.get(), error)) return false;
   if (!s.merge_names(error) || !s.write_sources(error) || !s.write_spatial(error)) return false;
 

@@ -8,8 +8,10 @@
 #include <vector>
 
 #include "import_runs.h"
+#include "revisions.h"
 #include "store_internal.h"
 #include "tables.h"
+#include "writer_lock.h"
 
 namespace plantview::detail {
 
@@ -48,6 +50,8 @@ namespace plantview {
 
 struct Import::State {
   std::shared_ptr<Store::State> store;
+  // Held from before the transaction begins until after it ends (declared first: released last).
+  detail::WriterLock writer_lock;
   detail::LmdbTxn txn;
 
   ModelStatistics totals;        // as committed before, updated as objects come and go
@@ -86,6 +90,14 @@ struct Import::State {
   detail::ZstdCCtx compressor = detail::make_compressor();
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
 
+  // The revision this commit records (store.h, "Revisions"): every object put, and every
+  // committed object removed, with its content hash, merged by id at commit.
+  std::string note;
+  uint32_t keep_revisions = kDefaultKeepRevisions;
+  detail::SpilledRuns<detail::ChangeItem, detail::ChangeItemLess> put_items, removed_items;
+  detail::NameLog change_names;
+  detail::ContentHasher hasher;
+
   explicit State(std::shared_ptr<Store::State> s, size_t run_bytes)
       : store(std::move(s)),
         new_ids(store->directory, "ids", run_bytes / sizeof(detail::IdSlot)),
@@ -93,7 +105,10 @@ struct Import::State {
         new_spatial(store->directory, "spatial", run_bytes / sizeof(detail::SpatialItem)),
         objects(store->directory, "object", store->dbs.objects, detail::kObjectShape),
         attributes(store->directory, "attributes", store->dbs.attributes,
-                   detail::kAttributeShape) {}
+                   detail::kAttributeShape),
+        put_items(store->directory, "puts", run_bytes / 2 / sizeof(detail::ChangeItem)),
+        removed_items(store->directory, "removals", run_bytes / 2 / sizeof(detail::ChangeItem)),
+        change_names(store->directory) {}
 
   std::string fail(std::string_view what, int rc) const { return store->fail(what, rc); }
   std::string message(const std::string& what) const { return "store " + store->directory + ": " + what; }
@@ -129,6 +144,13 @@ struct Import::State {
   bool merge_names(std::string& error);
   bool write_sources(std::string& error);
   bool write_spatial(std::string& error);
+  // Adds `object`'s change item (slot, content hash `hash`) to `items`.
+  bool add_change_item(detail::SpilledRuns<detail::ChangeItem, detail::ChangeItemLess>& items,
+                       const Object& object, uint32_t slot, uint64_t hash, std::string& error);
+  // The revision: the change list (merging the puts and the removals by id), the previous
+  // records of what was removed or modified, pruning, revisions/. After merge_ids (which settles
+  // which puts stand).
+  bool write_revision(std::string& error);
   bool commit(std::string& error);
 };
 

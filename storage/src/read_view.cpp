@@ -6,7 +6,10 @@
 #include <cassert>
 #include <filesystem>
 
+#include <map>
+
 #include "record.h"
+#include "revisions.h"
 #include "store_internal.h"
 
 namespace plantview {
@@ -188,6 +191,13 @@ StoreInfo ReadView::info() const {
   read_statistics(txn, dbs.meta, state_->store->directory, info.statistics, ignored);
   info.objects = info.statistics.objects;
   info.commit_id = read_commit_id(txn, dbs.meta);
+  Revision last;
+  bool found;
+  std::string why;
+  if (detail::read_last_revision(txn, dbs.revisions, last, found, why) && found) {
+    info.revision = last.number;
+    info.revision_time_unix_ms = last.time_unix_ms;
+  }
   std::error_code ec;
   const auto size = std::filesystem::file_size(
       std::filesystem::path(state_->store->directory) / "data.mdb", ec);
@@ -406,6 +416,269 @@ bool ReadView::visit_objects(const ObjectClass* only,
 
 uint32_t ReadView::slot_count() const { return state_->snapshot->next_slot; }
 
+bool ReadView::revisions(std::vector<Revision>& out, std::string& error) const {
+  State& s = *state_;
+  out.clear();
+  detail::LmdbCursor cursor;
+  int rc = cursor.open(s.txn.get(), s.store->dbs.revisions);
+  MDB_val k, v;
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_FIRST);
+  while (rc == MDB_SUCCESS) {
+    Revision r;
+    bool unknown;
+    std::string why;
+    if (!detail::revision_from_json(std::string_view(static_cast<const char*>(v.mv_data), v.mv_size),
+                                    r, unknown, why)) {
+      error = "store " + s.store->directory + ": revision " +
+              std::to_string(k.mv_size == 4 ? detail::read_be32(k.mv_data) : 0) + ": " + why;
+      return false;
+    }
+    out.push_back(std::move(r));
+    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
+  }
+  if (rc != MDB_NOTFOUND) {
+    error = lmdb_message(s.store->directory, "reading the revisions", rc);
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+// Whether revision `number`'s changes can be read in `txn`: false with a message naming it (and
+// the store) when it never existed, was pruned, or came from upgrading a format 5 store.
+bool changes_readable(MDB_txn* txn, MDB_dbi revisions, const std::string& directory,
+                      uint32_t number, uint32_t newest, std::string& error) {
+  Revision r;
+  bool unknown, found;
+  std::string why;
+  if (!detail::read_revision(txn, revisions, number, r, unknown, found, why)) {
+    error = "store " + directory + ": " + why;
+    return false;
+  }
+  if (!found) {
+    error = "store " + directory + ": no revision " + std::to_string(number) +
+            " (the newest is " + std::to_string(newest) + ")";
+    return false;
+  }
+  if (unknown) {
+    error = "store " + directory + ": revision " + std::to_string(number) +
+            "'s changes are not known: it upgraded a format 5 store";
+    return false;
+  }
+  if (!r.changes_kept) {
+    Revision last;
+    bool any;
+    uint32_t keep = kDefaultKeepRevisions;
+    if (detail::read_last_revision(txn, revisions, last, any, why) && any)
+      keep = last.keep_revisions;
+    error = "store " + directory + ": revision " + std::to_string(number) +
+            "'s changes were pruned: the store keeps the last " + std::to_string(keep) +
+            " (--keep-revisions)";
+    return false;
+  }
+  return true;
+}
+
+// The block of `dbi` (changes/ or history/: keys (revision, first id)) that would hold object
+// `id` of revision `number`, inflated into `raw`: the value of the greatest key not above
+// (number, id). `found` false when revision `number` has no such block.
+bool find_block(MDB_txn* txn, MDB_dbi dbi, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
+                std::vector<uint8_t>& raw, bool& found, std::string& why) {
+  found = false;
+  detail::LmdbCursor cursor;
+  int rc = cursor.open(txn, dbi);
+  const detail::ChangeKey key(number, id);
+  MDB_val k = key.val(), v;
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  uint32_t n = 0;
+  uint64_t first = 0;
+  const bool exact = rc == MDB_SUCCESS && detail::ChangeKey::decode(k, n, first) &&
+                     n == number && first == id;
+  if (!exact && (rc == MDB_SUCCESS || rc == MDB_NOTFOUND)) {
+    rc = mdb_cursor_get(cursor.get(), &k, &v, rc == MDB_NOTFOUND ? MDB_LAST : MDB_PREV);
+    if (rc == MDB_NOTFOUND) return true;
+  }
+  if (rc != MDB_SUCCESS) {
+    why = mdb_strerror(rc);
+    return false;
+  }
+  if (!detail::ChangeKey::decode(k, n, first)) {
+    why = "a malformed key";
+    return false;
+  }
+  if (n != number) return true;
+  found = true;
+  return detail::inflate_frame(dctx, std::span(static_cast<const uint8_t*>(v.mv_data), v.mv_size),
+                               raw, why);
+}
+
+// The change revision `number` made to object `id` (`found` false: none).
+bool find_change(MDB_txn* txn, MDB_dbi changes, ZSTD_DCtx* dctx, uint32_t number, uint64_t id,
+                 detail::ChangeEntry& out, bool& found, std::string& why) {
+  std::vector<uint8_t> raw;
+  std::vector<detail::ChangeEntry> entries;
+  if (!find_block(txn, changes, dctx, number, id, raw, found, why)) return false;
+  if (found && !detail::decode_change_block(raw, entries, why)) return false;
+  found = false;
+  for (detail::ChangeEntry& e : entries) {
+    if (e.id != id) continue;
+    out = std::move(e);
+    found = true;
+    break;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool ReadView::changes(uint32_t from, uint32_t to, std::vector<ObjectChange>& out,
+                       std::string& error) const {
+  State& s = *state_;
+  out.clear();
+  const uint32_t newest = info().revision;
+  if (to > newest || from >= to) {
+    const uint32_t missing = from > newest ? from : to;
+    error = "store " + s.store->directory + ": " +
+            (missing > newest ? "no revision " + std::to_string(missing) + " (the newest is " +
+                                    std::to_string(newest) + ")"
+                              : "no changes from revision " + std::to_string(from) + " to " +
+                                    std::to_string(to) + ": the first must come before the second");
+    return false;
+  }
+  for (uint32_t n = from + 1; n <= to; ++n) {
+    if (!changes_readable(s.txn.get(), s.store->dbs.revisions, s.store->directory, n, newest, error)) return false;
+  }
+  // Each object's first and last change in the range, by id.
+  struct Net {
+    bool existed = false, exists = false;
+    uint64_t hash_before = 0, hash_after = 0;
+    uint8_t object_class = 0;
+    std::string name;
+    uint32_t revision = 0;
+  };
+  std::map<uint64_t, Net> net;
+  detail::LmdbCursor cursor;
+  int rc = cursor.open(s.txn.get(), s.store->dbs.changes);
+  const detail::ChangeKey first(from + 1, 0);
+  MDB_val k = first.val(), v;
+  if (rc == MDB_SUCCESS) rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_SET_RANGE);
+  std::vector<uint8_t> raw;
+  std::vector<detail::ChangeEntry> entries;
+  while (rc == MDB_SUCCESS) {
+    uint32_t number;
+    uint64_t first_id;
+    std::string why = "a malformed key";
+    if (!detail::ChangeKey::decode(k, number, first_id) ||
+        !detail::inflate_read_once(v, s.dctx.get(), raw, why) ||
+        !detail::decode_change_block(raw, entries, why)) {
+      error = "store " + s.store->directory + ": the changes of revision " +
+              std::to_string(k.mv_size == 12 ? detail::read_be32(k.mv_data) : 0) + ": " + why;
+      return false;
+    }
+    if (number > to) break;
+    for (detail::ChangeEntry& change : entries) {
+      auto [it, is_new] = net.try_emplace(change.id);
+      Net& n = it->second;
+      if (is_new) {
+        n.existed = change.kind != ChangeKind::added;
+        n.hash_before = change.hash_before;
+      }
+      n.exists = change.kind != ChangeKind::removed;
+      n.hash_after = change.hash_after;
+      n.object_class = change.object_class;
+      n.name = std::move(change.name);
+      n.revision = number;
+    }
+    rc = mdb_cursor_get(cursor.get(), &k, &v, MDB_NEXT);
+  }
+  if (rc != MDB_SUCCESS && rc != MDB_NOTFOUND) {
+    error = lmdb_message(s.store->directory, "reading the changes", rc);
+    return false;
+  }
+  for (auto& [id, n] : net) {
+    if (!n.existed && !n.exists) continue;                               // came and went
+    if (n.existed && n.exists && n.hash_before == n.hash_after) continue;  // back as it was
+    ObjectChange c;
+    c.id = id;
+    c.kind = !n.existed ? ChangeKind::added : !n.exists ? ChangeKind::removed : ChangeKind::modified;
+    c.name = std::move(n.name);
+    c.object_class = ObjectClass(n.object_class);
+    c.hash_before = n.existed ? n.hash_before : 0;
+    c.hash_after = n.exists ? n.hash_after : 0;
+    c.revision = n.revision;
+    if (c.kind != ChangeKind::removed && !slot_of(id, c.slot, error)) return false;
+    out.push_back(std::move(c));
+  }
+  return true;
+}
+
+bool ReadView::object_at(uint32_t revision, uint64_t id, Object& out, bool& found,
+                         bool with_attributes, std::string& error) const {
+  State& s = *state_;
+  found = false;
+  const uint32_t newest = info().revision;
+  assert(revision <= newest && "object_at() of a revision after the view's");
+  for (uint32_t n = revision + 1; n <= newest; ++n) {
+    if (!changes_readable(s.txn.get(), s.store->dbs.revisions, s.store->directory, n, newest, error)) return false;
+    detail::ChangeEntry change;
+    bool changed;
+    std::string why;
+    if (!find_change(s.txn.get(), s.store->dbs.changes, s.dctx.get(), n, id, change, changed,
+                     why)) {
+      error = "store " + s.store->directory + ": the changes of revision " + std::to_string(n) +
+              ": " + why;
+      return false;
+    }
+    if (!changed) continue;
+    if (change.kind == ChangeKind::added) return true;  // it did not exist then
+    std::vector<uint8_t> raw;
+    std::span<const uint8_t> record, attributes;
+    bool in_block = false, listed = false;
+    const std::string what = "store " + s.store->directory + ": the record of object " +
+                             std::to_string(id) + " before revision " + std::to_string(n);
+    bool ok = find_block(s.txn.get(), s.store->dbs.history, s.dctx.get(), n, id, raw, in_block,
+                         why) &&
+              (!in_block || detail::find_history(raw, id, record, attributes, listed, why));
+    if (ok && !listed) ok = false, why = "missing from the history";
+    ok = ok && detail::decode_object(record.data(), record.size(), out, why);
+    if (ok && with_attributes) {
+      ok = detail::decode_attributes(attributes.data(), attributes.size(), out.attributes, why);
+    }
+    if (!ok) {
+      error = what + ": " + why;
+      return false;
+    }
+    found = true;
+    return true;
+  }
+  std::optional<uint32_t> slot;
+  if (!slot_of(id, slot, error)) return false;
+  if (!slot) return true;
+  found = object(*slot, out, with_attributes, error);
+  return found;
+}
+
+bool ReadView::content_hash(uint32_t slot, uint64_t& hash, std::string& error) const {
+  State& s = *state_;
+  std::span<const uint8_t> record;
+  std::string why;
+  bool ok = s.objects.record(s.txn.get(), s.dctx.get(), slot, record, why);
+  if (ok && record.empty()) {
+    error = "store " + s.store->directory + ": no object in slot " + std::to_string(slot);
+    return false;
+  }
+  detail::ContentHasher hasher;
+  if (ok) hasher.record(record);
+  if (ok) ok = s.attributes.record(s.txn.get(), s.dctx.get(), slot, record, why);
+  if (!ok) {
+    error = "store " + s.store->directory + ": object slot " + std::to_string(slot) + ": " + why;
+    return false;
+  }
+  hash = hasher.attributes(record);
+  return true;
+}
+
 size_t ReadView::spatial_cache_bytes() const { return state_->snapshot->blocks.bytes(); }
 size_t ReadView::chunk_cache_bytes() const { return state_->snapshot->object_chunks.bytes(); }
 uint64_t ReadView::chunks_decompressed() const { return state_->objects.inflated(); }
@@ -423,6 +696,20 @@ std::unique_ptr<ReadView> Store::read(std::string& error) const {
   s->snapshot = state_->snapshot_for(s->txn.get());
   s->objects.share(&s->snapshot->object_chunks);
   return std::unique_ptr<ReadView>(new ReadView(std::move(s)));
+}
+
+}  // namespace plantview
+
+namespace plantview {
+
+uint64_t ReadView::commit() const { return uint64_t(mdb_txn_id(state_->txn.get())); }
+
+uint64_t Store::last_commit() const {
+  MDB_envinfo info;
+  // mdb_env_info reads the newer of the two meta pages through the map: no lock, no system
+  // call. It fails only for null arguments.
+  if (mdb_env_info(state_->env.get(), &info) != MDB_SUCCESS) return 0;
+  return uint64_t(info.me_last_txnid);
 }
 
 }  // namespace plantview

@@ -45,6 +45,7 @@ bool read_statistics(MDB_txn* txn, MDB_dbi meta, const std::string& directory,
 struct Databases {
   MDB_dbi meta, objects, attributes, sources, ids, names;
   MDB_dbi spatial[2];  // spatial_a, spatial_b: the top says which holds the committed blocks
+  MDB_dbi revisions, changes, history;  // format 6
 };
 
 

@@ -9,7 +9,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "revisions.h"
 #include "store_internal.h"
+#include "writer_lock.h"
 
 namespace plantview {
 
@@ -148,6 +150,9 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   // Before anything reads a page through the mapping.
   if (!data_file_complete(state->env.get(), directory, error)) return nullptr;
   // Open (or create) the named databases once; their handles serve every later transaction.
+  // A writer first takes the store's writer lock, so that waiting for another import says whose.
+  detail::WriterLock writer_lock;
+  if (mode == Mode::read_write && !writer_lock.acquire(directory, error)) return nullptr;
   detail::LmdbTxn txn;
   rc = txn.begin(state->env.get(), mode == Mode::read_only ? MDB_RDONLY : 0u);
   if (rc != MDB_SUCCESS) {
@@ -163,10 +168,17 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
   }
   // The format comes first: another version's databases are not to be opened, let alone read.
   MDB_val k = as_val("format"), v;
+  bool upgrade = false;  // a format 5 store, opened read_write
   if (mdb_get(txn.get(), d.meta, &k, &v) == MDB_SUCCESS) {
     uint32_t version = 0;
     if (v.mv_size == 4) std::memcpy(&version, v.mv_data, 4);
-    if (version != kStoreFormatVersion) {
+    if (version == 5 && mode == Mode::read_only) {
+      error = "store " + directory + ": format 5, run `plantview upgrade --store " + directory +
+              "` (or any import) to upgrade it in place";
+      return nullptr;
+    }
+    upgrade = version == 5;
+    if (version != kStoreFormatVersion && !upgrade) {
       error = "store " + directory + " has format " + std::to_string(version) +
               "; this build reads format " + std::to_string(kStoreFormatVersion) +
               (version < kStoreFormatVersion ? ": import or generate it again"
@@ -199,6 +211,9 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
       {"names", &d.names, kIndexFlags},
       {"spatial_a", &d.spatial[0], 0},
       {"spatial_b", &d.spatial[1], 0},
+      {"revisions", &d.revisions, 0},
+      {"changes", &d.changes, 0},
+      {"history", &d.history, 0},
   };
   for (const Named& n : named) {
     rc = mdb_dbi_open(txn.get(), n.name, create | n.flags, n.dbi);
@@ -207,9 +222,12 @@ std::unique_ptr<Store> Store::open(const std::string& directory, Mode mode, std:
       return nullptr;
     }
   }
+  if (upgrade && !detail::upgrade_from_format_5(txn.get(), d, directory, statistics.objects, error)) {
+    return nullptr;
+  }
   rc = txn.commit();
   if (rc != MDB_SUCCESS) {
-    error = lmdb_message(directory, "opening", rc);
+    error = lmdb_message(directory, upgrade ? "upgrading from format 5" : "opening", rc);
     return nullptr;
   }
   return std::unique_ptr<Store>(new Store(std::move(state)));

@@ -14,7 +14,8 @@ and the image changes), a BCF viewpoint saved (the downloaded .bcf
 unzips and its XML holds the camera, the box as six planes and the selection), the permalink
 opened in a fresh window (the same request and the same pixels), and on a second store of two
 boxes 1.25 m apart two picked points and the clearance measured through /api/measure (exact to
-1 mm).
+1 mm). Last, the plant is generated again (another seed) into the served store: the page says
+"model updated: revision N, M objects changed" and draws the new revision.
 
     tests/browser/test_viewer.py --plantview build/service/plantview [--store DIR]
                                  [--screenshot build/browser/viewer.png] [--port 0]
@@ -844,6 +845,27 @@ def run(args, tmp):
         text, _ = search_name(server, obj)
         review_tools(driver, server, state, wait_state, obj, text, downloads, tmp,
                      args.screenshot.replace(".png", "-section.png"))
+
+        # 12. The server follows an import into its store (only into a store of this test's own):
+        # the page notices the new revision, says what changed, and draws it.
+        if not args.store:
+            before_import = state()
+            revision = driver.js("return window.plantview.revision")
+            gen = subprocess.run([plantview, "gen", "--preset", "a", "--seed", "2", "--store", store],
+                                 capture_output=True, text=True, timeout=600)
+            if gen.returncode != 0:
+                raise Failure(f"plantview gen --seed 2 failed ({gen.returncode}): {gen.stderr.strip()[-2000:]}")
+            # An idle page hears of it from its poll of /api/model (every 5 s).
+            def updated():
+                text = driver.js("const e = document.getElementById('model-updated');"
+                                 "return e && !e.hidden ? e.textContent : null")
+                return text if text and driver.js("return window.plantview.revision") > revision else None
+            text = wait_for("the page to say the model was updated", 5 + FRAME_S, updated)
+            if not text.startswith(f"model updated: revision {revision + 1}, ") or "changed" not in text:
+                raise Failure(f"the update bar says {text!r}")
+            wait_state("a frame of the new revision", FRAME_S,
+                       lambda s: s["framesShown"] > before_import["framesShown"])
+            print(f"follow: {text}", flush=True)
 
         # 11. Measure the clearance of two boxes a known gap apart, on a store of their own.
         measure_two_boxes(driver, plantview, tmp, processes, wait_state)

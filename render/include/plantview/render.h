@@ -149,6 +149,18 @@ std::string_view occlusion_test_name(OcclusionTest test);
 inline constexpr double kStillPixelError = 0.5;
 inline constexpr double kInteractivePixelError = 1.0;
 
+// Change images (RenderOptions::changes, view_filters.h: ChangeRange): added objects in
+// kAddedColour, modified ones in kModifiedColour with their shape at `from` as a see-through
+// ghost in kPreviousColour, removed ones as see-through ghosts in kRemovedColour from their
+// records at `from` (ReadView::object_at); the rest is ghosted as a highlight's context, and
+// picks on the image return the changed objects' ids (a ghost's pixels, where it lies in front,
+// the id of the object it was), 0 elsewhere. docs/changes.md.
+inline constexpr Colour kAddedColour{40, 170, 60, 255};      // green
+inline constexpr Colour kModifiedColour{245, 160, 20, 255};  // amber
+inline constexpr Colour kPreviousColour{185, 140, 80, 255};  // amber-grey: a modified object's
+                                                              // shape at `from`, see-through
+inline constexpr Colour kRemovedColour{215, 40, 40, 255};    // red, see-through
+
 struct RenderOptions {
   LodPolicy lod_policy = LodPolicy::screen_space;
   double pixel_error = kInteractivePixelError;     // screen_space: allowed error in pixels
@@ -192,6 +204,11 @@ struct RenderOptions {
   // finer at once (degradation lifting in the service) costs a few ordinary frames, not one
   // long one. The object that crosses the budget is streamed whole: every frame makes progress.
   uint64_t stream_budget_vertices = 0;
+  // Set: a change image of this range (see ChangeRange). It replaces highlight_ids and
+  // style.colour_by (its legend is the changes'), and turns pipeline HLOD off (a merged run
+  // would draw a changed pipe in its neighbours' colour). A range the store cannot draw (a
+  // revision pruned, never made, or not the snapshot's) fails the frame with the store's message.
+  std::optional<ChangeRange> changes;
 
   bool operator==(const RenderOptions&) const = default;
 };
@@ -290,9 +307,20 @@ struct FrameStats {
   // drawn), and the legend when colour_by is set (key empty otherwise).
   uint64_t objects_hidden = 0;
   FrameLegend legend;
-  // One JSON object (one line): the fields above, times under "ms"; "legend" only when set.
+  // RenderOptions::changes: the range drawn and what changed in it, in the whole store (not
+  // only in view); the legend (key "changes") has an entry per kind with the same counts.
+  // shown false: no change image.
+  struct Changes {
+    bool shown = false;
+    uint32_t from = 0, to = 0;
+    uint64_t added = 0, modified = 0, removed = 0;
+  } changes;
+  // One JSON object (one line): the fields above, times under "ms"; "legend" only when set;
+  // "changes": {"from", "to", "added", "modified", "removed"} only when shown.
   std::string to_json() const;
 };
+// A change image's caption: "Changes since revision 3 (to 5): 2 added, 1 modified, 4 removed".
+std::string change_caption(const FrameStats::Changes& changes);
 
 // ---------------------------------------------------------------------------------------------
 // The GPU context and the renderer.

@@ -84,4 +84,18 @@ struct ObjectStyle {
 bool parse_word_list(std::string_view text, std::string_view what, std::vector<std::string>& out,
                      std::string& error);
 
+// A change image's range of revisions (render.h: RenderOptions::changes; store.h: Revision,
+// ReadView::changes): what changed in the store after `from`, drawn over the snapshot.
+struct ChangeRange {
+  uint32_t from = 0;  // the earlier revision (0: the empty store)
+  uint32_t to = 0;    // the later one: 0 for the snapshot's; else it must be the snapshot's
+                      // (the renderer draws the store as the snapshot holds it)
+  bool operator==(const ChangeRange&) const = default;
+};
+// "R1" or "R1..R2": whole numbers, R1 < R2. False with a message quoting the text (a caller
+// prefixes the option's or parameter's name).
+bool parse_change_range(std::string_view text, ChangeRange& out, std::string& error);
+// "R1" or "R1..R2", as parse_change_range reads it.
+std::string change_range_text(const ChangeRange& range);
+
 }  // namespace plantview

@@ -117,6 +117,7 @@ GlBackend::~GlBackend() {
   GLuint buffers[] = {arena_,        arena_objects_, index_buffers_[0], index_buffers_[1],
                       table_buffer_, proxy_buffer_,  box_buffer_,       seen_buffer_};
   glDeleteBuffers(8, buffers);
+  release_ghost_buffers();
   GLuint vaos[] = {vao_, empty_vao_};
   glDeleteVertexArrays(2, vaos);
   GLuint samplers[] = {linear_sampler_, nearest_sampler_};

@@ -86,6 +86,7 @@
 namespace plantview::detail {
 
 struct FrameView;
+struct GhostMesh;
 
 // One entry of the per-frame object table (std430: two vec4), read by the vertex shader.
 struct TableEntry {
@@ -137,6 +138,9 @@ struct Look {
   bool ground = true;
   bool ambient_occlusion = true;
   std::span<const uint64_t> highlight_ids;  // any order; valid for the draw call
+  // A change image's subject colours (RGBA8, sorted by id): a subject object listed here is
+  // drawn in that colour (its alpha kept) instead of its own. Valid for the draw call.
+  std::span<const std::pair<uint64_t, uint32_t>> subject_colours;
   const Section* section = nullptr;         // null or empty: none; valid for the frame
   DAabb model_bounds;                       // world metres (the ground lies at min.z)
 };
@@ -201,6 +205,14 @@ class GlBackend {
                   std::span<const TableEntry> table, std::span<const uint32_t> proxy_tables,
                   std::span<const uint64_t> pick_ids, const Look& look, bool with_ids, bool wait);
   void finish_frame(const FrameView& view, bool with_ids, bool wait = true);
+  // A change image's ghosts (change_set.h: GhostMesh), after the frame's objects and before
+  // finish_frame(): blended, writing no depth; where in front of what was drawn at
+  // kGhostFrontAlpha (writing their pick values, first_pick + ghost index + 1, when with_ids),
+  // where behind it fainter (kGhostBehindAlpha, colour only), so that a removed object deep in
+  // a rack still shows. Clipped by the frame's section like the objects. Its own small
+  // buffers (gl/ghosts.cpp), grown to the largest mesh drawn.
+  void draw_ghosts(const FrameView& view, const GhostMesh& ghosts, uint32_t first_pick,
+                   bool with_ids);
   void wait();
   // The depth drawn so far in the frame, reduced to cells_width x cells_height cells over the
   // image (rows bottom-up): each cell the farthest reversed depth (the least; 0 where nothing
@@ -273,9 +285,10 @@ class GlBackend {
   void finish(const FrameView& view, const Plan& plan, bool with_ids);
   // The table with the context ghosted for a highlight: colours lightened and desaturated,
   // picks 0.
-  std::span<const TableEntry> highlighted(std::span<const TableEntry> table,
-                                          std::span<const uint64_t> pick_ids,
-                                          std::span<const uint64_t> highlight_ids);
+  std::span<const TableEntry> highlighted(
+      std::span<const TableEntry> table, std::span<const uint64_t> pick_ids,
+      std::span<const uint64_t> highlight_ids,
+      std::span<const std::pair<uint64_t, uint32_t>> subject_colours);
 
   // A single-texture framebuffer that a pass renders into, sized on demand.
   struct Grid {
@@ -360,6 +373,13 @@ class GlBackend {
   size_t table_capacity_ = 0, proxy_capacity_ = 0;  // bytes
   std::vector<uint32_t> pick_pixels_;  // read-back scratch
   std::vector<uint8_t> row_;  // read-back scratch: one row of the image
+  // draw_ghosts(): its vertex array, vertices, their ghost indices, indices and table.
+  struct GhostBuffers {
+    GlName vao = 0, vertices = 0, objects = 0, indices = 0, table = 0;
+    size_t vertex_capacity = 0, object_capacity = 0, index_capacity = 0, table_capacity = 0;
+    std::vector<TableEntry> entries;
+  } ghost_;
+  void release_ghost_buffers();
   std::vector<TableEntry> highlight_table_;
   std::vector<uint64_t> highlight_sorted_;
 };

@@ -36,7 +36,8 @@ uint32_t ghost(uint32_t rgba) {
 
 std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> table,
                                                    std::span<const uint64_t> pick_ids,
-                                                   std::span<const uint64_t> highlight_ids) {
+                                                   std::span<const uint64_t> highlight_ids,
+    std::span<const std::pair<uint64_t, uint32_t>> subject_colours) {
   highlight_sorted_.assign(highlight_ids.begin(), highlight_ids.end());
   std::sort(highlight_sorted_.begin(), highlight_sorted_.end());
   highlight_table_.assign(table.begin(), table.end());
@@ -45,7 +46,14 @@ std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> t
     // the context too (it only orders coinciding depths).
     const uint32_t pick = e.pick & (kPickLimit - 1);
     const uint64_t id = pick && pick <= pick_ids.size() ? pick_ids[pick - 1] : 0;
-    if (id && std::binary_search(highlight_sorted_.begin(), highlight_sorted_.end(), id)) continue;
+    if (id && std::binary_search(highlight_sorted_.begin(), highlight_sorted_.end(), id)) {
+      // A change image's subject: its change's colour, its own alpha.
+      const auto c = std::lower_bound(subject_colours.begin(), subject_colours.end(),
+                                      std::pair<uint64_t, uint32_t>(id, 0));
+      if (c != subject_colours.end() && c->first == id)
+        e.colour = (c->second & 0x00ffffffu) | (e.colour & 0xff000000u);
+      continue;
+    }
     e.pick &= ~(kPickLimit - 1);
     e.colour = ghost(e.colour);
   }
@@ -58,7 +66,7 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
                            std::span<const uint64_t> pick_ids, const Look& look, bool with_ids,
                            bool wait) {
   const bool highlight = !look.highlight_ids.empty();
-  if (highlight) table = highlighted(table, pick_ids, look.highlight_ids);
+  if (highlight) table = highlighted(table, pick_ids, look.highlight_ids, look.subject_colours);
   upload_stream(table_buffer_, table_capacity_, table.size_bytes(), {{table.data(), table.size_bytes()}});
   upload_stream(proxy_buffer_, proxy_capacity_, proxy_tables.size_bytes(),
                 {{proxy_tables.data(), proxy_tables.size_bytes()}});

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -39,6 +40,9 @@ struct ReviewView {
   std::vector<std::pair<std::string, std::string>> attributes;
   Section section;     // empty: nothing cut
   ObjectStyle style;   // empty: the model's colours, every object shown
+  // Set: the view is a change image of this range (render.h: RenderOptions::changes); its
+  // colours and highlight are the changes', whatever `subject` and `style.colour_by` say.
+  std::optional<ChangeRange> changes;
 };
 
 // The views file. JSON:
@@ -48,9 +52,11 @@ struct ReviewView {
 //               "aspect": 1.7778, "subject": [12, 13], "attributes": {"tag": "P-101A", ...},
 //               "section": {"planes": [{"point": [x,y,z], "normal": [x,y,z]}],
 //                           "box": {"min": [x,y,z], "max": [x,y,z]}, "capped": true},
-//               "style": {"colour_by": "Material", "hide": ["structure"], "only": ["P-*"]}}]}
+//               "style": {"colour_by": "Material", "hide": ["structure"], "only": ["P-*"]},
+//               "changes": "12..14"}]}
 // `section` and `style` are optional (absent: nothing cut, the model's colours) and written
-// only when not empty; each of their keys is optional too.
+// only when not empty; each of their keys is optional too. `changes` (optional) is a range
+// as parse_change_range reads it ("R1" or "R1..R2").
 // `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
 // (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
 // bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other
@@ -69,6 +75,12 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
 //   per pipeline:  each pipeline object with every object that names it (pipes, components,
 //                  supports): the whole line; named by its "Line number", else its name
 //                  (without the leading '/');
+//   per change:    what changed in options.changes (docs/changes.md): one view per changed
+//                  object (group object), per changed equipment object (group equipment) or
+//                  per pipeline holding a changed object (group pipeline), fitted on the
+//                  union of the shapes before and after; each view a change image of the range
+//                  (ReviewView::changes, to the store's revision), titled with the kind of
+//                  change, class and tag, captioned with the revisions;
 //   per area:      the objects of one RVM zone (the importer's "Zone" attribute), of one unit
 //                  of a generated plant ("Unit 01", from the names' area field), else of one RVM
 //                  site, else of one source file.
@@ -85,7 +97,11 @@ bool parse_review_views(std::string_view json, std::vector<ReviewView>& out, std
 // same store gives the same names. `select` (a shell glob, fnmatch) keeps the subjects whose
 // view name or model name matches.
 struct ReviewViewOptions {
-  std::string per = "equipment";  // overview|equipment|pipeline|area
+  std::string per = "equipment";  // overview|equipment|pipeline|area|change
+  // per change: the range (to 0: the store's revision; the views get it explicitly) and how
+  // changes are grouped into views: object|pipeline|equipment.
+  ChangeRange changes;
+  std::string group = "object";
   std::string select;             // empty: every subject
   int sides = 1;                  // 1 or 4
   double aspect = 16.0 / 9.0;     // width / height of the images to come

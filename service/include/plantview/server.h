@@ -10,6 +10,15 @@
 //     round-robin across clients, and come back to the loop through a uv_async handle.
 //   - Object look-ups run on libuv's thread pool, each with its own read view of the store.
 //
+// Following imports: an import or generate into the served store is served within a second of
+// its commit (typically tens of milliseconds), no request failing meanwhile. Each renderer
+// moves to the newest commit between jobs (idle ones within 100 ms), so a frame, its statistics
+// and its pick read one commit and no old read transaction keeps the data file growing; look-ups
+// read a view begun for the request; /api/model is described again after each commit. Every
+// API answer carries X-Plantview-Revision (the revision its data came from). An import that
+// fails or is killed never committed: nothing served changes. A store opened without its lock
+// file (read-only copies, store.h) must not be written while it is served.
+//
 // Queueing rules
 //   - A client (its connection, or the slot an id the server issued names: `client=` with the
 //     X-Plantview-Client header of an earlier answer) has at most one render request of each

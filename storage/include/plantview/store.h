@@ -1,11 +1,15 @@
 // plantview/store.h: the plant store. A plant model kept as parameters only, in one LMDB
 // environment (a directory), read by renderers and services while imports write.
 //
-// Schema, format 5 (LMDB named databases; integers in keys are big-endian so that keys sort
+// Schema, format 6 (LMDB named databases; integers in keys are big-endian so that keys sort
 // numerically):
 //   meta        "format"      -> u32 format version (kStoreFormatVersion); read before anything
 //                                else, and a store of another version is refused (a format 3 or
-//                                4 store: "import or generate it again")
+//                                4 store: "import or generate it again"). A format 5 store (the
+//                                same less the three revision databases) opened read_write is
+//                                upgraded in place, in one transaction, to revision 1 "upgraded
+//                                from format 5" (no change list: later changes are against it);
+//                                opened read_only it is refused with how to upgrade it
 //               "statistics"  -> JSON: objects by class, primitives by kind and by class,
 //                                full-resolution triangles by kind and class, model bounds
 //               "next_slot"   -> u32, the slot the next object gets
@@ -43,12 +47,16 @@
 //   sources     source path   -> the slots of the objects it brought, as runs (tables.h)
 //   revisions   u32 revision  -> JSON: the Revision (below) that commit made; kept for ever (a
 //                                few hundred bytes each)
-//   changes     u32 revision, u64 id -> the change that revision made to that object (kind,
-//                                class, name, content hashes before and after); kept for the
-//                                last keep_revisions revisions
-//   history     u32 revision, u64 id -> zstd: the object's record and attributes as they were
-//                                before that revision removed or modified it (what a change image
-//                                draws as a ghost); kept as the changes are
+//   changes     u32 revision, u64 first id -> zstd: the changes that revision made, in id
+//                                order, 256 objects a value: each u64 id, u8 kind, u8 class, u64
+//                                content hash before (not for added), u64 after (not for
+//                                removed), u32 length and name (after; removed: before),
+//                                little-endian; kept for the last keep_revisions revisions
+//   history     u32 revision, u64 first id -> zstd: the records and attribute records of the
+//                                objects that revision removed or modified, as they were before
+//                                (what a change image draws as a ghost), in id order, up to 256
+//                                objects or 64 KB a value: each u64 id, u32 record bytes, u32
+//                                attribute bytes, the two records; kept as the changes are
 // A slot is an object's place in the store: slots only grow, so that records append; an
 // object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
 // the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
@@ -75,7 +83,10 @@
 //     (import-<pid>-*.run, removed at commit or abort, and by the next import should the process
 //     have been killed). commit() merges the runs into the ids and names databases (a commit
 //     that changes their key width first moves their entries into the same runs) and, with the
-//     committed blocks, into new blocks. Besides the buffers (about 200 MB at most) an import
+//     committed blocks, into new blocks. For the revision, each object put and each committed
+//     object removed goes the same way (id, content hash, slot, class: two buffers of 32 MB; the
+//     names to a log file through 1 MB), merged by id at commit ("Revisions"). Besides the
+//     buffers (about 260 MB at most) an import
 //     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
@@ -154,7 +165,7 @@
 
 namespace plantview {
 
-inline constexpr uint32_t kStoreFormatVersion = 5;
+inline constexpr uint32_t kStoreFormatVersion = 6;
 // Objects in a spatial block (the last block of a store may hold fewer).
 inline constexpr uint32_t kSpatialBlockObjects = 2048;
 // Boxes in a top node's far-field proxy, at most.
@@ -227,12 +238,17 @@ inline constexpr uint32_t kDefaultKeepRevisions = 10;
 
 struct Revision {
   uint32_t number = 0;            // 1, 2, ... in commit order; 0: nothing committed yet
-  int64_t time_unix_ms = 0;       // when it was committed (UTC, milliseconds since 1970)
+  // When it was committed (UTC, milliseconds since 1970); SOURCE_DATE_EPOCH (seconds) in the
+  // environment fixes it, so that the same imports make the same bytes.
+  int64_t time_unix_ms = 0;
   std::vector<std::string> sources;  // the sources the import touched, sorted (store.h sources)
   std::string note;               // Import::set_note(); may be empty
   uint64_t added = 0, removed = 0, modified = 0;  // objects, by the content hash rule above
   uint64_t objects = 0;           // objects in the store after it
   bool changes_kept = true;       // its change list and previous records are still kept
+  // The --keep-revisions of the commit that made it (the last one's is the store's: what
+  // pruning messages quote).
+  uint32_t keep_revisions = kDefaultKeepRevisions;
 };
 
 enum class ChangeKind : uint8_t { added, removed, modified };
@@ -279,6 +295,16 @@ std::string statistics_json(const ModelStatistics& statistics);
 // thread may call; imports begun afterwards follow it.
 void set_import_threads(unsigned threads);
 unsigned import_threads();  // the count in effect (0 resolved)
+
+// Two writers at once. LMDB lets one write transaction run at a time (across processes); the
+// writer (begin_import(), and open() read_write when it must create or upgrade databases) also
+// holds an advisory lock on `import.lock` in the store directory and says who it is in
+// `import.writer` (pid, command line, start time) until it commits or aborts (a killed writer's
+// lock goes with its process; its file is overwritten by the next). A second writer that finds
+// the lock taken prints "store DIR: waiting for the import by pid N (plantview import X.rvm,
+// started 10:02:11)" to stderr and waits (true, the default), or fails with that message (false:
+// `--no-wait`). Process-wide; any thread.
+void set_import_lock_wait(bool wait);
 
 class Store;
 
@@ -337,6 +363,10 @@ class ReadView {
   // (LMDB starts a read at the latest commit, so the snapshot cannot be had again), or when no
   // read can start (every reader slot of the store taken). Costs a read transaction.
   std::unique_ptr<ReadView> sibling(std::string& error) const;
+  // LMDB's number of the commit this snapshot reads (its transaction id): equal to
+  // Store::last_commit() while no import has committed since the view began. Not a revision
+  // (info().revision): any commit counts, and the numbers are the environment's, not the plant's.
+  uint64_t commit() const;
 
   // The spatial hierarchy, split in two: the top, resident while the view lives, and blocks,
   // decoded on demand. Spans are valid while this view lives; no work per call once the top is
@@ -473,6 +503,15 @@ class Store {
   // Starts a read snapshot. May be called from any thread; the view stays on that thread. Reads
   // metadata only (see "Transactions and lifetimes").
   std::unique_ptr<ReadView> read(std::string& error) const;
+  // LMDB's number of the newest commit (ReadView::commit() of a view begun now), read from the
+  // environment's meta pages without a transaction, a lock or a system call: cheap enough to ask
+  // before every frame, so that a reader notices an import's commit and moves to it (a view
+  // held open keeps every page its snapshot uses, and the file grows while imports repeat).
+  // Any thread. LMDB writes the meta page a moment (microseconds) before it lets readers begin
+  // at it, so a view begun just after this changed may still read the commit before: compare
+  // its commit() and look again later. A store opened without the lock file (see "Read-only
+  // copies") answers too, but must not be written while it is read.
+  uint64_t last_commit() const;
 
   const std::string& directory() const;
   // True when a read-only store was opened without LMDB's lock file (see "Read-only copies").
