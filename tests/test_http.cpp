@@ -835,6 +835,34 @@ TEST(Degradation, InteractiveFramesGetCheaperAsPressureGrowsStillsStatsAndPicksN
   EXPECT_FALSE(choose_degradation(still, 64, 1).any());
 }
 
+// Issue 43: degradation lifts a rung a frame, so that no frame streams every finer level at
+// once; it falls at once.
+TEST(Degradation, LiftsARungAFrameAndFallsAtOnce) {
+  using P = std::pair<double, uint32_t>;
+  uint8_t rung = 0;
+  const auto step = [&](Degradation wanted) {
+    const Degradation d = step_degradation(wanted, rung);
+    return P(d.pixel_error_factor, d.size_divisor);
+  };
+  const Degradation none, coarser{4, 1}, half{4, 2}, quarter{4, 4};
+  EXPECT_EQ(step(quarter), P(4, 4));
+  EXPECT_EQ(rung, 4);
+  EXPECT_EQ(step(none), P(4, 2));
+  EXPECT_EQ(step(none), P(4, 1));
+  EXPECT_EQ(step(none), P(2, 1));  // a rung of its own on the way back
+  EXPECT_EQ(step(none), P(1, 1));
+  EXPECT_EQ(rung, 0);
+  EXPECT_EQ(step(half), P(4, 2));  // load comes: at once
+  EXPECT_EQ(step(coarser), P(4, 1));  // one rung lighter: as wanted
+  EXPECT_EQ(step(quarter), P(4, 4));
+  EXPECT_EQ(step(coarser), P(4, 2));
+  for (const Degradation& d : {none, coarser, half, quarter}) {
+    uint8_t r = degradation_rung(d);
+    const Degradation same = step_degradation(d, r);
+    EXPECT_EQ(P(same.pixel_error_factor, same.size_divisor), P(d.pixel_error_factor, d.size_divisor));
+  }
+}
+
 TEST(Degradation, TwoInteractiveClientsOnOneRendererTheOneTakenWhileTheOtherWaitsIsCoarser) {
   std::string error;
   auto store = Store::open(six_boxes(), Store::Mode::read_only, error);
@@ -891,16 +919,24 @@ TEST(Degradation, UnderLoadInteractiveHeadersShowTheCoarserQualityAndAStillIsNev
   worker.submit(std::move(still), dropped);
   results.hold(false);
   ASSERT_TRUE(results.wait_for(9));
-  // Then one alone: nothing waits, nothing is given up.
-  RenderJob alone = frame_job(10, "moving-2", 160);
+  // Then one alone (a client whose frames were never degraded): nothing waits, nothing is
+  // given up.
+  RenderJob alone = frame_job(10, "alone", 160);
   alone.height = 96;
   alone.mode = FrameMode::interactive;
   worker.submit(std::move(alone), dropped);
   ASSERT_TRUE(results.wait_for(10));
+  for (uint64_t t = 11; t <= 14; ++t) {
+    RenderJob again = frame_job(t, "moving-2", 160);
+    again.height = 96;
+    again.mode = FrameMode::interactive;
+    worker.submit(std::move(again), dropped);
+    ASSERT_TRUE(results.wait_for(int(t)));
+  }
   worker.stop();
   std::map<uint64_t, RenderResult> by_ticket;
   for (RenderResult& r : worker.take_results()) by_ticket[r.ticket] = std::move(r);
-  ASSERT_EQ(by_ticket.size(), 10u);
+  ASSERT_EQ(by_ticket.size(), 14u);
   struct Expected {
     uint64_t ticket;
     const char *degraded, *pixel_error, *size, *queue;
@@ -927,6 +963,18 @@ TEST(Degradation, UnderLoadInteractiveHeadersShowTheCoarserQualityAndAStillIsNev
     EXPECT_NE(header_of(r, "X-Plantview-Render-Ms").find('.'), std::string::npos) << e.ticket;
   }
   EXPECT_EQ(header_of(by_ticket[2], "X-Plantview-Client"), "id-2");
+  // moving-2, alone now, was last at a quarter of the size: its quality steps back a rung a
+  // frame (step_degradation), not at once.
+  const Expected lifting[] = {{11, "pixel-error,resolution", "4", "80x48", "0", 80},
+                              {12, "pixel-error", "4", "160x96", "0", 160},
+                              {13, "pixel-error", "2", "160x96", "0", 160},
+                              {14, "none", "1", "160x96", "0", 160}};
+  for (const Expected& e : lifting) {
+    const RenderResult& r = by_ticket[e.ticket];
+    EXPECT_EQ(header_of(r, "X-Plantview-Degraded"), e.degraded) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Pixel-Error"), e.pixel_error) << e.ticket;
+    EXPECT_EQ(header_of(r, "X-Plantview-Render-Size"), e.size) << e.ticket;
+  }
   const RenderResult& s = by_ticket[9];
   EXPECT_EQ(header_of(s, "X-Plantview-Mode"), "still");
   EXPECT_EQ(header_of(s, "X-Plantview-Degraded"), "none");

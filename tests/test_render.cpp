@@ -971,6 +971,46 @@ TEST(RenderArena, StaysWithinBudgetOnARandomPathAndFallsBackToBoxes) {
   EXPECT_EQ(ids_in(all.image).size(), 400u);
 }
 
+// Progressive refinement (RenderOptions::stream_budget_vertices): when every level of a view
+// turns finer at once (the service's degradation lifting), a bounded frame streams about its
+// budget and draws the rest coarser, leaving nothing out; the frames after refine it, budget by
+// budget, to exactly what an unbounded renderer draws.
+TEST(RenderArena, AStreamingBudgetRefinesOverFramesToTheUnboundedImage) {
+  TempDir dir;
+  auto store = make_store(dir, sphere_field());
+  RenderOptions coarse = small();
+  coarse.pixel_error = 16;
+  RenderOptions fine = small();
+  fine.pixel_error = 0.5;
+  auto unbounded = make_renderer(*store, coarse);
+  coarse.stream_budget_vertices = fine.stream_budget_vertices = 4000;
+  auto bounded = make_renderer(*store, coarse);
+  const Camera camera = look({40, -30, 30}, {40, 40, 0});
+  render(*unbounded, camera, 320, 240);
+  render(*bounded, camera, 320, 240);  // the coarse levels resident, within the budget or not
+  RenderOptions unbounded_fine = fine;
+  unbounded_fine.stream_budget_vertices = 0;
+  unbounded->set_options(unbounded_fine);
+  bounded->set_options(fine);
+  const Frame want = render(*unbounded, camera, 320, 240);
+  EXPECT_EQ(want.stats.objects_deferred, 0u);
+  Frame got = render(*bounded, camera, 320, 240);
+  EXPECT_GT(got.stats.objects_deferred, 0u);
+  EXPECT_LT(got.stats.arena_bytes_uploaded, want.stats.arena_bytes_uploaded / 2);
+  EXPECT_LT(got.stats.triangles, want.stats.triangles);
+  EXPECT_EQ(got.stats.objects_visible, want.stats.objects_visible);
+  EXPECT_EQ(ids_in(got.image), ids_in(want.image)) << "drawn coarser, none left out";
+  int frames = 1;
+  while (got.stats.objects_deferred > 0 && frames < 100) {
+    got = render(*bounded, camera, 320, 240);
+    frames += 1;
+  }
+  EXPECT_GT(frames, 2) << "refined over several frames";
+  EXPECT_EQ(got.stats.objects_deferred, 0u);
+  EXPECT_EQ(got.stats.triangles, want.stats.triangles);
+  EXPECT_TRUE(got.image.rgba == want.image.rgba) << "the same image once refined";
+}
+
 // A model larger than the vertex budget is drawn in bounded pieces on a software renderer
 // (GlBackend::draw_triangles): a view of more triangles than a piece, all of them resident,
 // looks exactly as it does from a renderer whose budget holds the whole model.

@@ -12,6 +12,10 @@
 // X-Plantview-* response headers, which the readout shows; a server without them is shown what
 // was asked for.
 //
+// Transport: frames come over the WebSocket stream (/api/stream) by default, as video where the
+// browser decodes it (WebCodecs), else JPEG; HTTP frames (GET /api/frame) where the stream cannot
+// open. See "the frame stream" below.
+//
 // A server started with --token needs it on every API request: open the page as
 // http://host:port/#token=TOKEN. The page (index.html, viewer.js, viewer.css) is served without
 // it; the token stays in this tab (sessionStorage), is sent as `Authorization: Bearer`, and is
@@ -42,6 +46,10 @@
 //   permalink,    the page's address with the view in its fragment
 //   lastBcf,      the last saved viewpoint {name, topic, size, base64}, or null
 //   picksAnswered, picks whose answers have come (or failed) since the page loaded
+//   stream,       how frames come: {transport: stream|http, codec: jpeg|h264|vp8|null, kbps, fps,
+//                 latencyMs (view sent to frame shown), frames (shown from the stream), videoFrames
+//                 (of those, decoded by WebCodecs), fellBack
+//                 (times the stream closed or could not open: HTTP frames then)}
 // }
 //
 // Review tools (the panel under the search):
@@ -441,6 +449,11 @@
     if (shown && shown.params === params && (shown.still || !still)) return;  // already showing it
     if (params === failedParams) return;
     const q = still ? STILL : MOVING;
+    if (stream.open) {  // the stream renders the latest view sent: no request to wait for
+      streamView(params, { params, camera, w, h, still, px: q.px, quality: q.quality, startMs: nowMs });
+      return;
+    }
+    if (stream.opening) return;  // pump() again once the stream is open or has failed
     inFlight = true;
     const url = `api/frame?${params}&format=jpeg&quality=${q.quality}&lod=screen-space&px=${q.px}` +
                 `${showChanges && updatedFrom !== null ? `&changes=${updatedFrom}` : ''}` +
@@ -484,22 +497,28 @@
       }
       if (shownUrl) URL.revokeObjectURL(shownUrl);
       shownUrl = url2;
-      shown = request;
-      hooks.framesShown += 1;
-      const { w, h } = frameSize();
-      hooks.still = request.still && request.params === viewParams(camera, w, h);
-      hooks.frameParams = request.params;
-      showLegend(response.headers.get('X-Plantview-Legend'));
-      hooks.quality = qualityOf(response.headers, request, performance.now() - request.startMs);
-      hooks.framesByMode[hooks.quality.mode] = (hooks.framesByMode[hooks.quality.mode] ?? 0) + 1;
-      showStats(response.headers, hooks.quality);
-      drawOverlay();
-      showError('');
+      videoCanvas.hidden = true;
+      frameShown(response.headers, request, performance.now() - request.startMs);
     } catch (e) {
       // The network (the server restarting?): try again in a little while.
       blockedUntilMs = performance.now() + 2000;
       showError(`frame: ${e.message}`);
     }
+  }
+
+  // A frame is on screen (from an HTTP answer, or the stream): the hooks, legend, readout.
+  function frameShown(headers, request, roundTripMs) {
+    shown = request;
+    hooks.framesShown += 1;
+    const { w, h } = frameSize();
+    hooks.still = request.still && request.params === viewParams(camera, w, h);
+    hooks.frameParams = request.params;
+    showLegend(headers.get('X-Plantview-Legend'));
+    hooks.quality = qualityOf(headers, request, roundTripMs);
+    hooks.framesByMode[hooks.quality.mode] = (hooks.framesByMode[hooks.quality.mode] ?? 0) + 1;
+    showStats(headers, hooks.quality);
+    drawOverlay();
+    showError('');
   }
 
   async function errorText(response) {
@@ -593,6 +612,7 @@
       `arena     ${mb(num('X-Arena-Bytes'))} of ${mb(num('X-Arena-Budget-Bytes'))} MB`,
       `quality   ${parts.join(' · ')}`,
       `rate      ${rate}`,
+      `transport ${transportText()}`,
     ].join('\n');
   }
 
@@ -1435,6 +1455,204 @@
     bcfOpen.value = '';
   });
 
+  // ---- the frame stream (/api/stream; protocol and server rules in docs/stream.md) ----
+  //
+  // By default the page takes its frames from a WebSocket: a view message each time the view
+  // wanted changes (pump), the server renders the latest and pushes it; the page acknowledges
+  // each frame once decoded (the server sends at most 2 unacknowledged). Video (h264, else vp8)
+  // is decoded with WebCodecs (VideoDecoder) onto a canvas over the image, where the browser has
+  // it; otherwise, and for stills (PNG), frames are images shown in the <img>. Where the upgrade
+  // fails (an older server, a proxy that drops WebSockets) the page falls back to HTTP frames and
+  // tries the stream again after STREAM_RETRY_MS. ?transport=http keeps to HTTP; ?codec=jpeg|h264|vp8
+  // asks for that codec. The token goes in the hello message, never in the URL.
+  const STREAM_RETRY_MS = 10000;
+  const VIDEO_CODECS = [['h264', 'avc1.42E01F'], ['vp8', 'vp8']];  // WebCodecs names, preferred first
+  const pageOptions = new URLSearchParams(location.search);
+  const stream = { ws: null, opening: false, open: false, codec: null, decoder: null, needKey: true,
+                   seq: 0, views: new Map(), lastSent: null, decoding: new Map(), recent: [], kbps: null };
+  hooks.stream = { transport: 'http', codec: null, kbps: null, fps: null, latencyMs: null, frames: 0,
+                    videoFrames: 0, fellBack: 0 };
+  const videoCanvas = document.createElement('canvas');
+  videoCanvas.id = 'video';
+  videoCanvas.hidden = true;
+  videoCanvas.setAttribute('aria-hidden', 'true');
+  frame.after(videoCanvas);
+
+  async function videoCodec() {
+    const asked = pageOptions.get('codec');
+    if (asked === 'jpeg' || !('VideoDecoder' in window)) return null;
+    for (const [name, codec] of VIDEO_CODECS) {
+      if (asked && asked !== name) continue;
+      try {
+        const support = await VideoDecoder.isConfigSupported({ codec, optimizeForLatency: true });
+        if (support.supported) return [name, codec];
+      } catch { /* not this one */ }
+    }
+    return null;
+  }
+
+  async function openStream() {
+    if (pageOptions.get('transport') === 'http' || !('WebSocket' in window) || stream.ws) return;
+    stream.opening = true;
+    const video = await videoCodec();
+    const base = location.pathname.replace(/[^/]*$/, '');
+    const ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}${base}api/stream`,
+                             ['plantview.v1']);
+    ws.binaryType = 'arraybuffer';
+    stream.ws = ws;
+    setTimeout(() => { if (stream.ws === ws && !stream.open) ws.close(); }, 5000);  // then HTTP
+    ws.onopen = () => {
+      const hello = { type: 'hello', codec: video ? video[0] : 'jpeg' };
+      const token = sessionStorage.getItem(TOKEN_KEY);
+      if (token) hello.token = token;
+      ws.send(JSON.stringify(hello));
+    };
+    ws.onmessage = (e) => {
+      if (typeof e.data === 'string') streamText(e.data, video);
+      else streamFrame(e.data);
+    };
+    ws.onclose = () => {
+      const wasOpen = stream.open;
+      Object.assign(stream, { ws: null, opening: false, open: false, lastSent: null, needKey: true });
+      if (stream.decoder && stream.decoder.state !== 'closed') stream.decoder.close();
+      stream.decoder = null;
+      stream.decoding.clear();
+      hooks.stream.transport = 'http';
+      hooks.stream.fellBack += 1;
+      if (!wasOpen) showError('');
+      setTimeout(openStream, STREAM_RETRY_MS);
+      pump();  // HTTP meanwhile
+    };
+  }
+
+  function streamText(text, video) {
+    let message;
+    try { message = JSON.parse(text); } catch { return; }
+    if (message.type === 'ready') {
+      stream.codec = message.codec;
+      if (video && message.codec === video[0]) {
+        stream.decoder = new VideoDecoder({ output: videoShown, error: () => { stream.needKey = true; } });
+        stream.decoder.configure({ codec: video[1], optimizeForLatency: true });
+      }
+      stream.opening = false;
+      stream.open = true;
+      hooks.stream.transport = 'stream';
+      hooks.stream.codec = message.codec;
+      pump();
+    } else if (message.type === 'error') {
+      failedParams = stream.views.get(message.seq)?.params ?? failedParams;
+      showError(`frame: ${message.message}`);
+    }
+  }
+
+  // Sends the view wanted now, unless it is the one sent last.
+  function streamView(params, request) {
+    const changes = showChanges && updatedFrom !== null ? `&changes=${updatedFrom}` : '';
+    const key = `${params}|${request.still}|${changes}`;
+    if (key === stream.lastSent && shown !== null) return;  // shown = null: redraw (a new revision)
+    stream.lastSent = key;
+    const query = new URLSearchParams(`${params}&quality=${request.quality}&lod=screen-space&px=${request.px}` +
+                                      `&mode=${request.still ? 'still' : 'interactive'}${changes}`);
+    const json = {};
+    for (const [k, v] of query) {
+      if (k === 'clip') (json.clip ??= []).push(v);
+      else json[k] = v;
+    }
+    const seq = ++stream.seq;
+    stream.views.set(seq, { ...request, sentMs: performance.now() });
+    for (const old of stream.views.keys()) if (old < seq - 64) stream.views.delete(old);
+    stream.ws.send(JSON.stringify({ type: 'view', seq, params: json }));
+  }
+
+  // A binary frame: "PVF1", a u32 (little-endian) header length, the JSON header, the payload.
+  function streamFrame(buffer) {
+    const bytes = new Uint8Array(buffer);
+    if (bytes.length < 8 || String.fromCharCode(...bytes.subarray(0, 4)) !== 'PVF1') return;
+    const length = new DataView(buffer).getUint32(4, true);
+    const header = JSON.parse(new TextDecoder().decode(bytes.subarray(8, 8 + length)));
+    const payload = bytes.subarray(8 + length);
+    const request = stream.views.get(header.seq);
+    const ack = () => stream.ws?.send(JSON.stringify({ type: 'ack', frame: header.frame }));
+    if (!request) { ack(); return; }
+    const shownRequest = { ...request, still: header.still === true };
+    stream.recent.push({ ms: performance.now(), bytes: payload.length });
+    if (header.kbps) stream.kbps = header.kbps;
+    if (header.encoding === 'jpeg' || header.encoding === 'png') {
+      imageShown(new Blob([payload], { type: `image/${header.encoding}` }), header, shownRequest).finally(ack);
+      return;
+    }
+    if (!stream.decoder || stream.decoder.state !== 'configured') { ack(); return; }
+    if (stream.needKey && !header.key) {
+      stream.ws.send(JSON.stringify({ type: 'key' }));
+      ack();
+      return;
+    }
+    stream.needKey = false;
+    stream.decoding.set(header.frame, { header, request: shownRequest, ack });
+    stream.decoder.decode(new EncodedVideoChunk({ type: header.key ? 'key' : 'delta', timestamp: header.frame,
+                                                  data: payload }));
+  }
+
+  async function imageShown(blob, header, request) {
+    const url = URL.createObjectURL(blob);
+    frame.src = url;
+    try {
+      await frame.decode();
+    } catch {
+      URL.revokeObjectURL(url);
+      if (shownUrl) frame.src = shownUrl;
+      return;
+    }
+    if (shownUrl) URL.revokeObjectURL(shownUrl);
+    shownUrl = url;
+    videoCanvas.hidden = true;
+    streamShown(header, request);
+  }
+
+  function videoShown(picture) {
+    const pending = stream.decoding.get(picture.timestamp);
+    stream.decoding.delete(picture.timestamp);
+    const dpr = window.devicePixelRatio || 1;
+    const cw = Math.round(videoCanvas.clientWidth * dpr) || picture.displayWidth;
+    const ch = Math.round(videoCanvas.clientHeight * dpr) || picture.displayHeight;
+    if (videoCanvas.width !== cw || videoCanvas.height !== ch) { videoCanvas.width = cw; videoCanvas.height = ch; }
+    videoCanvas.getContext('2d').drawImage(picture, 0, 0, cw, ch);
+    picture.close();
+    videoCanvas.hidden = false;
+    if (!pending) return;
+    hooks.stream.videoFrames += 1;
+    pending.ack();
+    streamShown(pending.header, pending.request);
+  }
+
+  function streamShown(header, request) {
+    const latencyMs = performance.now() - request.sentMs;
+    hooks.stream.frames += 1;
+    hooks.stream.latencyMs = latencyMs;
+    const headers = new Headers(header.stats ?? {});
+    if (header.revision !== undefined && !headers.has('X-Plantview-Revision'))
+      headers.set('X-Plantview-Revision', String(header.revision));
+    frameShown(headers, request, latencyMs);
+    noticeRevision(headers);  // a frame of a newer revision than shown: describe it (following imports)
+  }
+
+  // The readout's transport line: the stream's codec, bit rate, frames/s and latency (view sent
+  // to frame decoded) over the last two seconds, or HTTP polling.
+  function transportText() {
+    if (!stream.open) return stream.opening ? 'opening the stream…' : 'HTTP frames (one request a frame)';
+    const nowMs = performance.now();
+    while (stream.recent.length > 1 && nowMs - stream.recent[0].ms > 2000) stream.recent.shift();
+    const n = stream.recent.length;
+    const spanMs = n > 1 ? nowMs - stream.recent[0].ms : 0;
+    const bits = stream.recent.reduce((sum, f) => sum + 8 * f.bytes, 0);
+    hooks.stream.fps = spanMs > 0 ? (n - 1) * 1000 / spanMs : null;
+    hooks.stream.kbps = spanMs > 0 ? bits / spanMs : null;
+    const rate = hooks.stream.kbps === null ? '–' : `${(hooks.stream.kbps / 1000).toFixed(1)} Mbit/s`;
+    const fps = hooks.stream.fps === null ? '–' : `${hooks.stream.fps.toFixed(1)} fps`;
+    const latency = hooks.stream.latencyMs === null ? '–' : `${Math.round(hooks.stream.latencyMs)} ms`;
+    return `stream · ${stream.codec} · ${rate} · ${fps} · latency ${latency}`;
+  }
+
   // ---- following imports ----
 
   const REVISION_POLL_MS = 5000;  // idle: /api/model this often (its header says the revision)
@@ -1557,6 +1775,7 @@
       document.getElementById('section-tool').open = true;
     if (style.colourBy || style.hide || style.only || isolate) document.getElementById('style-tool').open = true;
     writeLink();
+    openStream();
     pump();  // at rest: the first frame is a still
   }
 

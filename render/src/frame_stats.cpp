@@ -35,6 +35,7 @@ std::string FrameStats::to_json() const {
          ",\"budget_proxies\":" + std::to_string(budget_proxies) +
          ",\"budget_coarsened\":" + std::to_string(budget_coarsened) +
          ",\"objects_refined\":" + std::to_string(objects_refined) +
+         ",\"objects_deferred\":" + std::to_string(objects_deferred) +
          ",\"objects_subpixel\":" + std::to_string(objects_subpixel) +
          ",\"node_proxies\":" + std::to_string(node_proxies) +
          ",\"node_proxy_pixels\":" + std::to_string(node_proxy_pixels) +

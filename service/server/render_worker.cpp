@@ -108,6 +108,24 @@ Degradation choose_degradation(const RenderJob& job, size_t demand, size_t rende
   return d;
 }
 
+uint8_t degradation_rung(const Degradation& d) {
+  if (d.size_divisor >= 4) return 4;
+  if (d.size_divisor >= 2) return 3;
+  if (d.pixel_error_factor >= 4) return 2;
+  return d.pixel_error_factor > 1 ? 1 : 0;
+}
+
+Degradation step_degradation(const Degradation& chosen, uint8_t& last_rung) {
+  const uint8_t wanted = degradation_rung(chosen);
+  if (wanted + 1 >= last_rung) {
+    last_rung = wanted;
+    return chosen;
+  }
+  last_rung = uint8_t(last_rung - 1);
+  static constexpr Degradation kRungs[] = {{1, 1}, {2, 1}, {4, 1}, {4, 2}, {4, 4}};
+  return kRungs[last_rung];
+}
+
 struct RenderWorker::Thread {
   std::thread thread;
   int device = -1;
@@ -317,6 +335,19 @@ void RenderWorker::run(Thread* self, const Store* store) {
       --waiting_;
       waiting = waiting_;
       degradation = choose_degradation(job, waiting_ + running_ + 1, std::max<size_t>(serving_, 1));
+      ++taken_;
+      if (job.kind == RenderJob::Kind::frame) {
+        if (job.mode == FrameMode::still) {
+          rungs_.erase(job.client);  // drawn whole: the next frame starts from there
+        } else if (const auto it = rungs_.find(job.client); it != rungs_.end() || degradation.any()) {
+          Rung& r = it != rungs_.end() ? it->second : rungs_[job.client];
+          degradation = step_degradation(degradation, r.rung);
+          r.taken = taken_;
+          if (r.rung == 0) rungs_.erase(job.client);
+          if (rungs_.size() > 1024)
+            std::erase_if(rungs_, [&](const auto& entry) { return entry.second.taken + 4096 < taken_; });
+        }
+      }
       ++running_;
     }
     follow();  // between frames, never within one
@@ -343,6 +374,11 @@ RenderResult execute_job(const RenderJob& job, const Degradation& degradation, s
   RenderOptions options = renderer.options();
   options.lod_policy = job.policy;
   options.pixel_error = pixel_error;
+  // Interactive frames refine progressively (a bounded streaming budget); stills, statistics
+  // and picks stream all their levels.
+  options.stream_budget_vertices = job.kind == RenderJob::Kind::frame && job.mode == FrameMode::interactive
+                                       ? kInteractiveStreamBudgetVertices
+                                       : 0;
   // Stills look like review images (antialiased, ambient occlusion); interactive frames, and the
   // stats and pick renders that show no image, skip both: they cost 1.5 x and 1.2 x on llvmpipe.
   const bool still = job.kind == RenderJob::Kind::frame && job.mode == FrameMode::still;

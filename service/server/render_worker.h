@@ -70,6 +70,7 @@
 #include <string>
 #include <string_view>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "plantview/render.h"
@@ -110,6 +111,22 @@ uint32_t default_software_renderers(uint32_t cores);
 // costs by its triangles more than by its pixels, that is most of what the smaller size saves.
 // The ladder was set by bench_service (README, "Serving under load").
 Degradation choose_degradation(const RenderJob& job, size_t demand, size_t renderers);
+
+// Degradation lifts a rung a frame (issue 43: the frame in which it lifted at once streamed
+// every finer level in one go, up to 5.5x a loaded frame). The rungs, heaviest last:
+//   0 nothing, 1 pixel error x2 (on the way back only), 2 pixel error x4, 3 and half the size,
+//   4 and a quarter of the size.
+// A client's interactive frame gets the rung choose_degradation() says, or where that is
+// lighter than its frame before (`last_rung`), the rung below that one; `last_rung` is then
+// the rung given. Heavier rungs are taken at once (load comes suddenly, and waits cost more).
+uint8_t degradation_rung(const Degradation& d);
+Degradation step_degradation(const Degradation& chosen, uint8_t& last_rung);
+
+// The vertices an interactive frame streams into its renderer's arena, about at most
+// (RenderOptions::stream_budget_vertices): the rest of what its levels need comes in the
+// frames after (progressive refinement). Stills stream everything. Measured with bench_service
+// (README, "Under load").
+constexpr uint64_t kInteractiveStreamBudgetVertices = 1u << 17;
 
 // The JPEG quality of a degraded interactive frame at most (as the remote-rendering views of
 // vtk.js and trame use while the user interacts).
@@ -164,6 +181,15 @@ class RenderWorker {
   std::vector<RenderResult> done_;      // guarded by mutex_
   bool stopping_ = false;               // guarded by mutex_
   size_t serving_ = 0;                  // guarded by mutex_; renderers taking jobs
+  // The rung of each client's last interactive frame while above 0 (step_degradation), and
+  // the job count when it was given: clients gone for 4096 jobs are forgotten once more than
+  // 1024 are remembered. Guarded by mutex_.
+  struct Rung {
+    uint8_t rung = 0;
+    uint64_t taken = 0;
+  };
+  std::unordered_map<std::string, Rung> rungs_;
+  uint64_t taken_ = 0;                  // guarded by mutex_; jobs taken
   uint32_t max_queue_ = 64;             // set before the threads start
   uint64_t budget_ = 0;                 // set before the threads start
   std::string device_;                  // set by start()

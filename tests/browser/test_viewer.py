@@ -28,6 +28,7 @@ import argparse
 import base64
 import json
 import math
+import re
 import os
 import shutil
 import signal
@@ -207,7 +208,8 @@ return {camera: p.camera, home: p.home, framesShown: p.framesShown, framesByMode
         pick: document.getElementById('pick').innerText,
         frameParams: p.frameParams, section: p.section, sectionHandles: p.sectionHandles,
         measure: p.measure, permalink: p.permalink, picksAnswered: p.picksAnswered, legend: p.legend, style: p.style, lastBcf: p.lastBcf ? {name: p.lastBcf.name, size: p.lastBcf.size} : null,
-        error: document.getElementById('stats-error').innerText};
+        error: document.getElementById('stats-error').innerText,
+        stream: p.stream ? {...p.stream} : null};
 """
 
 # The displayed frame scaled to 64 x 48, grey levels 0..255 (to compare two pages' images).
@@ -783,6 +785,27 @@ def run(args, tmp):
         wait_state("a frame after the drag", FRAME_S,
                    lambda s: s["framesShown"] > before["framesShown"])
         print(f"drag moved the eye {before['camera']['eye']} -> {after['camera']['eye']}", flush=True)
+
+        # 4b. Those frames came over the stream (/api/stream), as video where this Chromium
+        # decodes it (WebCodecs), else JPEG, and followed the camera: the frame at rest is the
+        # dragged camera's, and more frames came from the stream during the drag.
+        moved = wait_state("the dragged camera's frame from the stream", FRAME_S,
+                           lambda s: s["still"] and s["stream"] and s["stream"]["transport"] == "stream")
+        streamed_before, streamed = (before.get("stream") or {}), moved["stream"]
+        if streamed["fellBack"] != 0:
+            raise Failure(f"the stream closed or did not open ({streamed['fellBack']} times): {streamed}")
+        if streamed["codec"] not in ("jpeg", "h264", "vp8"):
+            raise Failure(f"the stream's codec is {streamed['codec']!r}")
+        if streamed["frames"] < streamed_before.get("frames", 0) + 2:
+            raise Failure(f"the stream showed {streamed['frames']} frames, {streamed_before.get('frames')} before the drag")
+        video = driver.js("return 'VideoDecoder' in window")
+        if streamed["codec"] != "jpeg" and streamed["videoFrames"] < 1:
+            raise Failure(f"the stream is {streamed['codec']} but no video frame was decoded: {streamed}")
+        if not re.search(r"transport stream · (jpeg|h264|vp8) · ", moved["stats"]):
+            raise Failure(f"the readout does not say the stream, codec and rate: {moved['stats']!r}")
+        print(f"stream: {streamed['codec']} (WebCodecs {'present' if video else 'absent'}), "
+              f"{streamed['frames']} frames, {streamed['videoFrames']} video, latency "
+              f"{streamed['latencyMs']:.0f} ms", flush=True)
 
         # 5. A click on an object shows its attributes.
         rest = wait_state("the still frame after the drag", FRAME_S, lambda s: s["still"])

@@ -195,6 +195,15 @@ struct RenderOptions {
                                                    // is drawn first (conservative: nothing
                                                    // visible is ever left out; step 1b)
   OcclusionTest occlusion_test = OcclusionTest::automatic;
+  // Progressive refinement (interactive frames; 0: unbounded, every frame streams all it
+  // chooses, as stills and batch renders do): the vertices a frame tessellates into the arena,
+  // about at most. Once a frame has streamed this many, a resident object that its chosen level
+  // would tessellate again is drawn at the coarser level it is resident at, and an object not
+  // resident is made resident at its coarsest level (FrameStats::objects_deferred); the
+  // following frames refine them within their own budgets. So a view whose levels all turn
+  // finer at once (degradation lifting in the service) costs a few ordinary frames, not one
+  // long one. The object that crosses the budget is streamed whole: every frame makes progress.
+  uint64_t stream_budget_vertices = 0;
   // Set: a change image of this range (see ChangeRange). It replaces highlight_ids and
   // style.colour_by (its legend is the changes'), and turns pipeline HLOD off (a merged run
   // would draw a changed pipe in its neighbours' colour). A range the store cannot draw (a
@@ -258,6 +267,8 @@ struct FrameStats {
   uint64_t budget_proxies = 0;    // visible objects drawn as boxes because the arena was full
   uint64_t budget_coarsened = 0;  // objects made resident at their coarsest level to fit
   uint64_t objects_refined = 0;   // resident objects tessellated again for a finer level
+  uint64_t objects_deferred = 0;  // drawn coarser than chosen: the frame's streaming budget
+                                  // (RenderOptions::stream_budget_vertices) was spent
   uint64_t objects_subpixel = 0;  // in the frustum but under the pixel error on screen
   uint64_t node_proxies = 0;      // tree nodes of a few pixels drawn as one box each
   double node_proxy_pixels = 0;   // the node size (px) under which they were: 3 x the pixel

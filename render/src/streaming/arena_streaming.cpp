@@ -240,11 +240,22 @@ bool ArenaStreaming::grow_for(std::span<const Draw> draws, LodPolicy policy, std
   return !needed || backend_.grow_arena(residency_.used_units() + needed, error);
 }
 
+ArenaStreaming::Defer ArenaStreaming::spend_budget(const Known& k, uint8_t base) {
+  if (!budget_bounded_) return Defer::none;
+  if (budget_left_ == 0) {
+    if (resident(k)) return Defer::keep_coarser;
+    return base + 1u < k.level_count ? Defer::coarsest : Defer::none;
+  }
+  budget_left_ -= std::min(budget_left_, resident_vertices(k, base));  // the last one whole
+  return Defer::none;
+}
+
 size_t ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
   // Which draws will be tessellated, at the base they will most likely get (the arena's
   // roominess as the frame starts); their compactions made here, on this thread.
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
   job_of_draw_.assign(draws.size(), UINT32_MAX);
+  defer_of_draw_.assign(draws.size(), Defer::none);
   size_t job_count = 0, batch_vertices = 0, covered = draws.size();
   for (size_t i = 0; i < draws.size(); ++i) {
     if (batch_vertices >= kPrepareBatchVertices) {
@@ -254,8 +265,12 @@ size_t ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
     Draw& d = draws[i];
     Known& k = *d.known;
     if (resident(k) && d.level >= k.base) continue;
+    uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
+    const Defer defer = spend_budget(k, base);
+    defer_of_draw_[i] = defer;
+    if (defer == Defer::keep_coarser) continue;  // nothing to tessellate
+    if (defer == Defer::coarsest) base = uint8_t(k.level_count - 1);
     if (k.primitives.empty() && !k.parts.empty()) continue;  // decoded again on this thread
-    const uint8_t base = uint8_t(std::min<uint32_t>(resident_base(d.level, policy, roomy), k.level_count - 1u));
     batch_vertices += resident_vertices(k, base);
     if (jobs_.size() <= job_count) jobs_.emplace_back();
     Job& job = jobs_[job_count];
@@ -291,6 +306,10 @@ size_t ArenaStreaming::prepare(std::span<Draw> draws, LodPolicy policy) {
 bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const FrameView& view,
                             const RenderOptions& options, FrameStats& stats, std::string& error,
                             bool second_phase) {
+  if (!second_phase) {
+    budget_bounded_ = options.stream_budget_vertices > 0;
+    budget_left_ = options.stream_budget_vertices;
+  }
   begin_frame(plan, second_phase);
   if (!grow_for(plan.draws(), options.lod_policy, error)) return false;
   const std::span<Draw> draws = plan.draws();
@@ -317,7 +336,8 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
     }
     bool resident = false;
     const Job* job = job_of_draw_[batch] == UINT32_MAX ? nullptr : &jobs_[job_of_draw_[batch]];
-    if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job)) return false;
+    if (!ensure_resident(d, objects, options.lod_policy, stats, error, resident, job, defer_of_draw_[batch]))
+      return false;
     if (resident) {
       place(d, view, stats);
     } else if (d.visible) {
@@ -359,16 +379,25 @@ bool ArenaStreaming::stream(FramePlan& plan, DecodedObjects& objects, const Fram
 
 bool ArenaStreaming::ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy,
                                      FrameStats& stats, std::string& error, bool& resident,
-                                     const Job* job) {
+                                     const Job* job, Defer defer) {
   Known& k = *d.known;
   if (ArenaStreaming::resident(k) && d.level < k.base) {
+    if (defer == Defer::keep_coarser) {  // the budget is spent: drawn at its resident base
+      stats.objects_deferred += 1;
+      resident = true;
+      return true;
+    }
     release(d.key, k);  // nearer than its resident vertices serve: tessellate it again
     stats.objects_refined += 1;
   }
   resident = ArenaStreaming::resident(k);
   if (resident) return true;
   const bool roomy = arena_roomy(residency_.used_units(), residency_.capacity_units());
-  const uint8_t base = resident_base(d.level, policy, roomy);
+  uint8_t base = resident_base(d.level, policy, roomy);
+  if (defer != Defer::none && base + 1u < k.level_count) {  // the budget is spent: coarsest
+    base = uint8_t(k.level_count - 1);
+    stats.objects_deferred += 1;
+  }
   // The vertices tessellated ahead serve if they were made for this base.
   const bool prepared = job && job->base == uint8_t(std::min<uint32_t>(base, k.level_count - 1u));
   if (!make_resident(d.key, k, base, objects, stats, error, resident,

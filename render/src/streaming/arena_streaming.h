@@ -10,6 +10,12 @@
 //     tessellates it again (objects_refined). Over budget, it is made resident at its coarsest
 //     level (budget_coarsened), else drawn as its box (budget_proxies; merged runs are then
 //     skipped, their members' boxes would be drawn one by one).
+//   - Progressive refinement (RenderOptions::stream_budget_vertices > 0): the frame's draws,
+//     largest on screen first, spend the budget in vertices tessellated, across the frame's
+//     phases; once it is spent, a resident object that would be tessellated again for a finer
+//     level keeps its resident base (drawn coarser), and one not resident is made resident
+//     from its coarsest level (objects_deferred). The decision is made once per draw, in
+//     prepare(), so that what is tessellated ahead is what is placed.
 //   - The GPU buffers grow once a frame, before streaming, for what the frame may need (and
 //     again only if a placement lands beyond them).
 //   - Object-table entries: resident objects hold one while resident; proxy boxes hold one
@@ -156,9 +162,13 @@ class ArenaStreaming {
   // Safe on several threads at once for different objects.
   void tessellate(const std::vector<Primitive>& primitives, Known& k, uint8_t base,
                   std::vector<PackedVertex>& scratch, std::vector<PackedVertex>& out) const;
+  // What the frame's streaming budget leaves a draw that needs vertices (see the rules).
+  enum class Defer : uint8_t { none, keep_coarser, coarsest };
+  // Decides it for a draw that needs vertices and spends the budget for it.
+  Defer spend_budget(const Known& k, uint8_t base);
   // Tessellates the newly resident objects of the first draws of `draws` on every core
-  // (jobs_, job_of_draw_ by index in the batch), as many draws as fit kPrepareBatchVertices
-  // (at least one): returns how many.
+  // (jobs_, job_of_draw_ and defer_of_draw_ by index in the batch), as many draws as fit
+  // kPrepareBatchVertices (at least one): returns how many.
   size_t prepare(std::span<Draw> draws, LodPolicy policy);
   // Makes `k` resident in the arena from level `base` on (tessellating it unless `prepared`
   // holds its vertices for that base), evicting if needed. fits = false when it cannot be
@@ -170,7 +180,7 @@ class ArenaStreaming {
   // Makes a draw's object resident at the level chosen (or coarser, over budget) unless its
   // resident vertices serve it. resident = false: it cannot be, even at its coarsest level.
   bool ensure_resident(Draw& d, DecodedObjects& objects, LodPolicy policy, FrameStats& stats,
-                       std::string& error, bool& resident, const Job* job);
+                       std::string& error, bool& resident, const Job* job, Defer defer);
   // A resident draw: its level (no finer than the resident base), arena offset, table entry,
   // and its indices counted into their lists.
   void place(Draw& d, const FrameView& view, FrameStats& stats);
@@ -223,6 +233,11 @@ class ArenaStreaming {
   std::vector<std::pair<uint32_t, uint64_t>> evicted_;
   std::vector<Job> jobs_;
   std::vector<uint32_t> job_of_draw_;
+  std::vector<Defer> defer_of_draw_;
+  // The frame's streaming budget (RenderOptions::stream_budget_vertices): whether it is
+  // bounded, and the vertices left; set when a frame's first phase streams.
+  bool budget_bounded_ = false;
+  uint64_t budget_left_ = 0;
   std::vector<std::vector<PackedVertex>> scratch_;  // one per worker
   // write_index_lists(): where each run of the draw order starts writing, per list.
   std::vector<std::array<size_t, kIndexListCount>> run_cursors_;
