@@ -1,6 +1,7 @@
 // Imports: beginning one, putting and removing objects (one LMDB write transaction each).
 #include "plantview/store.h"
 
+#include <bit>
 #include <cassert>
 #include <filesystem>
 
@@ -83,6 +84,7 @@ bool Import::State::source_runs(std::string_view source, std::vector<detail::Slo
 // id and name keys go now; this import's are left out of the merge at commit.
 bool Import::State::remove_slot(uint32_t slot, std::string& error) {
   if (is_removed(slot)) return true;
+  clear_pending(slot);
   digest(slot);
   std::span<const uint8_t> record;
   if (!objects.get(txn.get(), slot, record, error)) return false;
@@ -130,6 +132,38 @@ bool Import::State::remove_slot(uint32_t slot, std::string& error) {
     if (rc != MDB_SUCCESS) {
       error = fail("removing slot " + std::to_string(slot) + " from the ids and names", rc);
       return false;
+    }
+  }
+  return true;
+}
+
+bool Import::State::committed_hash(uint32_t slot, uint64_t& hash, std::string& error) {
+  if (!committed.get()) {
+    const int rc = committed.begin(store->env.get(), MDB_RDONLY);
+    if (rc != MDB_SUCCESS) {
+      error = fail("starting a read of the committed records", rc);
+      return false;
+    }
+  }
+  std::span<const uint8_t> record, attribute_record;
+  std::string why;
+  bool ok = committed_objects.record(committed.get(), dctx.get(), slot, record, why);
+  if (ok && record.empty()) ok = false, why = "indexed but holds no object";
+  if (ok) hasher.record(record);  // (the span is valid until the next read of objects)
+  if (ok) ok = committed_attributes.record(committed.get(), dctx.get(), slot, attribute_record, why);
+  if (!ok) {
+    error = message("object slot " + std::to_string(slot) + ": " + why);
+    return false;
+  }
+  hash = hasher.attributes(attribute_record);
+  return true;
+}
+
+bool Import::State::remove_pending(std::string& error) {
+  for (size_t word = 0; word < pending_bits.size(); ++word) {
+    while (pending_bits[word] != 0) {
+      const uint32_t slot = uint32_t(word * 64 + size_t(std::countr_zero(pending_bits[word])));
+      if (!remove_slot(slot, error)) return false;  // clears the bit
     }
   }
   return true;
@@ -198,11 +232,17 @@ bool Import::remove_source(std::string_view source, std::string& error) {
   assert(s.txn.get() && "remove_source() on a spent Import");
   std::vector<detail::SlotRun>* runs;
   if (!s.source_runs(source, runs, error)) return false;
-  // remove_slot may load other sources (never this one again), which leaves `runs` in place.
+  // Committed slots wait for the commit (put() keeps those put again unchanged); this import's
+  // go now. remove_slot may load other sources (never this one again), which leaves `runs` in
+  // place.
   const std::vector<detail::SlotRun> copy = *runs;
   for (const detail::SlotRun& r : copy) {
     for (uint32_t slot = r.first; slot < r.first + r.length; ++slot) {
-      if (!s.remove_slot(slot, error)) return false;
+      if (slot < s.first_new_slot) {
+        if (!s.is_removed(slot)) s.mark_pending(slot);
+      } else if (!s.remove_slot(slot, error)) {
+        return false;
+      }
     }
   }
   return true;
@@ -219,8 +259,15 @@ bool Import::put(const Object& object, std::string& error) {
     error = s.message("no slots left (4 billion objects put)");
     return false;
   }
-  // An object committed with the same id is replaced (one put twice in this import is resolved
-  // at commit: the later wins).
+  // The object's statistics, whose bounds are its object_bounds() (computed once).
+  ModelStatistics part;
+  part.add(object);
+  detail::encode_object(object, s.raw);
+  detail::encode_attributes(object.attributes, s.raw_attributes);
+  const uint64_t hash = detail::content_hash(s.raw, s.raw_attributes);
+  // An object committed with the same id (in the ids: not removed, maybe pending) stays where it
+  // is when its content is the same, and is replaced otherwise (one put twice in this import is
+  // resolved at commit: the later wins).
   {
     const int rc = index_slots<64>(s.txn.get(), s.store->dbs.ids, s.index_key_bits, object.id,
                                    s.slots, 1);
@@ -228,13 +275,26 @@ bool Import::put(const Object& object, std::string& error) {
       error = s.fail("looking up id " + std::to_string(object.id), rc);
       return false;
     }
-    if (!s.slots.empty() && !s.remove_slot(s.slots[0], error)) return false;
+    if (!s.slots.empty()) {
+      const uint32_t committed = s.slots[0];
+      uint64_t committed_hash;
+      if (!s.committed_hash(committed, committed_hash, error)) return false;
+      if (committed_hash == hash) {
+        // Kept: nothing written, no change. The hash covers the source, so the slot is in this
+        // source's runs already (loaded here so that they are written again at commit).
+        s.clear_pending(committed);
+        std::vector<detail::SlotRun>* runs;
+        if (!s.source_runs(object.source, runs, error)) return false;
+        s.put_statistics.add_counts(part);
+        s.put_statistics.bounds.extend(part.bounds);
+        ++s.put_count;
+        return true;
+      }
+      if (!s.remove_slot(committed, error)) return false;
+    }
   }
   const uint32_t slot = s.next_slot;
-  // The object's statistics, whose bounds are its object_bounds() (computed once). Bounds first:
-  // an object the grid cannot hold is refused before anything of it is written.
-  ModelStatistics part;
-  part.add(object);
+  // Bounds first: an object the grid cannot hold is refused before anything of it is written.
   const DAabb& bounds = part.bounds;
   SpatialItem item{};
   if (!bounds.empty()) {
@@ -253,15 +313,11 @@ bool Import::put(const Object& object, std::string& error) {
   }
   std::vector<detail::SlotRun>* runs;
   if (!s.source_runs(object.source, runs, error)) return false;
-  detail::encode_object(object, s.raw);
   s.digest(slot);
   s.digest(s.raw);
-  s.hasher.record(s.raw);
   if (!s.objects.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
-  detail::encode_attributes(object.attributes, s.raw);
-  s.digest(s.raw);
-  const uint64_t hash = s.hasher.attributes(s.raw);
-  if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw), error)) return false;
+  s.digest(s.raw_attributes);
+  if (!s.attributes.put(s.txn.get(), slot, std::move(s.raw_attributes), error)) return false;
   if (!s.add_change_item(s.put_items, object, slot, hash, error)) return false;
   ++s.next_slot;
   if (!runs->empty() && runs->back().first + runs->back().length == slot) {

@@ -316,7 +316,10 @@ bool Import::commit(std::string& error) {
 bool Import::State::commit(std::string& error) {
   State& s = *this;
   const Databases& dbs = s.store->dbs;
-  // Ids first: resolving an id put twice removes slots, which the other merges then leave out.
+  // The pending removals first (the statistics and the ids as they stand, for rekey_indexes),
+  // then the ids: resolving an id put twice removes slots, which the other merges then leave out.
+  if (!s.remove_pending(error)) return false;
+  s.committed.abort();
   if (!s.rekey_indexes(error) || !s.merge_ids(error)) return false;
   detail::import_stage("ids merged");
   if (!s.write_revision(error)) return false;

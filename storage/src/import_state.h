@@ -62,9 +62,11 @@ struct Import::State {
   // the commit re-keys them; see rekey_indexes()).
   unsigned index_key_bits = detail::kMinIndexKeyBits;
   glm::dvec3 origin{0.0};
-  // Every slot this import removed, one bit a slot (slots are never reused): the import's only
-  // memory per slot.
-  std::vector<uint64_t> removed_bits;
+  // Every slot this import removed, one bit a slot (slots are never reused), and every
+  // committed slot whose removal waits for the commit (remove_source() marks a source's slots so:
+  // one put again unchanged keeps its slot and clears its bit; commit() removes the rest): the
+  // import's only memory per slot.
+  std::vector<uint64_t> removed_bits, pending_bits;
   // This import's index data, spilled to sorted runs when a buffer fills.
   detail::SpilledRuns<detail::IdSlot, detail::IdSlotLess> new_ids;
   detail::SpilledRuns<detail::HashSlot, detail::HashSlotLess> new_names;
@@ -89,6 +91,13 @@ struct Import::State {
   }
   detail::ZstdCCtx compressor = detail::make_compressor();
   detail::ZstdDCtx dctx{ZSTD_createDCtx()};
+  std::vector<uint8_t> raw_attributes;  // scratch: the attributes of the object being put
+  // Committed records, read to compare an object put again with the one it would replace:
+  // through a read transaction on the state this import began from (committed records are
+  // never changed in place, only erased), begun on first use and ended by commit().
+  detail::LmdbTxn committed;
+  detail::ChunkCache committed_objects{store->dbs.objects, 8, size_t(16) << 20};
+  detail::ChunkCache committed_attributes{store->dbs.attributes, 8, size_t(16) << 20};
 
   // The revision this commit records (store.h, "Revisions"): every object put, and every
   // committed object removed, with its content hash, merged by id at commit.
@@ -117,17 +126,33 @@ struct Import::State {
     const size_t word = slot / 64;
     return word < removed_bits.size() && (removed_bits[word] >> (slot % 64) & 1u);
   }
-  void mark_removed(uint32_t slot) {
+  void mark_removed(uint32_t slot) { set_bit(removed_bits, slot); }
+  bool is_pending(uint32_t slot) const {
     const size_t word = slot / 64;
-    if (word >= removed_bits.size()) removed_bits.resize(word + 1 + word / 4, 0);
-    removed_bits[word] |= uint64_t(1) << (slot % 64);
+    return word < pending_bits.size() && (pending_bits[word] >> (slot % 64) & 1u);
   }
+  void mark_pending(uint32_t slot) { set_bit(pending_bits, slot); }
+  void clear_pending(uint32_t slot) {
+    const size_t word = slot / 64;
+    if (word < pending_bits.size()) pending_bits[word] &= ~(uint64_t(1) << (slot % 64));
+  }
+  static void set_bit(std::vector<uint64_t>& bits, uint32_t slot) {
+    const size_t word = slot / 64;
+    if (word >= bits.size()) bits.resize(word + 1 + word / 4, 0);
+    bits[word] |= uint64_t(1) << (slot % 64);
+  }
+
+  // The content hash (detail::content_hash) of the committed object in `slot`; false with a
+  // message naming the slot when it cannot be read.
+  bool committed_hash(uint32_t slot, uint64_t& hash, std::string& error);
+  // Removes every slot still pending (in slot order). The first step of commit().
+  bool remove_pending(std::string& error);
 
   // The slot runs of a source (as committed, plus this import's), loaded on first use.
   bool source_runs(std::string_view source, std::vector<detail::SlotRun>*& out, std::string& error);
 
-  // Removes the object in `slot` (committed earlier, or put by this import). A committed one's
-  // id and name keys go now; this import's are left out of the merge at commit.
+  // Removes the object in `slot` (committed earlier, or put by this import; pending or not). A
+  // committed one's id and name keys go now; this import's are left out of the merge at commit.
   bool remove_slot(uint32_t slot, std::string& error);
 
   // Compresses and stores `raw_value` under `key` of `dbi`.

@@ -58,8 +58,10 @@
 //                                objects or 64 KB a value: each u64 id, u32 record bytes, u32
 //                                attribute bytes, the two records; kept as the changes are
 // A slot is an object's place in the store: slots only grow, so that records append; an
-// object's stable identity is its 64-bit id (model.h). Replacing or removing an object rewrites
-// the chunks of its span (4096 object or 16384 attribute slots, which chunks never cross);
+// object's stable identity is its 64-bit id (model.h). An object put again unchanged (the same
+// content hash, "Revisions") keeps its slot, and nothing of it is written. Replacing or removing
+// an object rewrites the chunks of its span (4096 object or 16384 attribute slots, which chunks
+// never cross);
 // every import writes the spatial blocks and the top again (the ids and names are updated key
 // by key, or written again when their key width changes).
 //
@@ -87,7 +89,8 @@
 //     object removed goes the same way (id, content hash, slot, class: two buffers of 32 MB; the
 //     names to a log file through 1 MB), merged by id at commit ("Revisions"). Besides the
 //     buffers (about 260 MB at most) an import
-//     keeps one bit per slot (the removed slots: its only per-slot memory), each touched
+//     keeps two bits per slot (removed, and removal pending: its only per-slot memory), a read
+//     transaction on the state it began from with 16 inflated chunks, each touched
 //     source's slots as runs, 700 bytes of block summary per 2048 objects at commit, and
 //     LMDB's dirty pages (under 1 GB whatever the import's size; see chunks.h). `gen --preset c
 //     --scale 1000` (40.75 million objects) peaked at 1.60 GB (format 4: 0.87 GB while putting
@@ -315,11 +318,13 @@ class Import {
   Import(const Import&) = delete;
   Import& operator=(const Import&) = delete;
 
-  // Removes every object that `source` brought before (importing a file again replaces them).
+  // Removes every object that `source` brought before (importing a file again replaces them):
+  // at commit, for those not put again unchanged meanwhile.
   bool remove_source(std::string_view source, std::string& error);
   // Adds an object (its `source` field says where it came from). An object whose id is already
-  // in the store replaces it; one put twice in this import is resolved at commit (the later
-  // wins). Fails, naming the slot, for bounds that are not finite or lie beyond the spatial
+  // in the store stays in its slot, untouched, when its content hash is the same (and is then no
+  // longer removed by remove_source()), and is replaced otherwise, at a new slot; one put twice
+  // in this import is resolved at commit (the later wins). Fails, naming the slot, for bounds that are not finite or lie beyond the spatial
   // grid (about 2000 km from the spatial origin, which the first object with geometry ever
   // put fixes: whole metres at its centre; it never moves).
   bool put(const Object& object, std::string& error);
