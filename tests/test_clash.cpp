@@ -19,6 +19,7 @@
 #include "plantview/clash.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
+#include "plantview/review.h"
 #include "plantview/store.h"
 #include "support/stores.h"
 #include "support/temp_dir.h"
@@ -275,6 +276,43 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   other.store_directory = "/elsewhere";
   EXPECT_FALSE(apply_previous(fourth, other, error));
   EXPECT_NE(error.find("another store"), std::string::npos) << error;
+}
+
+TEST(Clash, ViewsColourTheTwoObjectsAndRoundTrip) {
+  ClashReport report;
+  Clash c;
+  c.id = 0x1234;
+  c.a.id = 7;
+  c.a.tag = "P-1";
+  c.b.id = 9;  // no tag: named by id
+  c.points_m = {{1, 2, 3}};
+  c.depth_m = 0.01;
+  report.clashes = {c};
+  const std::vector<ReviewView> views = clash_views(report, 16.0 / 9.0);
+  ASSERT_EQ(views.size(), 1u);
+  ASSERT_EQ(views[0].colours.size(), 2u);
+  EXPECT_EQ(views[0].colours[0].id, 7u);
+  EXPECT_EQ(views[0].colours[0].colour, kClashFirstColour);
+  EXPECT_EQ(views[0].colours[0].label, "first: P-1");
+  EXPECT_EQ(views[0].colours[1].id, 9u);
+  EXPECT_EQ(views[0].colours[1].colour, kClashSecondColour);
+  EXPECT_EQ(views[0].colours[1].label, "second: 9");
+  std::vector<ReviewView> reread;
+  std::string error;
+  const std::string text = review_views_json(views, "clash");
+  ASSERT_TRUE(parse_review_views(text, reread, error)) << error;
+  ASSERT_EQ(reread.size(), 1u);
+  EXPECT_EQ(reread[0].colours, views[0].colours);
+  // A colour for an object not in the subject, or a malformed colour, is refused.
+  std::string bad = text;
+  const std::string nine = "\"id\": 9";
+  bad.replace(bad.find(nine), nine.size(), "\"id\": 5");
+  EXPECT_FALSE(parse_review_views(bad, reread, error));
+  EXPECT_NE(error.find("not in 'subject'"), std::string::npos) << error;
+  bad = text;
+  bad.replace(bad.find("#e12323"), 7, "#e1232");
+  EXPECT_FALSE(parse_review_views(bad, reread, error));
+  EXPECT_NE(error.find("colours[0].colour"), std::string::npos) << error;
 }
 
 TEST(Clash, GeneratedPlantShardsEqualOneRunAndNoOwnPartsReported) {

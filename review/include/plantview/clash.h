@@ -193,12 +193,16 @@ std::string clash_report_json(const ClashReport& report);
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
 
 // Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
-// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted), its
+// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted; the
+// first in kClashFirstColour, the second in kClashSecondColour, as ReviewView::colours labelled
+// "first: TAG" and "second: TAG"; their BCF Coloring the same), its
 // camera fit_camera from the isometric direction on the clash region (the points' bounds grown
 // by kClashViewMarginM), a section box of that region grown by another half margin, and
 // caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
 // (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
 inline constexpr double kClashViewMarginM = 1.5;
+inline constexpr Colour kClashFirstColour{225, 35, 35, 255};    // red
+inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
 
 }  // namespace plantview

@@ -37,6 +37,8 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
               (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag);
     v.aspect = aspect;
     v.subject = {c.a.id, c.b.id};
+    v.colours = {{c.a.id, kClashFirstColour, "first: " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag)},
+                 {c.b.id, kClashSecondColour, "second: " + (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag)}};
     DAabb region;
     for (const glm::dvec3& p : c.points_m) region.extend(p);
     region.min -= glm::dvec3(kClashViewMarginM);
