@@ -257,6 +257,22 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   EXPECT_EQ(second.clashes[0].status, ClashStatus::new_clash);
   EXPECT_EQ(second.clashes[0].a.tag == "/BEAM-2" || second.clashes[0].b.tag == "/BEAM-2", true);
   EXPECT_NEAR(second.clashes[0].depth_m, 0.05, 1 * kMm);
+  {
+    // The revision moved the pipe: the new clash names it (not the beam).
+    const auto view = store->read(error);
+    ASSERT_TRUE(view) << error;
+    EXPECT_EQ(first.revision + 1, second.revision);
+    std::string note;
+    EXPECT_TRUE(name_changed_objects(second, *view, first.revision, note)) << note;
+    EXPECT_TRUE(note.empty()) << note;
+    ASSERT_NE(second.clashes[0].changed_id, 0u);
+    EXPECT_EQ(second.clashes[0].changed_tag().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
+    EXPECT_NE(clash_report_json(second).find("\"changed_tag\""), std::string::npos);
+    const std::vector<ReviewView> views = clash_views(second, 16.0 / 9.0);
+    ASSERT_EQ(views.size(), 1u);
+    EXPECT_EQ(views[0].attributes.back(),
+              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag()}));
+  }
   // Through the file, as --since reads it.
   ClashReport reread;
   ASSERT_TRUE(parse_clash_report(clash_report_json(second), reread, error)) << error;
@@ -265,6 +281,7 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   ASSERT_EQ(third.clashes.size(), 1u);
   EXPECT_EQ(third.clashes[0].status, ClashStatus::active);
   EXPECT_EQ(third.clashes[0].id, second.clashes[0].id);
+  EXPECT_EQ(third.clashes[0].changed_id, 0u);  // (named only when new)
   // Moved back: resolved.
   ASSERT_TRUE(ingest_objects(*store, piping_case(false)));
   ClashReport fourth = run(*store, dir.str());
@@ -313,6 +330,27 @@ TEST(Clash, ViewsColourTheTwoObjectsAndRoundTrip) {
   bad.replace(bad.find("#e12323"), 7, "#e1232");
   EXPECT_FALSE(parse_review_views(bad, reread, error));
   EXPECT_NE(error.find("colours[0].colour"), std::string::npos) << error;
+}
+
+TEST(Clash, APrunedSinceRevisionSkipsOnlyTheNaming) {
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const ClashReport first = run(*store, dir.str());
+  IngestControl keep_one;
+  keep_one.keep_revisions = 1;
+  ASSERT_TRUE(ingest_objects(*store, piping_case(false), keep_one));  // (nothing changes)
+  ASSERT_TRUE(ingest_objects(*store, piping_case(true), keep_one));
+  ClashReport second = run(*store, dir.str());
+  std::string error, note;
+  ASSERT_TRUE(apply_previous(second, first, error)) << error;
+  ASSERT_EQ(second.clashes.size(), 1u);
+  EXPECT_EQ(second.clashes[0].status, ClashStatus::new_clash);
+  const auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_FALSE(name_changed_objects(second, *view, first.revision, note));
+  EXPECT_NE(note.find("not named"), std::string::npos) << note;
+  EXPECT_EQ(second.clashes[0].changed_id, 0u);
 }
 
 TEST(Clash, GeneratedPlantShardsEqualOneRunAndNoOwnPartsReported) {

@@ -118,6 +118,7 @@ void print_summary(const ClashReport& r) {
                 c.kind == ClashKind::hard ? "hard" : "clearance", c.kind == ClashKind::hard ? "depth" : "distance",
                 1000.0 * (c.kind == ClashKind::hard ? c.depth_m : c.distance_m), c.a.tag.c_str(), c.b.tag.c_str(),
                 p.x, p.y, p.z);
+    if (c.changed_id) std::printf("      changed since the previous run: %s\n", c.changed_tag().c_str());
   }
 }
 
@@ -186,6 +187,9 @@ int run_clash(const ClashArgs& a) {
   progress.finish();
   if (!a.since.empty() && !apply_previous(report, previous, error))
     return fail("--since " + a.since + ": " + error);
+  std::string note;
+  if (!a.since.empty() && !name_changed_objects(report, *view, previous.revision, note))
+    std::cerr << "plantview clash: note: --since " << a.since << ": " << note << "\n";
   return emit(report, a.out, a.json);
 }
 

@@ -56,6 +56,8 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
                                   : std::pair<std::string, std::string>{"distance", fixed(c.distance_m * 1000, "%.1f mm")},
         {"point", fixed(p.x, "%.3f") + ", " + fixed(p.y, "%.3f") + ", " + fixed(p.z, "%.3f") + " m"},
         {"group", c.group}};
+    if (c.changed_id)
+      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag());
     out.push_back(std::move(v));
   }
   return out;

@@ -91,7 +91,10 @@ std::string clash_report_json(const ClashReport& r) {
     for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
     j["points_m"] = std::move(points);
     j["group"] = c.group;
-    if (c.changed_id) j["changed_id"] = std::to_string(c.changed_id);
+    if (c.changed_id) {
+      j["changed_id"] = std::to_string(c.changed_id);
+      j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
+    }
     clashes.push_back(std::move(j));
   }
   json rules = json::array();
@@ -217,6 +220,11 @@ bool same_settings(const ClashReport& x, const ClashReport& y, std::string& erro
 
 }  // namespace
 
+const std::string& Clash::changed_tag() const {
+  static const std::string none;
+  return changed_id == 0 ? none : changed_id == a.id ? a.tag : changed_id == b.id ? b.tag : none;
+}
+
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
   if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
   std::vector<bool> matched(previous.clashes.size(), false);
@@ -247,6 +255,35 @@ bool apply_previous(ClashReport& report, const ClashReport& previous, std::strin
     report.clashes.push_back(std::move(c));
   }
   sort_clashes(report.clashes);
+  return true;
+}
+
+bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t since_revision,
+                          std::string& note) {
+  note.clear();
+  const uint32_t now = view.info().revision;
+  if (since_revision == now) return true;  // nothing changed: nothing new was caused
+  if (since_revision > now) {
+    note = "the previous run's revision " + std::to_string(since_revision) +
+           " is later than the store's " + std::to_string(now) + ": changed objects not named";
+    return false;
+  }
+  std::vector<ObjectChange> changes;
+  std::string why;
+  if (!view.changes(since_revision, now, changes, why)) {
+    note = "changed objects not named: " + why;
+    return false;
+  }
+  // (changes come in id order)
+  const auto changed = [&](uint64_t id) {
+    const auto it = std::lower_bound(changes.begin(), changes.end(), id,
+                                     [](const ObjectChange& c, uint64_t v) { return c.id < v; });
+    return it != changes.end() && it->id == id && it->kind != ChangeKind::removed;
+  };
+  for (Clash& c : report.clashes) {
+    if (c.status != ClashStatus::new_clash) continue;
+    c.changed_id = changed(c.a.id) ? c.a.id : changed(c.b.id) ? c.b.id : 0;
+  }
   return true;
 }
 
