@@ -416,6 +416,19 @@ TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
   EXPECT_NE(out.find("1 clashes (1 hard, 0 clearance): 1 new"), std::string::npos) << out;
   ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", second}, out, err), 0) << err;
   EXPECT_NE(out.find("0 new, 1 active"), std::string::npos) << out;
+  {
+    // Its view, rendered: the two objects in the clash colours, named in the frame's legend.
+    const std::string views = (scratch.path() / "views.json").string(), images = (scratch.path() / "images").string();
+    ASSERT_EQ(run_plantview({"views", "--store", s, "--per", "clash", "--clashes", first, "--out", views}, out, err), 0)
+        << err;
+    ASSERT_EQ(run_plantview({"render", "--store", s, "--views", views, "--size", "160x90", "--out", images}, out, err), 0)
+        << err;
+    std::ifstream in(scratch.path() / "images" / "stats.jsonl");
+    const std::string stats(std::istreambuf_iterator<char>(in), {});
+    EXPECT_NE(stats.find("\"key\":\"subjects\""), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"colour\":\"#e12323\",\"objects\":1,\"value\":\"first: "), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"colour\":\"#14afeb\",\"objects\":1,\"value\":\"second: "), std::string::npos) << stats;
+  }
   for (const char* shard : {"0/2", "1/2"})
     ASSERT_EQ(run_plantview({"clash", "--store", s, "--shard", shard, "--out",
                              (scratch.path() / (std::string("s") + shard[0] + ".json")).string()}, out, err), 0) << err;
