@@ -76,31 +76,6 @@ bool read_report(const std::string& path, ClashReport& report, std::string& erro
   return true;
 }
 
-bool write_atomically(const std::string& path, const std::string& text, std::string& error) {
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) {
-      error = "cannot write " + path + " (creating " + temporary + " failed)";
-      return false;
-    }
-    file << text;
-    if (!file.flush()) {
-      error = "writing " + temporary + " failed";
-      std::filesystem::remove(temporary);
-      return false;
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    error = "cannot write " + path + ": " + ec.message();
-    std::filesystem::remove(temporary, ec);
-    return false;
-  }
-  return true;
-}
-
 void print_summary(const ClashReport& r) {
   uint64_t by_status[3] = {}, hard = 0;
   for (const Clash& c : r.clashes) {
@@ -123,14 +98,42 @@ void print_summary(const ClashReport& r) {
   }
 }
 
+// clashes.json written clash by clash (never held whole), atomically.
+bool write_report_atomically(const std::string& path, const ClashReport& report, std::string& error) {
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
+    if (!file) {
+      error = "cannot write " + path + " (creating " + temporary + " failed)";
+      return false;
+    }
+    const bool written = write_clash_report(report, [&file](std::string_view text) {
+      file.write(text.data(), std::streamsize(text.size()));
+      return bool(file);
+    });
+    if (!written || !file.flush()) {
+      error = "writing " + temporary + " failed";
+      std::filesystem::remove(temporary);
+      return false;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) {
+    error = "cannot write " + path + ": " + ec.message();
+    std::filesystem::remove(temporary, ec);
+    return false;
+  }
+  return true;
+}
+
 int emit(const ClashReport& report, const std::string& out, bool json) {
-  const std::string text = clash_report_json(report);
   if (!out.empty()) {
     std::string error;
-    if (!write_atomically(out, text, error)) return fail(error);
+    if (!write_report_atomically(out, report, error)) return fail(error);
   }
   if (json)
-    std::cout << text;
+    write_clash_report(report, [](std::string_view text) { return bool(std::cout.write(text.data(), std::streamsize(text.size()))); });
   else
     print_summary(report);
   return 0;
@@ -149,7 +152,7 @@ std::string farm_shard_file(const std::string& dir, const ClashShard& shard) {
 
 int finish_farm_task(const ClashReport& report, const std::string& dir) {
   std::string error;
-  if (!write_atomically(farm_shard_file(dir, report.shard), clash_report_json(report), error)) return fail(error);
+  if (!write_report_atomically(farm_shard_file(dir, report.shard), report, error)) return fail(error);
   std::vector<ClashReport> shards(report.shard.count);
   for (uint32_t i = 0; i < report.shard.count; ++i) {
     ClashShard s;
@@ -170,7 +173,7 @@ int finish_farm_task(const ClashReport& report, const std::string& dir) {
     return 0;
   }
   const std::string out = (std::filesystem::path(dir) / "clashes.json").string();
-  if (!write_atomically(out, clash_report_json(merged), error)) return fail(error);
+  if (!write_report_atomically(out, merged, error)) return fail(error);
   std::cout << "shard " << report.shard.index << "/" << report.shard.count << " merged all "
             << report.shard.count << " into " << out << ": " << merged.clashes.size() << " clashes\n";
   return 0;

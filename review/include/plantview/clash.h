@@ -199,6 +199,9 @@ bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std
 //  "class":".."},"b":{..},"depth_m":..|"distance_m":..,"error_m":..,"points_m":[[x,y,z]],
 //  "group":".."}]}. Pretty-printed with two spaces, ids as decimal strings.
 std::string clash_report_json(const ClashReport& report);
+// The same text in pieces, clash by clash, to `sink` (a file: clashes.json is never held whole;
+// it stops at the first piece the sink refuses, returning false).
+bool write_clash_report(const ClashReport& report, const std::function<bool(std::string_view)>& sink);
 // Reads it back; false with a message for text that is not JSON, truncated, another version,
 // or a missing or mistyped field (naming it and the clash index).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);

@@ -1,5 +1,7 @@
 // clashes.json, status against a previous run, and merging shards (plantview/clash.h).
 #include <algorithm>
+#include <cassert>
+#include <functional>
 #include <charconv>
 #include <cstdio>
 
@@ -74,29 +76,29 @@ ClashObject read_side(const json& j, const char* key, const std::string& where) 
 
 }  // namespace
 
-std::string clash_report_json(const ClashReport& r) {
-  json clashes = json::array();
-  for (const Clash& c : r.clashes) {
-    json j = {{"id", hex(c.id)},
-              {"status", std::string(clash_status_name(c.status))},
-              {"kind", c.kind == ClashKind::hard ? "hard" : "clearance"},
-              {"a", side(c.a)},
-              {"b", side(c.b)}};
-    if (c.kind == ClashKind::hard)
-      j["depth_m"] = c.depth_m;
-    else
-      j["distance_m"] = c.distance_m;
-    j["error_m"] = c.error_m;
-    json points = json::array();
-    for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
-    j["points_m"] = std::move(points);
-    j["group"] = c.group;
-    if (c.changed_id) {
-      j["changed_id"] = std::to_string(c.changed_id);
-      j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
-    }
-    clashes.push_back(std::move(j));
+static json clash_json(const Clash& c) {
+  json j = {{"id", hex(c.id)},
+            {"status", std::string(clash_status_name(c.status))},
+            {"kind", c.kind == ClashKind::hard ? "hard" : "clearance"},
+            {"a", side(c.a)},
+            {"b", side(c.b)}};
+  if (c.kind == ClashKind::hard)
+    j["depth_m"] = c.depth_m;
+  else
+    j["distance_m"] = c.distance_m;
+  j["error_m"] = c.error_m;
+  json points = json::array();
+  for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
+  j["points_m"] = std::move(points);
+  j["group"] = c.group;
+  if (c.changed_id) {
+    j["changed_id"] = std::to_string(c.changed_id);
+    j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
   }
+  return j;
+}
+
+bool write_clash_report(const ClashReport& r, const std::function<bool(std::string_view)>& sink) {
   json rules = json::array();
   for (int i = 0; i < kClashRuleCount; ++i) rules.push_back(std::string(clash_rule_name(ClashRule(i))));
   json skipped = json::object();
@@ -123,9 +125,37 @@ std::string clash_report_json(const ClashReport& r) {
         {"candidate_pairs", r.counts.candidate_pairs},
         {"narrow_pairs", r.counts.narrow_pairs},
         {"skipped_by_rule", skipped}}},
-      {"clashes", std::move(clashes)}};
-  return out.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
+      {"clashes", json::array()}};
+  // Keys are written in order: "clashes" first, then counts, settings, store, version.
+  const std::string whole = out.dump(2, ' ', false, json::error_handler_t::replace);
+  const std::string empty = "\"clashes\": []";
+  const size_t at = whole.find(empty);
+  assert(at != std::string::npos);
+  if (!sink(std::string_view(whole).substr(0, at + empty.size() - 1))) return false;
+  bool first = true;
+  for (const Clash& c : r.clashes) {
+    // Each clash as the whole document's dump would indent it (two levels in).
+    std::string text = first ? "\n    " : ",\n    ";
+    first = false;
+    for (const char ch : clash_json(c).dump(2, ' ', false, json::error_handler_t::replace)) {
+      text += ch;
+      if (ch == '\n') text += "    ";
+    }
+    if (!sink(text)) return false;
+  }
+  return sink(r.clashes.empty() ? std::string_view("]") : std::string_view("\n  ]")) &&
+         sink(std::string_view(whole).substr(at + empty.size())) && sink("\n");
 }
+
+std::string clash_report_json(const ClashReport& r) {
+  std::string out;
+  write_clash_report(r, [&out](std::string_view text) {
+    out += text;
+    return true;
+  });
+  return out;
+}
+
 
 bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
   const json j = json::parse(input, nullptr, false);
