@@ -19,6 +19,7 @@
 #include "plantview/clash.h"
 #include "plantview/generate.h"
 #include "plantview/ingest.h"
+#include "plantview/review.h"
 #include "plantview/store.h"
 #include "support/stores.h"
 #include "support/temp_dir.h"
@@ -256,6 +257,22 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   EXPECT_EQ(second.clashes[0].status, ClashStatus::new_clash);
   EXPECT_EQ(second.clashes[0].a.tag == "/BEAM-2" || second.clashes[0].b.tag == "/BEAM-2", true);
   EXPECT_NEAR(second.clashes[0].depth_m, 0.05, 1 * kMm);
+  {
+    // The revision moved the pipe: the new clash names it (not the beam).
+    const auto view = store->read(error);
+    ASSERT_TRUE(view) << error;
+    EXPECT_EQ(first.revision + 1, second.revision);
+    std::string note;
+    EXPECT_TRUE(name_changed_objects(second, *view, first.revision, note)) << note;
+    EXPECT_TRUE(note.empty()) << note;
+    ASSERT_NE(second.clashes[0].changed_id, 0u);
+    EXPECT_EQ(second.clashes[0].changed_tag().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
+    EXPECT_NE(clash_report_json(second).find("\"changed_tag\""), std::string::npos);
+    const std::vector<ReviewView> views = clash_views(second, 16.0 / 9.0);
+    ASSERT_EQ(views.size(), 1u);
+    EXPECT_EQ(views[0].attributes.back(),
+              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag()}));
+  }
   // Through the file, as --since reads it.
   ClashReport reread;
   ASSERT_TRUE(parse_clash_report(clash_report_json(second), reread, error)) << error;
@@ -264,6 +281,7 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   ASSERT_EQ(third.clashes.size(), 1u);
   EXPECT_EQ(third.clashes[0].status, ClashStatus::active);
   EXPECT_EQ(third.clashes[0].id, second.clashes[0].id);
+  EXPECT_EQ(third.clashes[0].changed_id, 0u);  // (named only when new)
   // Moved back: resolved.
   ASSERT_TRUE(ingest_objects(*store, piping_case(false)));
   ClashReport fourth = run(*store, dir.str());
@@ -275,6 +293,64 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   other.store_directory = "/elsewhere";
   EXPECT_FALSE(apply_previous(fourth, other, error));
   EXPECT_NE(error.find("another store"), std::string::npos) << error;
+}
+
+TEST(Clash, ViewsColourTheTwoObjectsAndRoundTrip) {
+  ClashReport report;
+  Clash c;
+  c.id = 0x1234;
+  c.a.id = 7;
+  c.a.tag = "P-1";
+  c.b.id = 9;  // no tag: named by id
+  c.points_m = {{1, 2, 3}};
+  c.depth_m = 0.01;
+  report.clashes = {c};
+  const std::vector<ReviewView> views = clash_views(report, 16.0 / 9.0);
+  ASSERT_EQ(views.size(), 1u);
+  ASSERT_EQ(views[0].colours.size(), 2u);
+  EXPECT_EQ(views[0].colours[0].id, 7u);
+  EXPECT_EQ(views[0].colours[0].colour, kClashFirstColour);
+  EXPECT_EQ(views[0].colours[0].label, "first: P-1");
+  EXPECT_EQ(views[0].colours[1].id, 9u);
+  EXPECT_EQ(views[0].colours[1].colour, kClashSecondColour);
+  EXPECT_EQ(views[0].colours[1].label, "second: 9");
+  std::vector<ReviewView> reread;
+  std::string error;
+  const std::string text = review_views_json(views, "clash");
+  ASSERT_TRUE(parse_review_views(text, reread, error)) << error;
+  ASSERT_EQ(reread.size(), 1u);
+  EXPECT_EQ(reread[0].colours, views[0].colours);
+  // A colour for an object not in the subject, or a malformed colour, is refused.
+  std::string bad = text;
+  const std::string nine = "\"id\": 9";
+  bad.replace(bad.find(nine), nine.size(), "\"id\": 5");
+  EXPECT_FALSE(parse_review_views(bad, reread, error));
+  EXPECT_NE(error.find("not in 'subject'"), std::string::npos) << error;
+  bad = text;
+  bad.replace(bad.find("#e12323"), 7, "#e1232");
+  EXPECT_FALSE(parse_review_views(bad, reread, error));
+  EXPECT_NE(error.find("colours[0].colour"), std::string::npos) << error;
+}
+
+TEST(Clash, APrunedSinceRevisionSkipsOnlyTheNaming) {
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const ClashReport first = run(*store, dir.str());
+  IngestControl keep_one;
+  keep_one.keep_revisions = 1;
+  ASSERT_TRUE(ingest_objects(*store, piping_case(false), keep_one));  // (nothing changes)
+  ASSERT_TRUE(ingest_objects(*store, piping_case(true), keep_one));
+  ClashReport second = run(*store, dir.str());
+  std::string error, note;
+  ASSERT_TRUE(apply_previous(second, first, error)) << error;
+  ASSERT_EQ(second.clashes.size(), 1u);
+  EXPECT_EQ(second.clashes[0].status, ClashStatus::new_clash);
+  const auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  EXPECT_FALSE(name_changed_objects(second, *view, first.revision, note));
+  EXPECT_NE(note.find("not named"), std::string::npos) << note;
+  EXPECT_EQ(second.clashes[0].changed_id, 0u);
 }
 
 TEST(Clash, GeneratedPlantShardsEqualOneRunAndNoOwnPartsReported) {
@@ -340,6 +416,19 @@ TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
   EXPECT_NE(out.find("1 clashes (1 hard, 0 clearance): 1 new"), std::string::npos) << out;
   ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", second}, out, err), 0) << err;
   EXPECT_NE(out.find("0 new, 1 active"), std::string::npos) << out;
+  {
+    // Its view, rendered: the two objects in the clash colours, named in the frame's legend.
+    const std::string views = (scratch.path() / "views.json").string(), images = (scratch.path() / "images").string();
+    ASSERT_EQ(run_plantview({"views", "--store", s, "--per", "clash", "--clashes", first, "--out", views}, out, err), 0)
+        << err;
+    ASSERT_EQ(run_plantview({"render", "--store", s, "--views", views, "--size", "160x90", "--out", images}, out, err), 0)
+        << err;
+    std::ifstream in(scratch.path() / "images" / "stats.jsonl");
+    const std::string stats(std::istreambuf_iterator<char>(in), {});
+    EXPECT_NE(stats.find("\"key\":\"subjects\""), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"colour\":\"#e12323\",\"objects\":1,\"value\":\"first: "), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"colour\":\"#14afeb\",\"objects\":1,\"value\":\"second: "), std::string::npos) << stats;
+  }
   for (const char* shard : {"0/2", "1/2"})
     ASSERT_EQ(run_plantview({"clash", "--store", s, "--shard", shard, "--out",
                              (scratch.path() / (std::string("s") + shard[0] + ".json")).string()}, out, err), 0) << err;

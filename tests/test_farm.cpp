@@ -710,6 +710,43 @@ TEST_F(Farm, SlurmArrayRendersTheSameImagesResumesAndCompletesACancelledTask) {
   r = run("farm submit --scheduler local --tasks 2" + revised_submit + full.string());
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(images_in(incremental), images_in(full));
+
+  // A clash job (farm submit --clash) as a 4-task array: the clashes.json of one process.
+  const fs::path clash_out = scratch_.path() / "clash-slurm", single_clashes = scratch_.path() / "single-clashes.json";
+  r = run("farm submit --clash --scheduler slurm --tasks 4 --store " + store_.string() + " --out " + clash_out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string clash_job = r.out.substr(0, r.out.find('\n'));
+  r = run("clash --store " + store_.string() + " --out " + single_clashes.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_TRUE(cluster.wait_for_job(clash_job, std::chrono::seconds(90))) << "job " << clash_job << " still queued";
+  r = run("farm status --json " + clash_out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["complete"], true) << r.out << slurp(clash_out / "logs" / ("slurm-" + clash_job + "_0.log"));
+  EXPECT_EQ(json::parse(r.out)["shards_done"], 4) << r.out;
+  EXPECT_EQ(slurp(clash_out / "clashes.json"), slurp(single_clashes));
+}
+
+TEST_F(Farm, LocalClashShardsWriteTheSameClashesAsOneProcess) {
+  const fs::path out = scratch_.path() / "clash-local", single = scratch_.path() / "single-clashes.json";
+  Outcome r = run("farm submit --clash --scheduler local --tasks 4 --store " + store_.string() + " --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json summary = json::parse(r.out);
+  EXPECT_EQ(summary["complete"], true) << r.out;
+  EXPECT_EQ(summary["shards_done"], 4) << r.out;
+  r = run("clash --store " + store_.string() + " --out " + single.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string merged = slurp(out / "clashes.json");
+  EXPECT_FALSE(merged.empty());
+  EXPECT_EQ(merged, slurp(single));
+  EXPECT_EQ(json::parse(merged)["clashes"].size(), summary["clashes"].get<size_t>());
+  r = run("farm status " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("4 of 4 shards done"), std::string::npos) << r.out;
+  // A render option is refused for a clash job, before anything is written.
+  r = run("farm submit --clash --scheduler local --tasks 2 --size 64x36 --store " + store_.string() + " --out " +
+          (scratch_.path() / "never").string());
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_FALSE(fs::exists(scratch_.path() / "never"));
 }
 
 }  // namespace

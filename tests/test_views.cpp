@@ -264,7 +264,7 @@ TEST(ViewsFile, ErrorsNameTheViewAndTheField) {
             "views file: view 0 ('P-101A'): 'title' is missing");
   EXPECT_EQ(error_after([](Json& j) { j["views"][1]["aspekt"] = 1.0; }),
             "views file: view 1 ('unit_2.zone-B'): unknown key 'aspekt' (name, title, kind, camera, "
-            "aspect, subject, attributes, section, style, changes)");
+            "aspect, subject, attributes, section, style, changes, colours)");
   EXPECT_EQ(error_after([](Json& j) { j["views"][0]["changes"] = "5..3"; }),
             "views file: view 0 ('P-101A'): 'changes': '5..3': the first revision must come before "
             "the second");

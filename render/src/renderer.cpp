@@ -2,6 +2,7 @@
 // view, cull, occlusion, choose) and the decoded objects need no GL; arena streaming and the GL
 // backend put what was chosen on the GPU, draw it and read it back. A drawn frame with
 // occlusion runs choose, stream and draw twice, or three times (occlusion.h: phases).
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <utility>
@@ -34,6 +35,16 @@ struct Renderer::State {
     given = o;
     options = o;
     if (!o.style.hide.empty() || !o.style.only.empty()) options.hlod = false;
+    // Subject colours replace colour-by, and turn HLOD off (a merged run would draw a coloured
+    // pipe in its neighbours' colour).
+    packed_subjects.clear();
+    if (!o.subject_colours.empty() && !o.changes) {
+      options.hlod = false;
+      options.style.colour_by.clear();
+      for (const SubjectColour& c : o.subject_colours)
+        packed_subjects.emplace_back(c.id, packed_colour(c.colour));
+      std::sort(packed_subjects.begin(), packed_subjects.end());
+    }
     if (o.changes) {
       options.hlod = false;
       options.style.colour_by.clear();
@@ -53,6 +64,7 @@ struct Renderer::State {
   ArenaStreaming streaming{backend, pool};
   FrameColouring colouring;  // colour_by: this frame's colours by value
   ChangeSet changes;         // RenderOptions::changes: read once per range and snapshot
+  std::vector<std::pair<uint64_t, uint32_t>> packed_subjects;  // subject_colours, by id
   std::vector<uint64_t> frame_pick_ids;  // a change image's picks: the frame's, then its ghosts'
 
   std::vector<float> reduced_depth;  // occlusion's second phase: the first phase's depth grid
@@ -252,6 +264,7 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   const FrameView frame_view = make_frame_view(camera, w, h, view->spatial_origin());
   Look look = look_of(options, bounds);
   if (given.changes) look.subject_colours = changes.subject_colours();
+  else if (!packed_subjects.empty()) look.subject_colours = packed_subjects;
   const Look* drawn = draw ? &look : nullptr;
   clock.lap();
   // What a look ahead streamed is written into the arena now, whether its frame came or not
@@ -330,6 +343,11 @@ bool Renderer::State::frame(const Camera& camera, uint32_t w, uint32_t h, bool d
   if (given.changes) {
     stats.changes = changes.summary();
     stats.legend = changes.legend();
+  } else if (!packed_subjects.empty()) {
+    stats.legend = FrameLegend{};
+    stats.legend.key = "subjects";
+    for (const SubjectColour& c : given.subject_colours)
+      stats.legend.entries.push_back({c.label, c.colour, 1});
   }
   report_times(times, clock.total(), stats.ms);
   return true;

@@ -1,7 +1,9 @@
 // The views file: what `plantview views` writes and `render --views` reads, and what a view's
 // caption says (plantview/review.h).
+#include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -146,10 +148,10 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
     (void)value;
     if (key != "name" && key != "title" && key != "kind" && key != "camera" && key != "aspect" &&
         key != "subject" && key != "attributes" && key != "section" && key != "style" &&
-        key != "changes")
+        key != "changes" && key != "colours")
       return fail("unknown key '" + key +
                   "' (name, title, kind, camera, aspect, subject, attributes, section, style, "
-                  "changes)");
+                  "changes, colours)");
   }
   const auto text = [&](const char* key, std::string& out) {
     if (!item.contains(key)) return fail(std::string("'") + key + "' is missing");
@@ -224,6 +226,37 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
       return fail("'changes': " + why);
     v.changes = range;
   }
+  if (item.contains("colours")) {
+    const Json& colours = item["colours"];
+    if (!colours.is_array()) return fail("'colours' must be a list of {id, colour, label}");
+    for (size_t i = 0; i < colours.size(); ++i) {
+      const std::string name = "colours[" + std::to_string(i) + "]";
+      const Json& c = colours[i];
+      if (!c.is_object()) return fail("'" + name + "' must be an object {id, colour, label}");
+      if (!check_keys(c, name, {"id", "colour", "label"}, fail)) return false;
+      SubjectColour sc;
+      if (!c.contains("id") || !c["id"].is_number_unsigned())
+        return fail("'" + name + ".id' must be an object id (an integer >= 0)");
+      sc.id = c["id"].get<uint64_t>();
+      if (std::find(v.subject.begin(), v.subject.end(), sc.id) == v.subject.end())
+        return fail("'" + name + ".id' " + std::to_string(sc.id) + " is not in 'subject'");
+      for (const SubjectColour& earlier : v.colours)
+        if (earlier.id == sc.id)
+          return fail("'" + name + ".id' " + std::to_string(sc.id) + " is coloured twice");
+      unsigned r = 0, g = 0, b = 0;
+      const std::string hex_text = c.contains("colour") && c["colour"].is_string() ? c["colour"].get<std::string>() : "";
+      if (hex_text.size() != 7 || hex_text[0] != '#' ||
+          hex_text.find_first_not_of("0123456789abcdefABCDEF", 1) != std::string::npos ||
+          std::sscanf(hex_text.c_str() + 1, "%2x%2x%2x", &r, &g, &b) != 3)
+        return fail("'" + name + ".colour' must be \"#rrggbb\"");
+      sc.colour = Colour{uint8_t(r), uint8_t(g), uint8_t(b), 255};
+      if (c.contains("label")) {
+        if (!c["label"].is_string()) return fail("'" + name + ".label' must be a string");
+        sc.label = c["label"].get<std::string>();
+      }
+      v.colours.push_back(std::move(sc));
+    }
+  }
   return true;
 }
 
@@ -262,6 +295,15 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
     if (!v.section.empty()) list.back()["section"] = section_json(v.section);
     if (!v.style.empty()) list.back()["style"] = style_json(v.style);
     if (v.changes) list.back()["changes"] = change_range_text(*v.changes);
+    if (!v.colours.empty()) {
+      Json colours = Json::array();
+      for (const SubjectColour& c : v.colours) {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "#%02x%02x%02x", c.colour.r, c.colour.g, c.colour.b);
+        colours.push_back(Json{{"id", c.id}, {"colour", hex}, {"label", c.label}});
+      }
+      list.back()["colours"] = colours;
+    }
   }
   const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
   // Attribute values are bytes as the model gave them, not always UTF-8: invalid sequences

@@ -39,6 +39,7 @@ struct ClashArgs {
   unsigned threads = 0;
   std::vector<std::string> merge_inputs;
   std::string merge_out;
+  std::string farm_dir;  // a farm task (farm submit --clash): its shard file and the merge there
 };
 
 bool parse_shard(const std::string& text, ClashShard& shard) {
@@ -75,31 +76,6 @@ bool read_report(const std::string& path, ClashReport& report, std::string& erro
   return true;
 }
 
-bool write_atomically(const std::string& path, const std::string& text, std::string& error) {
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) {
-      error = "cannot write " + path + " (creating " + temporary + " failed)";
-      return false;
-    }
-    file << text;
-    if (!file.flush()) {
-      error = "writing " + temporary + " failed";
-      std::filesystem::remove(temporary);
-      return false;
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    error = "cannot write " + path + ": " + ec.message();
-    std::filesystem::remove(temporary, ec);
-    return false;
-  }
-  return true;
-}
-
 void print_summary(const ClashReport& r) {
   uint64_t by_status[3] = {}, hard = 0;
   for (const Clash& c : r.clashes) {
@@ -118,19 +94,88 @@ void print_summary(const ClashReport& r) {
                 c.kind == ClashKind::hard ? "hard" : "clearance", c.kind == ClashKind::hard ? "depth" : "distance",
                 1000.0 * (c.kind == ClashKind::hard ? c.depth_m : c.distance_m), c.a.tag.c_str(), c.b.tag.c_str(),
                 p.x, p.y, p.z);
+    if (c.changed_id) std::printf("      changed since the previous run: %s\n", c.changed_tag().c_str());
   }
 }
 
+// clashes.json written clash by clash (never held whole), atomically.
+bool write_report_atomically(const std::string& path, const ClashReport& report, std::string& error) {
+  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
+    if (!file) {
+      error = "cannot write " + path + " (creating " + temporary + " failed)";
+      return false;
+    }
+    const bool written = write_clash_report(report, [&file](std::string_view text) {
+      file.write(text.data(), std::streamsize(text.size()));
+      return bool(file);
+    });
+    if (!written || !file.flush()) {
+      error = "writing " + temporary + " failed";
+      std::filesystem::remove(temporary);
+      return false;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) {
+    error = "cannot write " + path + ": " + ec.message();
+    std::filesystem::remove(temporary, ec);
+    return false;
+  }
+  return true;
+}
+
 int emit(const ClashReport& report, const std::string& out, bool json) {
-  const std::string text = clash_report_json(report);
   if (!out.empty()) {
     std::string error;
-    if (!write_atomically(out, text, error)) return fail(error);
+    if (!write_report_atomically(out, report, error)) return fail(error);
   }
   if (json)
-    std::cout << text;
+    write_clash_report(report, [](std::string_view text) { return bool(std::cout.write(text.data(), std::streamsize(text.size()))); });
   else
     print_summary(report);
+  return 0;
+}
+
+// A farm clash job's directory (farm submit --clash): task I of N writes
+// DIR/clash-shard-I-of-N.json; the task that finds all N there (of one snapshot and settings)
+// merges them into DIR/clashes.json (atomically: two tasks finishing together write the same
+// bytes). Shard files of another job (another snapshot: the store changed between tasks) make
+// the merge wait for the task that rewrites them; that is said, not a failure.
+std::string farm_shard_file(const std::string& dir, const ClashShard& shard) {
+  return (std::filesystem::path(dir) / ("clash-shard-" + std::to_string(shard.index) + "-of-" +
+                                        std::to_string(shard.count) + ".json"))
+      .string();
+}
+
+int finish_farm_task(const ClashReport& report, const std::string& dir) {
+  std::string error;
+  if (!write_report_atomically(farm_shard_file(dir, report.shard), report, error)) return fail(error);
+  std::vector<ClashReport> shards(report.shard.count);
+  for (uint32_t i = 0; i < report.shard.count; ++i) {
+    ClashShard s;
+    s.index = i;
+    s.count = report.shard.count;
+    const std::string path = farm_shard_file(dir, s);
+    if (!std::filesystem::exists(path)) {
+      std::cout << "shard " << report.shard.index << "/" << report.shard.count << ": " << report.clashes.size()
+                << " clashes; waiting for the others (" << path << " is missing)\n";
+      return 0;
+    }
+    if (!read_report(path, shards[i], error)) return fail(error);
+  }
+  ClashReport merged;
+  if (!merge_reports(shards, merged, error)) {
+    std::cout << "shard " << report.shard.index << "/" << report.shard.count
+              << ": not merged yet: " << error << "\n";
+    return 0;
+  }
+  const std::string out = (std::filesystem::path(dir) / "clashes.json").string();
+  if (!write_report_atomically(out, merged, error)) return fail(error);
+  std::cout << "shard " << report.shard.index << "/" << report.shard.count << " merged all "
+            << report.shard.count << " into " << out << ": " << merged.clashes.size() << " clashes\n";
   return 0;
 }
 
@@ -146,6 +191,8 @@ int run_clash(const ClashArgs& a) {
   ClashSettings settings;
   if (!parse_shard(a.shard, settings.shard))
     return usage_error("clash: --shard: expected I/N with 0 <= I < N, got '" + a.shard + "'");
+  if (!a.farm_dir.empty() && (!a.out.empty() || a.json))
+    return usage_error("clash: --farm-dir writes the shard's file and the merged clashes.json itself (no --out, --json)");
   if (!a.since.empty() && settings.shard.count > 1)
     return usage_error("clash: --since applies to a whole run: merge the shards, then compare");
   settings.tolerance_m = a.tolerance_mm / 1000;
@@ -184,8 +231,12 @@ int run_clash(const ClashArgs& a) {
   ClashReport report;
   if (!find_clashes(*view, a.store, settings, report, error)) return fail(error);
   progress.finish();
+  if (!a.farm_dir.empty()) return finish_farm_task(report, a.farm_dir);
   if (!a.since.empty() && !apply_previous(report, previous, error))
     return fail("--since " + a.since + ": " + error);
+  std::string note;
+  if (!a.since.empty() && !name_changed_objects(report, *view, previous.revision, note))
+    std::cerr << "plantview clash: note: --since " << a.since << ": " << note << "\n";
   return emit(report, a.out, a.json);
 }
 
@@ -217,6 +268,9 @@ Action add_clash_command(CLI::App& app) {
   clash->add_flag("--json", args->json, "Print clashes.json on stdout instead of the summary");
   clash->add_option("--shard", args->shard, "Check shard I of N of the block pairs (a spatial region)");
   clash->add_option("--threads", args->threads, "Worker threads (default: all cores)");
+  clash->add_option("--farm-dir", args->farm_dir,
+                    "A farm task (farm submit --clash): write DIR/clash-shard-I-of-N.json; the last shard "
+                    "merges all into DIR/clashes.json");
   auto* merge = clash->add_subcommand("merge", "Merge the shards' clashes.json files into one");
   merge->add_option("files", args->merge_inputs, "The shards' result files")->required();
   merge->add_option("--out", args->merge_out, "Write the merged clashes.json here");

@@ -38,6 +38,10 @@ struct SubmitArgs {
   std::vector<CLI::Option*> render_flags;
   std::vector<std::string> render_storage = std::vector<std::string>(24);
   std::vector<std::string> clip;  // --clip, repeatable
+  bool clash = false;             // --clash: a clash job (clash options below), not a render
+  std::vector<std::pair<CLI::Option*, std::string>> clash_values;  // given only
+  std::vector<std::string> clash_storage = std::vector<std::string>(8);
+  CLI::Option* include_connected = nullptr;
 };
 
 // The render options given to `farm submit`, as the shards' command line passes them on.
@@ -102,7 +106,115 @@ std::string stale_summary(const StaleViews& stale) {
   return reasons.empty() ? text : text + " (" + reasons + ")";
 }
 
+// A clash job's marker in its output directory (farm status reads it): {"clash": true,
+// "tasks": N, "store": ...}.
+constexpr const char* kClashJobName = "clash-job.json";
+
+// Shard files done of a clash job of `tasks` shards in `dir`, and the merged file's clash
+// count (-1: not merged yet).
+void clash_progress(const fs::path& dir, uint32_t tasks, uint32_t& done, int64_t& clashes) {
+  std::error_code ec;
+  done = 0;
+  for (uint32_t i = 0; i < tasks; ++i)
+    done += fs::exists(dir / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(tasks) + ".json"), ec);
+  clashes = -1;
+  std::string text, error;
+  if (farm::read_file(dir / "clashes.json", text, error)) {
+    const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+    if (!j.is_discarded() && j.contains("clashes") && j["clashes"].is_array()) clashes = int64_t(j["clashes"].size());
+  }
+}
+
+nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks) {
+  uint32_t done = 0;
+  int64_t clashes = -1;
+  clash_progress(dir, tasks, done, clashes);
+  nlohmann::json out = {{"clash", true}, {"tasks", tasks}, {"shards_done", done}, {"complete", clashes >= 0}};
+  if (clashes >= 0) out["clashes"] = clashes;
+  return out;
+}
+
+// farm submit --clash: the clash pass as N shards (scheduler.h states the task's command).
+int run_submit_clash(const SubmitArgs& a) {
+  if (!a.views.empty())
+    return usage_error("farm submit --clash: no --views (a clash job checks the store, then `views --per clash` "
+                       "and a render job make its images)");
+  for (const auto& [option, value] : a.render_values)
+    if (option->count() > 0)
+      return usage_error("farm submit --clash: " + option->get_name() +
+                         " is a render option (a clash job takes --tolerance, --clearance, --between, --and, "
+                         "--include-connected, --threads)");
+  std::string error;
+  farm::FarmJob job;
+  job.clash = true;
+  job.tasks = a.tasks;
+  job.cpus_per_task = a.cpus_per_task;
+  job.partition = a.partition;
+  job.time_limit = a.time_limit;
+  bool threads_given = false;
+  for (const auto& [option, value] : a.clash_values)
+    if (option->count() > 0) {
+      job.clash_args.insert(job.clash_args.end(), {option->get_name(), value});
+      threads_given = threads_given || option->get_name() == "--threads";
+    }
+  if (a.include_connected->count() > 0) job.clash_args.push_back("--include-connected");
+  // A task uses the CPUs it asked for (Slurm's), not every core of its node.
+  if (!threads_given) job.clash_args.insert(job.clash_args.end(), {"--threads", std::to_string(a.cpus_per_task)});
+  std::error_code ec;
+  job.program = fs::read_symlink("/proc/self/exe", ec).string();
+  if (ec) return fail("cannot find this program's path (/proc/self/exe): " + ec.message());
+  job.store = fs::absolute(a.store);
+  job.out = fs::absolute(a.out);
+  {
+    auto store = Store::open(job.store.string(), Store::Mode::read_only, error);
+    if (!store) return fail(error);
+    if (!store->read(error)) return fail(error);
+  }
+  if (a.dry_run) {
+    if (a.scheduler == "slurm") {
+      std::cout << farm::sbatch_script(job);
+    } else {
+      for (uint32_t i = 0; i < job.tasks; ++i) {
+        for (const std::string& word : farm::shard_command(job, std::to_string(i) + "/" + std::to_string(job.tasks)))
+          std::cout << word << " ";
+        std::cout << "\n";
+      }
+    }
+    return 0;
+  }
+  if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
+    return fail(error);
+  // A new job: what an earlier one left (its shards, its merge) would read as this one's.
+  fs::remove(job.out / "clashes.json", ec);
+  for (uint32_t i = 0; i < job.tasks; ++i)
+    fs::remove(job.out / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(job.tasks) + ".json"), ec);
+  const nlohmann::json marker = {{"clash", true}, {"tasks", job.tasks}, {"store", job.store.string()}};
+  if (!farm::write_file_atomically(job.out / kClashJobName, marker.dump() + "\n", error)) return fail(error);
+  if (a.scheduler == "slurm") {
+    const fs::path script = job.out / "farm.sbatch";
+    if (!farm::write_file_atomically(script, farm::sbatch_script(job), error)) return fail(error);
+    ::chmod(script.c_str(), 0755);
+    std::string job_id;
+    if (!farm::submit_to_slurm(script, job_id, error)) {
+      fs::remove(script, ec);
+      fs::remove(job.out / kClashJobName, ec);
+      return fail(error);
+    }
+    std::cerr << "plantview: submitted clash job " << job_id << " (" << job.tasks << " tasks; script "
+              << script.string() << "); `plantview farm status " << job.out.string()
+              << "` tells how far it got\n";
+    std::cout << job_id << "\n";
+    return 0;
+  }
+  const bool shards_ok = farm::run_local_shards(job, error);
+  std::cout << clash_status_json(job.out, job.tasks).dump() << "\n";
+  if (!shards_ok) return fail(error);
+  return 0;
+}
+
 int run_submit(const SubmitArgs& a) {
+  if (a.clash) return run_submit_clash(a);
+  if (a.views.empty()) return usage_error("farm submit: --views is required (or --clash)");
   std::string error, text;
   farm::FarmJob job;
   job.tasks = a.tasks;
@@ -210,8 +322,25 @@ int run_submit(const SubmitArgs& a) {
 }
 
 int run_status(const std::string& dir, const std::string& store_dir, bool json) {
-  std::string error;
+  std::string error, text;
   std::error_code ec;
+  if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec) &&
+      farm::read_file(fs::path(dir) / kClashJobName, text, error)) {
+    // A clash job: its shards done and its merge.
+    const nlohmann::json marker = nlohmann::json::parse(text, nullptr, false);
+    if (marker.is_discarded() || !marker.contains("tasks") || !marker["tasks"].is_number_unsigned())
+      return fail((fs::path(dir) / kClashJobName).string() + ": not a clash job's marker");
+    const nlohmann::json out = clash_status_json(dir, marker["tasks"].get<uint32_t>());
+    if (json) {
+      std::cout << out.dump() << "\n";
+    } else {
+      std::cout << "clash job: " << out["shards_done"] << " of " << out["tasks"] << " shards done; "
+                << (out["complete"].get<bool>() ? "clashes.json: " + out["clashes"].dump() + " clashes"
+                                                : std::string("not merged yet"))
+                << "\n";
+    }
+    return 0;
+  }
   if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec))
     return fail(dir + ": not a farm output directory (no " + farm::kViewsCopyName + ")");
   farm::FarmSummary summary;
@@ -259,7 +388,7 @@ Action add_farm_command(CLI::App& app) {
   submit->add_option("--scheduler", a->scheduler, "slurm or local")
       ->check(CLI::IsMember({"slurm", "local"}))
       ->capture_default_str();
-  submit->add_option("--views", a->views, "Views file (from `plantview views`)")->required();
+  submit->add_option("--views", a->views, "Views file (from `plantview views`); not with --clash");
   submit->add_option("--store", a->store, "Store directory (every task opens it read-only)")->required();
   submit->add_option("--out", a->out, "Output directory (shared by every task)")->required();
   submit->add_option("--tasks", a->tasks, "Shards, one task each")->required()->check(CLI::Range(1u, 10000u));
@@ -298,6 +427,22 @@ Action add_farm_command(CLI::App& app) {
     a->render_flags.push_back(submit->add_flag(name)->description("Passed on to render"));
   submit->add_option("--clip", a->clip,
                      "Clip plane PX,PY,PZ,NX,NY,NZ, repeatable (each view's own section wins)");
+  // A clash job instead of a render: `clash --shard I/N` per task, merged by the last one.
+  submit->add_flag("--clash", a->clash,
+                   "Run the clash pass as N shards (clash options below) into OUT/clashes.json");
+  const std::pair<const char*, const char*> clash_values[] = {
+      {"--tolerance", "clash: hard clash deeper than this (mm)"},
+      {"--clearance", "clash: clearance clash closer than this (mm)"},
+      {"--between", "clash: one object in this set (class or glob)"},
+      {"--and", "clash: the other in this one"},
+      {"--threads", "clash: worker threads a task (default: --cpus-per-task)"}};
+  size_t j = 0;
+  for (const auto& [name, help] : clash_values) {
+    CLI::Option* option = submit->add_option(name, a->clash_storage[j], help);
+    a->clash_values.emplace_back(option, std::string());
+    ++j;
+  }
+  a->include_connected = submit->add_flag("--include-connected")->description("clash: report what the rules exempt");
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);
@@ -312,6 +457,7 @@ Action add_farm_command(CLI::App& app) {
   return [=]() -> int {
     if (submit->parsed()) {
       for (size_t k = 0; k < a->render_values.size(); ++k) a->render_values[k].second = a->render_storage[k];
+      for (size_t k = 0; k < a->clash_values.size(); ++k) a->clash_values[k].second = a->clash_storage[k];
       return run_submit(*a);
     }
     if (status->parsed()) return run_status(*status_dir, *status_store, *status_json);

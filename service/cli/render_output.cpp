@@ -206,7 +206,9 @@ void add_legend_lines(const FrameLegend& legend, std::vector<std::string>& lines
     swatches.push_back(std::move(bar));
   } else {
     for (const FrameLegend::Entry& e : legend.entries) {
-      lines.push_back(e.value + "  (" + std::to_string(e.objects) + ")");
+      // (Subject colours name one object each: no count.)
+      lines.push_back(legend.key == "subjects" ? e.value
+                                               : e.value + "  (" + std::to_string(e.objects) + ")");
       swatches.push_back(swatch(e.colour));
     }
     if (legend.other_objects > 0) {

@@ -31,6 +31,8 @@ RenderOptions review_render_options(const RenderOptions& base, const ReviewView&
   if (!base.style.only.empty()) options.style.only = base.style.only;
   if (!view.section.empty()) options.section = view.section;
   if (view.changes && !base.changes) options.changes = view.changes;  // (--changes replaces it)
+  // A clash view's two colours (--colour-by replaces them, as it replaces the view's own).
+  if (base.style.colour_by.empty()) options.subject_colours = view.colours;
   return options;
 }
 
@@ -45,7 +47,7 @@ bool add_review_caption(Image& image, const ReviewView& view, const FrameStats& 
   // The legend in columns beside the view's lines, as many rows as they have (at least 4).
   // (A change image's legend needs no heading: the first line says what it is.)
   add_legend_columns(stats.legend, std::max<size_t>(4, columns[0].lines.size()), columns,
-                     !stats.changes.shown);
+                     !stats.changes.shown && stats.legend.key != "subjects");
   return add_caption_columns(image, view.title, columns, error);
 }
 

@@ -185,6 +185,10 @@ struct RenderOptions {
   // lighter, id 0 in the id buffer); whatever lies between the eye and them is drawn
   // see-through, so a subject deep in a rack is still seen.
   std::vector<uint64_t> highlight_ids;
+  // Non-empty (with highlight_ids naming them): these subjects in these colours instead of
+  // their own (alpha kept), and the frame's legend (key "subjects") one entry a label, in this
+  // order, objects 1. Replaces style.colour_by; a change image ignores it.
+  std::vector<SubjectColour> subject_colours;  // (view_filters.h)
   // Clip planes and a section box (view_filters.h): what they remove is neither decoded,
   // tessellated, drawn nor picked (culled whole where its bounds are removed, else clipped on
   // the GPU); cut closed solids are capped (docs/sections.md).

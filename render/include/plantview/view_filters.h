@@ -80,6 +80,16 @@ struct ObjectStyle {
   bool operator==(const ObjectStyle&) const = default;
 };
 
+// A subject drawn in a colour of its own (RenderOptions::subject_colours): a clash view's two
+// objects, the first red and the second cyan (clash.h). `label` is its legend entry's text
+// ("first: P-1001-01").
+struct SubjectColour {
+  uint64_t id = 0;  // store id
+  Colour colour;
+  std::string label;
+  bool operator==(const SubjectColour&) const = default;
+};
+
 // "a,b,c" into words (empty words dropped). Errors: an empty list. `what` names the option.
 bool parse_word_list(std::string_view text, std::string_view what, std::vector<std::string>& out,
                      std::string& error);

@@ -55,8 +55,8 @@
 //     of the same two pipelines or equipment items share a group.
 //   - Order: clashes sorted by (group, object a id, object b id, id): the same for the same store
 //     and settings, whatever the threads or shards.
-//   - Hook for revisions (store.h): a later step can name, for a new clash, the object of the
-//     pair that changed since the previous run's revision (Clash::changed_id, 0 for now).
+//   - With revisions (store.h): a new clash names the object of its pair that changed between
+//     the previous run's revision and this one (name_changed_objects: Clash::changed_id).
 //
 // Units: metres, model space. Threads: find_clashes runs a pool of its own (settings.threads,
 // 0 = hardware threads) and calls progress from its workers one at a time. Errors: false with
@@ -139,7 +139,11 @@ struct Clash {
   double error_m = 0;             // bound on depth/distance from tessellation (0: exact parts)
   std::vector<glm::dvec3> points_m;  // at least one
   std::string group;
-  uint64_t changed_id = 0;        // revisions hook: the object that caused a new clash (0: unknown)
+  uint64_t changed_id = 0;        // a new clash's object that changed since the previous run
+                                  // (name_changed_objects; 0: none named). Its tag is written
+                                  // beside it in clashes.json ("changed_tag") and the caption.
+  // The tag of changed_id's object ("" when none).
+  const std::string& changed_tag() const;
 };
 
 struct ClashCounts {
@@ -175,6 +179,13 @@ bool clash_set_matches(const ReadView& view, const ClashSet& set, bool& matches,
 // False, naming the reason, when `previous` comes from another store (directory or spatial
 // origin differ) or other settings (tolerance, clearance, sets).
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error);
+// After apply_previous: each new clash whose a or b changed (added or modified) between
+// `since_revision` (the previous report's) and the view's revision (ReadView::changes) gets
+// changed_id (a's where both changed). A range the store cannot give (its changes pruned, or
+// a revision it never made) names nothing: false, with `note` saying why (not an error: the
+// statuses stand). True with an empty note otherwise (also when the revisions are the same).
+bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t since_revision,
+                          std::string& note);
 
 // Sorts the clashes (the order above); merge_reports() and find_clashes() call it.
 void sort_clashes(std::vector<Clash>& clashes);
@@ -188,17 +199,24 @@ bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std
 //  "class":".."},"b":{..},"depth_m":..|"distance_m":..,"error_m":..,"points_m":[[x,y,z]],
 //  "group":".."}]}. Pretty-printed with two spaces, ids as decimal strings.
 std::string clash_report_json(const ClashReport& report);
+// The same text in pieces, clash by clash, to `sink` (a file: clashes.json is never held whole;
+// it stops at the first piece the sink refuses, returning false).
+bool write_clash_report(const ClashReport& report, const std::function<bool(std::string_view)>& sink);
 // Reads it back; false with a message for text that is not JSON, truncated, another version,
 // or a missing or mistyped field (naming it and the clash index).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
 
 // Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
-// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted), its
+// "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted; the
+// first in kClashFirstColour, the second in kClashSecondColour, as ReviewView::colours labelled
+// "first: TAG" and "second: TAG"; their BCF Coloring the same), its
 // camera fit_camera from the isometric direction on the clash region (the points' bounds grown
 // by kClashViewMarginM), a section box of that region grown by another half margin, and
 // caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
 // (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
 inline constexpr double kClashViewMarginM = 1.5;
+inline constexpr Colour kClashFirstColour{225, 35, 35, 255};    // red
+inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
 
 }  // namespace plantview

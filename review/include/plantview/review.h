@@ -43,6 +43,9 @@ struct ReviewView {
   // Set: the view is a change image of this range (render.h: RenderOptions::changes); its
   // colours and highlight are the changes', whatever `subject` and `style.colour_by` say.
   std::optional<ChangeRange> changes;
+  // Non-empty: these subjects drawn in these colours instead of their own, with a legend of the
+  // labels (render.h: RenderOptions::subject_colours); a clash view's two objects.
+  std::vector<SubjectColour> colours;
 };
 
 // The views file. JSON:
@@ -53,10 +56,12 @@ struct ReviewView {
 //               "section": {"planes": [{"point": [x,y,z], "normal": [x,y,z]}],
 //                           "box": {"min": [x,y,z], "max": [x,y,z]}, "capped": true},
 //               "style": {"colour_by": "Material", "hide": ["structure"], "only": ["P-*"]},
-//               "changes": "12..14"}]}
+//               "changes": "12..14",
+//               "colours": [{"id": 12, "colour": "#d72828", "label": "first: P-101A"}]}]}
 // `section` and `style` are optional (absent: nothing cut, the model's colours) and written
 // only when not empty; each of their keys is optional too. `changes` (optional) is a range
-// as parse_change_range reads it ("R1" or "R1..R2").
+// as parse_change_range reads it ("R1" or "R1..R2"). `colours` (optional, written when not
+// empty): each entry's id must be in `subject`, once.
 // `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
 // (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
 // bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other

@@ -352,6 +352,9 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
           for (auto& [colour, group] : by_colour) vp.colours.push_back(std::move(group));
         }
       }
+      // Subject colours (a clash's two objects): one Coloring each, as the image shows them.
+      for (const SubjectColour& c : view.colours)
+        vp.colours.push_back({rgb_hex(c.colour), {component_for(tool_id(c.id))}});
 
       bcf::Markup markup;
       markup.guid = topic_guid;

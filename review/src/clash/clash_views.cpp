@@ -37,6 +37,8 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
               (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag);
     v.aspect = aspect;
     v.subject = {c.a.id, c.b.id};
+    v.colours = {{c.a.id, kClashFirstColour, "first: " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag)},
+                 {c.b.id, kClashSecondColour, "second: " + (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag)}};
     DAabb region;
     for (const glm::dvec3& p : c.points_m) region.extend(p);
     region.min -= glm::dvec3(kClashViewMarginM);
@@ -54,6 +56,8 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
                                   : std::pair<std::string, std::string>{"distance", fixed(c.distance_m * 1000, "%.1f mm")},
         {"point", fixed(p.x, "%.3f") + ", " + fixed(p.y, "%.3f") + ", " + fixed(p.z, "%.3f") + " m"},
         {"group", c.group}};
+    if (c.changed_id)
+      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag());
     out.push_back(std::move(v));
   }
   return out;

@@ -1,5 +1,7 @@
 // clashes.json, status against a previous run, and merging shards (plantview/clash.h).
 #include <algorithm>
+#include <cassert>
+#include <functional>
 #include <charconv>
 #include <cstdio>
 
@@ -74,26 +76,29 @@ ClashObject read_side(const json& j, const char* key, const std::string& where) 
 
 }  // namespace
 
-std::string clash_report_json(const ClashReport& r) {
-  json clashes = json::array();
-  for (const Clash& c : r.clashes) {
-    json j = {{"id", hex(c.id)},
-              {"status", std::string(clash_status_name(c.status))},
-              {"kind", c.kind == ClashKind::hard ? "hard" : "clearance"},
-              {"a", side(c.a)},
-              {"b", side(c.b)}};
-    if (c.kind == ClashKind::hard)
-      j["depth_m"] = c.depth_m;
-    else
-      j["distance_m"] = c.distance_m;
-    j["error_m"] = c.error_m;
-    json points = json::array();
-    for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
-    j["points_m"] = std::move(points);
-    j["group"] = c.group;
-    if (c.changed_id) j["changed_id"] = std::to_string(c.changed_id);
-    clashes.push_back(std::move(j));
+static json clash_json(const Clash& c) {
+  json j = {{"id", hex(c.id)},
+            {"status", std::string(clash_status_name(c.status))},
+            {"kind", c.kind == ClashKind::hard ? "hard" : "clearance"},
+            {"a", side(c.a)},
+            {"b", side(c.b)}};
+  if (c.kind == ClashKind::hard)
+    j["depth_m"] = c.depth_m;
+  else
+    j["distance_m"] = c.distance_m;
+  j["error_m"] = c.error_m;
+  json points = json::array();
+  for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
+  j["points_m"] = std::move(points);
+  j["group"] = c.group;
+  if (c.changed_id) {
+    j["changed_id"] = std::to_string(c.changed_id);
+    j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
   }
+  return j;
+}
+
+bool write_clash_report(const ClashReport& r, const std::function<bool(std::string_view)>& sink) {
   json rules = json::array();
   for (int i = 0; i < kClashRuleCount; ++i) rules.push_back(std::string(clash_rule_name(ClashRule(i))));
   json skipped = json::object();
@@ -120,9 +125,37 @@ std::string clash_report_json(const ClashReport& r) {
         {"candidate_pairs", r.counts.candidate_pairs},
         {"narrow_pairs", r.counts.narrow_pairs},
         {"skipped_by_rule", skipped}}},
-      {"clashes", std::move(clashes)}};
-  return out.dump(2, ' ', false, json::error_handler_t::replace) + "\n";
+      {"clashes", json::array()}};
+  // Keys are written in order: "clashes" first, then counts, settings, store, version.
+  const std::string whole = out.dump(2, ' ', false, json::error_handler_t::replace);
+  const std::string empty = "\"clashes\": []";
+  const size_t at = whole.find(empty);
+  assert(at != std::string::npos);
+  if (!sink(std::string_view(whole).substr(0, at + empty.size() - 1))) return false;
+  bool first = true;
+  for (const Clash& c : r.clashes) {
+    // Each clash as the whole document's dump would indent it (two levels in).
+    std::string text = first ? "\n    " : ",\n    ";
+    first = false;
+    for (const char ch : clash_json(c).dump(2, ' ', false, json::error_handler_t::replace)) {
+      text += ch;
+      if (ch == '\n') text += "    ";
+    }
+    if (!sink(text)) return false;
+  }
+  return sink(r.clashes.empty() ? std::string_view("]") : std::string_view("\n  ]")) &&
+         sink(std::string_view(whole).substr(at + empty.size())) && sink("\n");
 }
+
+std::string clash_report_json(const ClashReport& r) {
+  std::string out;
+  write_clash_report(r, [&out](std::string_view text) {
+    out += text;
+    return true;
+  });
+  return out;
+}
+
 
 bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
   const json j = json::parse(input, nullptr, false);
@@ -217,6 +250,11 @@ bool same_settings(const ClashReport& x, const ClashReport& y, std::string& erro
 
 }  // namespace
 
+const std::string& Clash::changed_tag() const {
+  static const std::string none;
+  return changed_id == 0 ? none : changed_id == a.id ? a.tag : changed_id == b.id ? b.tag : none;
+}
+
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
   if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
   std::vector<bool> matched(previous.clashes.size(), false);
@@ -247,6 +285,35 @@ bool apply_previous(ClashReport& report, const ClashReport& previous, std::strin
     report.clashes.push_back(std::move(c));
   }
   sort_clashes(report.clashes);
+  return true;
+}
+
+bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t since_revision,
+                          std::string& note) {
+  note.clear();
+  const uint32_t now = view.info().revision;
+  if (since_revision == now) return true;  // nothing changed: nothing new was caused
+  if (since_revision > now) {
+    note = "the previous run's revision " + std::to_string(since_revision) +
+           " is later than the store's " + std::to_string(now) + ": changed objects not named";
+    return false;
+  }
+  std::vector<ObjectChange> changes;
+  std::string why;
+  if (!view.changes(since_revision, now, changes, why)) {
+    note = "changed objects not named: " + why;
+    return false;
+  }
+  // (changes come in id order)
+  const auto changed = [&](uint64_t id) {
+    const auto it = std::lower_bound(changes.begin(), changes.end(), id,
+                                     [](const ObjectChange& c, uint64_t v) { return c.id < v; });
+    return it != changes.end() && it->id == id && it->kind != ChangeKind::removed;
+  };
+  for (Clash& c : report.clashes) {
+    if (c.status != ClashStatus::new_clash) continue;
+    c.changed_id = changed(c.a.id) ? c.a.id : changed(c.b.id) ? c.b.id : 0;
+  }
   return true;
 }
 

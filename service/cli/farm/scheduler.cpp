@@ -67,6 +67,12 @@ std::string trimmed(std::string text) {
 }  // namespace
 
 std::vector<std::string> shard_command(const FarmJob& job, const std::string& shard) {
+  if (job.clash) {
+    std::vector<std::string> argv = {job.program, "clash",      "--store",         job.store.string(),
+                                     "--shard",   shard,        "--farm-dir",      job.out.string()};
+    argv.insert(argv.end(), job.clash_args.begin(), job.clash_args.end());
+    return argv;
+  }
   std::vector<std::string> argv = {job.program,           "render", "--store", job.store.string(),
                                    "--views",             (job.out / kViewsCopyName).string(),
                                    "--out",               job.out.string(),
@@ -78,12 +84,16 @@ std::vector<std::string> shard_command(const FarmJob& job, const std::string& sh
 std::string sbatch_script(const FarmJob& job) {
   const std::string n = std::to_string(job.tasks);
   std::string s = "#!/bin/bash\n";
-  s += "# plantview farm job: " + n + " shards of " + (job.out / kViewsCopyName).string() + ",\n";
+  if (job.clash)
+    s += "# plantview farm clash job: " + n + " shards of the clash pass of " + job.store.string() +
+         ",\n# merged by the last into " + (job.out / "clashes.json").string() + ";\n";
+  else
+    s += "# plantview farm job: " + n + " shards of " + (job.out / kViewsCopyName).string() + ",\n";
   s += "# one array task each. Written by `plantview farm submit`. Submitting it again (all of it,\n";
   s += "# or some tasks: sbatch --array=2 THIS) completes what failed or was cancelled: views\n";
   s += "# already done with the same settings are skipped. The shard count is written out, not\n";
   s += "# taken from SLURM_ARRAY_TASK_COUNT, so that a partial resubmission keeps the shards.\n";
-  s += "#SBATCH --job-name=plantview-farm\n";
+  s += job.clash ? "#SBATCH --job-name=plantview-clash\n" : "#SBATCH --job-name=plantview-farm\n";
   s += "#SBATCH --array=0-" + std::to_string(job.tasks - 1) + "\n";
   s += "#SBATCH --ntasks=1\n";
   s += "#SBATCH --cpus-per-task=" + std::to_string(job.cpus_per_task) + "\n";

@@ -7,6 +7,10 @@
 // already done with the same settings (manifest.h). Any scheduler that starts N such processes
 // with distinct I (a Slurm array, a Kubernetes Indexed Job's JOB_COMPLETION_INDEX) runs the job;
 // running a task again, or the whole job, completes what is missing and renders nothing twice.
+// A clash job (farm submit --clash) runs instead, in task I of N,
+//   plantview clash --store STORE --shard I/N --farm-dir OUT [clash options]
+// which checks the I-th region's block pairs into OUT/clash-shard-I-of-N.json; the task that
+// finds all N there merges them into OUT/clashes.json (clash.h: merge_reports; docs/clash.md).
 // Errors: false with a message naming the program and what it said (sbatch's own message).
 #pragma once
 
@@ -24,9 +28,11 @@ struct FarmJob {
   uint32_t cpus_per_task = 1;             // Slurm: CPUs a task asks for (software renderer threads)
   std::vector<std::string> render_args;   // further render options, e.g. {"--size", "1280x720"}
   std::string partition, time_limit;      // Slurm; empty: the cluster's defaults
+  bool clash = false;                     // a clash job: clash_args, not render_args
+  std::vector<std::string> clash_args;    // further clash options, e.g. {"--tolerance", "5"}
 };
 
-// The render command line of one shard; `shard` is "I/N" or a shell expression for it.
+// The render (or clash) command line of one shard; `shard` is "I/N" or a shell expression for it.
 std::vector<std::string> shard_command(const FarmJob& job, const std::string& shard);
 
 // The sbatch script of the job's array (shell-quoted; logs to OUT/logs/slurm-<job>_<task>.log).
