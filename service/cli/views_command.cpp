@@ -3,7 +3,6 @@
 // [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
 // named, fitted review views of a store's subjects (review.h: make_review_views), for
 // `render --views`.
-#include <unistd.h>
 
 #include <charconv>
 #include <cmath>
@@ -14,6 +13,7 @@
 #include <string>
 
 #include "cli/commands.h"
+#include "cli/farm/output_dir.h"
 #include "cli/progress.h"
 #include "plantview/camera.h"
 #include "plantview/clash.h"
@@ -52,33 +52,6 @@ bool parse_aspect(const std::string& text, double& aspect) {
   if (!number(std::string_view(text).substr(0, x), w) || !number(std::string_view(text).substr(x + 1), h))
     return false;
   aspect = double(w) / double(h);
-  return true;
-}
-
-// Writes `text` to `path` through a temporary file beside it and a rename, so that a reader
-// never sees half a views file.
-bool write_atomically(const std::string& path, const std::string& text, std::string& error) {
-  const std::string temporary = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) {
-      error = "cannot write " + path + " (creating " + temporary + " failed)";
-      return false;
-    }
-    file << text;
-    if (!file.flush()) {
-      error = "writing " + temporary + " failed";
-      std::filesystem::remove(temporary);
-      return false;
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) {
-    error = "cannot write " + path + ": " + ec.message();
-    std::filesystem::remove(temporary, ec);
-    return false;
-  }
   return true;
 }
 
@@ -135,7 +108,7 @@ int run_views(const ViewsArgs& a) {
       return fail(error);
   }
   for (ReviewView& view : views) view.style = style;
-  if (!write_atomically(a.out, review_views_json(views, options.per), error)) return fail(error);
+  if (!farm::write_file_atomically(a.out, review_views_json(views, options.per), error)) return fail(error);
   std::cout << "{\"views\":" << views.size() << ",\"subjects\":" << summary.subjects
             << ",\"moved\":" << summary.moved << ",\"obstructed\":" << summary.obstructed
             << ",\"per\":\"" << options.per << "\",\"sides\":" << options.sides << "}\n";
