@@ -134,6 +134,19 @@ nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks) {
   return out;
 }
 
+// --dry-run: what the job would run, the Slurm script or each local shard's command line.
+void print_dry_run(const farm::FarmJob& job, const std::string& scheduler) {
+  if (scheduler == "slurm") {
+    std::cout << farm::sbatch_script(job);
+    return;
+  }
+  for (uint32_t i = 0; i < job.tasks; ++i) {
+    for (const std::string& word : farm::shard_command(job, std::to_string(i) + "/" + std::to_string(job.tasks)))
+      std::cout << word << " ";
+    std::cout << "\n";
+  }
+}
+
 // farm submit --clash: the clash pass as N shards (scheduler.h states the task's command).
 int run_submit_clash(const SubmitArgs& a) {
   if (!a.views.empty())
@@ -171,15 +184,7 @@ int run_submit_clash(const SubmitArgs& a) {
     if (!store->read(error)) return fail(error);
   }
   if (a.dry_run) {
-    if (a.scheduler == "slurm") {
-      std::cout << farm::sbatch_script(job);
-    } else {
-      for (uint32_t i = 0; i < job.tasks; ++i) {
-        for (const std::string& word : farm::shard_command(job, std::to_string(i) + "/" + std::to_string(job.tasks)))
-          std::cout << word << " ";
-        std::cout << "\n";
-      }
-    }
+    print_dry_run(job, a.scheduler);
     return 0;
   }
   if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
@@ -247,15 +252,7 @@ int run_submit(const SubmitArgs& a) {
     if (!read || !farm::check_subjects(views, *read, error)) return fail(a.views + ": " + error);
   }
   if (a.dry_run) {
-    if (a.scheduler == "slurm") {
-      std::cout << farm::sbatch_script(job);
-    } else {
-      for (uint32_t i = 0; i < job.tasks; ++i) {
-        for (const std::string& word : farm::shard_command(job, std::to_string(i) + "/" + std::to_string(job.tasks)))
-          std::cout << word << " ";
-        std::cout << "\n";
-      }
-    }
+    print_dry_run(job, a.scheduler);
     return 0;
   }
   // What this submit adds to the output directory, taken back if the scheduler refuses the job
