@@ -266,12 +266,12 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
     EXPECT_TRUE(name_changed_objects(second, *view, first.revision, note)) << note;
     EXPECT_TRUE(note.empty()) << note;
     ASSERT_NE(second.clashes[0].changed_id, 0u);
-    EXPECT_EQ(second.clashes[0].changed_tag().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
+    EXPECT_EQ(second.clashes[0].changed_tag().view().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
     EXPECT_NE(clash_report_json(second).find("\"changed_tag\""), std::string::npos);
     const std::vector<ReviewView> views = clash_views(second, 16.0 / 9.0);
     ASSERT_EQ(views.size(), 1u);
     EXPECT_EQ(views[0].attributes.back(),
-              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag()}));
+              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag().str()}));
   }
   // Through the file, as --since reads it.
   ClashReport reread;
@@ -300,7 +300,7 @@ TEST(Clash, ViewsColourTheTwoObjectsAndRoundTrip) {
   Clash c;
   c.id = 0x1234;
   c.a.id = 7;
-  c.a.tag = "P-1";
+  c.a.tag = ClashText("P-1");
   c.b.id = 9;  // no tag: named by id
   c.points_m = {{1, 2, 3}};
   c.depth_m = 0.01;

@@ -21,7 +21,7 @@ std::string fixed(double v, const char* format) {
 }
 
 std::string side(const ClashObject& o) {
-  return (o.tag.empty() ? std::to_string(o.id) : o.tag) + " (" + std::string(class_name(o.object_class)) + ")";
+  return (o.tag.empty() ? std::to_string(o.id) : o.tag.str()) + " (" + std::string(class_name(o.object_class)) + ")";
 }
 
 }  // namespace
@@ -33,12 +33,12 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
     ReviewView v;
     v.name = "clash-" + hex(c.id);
     v.kind = "clash";
-    v.title = "Clash " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag) + " x " +
-              (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag);
+    v.title = "Clash " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag.str()) + " x " +
+              (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag.str());
     v.aspect = aspect;
     v.subject = {c.a.id, c.b.id};
-    v.colours = {{c.a.id, kClashFirstColour, "first: " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag)},
-                 {c.b.id, kClashSecondColour, "second: " + (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag)}};
+    v.colours = {{c.a.id, kClashFirstColour, "first: " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag.str())},
+                 {c.b.id, kClashSecondColour, "second: " + (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag.str())}};
     DAabb region;
     for (const glm::dvec3& p : c.points_m) region.extend(p);
     region.min -= glm::dvec3(kClashViewMarginM);
@@ -55,9 +55,9 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
         c.kind == ClashKind::hard ? std::pair<std::string, std::string>{"depth", fixed(c.depth_m * 1000, "%.1f mm")}
                                   : std::pair<std::string, std::string>{"distance", fixed(c.distance_m * 1000, "%.1f mm")},
         {"point", fixed(p.x, "%.3f") + ", " + fixed(p.y, "%.3f") + ", " + fixed(p.z, "%.3f") + " m"},
-        {"group", c.group}};
+        {"group", c.group.str()}};
     if (c.changed_id)
-      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag());
+      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag().str());
     out.push_back(std::move(v));
   }
   return out;

@@ -4,6 +4,7 @@
 #include <functional>
 #include <charconv>
 #include <cstdio>
+#include <unordered_map>
 
 #include <nlohmann/json.hpp>
 
@@ -26,7 +27,7 @@ std::string hex(uint64_t v) {
 
 json side(const ClashObject& o) {
   return {{"id", std::to_string(o.id)},
-          {"tag", o.tag},
+          {"tag", o.tag.str()},
           {"class", std::string(class_name(o.object_class))},
           {"pipeline_id", std::to_string(o.pipeline_id)}};
 }
@@ -63,12 +64,25 @@ glm::dvec3 point(const json& v, const std::string& where) {
     throw Bad{where + ": a point must be a list of 3 numbers"};
   return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
 }
-ClashObject read_side(const json& j, const char* key, const std::string& where) {
+// The texts of a file being read: each tag and group made once (clash.h: ClashText).
+struct Texts {
+  std::unordered_map<std::string, ClashText> made;
+  ClashText operator()(std::string text) {
+    auto it = made.find(text);
+    if (it == made.end()) {
+      ClashText shared(text);
+      it = made.emplace(std::move(text), std::move(shared)).first;
+    }
+    return it->second;
+  }
+};
+
+ClashObject read_side(const json& j, const char* key, const std::string& where, Texts& texts) {
   const json& s = field(j, key, where);
   const std::string w = where + "." + key;
   ClashObject o;
   o.id = decimal(s, "id", w);
-  o.tag = text(s, "tag", w);
+  o.tag = texts(text(s, "tag", w));
   if (!class_from_name(text(s, "class", w), o.object_class)) throw Bad{w + ": unknown 'class'"};
   o.pipeline_id = decimal(s, "pipeline_id", w);
   return o;
@@ -90,10 +104,10 @@ static json clash_json(const Clash& c) {
   json points = json::array();
   for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
   j["points_m"] = std::move(points);
-  j["group"] = c.group;
+  j["group"] = c.group.str();
   if (c.changed_id) {
     j["changed_id"] = std::to_string(c.changed_id);
-    j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
+    j["changed_tag"] = c.changed_tag().str();  // (for readers; derived from changed_id)
   }
   return j;
 }
@@ -194,6 +208,7 @@ bool parse_clash_report(std::string_view input, ClashReport& out, std::string& e
         r.counts.skipped_by_rule[i] = uint64_t(number(skipped, std::string(clash_rule_name(ClashRule(i))).c_str(), "counts"));
     }
     const json& clashes = field(j, "clashes", "clashes file");
+    Texts texts;
     if (!clashes.is_array()) throw Bad{"clashes file: 'clashes' must be a list"};
     for (size_t i = 0; i < clashes.size(); ++i) {
       const json& c = clashes[i];
@@ -209,15 +224,15 @@ bool parse_clash_report(std::string_view input, ClashReport& out, std::string& e
       if (kind == "hard") k.kind = ClashKind::hard;
       else if (kind == "clearance") k.kind = ClashKind::clearance;
       else throw Bad{where + ": unknown 'kind'"};
-      k.a = read_side(c, "a", where);
-      k.b = read_side(c, "b", where);
+      k.a = read_side(c, "a", where, texts);
+      k.b = read_side(c, "b", where, texts);
       if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
       else k.distance_m = number(c, "distance_m", where);
       k.error_m = number(c, "error_m", where);
       const json& points = field(c, "points_m", where);
       if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
       for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
-      k.group = text(c, "group", where);
+      k.group = texts(text(c, "group", where));
       if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
       r.clashes.push_back(std::move(k));
     }
@@ -250,25 +265,37 @@ bool same_settings(const ClashReport& x, const ClashReport& y, std::string& erro
 
 }  // namespace
 
-const std::string& Clash::changed_tag() const {
-  static const std::string none;
+const ClashText& Clash::changed_tag() const {
+  static const ClashText none;
   return changed_id == 0 ? none : changed_id == a.id ? a.tag : changed_id == b.id ? b.tag : none;
 }
 
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
   if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
   std::vector<bool> matched(previous.clashes.size(), false);
+  // The previous clashes by pair (then by their order in the file).
+  std::vector<uint32_t> by_pair;
+  by_pair.reserve(previous.clashes.size());
+  for (size_t i = 0; i < previous.clashes.size(); ++i)
+    if (previous.clashes[i].status != ClashStatus::resolved) by_pair.push_back(uint32_t(i));
+  const auto pair_of = [&](uint32_t i) { return std::pair(previous.clashes[i].a.id, previous.clashes[i].b.id); };
+  std::sort(by_pair.begin(), by_pair.end(), [&](uint32_t x, uint32_t y) {
+    return pair_of(x) != pair_of(y) ? pair_of(x) < pair_of(y) : x < y;
+  });
   for (Clash& c : report.clashes) {
     c.status = ClashStatus::new_clash;
     // The same id, else the same pair with its first point within kClashMatchM.
+    const auto key = std::pair(c.a.id, c.b.id);
+    auto it = std::lower_bound(by_pair.begin(), by_pair.end(), key,
+                               [&](uint32_t i, const std::pair<uint64_t, uint64_t>& k) { return pair_of(i) < k; });
     size_t best = previous.clashes.size();
     double best_m = kClashMatchM;
-    for (size_t i = 0; i < previous.clashes.size(); ++i) {
-      const Clash& p = previous.clashes[i];
-      if (matched[i] || p.status == ClashStatus::resolved || p.a.id != c.a.id || p.b.id != c.b.id) continue;
+    for (; it != by_pair.end() && pair_of(*it) == key; ++it) {
+      const Clash& p = previous.clashes[*it];
+      if (matched[*it]) continue;
       const double d = p.id == c.id ? -1.0 : glm::length(p.points_m.front() - c.points_m.front());
       if (d <= best_m) {
-        best = i;
+        best = *it;
         best_m = d;
       }
     }
