@@ -13,6 +13,7 @@
 #include <map>
 #include <numbers>
 #include <set>
+#include <sstream>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -385,7 +386,26 @@ TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
   std::string error;
   ASSERT_TRUE(parse_clash_report(text, back, error)) << error;
   EXPECT_EQ(clash_report_json(back), text);
-  EXPECT_FALSE(parse_clash_report(text.substr(0, text.size() / 2), back, error));
+  std::istringstream stream(text);
+  ASSERT_TRUE(read_clash_report(stream, back, error)) << error;
+  EXPECT_EQ(clash_report_json(back), text);
+  ASSERT_GE(report.clashes.size(), 1u);
+  // Cut anywhere, the file is refused with a reason, and the output is left as it was.
+  for (size_t cut = 0; cut < text.size(); cut += std::max<size_t>(1, text.size() / 97)) {
+    ClashReport untouched;
+    untouched.revision = 77;
+    EXPECT_FALSE(parse_clash_report(std::string_view(text).substr(0, cut), untouched, error)) << cut;
+    EXPECT_FALSE(error.empty());
+    EXPECT_EQ(untouched.revision, 77u);
+  }
+  // A wrong field inside a clash names the clash and the field.
+  std::string wrong = text;
+  const size_t at = wrong.find("\"depth_m\"");
+  ASSERT_NE(at, std::string::npos);
+  wrong.replace(at, 9, "\"deep_m\" ");
+  EXPECT_FALSE(parse_clash_report(wrong, back, error));
+  EXPECT_NE(error.find("clash 0"), std::string::npos) << error;
+  EXPECT_NE(error.find("depth_m"), std::string::npos) << error;
 }
 
 // Runs the program; its exit status, stdout in `out`, stderr in `err`.

@@ -15,7 +15,6 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
-#include <sstream>
 #include <string>
 
 #include "cli/commands.h"
@@ -54,22 +53,13 @@ bool parse_shard(const std::string& text, ClashShard& shard) {
          shard.index < shard.count;
 }
 
-bool read_file(const std::string& path, std::string& text, std::string& error) {
+bool read_report(const std::string& path, ClashReport& report, std::string& error) {
   std::ifstream file(path, std::ios::binary);
   if (!file) {
     error = "cannot read " + path;
     return false;
   }
-  std::ostringstream s;
-  s << file.rdbuf();
-  text = s.str();
-  return true;
-}
-
-bool read_report(const std::string& path, ClashReport& report, std::string& error) {
-  std::string text;
-  if (!read_file(path, text, error)) return false;
-  if (!parse_clash_report(text, report, error)) {
+  if (!read_clash_report(file, report, error)) {
     error = path + ": " + error;
     return false;
   }

@@ -235,7 +235,10 @@ std::string clash_report_json(const ClashReport& report);
 bool write_clash_report(const ClashReport& report, const std::function<bool(std::string_view)>& sink);
 // Reads it back; false with a message for text that is not JSON, truncated, another version,
 // or a missing or mistyped field (naming it and the clash index).
+// The file is read as a stream of parser events: each clash is kept as a Clash, never the
+// document's tree (a run at millions of clashes writes gigabytes).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error);
 
 // Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
 // "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted; the

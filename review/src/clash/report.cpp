@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cassert>
 #include <functional>
+#include <istream>
 #include <charconv>
 #include <cstdio>
 #include <unordered_map>
@@ -171,13 +172,129 @@ std::string clash_report_json(const ClashReport& r) {
 }
 
 
-bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
-  const json j = json::parse(input, nullptr, false);
-  if (j.is_discarded()) {
-    error = "not JSON (truncated or damaged)";
+namespace {
+
+// One clash of the file (clash.h's format), naming the field and the clash index when wrong.
+Clash read_clash(const json& c, size_t i, Texts& texts) {
+  const std::string where = "clash " + std::to_string(i);
+  Clash k;
+  k.id = decimal(c, "id", where, 16);
+  const std::string status = text(c, "status", where);
+  if (status == "new") k.status = ClashStatus::new_clash;
+  else if (status == "active") k.status = ClashStatus::active;
+  else if (status == "resolved") k.status = ClashStatus::resolved;
+  else throw Bad{where + ": unknown 'status'"};
+  const std::string kind = text(c, "kind", where);
+  if (kind == "hard") k.kind = ClashKind::hard;
+  else if (kind == "clearance") k.kind = ClashKind::clearance;
+  else throw Bad{where + ": unknown 'kind'"};
+  k.a = read_side(c, "a", where, texts);
+  k.b = read_side(c, "b", where, texts);
+  if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
+  else k.distance_m = number(c, "distance_m", where);
+  k.error_m = number(c, "error_m", where);
+  const json& points = field(c, "points_m", where);
+  if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
+  for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
+  k.group = texts(text(c, "group", where));
+  if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
+  return k;
+}
+
+// Reads a clashes file from parser events: the document as a tree, except that each element of
+// the top-level "clashes" list becomes a Clash as soon as it is complete and its tree is dropped,
+// so a file of millions of clashes is never held as JSON. Bad values throw Bad.
+class ReportReader final : public nlohmann::json_sax<json> {
+ public:
+  json root;
+  std::vector<Clash> clashes;
+  std::string parse_error_message;
+
+  bool null() override { return add(nullptr); }
+  bool boolean(bool v) override { return add(v); }
+  bool number_integer(number_integer_t v) override { return add(v); }
+  bool number_unsigned(number_unsigned_t v) override { return add(v); }
+  bool number_float(number_float_t v, const string_t&) override { return add(v); }
+  bool string(string_t& v) override { return add(std::move(v)); }
+  bool binary(binary_t&) override { return false; }
+  bool start_object(std::size_t) override {
+    if (in_clash_list()) {  // a clash: built aside
+      clash_ = json::object();
+      stack_.push_back(&clash_);
+      return true;
+    }
+    stack_.push_back(add_container(json::object()));
+    return true;
+  }
+  bool key(string_t& k) override {
+    key_ = &(*stack_.back())[k];
+    if (stack_.size() == 1) top_key_ = k;
+    return true;
+  }
+  bool end_object() override {
+    const json* done = stack_.back();
+    stack_.pop_back();
+    if (done == &clash_) {
+      clashes.push_back(read_clash(clash_, clashes.size(), texts_));
+      clash_ = json();
+    }
+    return true;
+  }
+  bool start_array(std::size_t) override {
+    json* list = add_container(json::array());
+    if (stack_.size() == 1 && top_key_ == "clashes") clash_list_ = list;
+    stack_.push_back(list);
+    return true;
+  }
+  bool end_array() override {
+    stack_.pop_back();
+    return true;
+  }
+  bool parse_error(std::size_t position, const std::string&, const nlohmann::detail::exception&) override {
+    parse_error_message = "not JSON (truncated or damaged) at byte " + std::to_string(position);
     return false;
   }
+
+ private:
+  std::vector<json*> stack_;
+  json* key_ = nullptr;
+  json* clash_list_ = nullptr;
+  std::string top_key_;
+  json clash_;
+  Texts texts_;
+
+  bool in_clash_list() const { return clash_list_ && !stack_.empty() && stack_.back() == clash_list_; }
+  template <typename V>
+  bool add(V&& v) {
+    if (in_clash_list()) throw Bad{"clash " + std::to_string(clashes.size()) + ": must be an object"};
+    add_container(json(std::forward<V>(v)));
+    return true;
+  }
+  // Places the value where the events say (the root, a list's end, an object's key): its address.
+  json* add_container(json&& v) {
+    if (stack_.empty()) {
+      root = std::move(v);
+      return &root;
+    }
+    json& parent = *stack_.back();
+    if (parent.is_array()) {
+      parent.push_back(std::move(v));
+      return &parent.back();
+    }
+    *key_ = std::move(v);
+    return key_;
+  }
+};
+
+template <typename Parse>
+bool read_report(Parse&& parse, ClashReport& out, std::string& error) {
   try {
+    ReportReader reader;
+    if (!parse(reader)) {
+      error = reader.parse_error_message.empty() ? "not JSON (truncated or damaged)" : reader.parse_error_message;
+      return false;
+    }
+    const json& j = reader.root;
     ClashReport r;
     const json& version = field(j, "version", "clashes file");
     if (!version.is_number_integer() || version.get<int>() != 1) throw Bad{"clashes file: version must be 1"};
@@ -208,40 +325,25 @@ bool parse_clash_report(std::string_view input, ClashReport& out, std::string& e
         r.counts.skipped_by_rule[i] = uint64_t(number(skipped, std::string(clash_rule_name(ClashRule(i))).c_str(), "counts"));
     }
     const json& clashes = field(j, "clashes", "clashes file");
-    Texts texts;
     if (!clashes.is_array()) throw Bad{"clashes file: 'clashes' must be a list"};
-    for (size_t i = 0; i < clashes.size(); ++i) {
-      const json& c = clashes[i];
-      const std::string where = "clash " + std::to_string(i);
-      Clash k;
-      k.id = decimal(c, "id", where, 16);
-      const std::string status = text(c, "status", where);
-      if (status == "new") k.status = ClashStatus::new_clash;
-      else if (status == "active") k.status = ClashStatus::active;
-      else if (status == "resolved") k.status = ClashStatus::resolved;
-      else throw Bad{where + ": unknown 'status'"};
-      const std::string kind = text(c, "kind", where);
-      if (kind == "hard") k.kind = ClashKind::hard;
-      else if (kind == "clearance") k.kind = ClashKind::clearance;
-      else throw Bad{where + ": unknown 'kind'"};
-      k.a = read_side(c, "a", where, texts);
-      k.b = read_side(c, "b", where, texts);
-      if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
-      else k.distance_m = number(c, "distance_m", where);
-      k.error_m = number(c, "error_m", where);
-      const json& points = field(c, "points_m", where);
-      if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
-      for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
-      k.group = texts(text(c, "group", where));
-      if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
-      r.clashes.push_back(std::move(k));
-    }
+    r.clashes = std::move(reader.clashes);
     out = std::move(r);
     return true;
   } catch (const Bad& bad) {
     error = bad.message;
     return false;
   }
+}
+
+}  // namespace
+
+bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
+  return read_report([&](ReportReader& reader) { return json::sax_parse(input.begin(), input.end(), &reader); },
+                     out, error);
+}
+
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error) {
+  return read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, out, error);
 }
 
 namespace {
