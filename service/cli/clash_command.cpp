@@ -157,7 +157,7 @@ int finish_farm_task(const ClashReport& report, const std::string& dir) {
     if (!read_report(path, shards[i], error)) return fail(error);
   }
   ClashReport merged;
-  if (!merge_reports(shards, merged, error)) {
+  if (!merge_reports(std::move(shards), merged, error)) {
     std::cout << "shard " << report.shard.index << "/" << report.shard.count
               << ": not merged yet: " << error << "\n";
     return 0;
@@ -237,7 +237,7 @@ int run_merge(const ClashArgs& a) {
   for (size_t i = 0; i < shards.size(); ++i)
     if (!read_report(a.merge_inputs[i], shards[i], error)) return fail(error);
   ClashReport merged;
-  if (!merge_reports(shards, merged, error)) return fail(error);
+  if (!merge_reports(std::move(shards), merged, error)) return fail(error);
   return emit(merged, a.merge_out, a.json);
 }
 

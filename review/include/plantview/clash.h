@@ -223,7 +223,8 @@ void sort_clashes(std::vector<Clash>& clashes);
 
 // The shards' reports as one: the same store and settings (else false, naming the file index),
 // each shard index once; clashes merged and sorted; counts summed; shard 0/1.
-bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error);
+// The shards are taken (moved from: pass std::move where they are not needed again).
+bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::string& error);
 
 // clashes.json (version 1): {"version":1,"store":{...},"settings":{...},"counts":{...},
 //  "clashes":[{"id":"hex16","status":"new","kind":"hard","a":{"id":"..","tag":"..",

@@ -446,14 +446,21 @@ bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t si
   return true;
 }
 
-bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error) {
+bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::string& error) {
   if (shards.empty()) {
     error = "no shard results to merge";
     return false;
   }
-  ClashReport merged = shards.front();
-  merged.clashes.clear();
+  ClashReport merged;  // the first shard's header (its clashes are moved over below)
+  {
+    std::vector<Clash> first = std::move(shards.front().clashes);
+    merged = shards.front();
+    shards.front().clashes = std::move(first);
+  }
   merged.counts = ClashCounts();
+  size_t total = 0;
+  for (const ClashReport& s : shards) total += s.clashes.size();
+  merged.clashes.reserve(total);
   std::vector<bool> seen(shards.front().shard.count, false);
   for (size_t i = 0; i < shards.size(); ++i) {
     const ClashReport& s = shards[i];
@@ -468,7 +475,9 @@ bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std
       return false;
     }
     seen[s.shard.index] = true;
-    merged.clashes.insert(merged.clashes.end(), s.clashes.begin(), s.clashes.end());
+    merged.clashes.insert(merged.clashes.end(), std::make_move_iterator(shards[i].clashes.begin()),
+                          std::make_move_iterator(shards[i].clashes.end()));
+    std::vector<Clash>().swap(shards[i].clashes);
     merged.counts.block_pairs += s.counts.block_pairs;
     merged.counts.candidate_pairs += s.counts.candidate_pairs;
     merged.counts.narrow_pairs += s.counts.narrow_pairs;
