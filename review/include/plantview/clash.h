@@ -65,6 +65,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <iosfwd>
 #include <optional>
@@ -193,7 +194,9 @@ struct ClashReport {
   std::string between, with;
   bool include_connected = false;
   ClashShard shard;
-  std::vector<Clash> clashes;    // sorted (above); resolved ones last, after status
+  // Sorted (above); resolved ones last, after status. A deque: it grows without moving what it
+  // holds, so a run of millions of clashes holds each once (find_clashes' workers append to it).
+  std::deque<Clash> clashes;
   ClashCounts counts;
 };
 
@@ -219,7 +222,7 @@ bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t si
                           std::string& note);
 
 // Sorts the clashes (the order above); merge_reports() and find_clashes() call it.
-void sort_clashes(std::vector<Clash>& clashes);
+void sort_clashes(std::deque<Clash>& clashes);
 
 // The shards' reports as one: the same store and settings (else false, naming the file index),
 // each shard index once; clashes merged and sorted; counts summed; shard 0/1.

@@ -65,7 +65,7 @@ struct Worker {
     size_t operator()(const std::pair<uint64_t, uint64_t>& p) const { return std::hash<uint64_t>()(p.first * 31 + p.second); }
   };
   std::unordered_map<std::pair<uint64_t, uint64_t>, ClashText, PairHash> groups;
-  std::deque<Clash> clashes;  // (a deque: no copy of what was found as it grows)
+  std::vector<Clash> clashes;  // the current task's, handed to the report when it is done
   ClashCounts counts;
 
   const Object* object(uint32_t slot, std::string& error) {
@@ -263,7 +263,7 @@ bool Worker::task(uint32_t block_a, uint32_t block_b, std::string& error) {
 
 }  // namespace
 
-void sort_clashes(std::vector<Clash>& clashes) {
+void sort_clashes(std::deque<Clash>& clashes) {
   std::sort(clashes.begin(), clashes.end(), [](const Clash& x, const Clash& y) {
     if (x.status == ClashStatus::resolved) {
       if (y.status != ClashStatus::resolved) return false;
@@ -339,18 +339,22 @@ bool find_clashes(const ReadView& view, const std::string& directory, const Clas
   std::atomic<size_t> next{0}, done{0};
   std::atomic<uint64_t> found{0};
   std::atomic<bool> failed{false};
-  std::mutex mutex;  // the first error, the progress callback
+  std::mutex mutex;  // the first error, the progress callback, out.clashes
   std::string first_error;
   const auto work = [&](Worker& w) {
     for (size_t k; !failed && (k = next.fetch_add(1)) < tasks.size();) {
-      const size_t before = w.clashes.size();
       std::string e;
       if (!w.task(tasks[k].first, tasks[k].second, e)) {
         std::lock_guard lock(mutex);
         if (!failed.exchange(true)) first_error = e;
         return;
       }
-      found += w.clashes.size() - before;
+      found += w.clashes.size();
+      {  // the task's clashes join the report's (held once: no gathering at the end)
+        std::lock_guard lock(mutex);
+        for (Clash& c : w.clashes) out.clashes.push_back(std::move(c));
+      }
+      w.clashes.clear();
       const size_t d = ++done;
       if (settings.progress) {
         std::lock_guard lock(mutex);
@@ -366,14 +370,7 @@ bool find_clashes(const ReadView& view, const std::string& directory, const Clas
     error = first_error;
     return false;
   }
-  size_t total = 0;
-  for (const Worker& w : workers) total += w.clashes.size();
-  out.clashes.reserve(total);
   for (Worker& w : workers) {
-    while (!w.clashes.empty()) {  // each worker's list shrinks as it is moved over
-      out.clashes.push_back(std::move(w.clashes.front()));
-      w.clashes.pop_front();
-    }
     out.counts.candidate_pairs += w.counts.candidate_pairs;
     out.counts.narrow_pairs += w.counts.narrow_pairs;
     for (int r = 0; r < kClashRuleCount; ++r) out.counts.skipped_by_rule[r] += w.counts.skipped_by_rule[r];

@@ -207,7 +207,7 @@ Clash read_clash(const json& c, size_t i, Texts& texts) {
 class ReportReader final : public nlohmann::json_sax<json> {
  public:
   json root;
-  std::vector<Clash> clashes;
+  std::deque<Clash> clashes;
   std::string parse_error_message;
 
   bool null() override { return add(nullptr); }
@@ -453,14 +453,11 @@ bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::strin
   }
   ClashReport merged;  // the first shard's header (its clashes are moved over below)
   {
-    std::vector<Clash> first = std::move(shards.front().clashes);
+    std::deque<Clash> first = std::move(shards.front().clashes);
     merged = shards.front();
     shards.front().clashes = std::move(first);
   }
   merged.counts = ClashCounts();
-  size_t total = 0;
-  for (const ClashReport& s : shards) total += s.clashes.size();
-  merged.clashes.reserve(total);
   std::vector<bool> seen(shards.front().shard.count, false);
   for (size_t i = 0; i < shards.size(); ++i) {
     const ClashReport& s = shards[i];
@@ -475,9 +472,8 @@ bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::strin
       return false;
     }
     seen[s.shard.index] = true;
-    merged.clashes.insert(merged.clashes.end(), std::make_move_iterator(shards[i].clashes.begin()),
-                          std::make_move_iterator(shards[i].clashes.end()));
-    std::vector<Clash>().swap(shards[i].clashes);
+    for (std::deque<Clash>& from = shards[i].clashes; !from.empty(); from.pop_front())
+      merged.clashes.push_back(std::move(from.front()));  // (the shard's list shrinks as the merge grows)
     merged.counts.block_pairs += s.counts.block_pairs;
     merged.counts.candidate_pairs += s.counts.candidate_pairs;
     merged.counts.narrow_pairs += s.counts.narrow_pairs;
