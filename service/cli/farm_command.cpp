@@ -3,6 +3,7 @@
 // and the files in the output directory are stated in farm/scheduler.h and farm/manifest.h.
 #include <sys/stat.h>
 
+#include <charconv>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -16,6 +17,7 @@
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
 #include "cli/farm/scheduler.h"
+#include "plantview/clash.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -42,6 +44,7 @@ struct SubmitArgs {
   std::vector<std::pair<CLI::Option*, std::string>> clash_values;  // given only
   std::vector<std::string> clash_storage = std::vector<std::string>(8);
   CLI::Option* include_connected = nullptr;
+  std::string since;  // --since: a previous clashes.json (clash jobs only)
 };
 
 // The render options given to `farm submit`, as the shards' command line passes them on.
@@ -107,31 +110,66 @@ std::string stale_summary(const StaleViews& stale) {
 }
 
 // A clash job's marker in its output directory (farm status reads it): {"clash": true,
-// "tasks": N, "store": ...}.
+// "tasks": N, "store": ...}, and with --since "since": the copy's name in DIR (kClashSinceName)
+// and "since_from": the file given (absolute).
 constexpr const char* kClashJobName = "clash-job.json";
+// The --since file as submit copied it into DIR, where every task can read it (the merging
+// task applies it).
+constexpr const char* kClashSinceName = "clash-since.json";
 
-// Shard files done of a clash job of `tasks` shards in `dir`, and the merged file's clash
-// count (-1: not merged yet).
-void clash_progress(const fs::path& dir, uint32_t tasks, uint32_t& done, int64_t& clashes) {
+// A clash job's state: the shard files done of its `tasks` shards in `dir`, and once merged the
+// merged file's clashes found (new and active; -1: not merged yet) and its entries by status.
+struct ClashProgress {
+  uint32_t done = 0;
+  int64_t clashes = -1;
+  std::map<std::string, int64_t> by_status;  // "new", "active", "resolved"
+};
+ClashProgress clash_progress(const fs::path& dir, uint32_t tasks) {
+  ClashProgress p;
   std::error_code ec;
-  done = 0;
   for (uint32_t i = 0; i < tasks; ++i)
-    done += fs::exists(dir / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(tasks) + ".json"), ec);
-  clashes = -1;
+    p.done += fs::exists(dir / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(tasks) + ".json"), ec);
   std::string text, error;
   if (farm::read_file(dir / "clashes.json", text, error)) {
     const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-    if (!j.is_discarded() && j.contains("clashes") && j["clashes"].is_array()) clashes = int64_t(j["clashes"].size());
+    if (!j.is_discarded() && j.contains("clashes") && j["clashes"].is_array()) {
+      p.by_status = {{"new", 0}, {"active", 0}, {"resolved", 0}};
+      for (const nlohmann::json& c : j["clashes"])
+        if (c.is_object() && c.contains("status") && c["status"].is_string()) ++p.by_status[c["status"].get<std::string>()];
+      p.clashes = p.by_status["new"] + p.by_status["active"];
+    }
   }
+  return p;
 }
 
-nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks) {
-  uint32_t done = 0;
-  int64_t clashes = -1;
-  clash_progress(dir, tasks, done, clashes);
-  nlohmann::json out = {{"clash", true}, {"tasks", tasks}, {"shards_done", done}, {"complete", clashes >= 0}};
-  if (clashes >= 0) out["clashes"] = clashes;
+// The job's state as `farm status --json` prints it; with --since (`since`: the file given)
+// the merged file's new, active and resolved counts.
+nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks, const std::string& since) {
+  const ClashProgress p = clash_progress(dir, tasks);
+  nlohmann::json out = {{"clash", true}, {"tasks", tasks}, {"shards_done", p.done}, {"complete", p.clashes >= 0}};
+  if (p.clashes >= 0) out["clashes"] = p.clashes;
+  if (!since.empty()) {
+    out["since"] = since;
+    if (p.clashes >= 0)
+      for (const char* status : {"new", "active", "resolved"}) out[status] = p.by_status.at(status);
+  }
   return out;
+}
+
+// "12 clashes" once merged, with --since "12 clashes (since F: 1 new, 11 active, 2 resolved)".
+std::string clash_status_text(const nlohmann::json& status) {
+  if (!status["complete"].get<bool>()) return "not merged yet";
+  std::string text = "clashes.json: " + status["clashes"].dump() + " clashes";
+  if (status.contains("new"))
+    text += " (since " + status["since"].get<std::string>() + ": " + status["new"].dump() + " new, " +
+            status["active"].dump() + " active, " + status["resolved"].dump() + " resolved)";
+  return text;
+}
+
+// A clash option's value in millimetres: false when it is not a number.
+bool millimetres(const std::string& text, double& mm) {
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), mm);
+  return !text.empty() && ec == std::errc() && end == text.data() + text.size();
 }
 
 // --dry-run: what the job would run, the Slurm script or each local shard's command line.
@@ -156,8 +194,33 @@ int run_submit_clash(const SubmitArgs& a) {
     if (option->count() > 0)
       return usage_error("farm submit --clash: " + option->get_name() +
                          " is a render option (a clash job takes --tolerance, --clearance, --between, --and, "
-                         "--include-connected, --threads)");
+                         "--include-connected, --threads, --since)");
   std::string error;
+  // What every task (or the merge) would refuse is refused here, before anything is queued or
+  // an earlier job's output removed: the checks of `clash` itself (check_clash_options).
+  ClashOptions options;
+  for (const auto& [option, value] : a.clash_values) {
+    if (option->count() == 0) continue;
+    const std::string& name = option->get_name();
+    if (name == "--tolerance" || name == "--clearance") {
+      double& mm = name == "--tolerance" ? options.tolerance_mm : options.clearance_mm;
+      if (!millimetres(value, mm))
+        return usage_error("farm submit --clash: " + name + ": expected millimetres, got '" + value + "'");
+    }
+    if (name == "--between") options.between = value;
+    if (name == "--and") options.with = value;
+  }
+  options.include_connected = a.include_connected->count() > 0;
+  options.since = a.since;
+  std::string since_text;
+  {
+    std::unique_ptr<ReadView> view;
+    ClashReport previous;
+    if (const int status = check_clash_options("farm submit --clash", options, a.store, view, previous,
+                                               &since_text);
+        status != 0)
+      return status;
+  }
   farm::FarmJob job;
   job.clash = true;
   job.tasks = a.tasks;
@@ -178,22 +241,28 @@ int run_submit_clash(const SubmitArgs& a) {
   if (ec) return fail("cannot find this program's path (/proc/self/exe): " + ec.message());
   job.store = fs::absolute(a.store);
   job.out = fs::absolute(a.out);
-  {
-    auto store = Store::open(job.store.string(), Store::Mode::read_only, error);
-    if (!store) return fail(error);
-    if (!store->read(error)) return fail(error);
-  }
+  // The merging task reads the previous result from DIR (a path every node reaches).
+  if (!a.since.empty()) job.clash_args.insert(job.clash_args.end(), {"--since", (job.out / kClashSinceName).string()});
   if (a.dry_run) {
     print_dry_run(job, a.scheduler);
     return 0;
   }
   if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
     return fail(error);
-  // A new job: what an earlier one left (its shards, its merge) would read as this one's.
+  // The previous result copied first: --since may name DIR/clashes.json, removed next.
+  if (!a.since.empty() && !farm::write_file_atomically(job.out / kClashSinceName, since_text, error))
+    return fail(error);
+  // A new job: what an earlier one left (its shards, its merge, its --since copy) would read as
+  // this one's.
   fs::remove(job.out / "clashes.json", ec);
+  if (a.since.empty()) fs::remove(job.out / kClashSinceName, ec);
   for (uint32_t i = 0; i < job.tasks; ++i)
     fs::remove(job.out / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(job.tasks) + ".json"), ec);
-  const nlohmann::json marker = {{"clash", true}, {"tasks", job.tasks}, {"store", job.store.string()}};
+  nlohmann::json marker = {{"clash", true}, {"tasks", job.tasks}, {"store", job.store.string()}};
+  if (!a.since.empty()) {
+    marker["since"] = kClashSinceName;
+    marker["since_from"] = fs::absolute(a.since).string();
+  }
   if (!farm::write_file_atomically(job.out / kClashJobName, marker.dump() + "\n", error)) return fail(error);
   if (a.scheduler == "slurm") {
     const fs::path script = job.out / "farm.sbatch";
@@ -212,7 +281,8 @@ int run_submit_clash(const SubmitArgs& a) {
     return 0;
   }
   const bool shards_ok = farm::run_local_shards(job, error);
-  std::cout << clash_status_json(job.out, job.tasks).dump() << "\n";
+  std::cout << clash_status_json(job.out, job.tasks, a.since.empty() ? "" : fs::absolute(a.since).string()).dump()
+            << "\n";
   if (!shards_ok) return fail(error);
   return 0;
 }
@@ -220,6 +290,9 @@ int run_submit_clash(const SubmitArgs& a) {
 int run_submit(const SubmitArgs& a) {
   if (a.clash) return run_submit_clash(a);
   if (a.views.empty()) return usage_error("farm submit: --views is required (or --clash)");
+  if (!a.since.empty())
+    return usage_error("farm submit: --since is a clash job's option (--clash); a render job re-renders what "
+                       "changed by itself");
   std::string error, text;
   farm::FarmJob job;
   job.tasks = a.tasks;
@@ -327,15 +400,15 @@ int run_status(const std::string& dir, const std::string& store_dir, bool json) 
     const nlohmann::json marker = nlohmann::json::parse(text, nullptr, false);
     if (marker.is_discarded() || !marker.contains("tasks") || !marker["tasks"].is_number_unsigned())
       return fail((fs::path(dir) / kClashJobName).string() + ": not a clash job's marker");
-    const nlohmann::json out = clash_status_json(dir, marker["tasks"].get<uint32_t>());
-    if (json) {
+    const std::string since = marker.contains("since_from") && marker["since_from"].is_string()
+                                  ? marker["since_from"].get<std::string>()
+                                  : std::string();
+    const nlohmann::json out = clash_status_json(dir, marker["tasks"].get<uint32_t>(), since);
+    if (json)
       std::cout << out.dump() << "\n";
-    } else {
+    else
       std::cout << "clash job: " << out["shards_done"] << " of " << out["tasks"] << " shards done; "
-                << (out["complete"].get<bool>() ? "clashes.json: " + out["clashes"].dump() + " clashes"
-                                                : std::string("not merged yet"))
-                << "\n";
-    }
+                << clash_status_text(out) << "\n";
     return 0;
   }
   if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec))
@@ -440,6 +513,9 @@ Action add_farm_command(CLI::App& app) {
     ++j;
   }
   a->include_connected = submit->add_flag("--include-connected")->description("clash: report what the rules exempt");
+  submit->add_option("--since", a->since,
+                     "clash: a previous clashes.json of this store and settings; the merge marks clashes new, "
+                     "active, resolved (copied into OUT at submit)");
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);
