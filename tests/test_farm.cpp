@@ -724,6 +724,20 @@ TEST_F(Farm, SlurmArrayRendersTheSameImagesResumesAndCompletesACancelledTask) {
   EXPECT_EQ(json::parse(r.out)["complete"], true) << r.out << slurp(clash_out / "logs" / ("slurm-" + clash_job + "_0.log"));
   EXPECT_EQ(json::parse(r.out)["shards_done"], 4) << r.out;
   EXPECT_EQ(slurp(clash_out / "clashes.json"), slurp(single_clashes));
+  // Again, --since the job's own clashes.json: the array's merging task reads the copy submit
+  // left in the directory, and every clash is active.
+  r = run("farm submit --clash --scheduler slurm --tasks 4 --store " + store_.string() + " --out " +
+          clash_out.string() + " --since " + (clash_out / "clashes.json").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string since_job = r.out.substr(0, r.out.find('\n'));
+  ASSERT_TRUE(cluster.wait_for_job(since_job, std::chrono::seconds(90))) << "job " << since_job << " still queued";
+  r = run("farm status --json " + clash_out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json since_status = json::parse(r.out);
+  EXPECT_EQ(since_status["complete"], true) << r.out;
+  EXPECT_EQ(since_status["new"], 0) << r.out;
+  EXPECT_EQ(since_status["resolved"], 0) << r.out;
+  EXPECT_EQ(since_status["active"], json::parse(slurp(single_clashes))["clashes"].size()) << r.out;
 }
 
 TEST_F(Farm, LocalClashShardsWriteTheSameClashesAsOneProcess) {
