@@ -550,6 +550,7 @@ TEST(ClashCommand, FarmSubmitRefusesWhatClashRefusesAndLeavesTheDirectoryAsItWas
       {{"--tolerance", "50000"}, 2, "--tolerance must be from 0"},
       {{"--tolerance", "1mm"}, 2, "--tolerance: expected millimetres, got '1mm'"},
       {{"--clearance", "nan"}, 2, "--clearance must be from 0"},
+      {{"--threads", "two"}, 2, "--threads: expected a whole number, got 'two'"},
       {{"--between", "NOPE-*", "--and", "pipe"}, 2, "--between 'NOPE-*' matches no object"},
       {{"--between", "pipe", "--and", "NADA"}, 2, "--and 'NADA' matches no object"},
       {{"--between", "pipe"}, 2, "--between and --and go together"},

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <charconv>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -166,10 +167,11 @@ std::string clash_status_text(const nlohmann::json& status) {
   return text;
 }
 
-// A clash option's value in millimetres: false when it is not a number.
+// A clash option's value in millimetres, read as `clash` reads it: false when it is not a number.
 bool millimetres(const std::string& text, double& mm) {
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), mm);
-  return !text.empty() && ec == std::errc() && end == text.data() + text.size();
+  char* end = nullptr;
+  mm = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size();
 }
 
 // --dry-run: what the job would run, the Slurm script or each local shard's command line.
@@ -207,6 +209,11 @@ int run_submit_clash(const SubmitArgs& a) {
       if (!millimetres(value, mm))
         return usage_error("farm submit --clash: " + name + ": expected millimetres, got '" + value + "'");
     }
+    unsigned threads = 0;
+    if (name == "--threads" && (std::from_chars(value.data(), value.data() + value.size(), threads).ptr !=
+                                    value.data() + value.size() ||
+                                value.empty()))
+      return usage_error("farm submit --clash: --threads: expected a whole number, got '" + value + "'");
     if (name == "--between") options.between = value;
     if (name == "--and") options.with = value;
   }
