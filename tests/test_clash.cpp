@@ -14,6 +14,7 @@
 #include <numbers>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -485,6 +486,115 @@ TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
   EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
   EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--include-connected"}, out, err), 0) << err;
   EXPECT_NE(out.find("1 clashes"), std::string::npos) << out;
+  EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+std::string slurp_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Every file under `dir` (logs too), by relative path -> bytes.
+std::map<std::string, std::string> files_under(const std::filesystem::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[std::filesystem::relative(e.path(), dir).string()] = slurp_file(e.path());
+  return files;
+}
+
+TEST(ClashCommand, FarmSinceMarksARevisionsNewClashAsOneProcessDoes) {
+  const test::TempDir dir, scratch;
+  std::filesystem::create_directories(scratch.path());
+  auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    single = (scratch.path() / "single.json").string();
+  const std::filesystem::path job = scratch.path() / "job";
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  // The revision moves the pipe into the beam.
+  ASSERT_TRUE(ingest_objects(*store, piping_case(true)));
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", single}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", first, "--out", job.string()}, out, err), 0) << err;
+  // (its summary: one JSON object, keys sorted)
+  EXPECT_NE(out.find("{\"active\":0,\"clash\":true,\"clashes\":1,\"complete\":true,\"new\":1,\"resolved\":0,"
+                     "\"shards_done\":2,\"since\":\"" + first + "\",\"tasks\":2}"), std::string::npos) << out;
+  EXPECT_EQ(slurp_file(job / "clashes.json"), slurp_file(single));
+  EXPECT_EQ(slurp_file(job / "clash-since.json"), slurp_file(first));
+  ClashReport merged;
+  std::string error;
+  ASSERT_TRUE(parse_clash_report(slurp_file(job / "clashes.json"), merged, error)) << error;
+  ASSERT_EQ(merged.clashes.size(), 1u);
+  EXPECT_EQ(merged.clashes[0].status, ClashStatus::new_clash);
+  EXPECT_EQ(merged.clashes[0].changed_tag().view().rfind("/P-1/", 0), 0u) << merged.clashes[0].changed_tag();
+  // The next job in the same directory, since its own clashes.json: the same clash, active.
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", (job / "clashes.json").string(), "--out", job.string()}, out, err), 0) << err;
+  EXPECT_NE(out.find("\"active\":1,"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"new\":0,"), std::string::npos) << out;
+  ASSERT_TRUE(parse_clash_report(slurp_file(job / "clashes.json"), merged, error)) << error;
+  ASSERT_EQ(merged.clashes.size(), 1u);
+  EXPECT_EQ(merged.clashes[0].status, ClashStatus::active);
+  ASSERT_EQ(run_plantview({"farm", "status", job.string()}, out, err), 0) << err;
+  EXPECT_NE(out.find("2 of 2 shards done; clashes.json: 1 clashes (since "), std::string::npos) << out;
+  EXPECT_NE(out.find(": 0 new, 1 active, 0 resolved)"), std::string::npos) << out;
+  // A job without --since leaves no copy behind to be taken for one.
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--out", job.string()}, out, err), 0) << err;
+  EXPECT_FALSE(std::filesystem::exists(job / "clash-since.json"));
+  EXPECT_EQ(out.find("\"new\""), std::string::npos) << out;
+}
+
+TEST(ClashCommand, FarmSubmitRefusesWhatClashRefusesAndLeavesTheDirectoryAsItWas) {
+  const test::TempDir dir, scratch, other, bare;
+  std::filesystem::create_directories(scratch.path());
+  ASSERT_TRUE(test::make_store(dir, piping_case(true)));
+  ASSERT_TRUE(test::make_store(other, piping_case(false)));
+  ASSERT_TRUE(test::make_store(bare, {planted("box-box", 0, 0.01).a, planted("box-box", 0, 0.01).b}));
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    elsewhere = (scratch.path() / "elsewhere.json").string(),
+                    cut = (scratch.path() / "cut.json").string();
+  const std::filesystem::path job = scratch.path() / "job", never = scratch.path() / "never";
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"clash", "--store", other.str(), "--out", elsewhere}, out, err), 0) << err;
+  std::ofstream(cut) << slurp_file(first).substr(0, slurp_file(first).size() / 2);
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", first, "--out", job.string()}, out, err), 0) << err;
+  const auto before = files_under(job);
+  ASSERT_TRUE(before.count("clashes.json") && before.count("clash-job.json") && before.count("clash-since.json"));
+
+  const std::vector<std::tuple<std::vector<std::string>, int, std::string>> cases = {
+      {{"--tolerance", "-1"}, 2, "--tolerance must be from 0"},
+      {{"--tolerance", "50000"}, 2, "--tolerance must be from 0"},
+      {{"--tolerance", "1mm"}, 2, "--tolerance: expected millimetres, got '1mm'"},
+      {{"--clearance", "nan"}, 2, "--clearance must be from 0"},
+      {{"--threads", "two"}, 2, "--threads: expected a whole number, got 'two'"},
+      {{"--between", "NOPE-*", "--and", "pipe"}, 2, "--between 'NOPE-*' matches no object"},
+      {{"--between", "pipe", "--and", "NADA"}, 2, "--and 'NADA' matches no object"},
+      {{"--between", "pipe"}, 2, "--between and --and go together"},
+      {{"--since", cut}, 1, "truncated"},
+      {{"--since", elsewhere}, 1, "another store"},
+      {{"--since", first, "--tolerance", "5"}, 1, "other settings"},
+      {{"--since", (scratch.path() / "missing.json").string()}, 1, "cannot read"},
+  };
+  for (const auto& [extra, status, message] : cases) {
+    std::vector<std::string> args = {"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2",
+                                     "--store", s, "--out", job.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    EXPECT_EQ(run_plantview(args, out, err), status) << extra[0] << " " << extra[1] << ": " << err;
+    EXPECT_NE(err.find("farm submit --clash: "), std::string::npos) << err;
+    EXPECT_NE(err.find(message), std::string::npos) << err;
+    EXPECT_EQ(files_under(job), before) << extra[0] << " " << extra[1] << " changed the job's directory";
+  }
+  // A store without topology; --since on a render job.
+  EXPECT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store",
+                           bare.str(), "--out", never.string()}, out, err), 2);
+  EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"farm", "submit", "--scheduler", "local", "--tasks", "1", "--views", first, "--store", s,
+                           "--since", first, "--out", never.string()}, out, err), 2);
+  EXPECT_NE(err.find("--since is a clash job's option"), std::string::npos) << err;
   EXPECT_FALSE(std::filesystem::exists(never));
 }
 
