@@ -99,7 +99,9 @@ int run_views(const ViewsArgs& a) {
     const std::string text((std::istreambuf_iterator<char>(file)), {});
     ClashReport report;
     if (!parse_clash_report(text, report, error)) return fail(a.clashes + ": " + error);
-    views = clash_views(report, options.aspect);
+    const auto view = store->read(error);
+    if (!view) return fail(error);
+    if (!clash_views(report, options.aspect, *view, views, error)) return fail(error);
     summary.subjects = views.size();
   } else {
     Progress progress("views");

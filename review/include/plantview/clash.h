@@ -211,12 +211,31 @@ bool parse_clash_report(std::string_view json, ClashReport& out, std::string& er
 // first in kClashFirstColour, the second in kClashSecondColour, as ReviewView::colours labelled
 // "first: TAG" and "second: TAG"; their BCF Coloring the same), its
 // camera fit_camera from the isometric direction on the clash region (the points' bounds grown
-// by kClashViewMarginM), a section box of that region grown by another half margin, and
+// by kClashViewMarginM, centred on the first point), a section box of that region grown by
+// another half margin, and
 // caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
 // (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
+// This form knows nothing of the objects' sizes: both opaque, the margin kClashViewMarginM.
 inline constexpr double kClashViewMarginM = 1.5;
 inline constexpr Colour kClashFirstColour{225, 35, 35, 255};    // red
 inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
+// The same with the objects' bounds read from the store (`views --per clash`), so that each
+// image shows both objects and where they meet:
+//   - of the two, the one whose bounds fill more of the region around the points (grown by
+//     1.5 x kClashViewMarginM; extents of at least kClashViewThinM) is the container: drawn
+//     see-through in its colour (SubjectColour::see_through, its label "... (see-through)";
+//     BCF: its Color with that alpha), the other opaque inside it (a pipe in a column);
+//   - the camera's target is the first (deepest) point, the region the points around it
+//     grown by a margin of kClashViewMarginSizes x the other object's middle extent inside
+//     that region, within kClashViewMinMarginM..kClashViewMarginM: a pipe of 0.2 m gets 0.6 m,
+//     large in the image; the section box as above.
+// An object the snapshot no longer holds leaves the view as the form above makes it. False
+// with a message naming the object on a read error (`out` unchanged).
+inline constexpr double kClashViewThinM = 0.05;
+inline constexpr double kClashViewMarginSizes = 3.0;
+inline constexpr double kClashViewMinMarginM = 0.5;
+bool clash_views(const ClashReport& report, double aspect, const ReadView& view,
+                 std::vector<ReviewView>& out, std::string& error);
 
 }  // namespace plantview

@@ -1,8 +1,11 @@
 // Review views of clashes (plantview/clash.h: clash_views): one fitted, sectioned view a clash.
+#include <algorithm>
 #include <cstdio>
+#include <unordered_map>
 
 #include "plantview/camera.h"
 #include "plantview/clash.h"
+#include "plantview/store.h"
 
 namespace plantview {
 
@@ -20,34 +23,87 @@ std::string fixed(double v, const char* format) {
   return buf;
 }
 
+std::string name_of(const ClashObject& o) { return o.tag.empty() ? std::to_string(o.id) : o.tag; }
+
 std::string side(const ClashObject& o) {
-  return (o.tag.empty() ? std::to_string(o.id) : o.tag) + " (" + std::string(class_name(o.object_class)) + ")";
+  return name_of(o) + " (" + std::string(class_name(o.object_class)) + ")";
 }
 
-}  // namespace
+// An object's model bounds by id: empty when the snapshot does not hold it. False with a
+// message on a read error.
+using BoundsOf = std::function<bool(uint64_t id, DAabb& out, std::string& error)>;
 
-std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
-  std::vector<ReviewView> out;
+DAabb intersection(const DAabb& a, const DAabb& b) {
+  DAabb out;
+  if (a.empty() || b.empty()) return out;
+  out.min = glm::max(a.min, b.min);
+  out.max = glm::min(a.max, b.max);
+  return out;
+}
+
+// The box's extents, each at least kClashViewThinM (a plate has a volume), 0 when empty.
+glm::dvec3 extents_m(const DAabb& box) {
+  if (box.empty()) return glm::dvec3(0.0);
+  return glm::max(box.max - box.min, glm::dvec3(kClashViewThinM));
+}
+
+bool make_views(const ClashReport& report, double aspect, const BoundsOf& bounds_of,
+                std::vector<ReviewView>& out, std::string& error) {
+  std::vector<ReviewView> views;
   for (const Clash& c : report.clashes) {
     if (c.status == ClashStatus::resolved) continue;
     ReviewView v;
     v.name = "clash-" + hex(c.id);
     v.kind = "clash";
-    v.title = "Clash " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag) + " x " +
-              (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag);
+    v.title = "Clash " + name_of(c.a) + " x " + name_of(c.b);
     v.aspect = aspect;
     v.subject = {c.a.id, c.b.id};
-    v.colours = {{c.a.id, kClashFirstColour, "first: " + (c.a.tag.empty() ? std::to_string(c.a.id) : c.a.tag)},
-                 {c.b.id, kClashSecondColour, "second: " + (c.b.tag.empty() ? std::to_string(c.b.id) : c.b.tag)}};
-    DAabb region;
-    for (const glm::dvec3& p : c.points_m) region.extend(p);
-    region.min -= glm::dvec3(kClashViewMarginM);
-    region.max += glm::dvec3(kClashViewMarginM);
-    v.camera = fit_camera(region, isometric_direction(), aspect, 50.0, kReviewFill);
-    v.section.has_box = true;
-    v.section.box.min = region.min - glm::dvec3(0.5 * kClashViewMarginM);
-    v.section.box.max = region.max + glm::dvec3(0.5 * kClashViewMarginM);
+    v.colours = {{c.a.id, kClashFirstColour, "first: " + name_of(c.a)},
+                 {c.b.id, kClashSecondColour, "second: " + name_of(c.b)}};
+    // The region: the points, centred on the first (the deepest), grown by the margin.
     const glm::dvec3& p = c.points_m.front();
+    glm::dvec3 reach(0.0);
+    for (const glm::dvec3& q : c.points_m) reach = glm::max(reach, glm::abs(q - p));
+    double margin_m = kClashViewMarginM;
+    DAabb bounds[2];  // (empty without the store)
+    if (bounds_of) {
+      // Which of the two fills more of the widest region: it would hide the other.
+      const DAabb widest{p - reach - glm::dvec3(1.5 * kClashViewMarginM),
+                         p + reach + glm::dvec3(1.5 * kClashViewMarginM)};
+      if (!bounds_of(c.a.id, bounds[0], error) || !bounds_of(c.b.id, bounds[1], error)) return false;
+      const glm::dvec3 inside[2] = {extents_m(intersection(bounds[0], widest)),
+                                    extents_m(intersection(bounds[1], widest))};
+      const double volume[2] = {inside[0].x * inside[0].y * inside[0].z,
+                                inside[1].x * inside[1].y * inside[1].z};
+      if (volume[0] > 0 && volume[1] > 0) {
+        const int container = volume[0] > volume[1] ? 0 : 1;
+        SubjectColour& see_through = v.colours[size_t(container)];
+        see_through.see_through = true;
+        see_through.label += " (see-through)";
+        // Framed on the other: a margin of kClashViewMarginSizes of its middle extent there.
+        const glm::dvec3& o = inside[1 - container];
+        double e[3] = {o.x, o.y, o.z};
+        std::sort(e, e + 3);
+        margin_m = std::clamp(kClashViewMarginSizes * e[1], kClashViewMinMarginM, kClashViewMarginM);
+      }
+    }
+    const DAabb region{p - reach - glm::dvec3(margin_m), p + reach + glm::dvec3(margin_m)};
+    // Framed on what of the opaque one(s) lies in the region, and the points, centred on the
+    // first: small parts fill the frame, not the region's air or the container (at least
+    // kClashViewMinMarginM each way). Without their bounds: the region.
+    DAabb shown;
+    for (size_t i = 0; i < 2; ++i)
+      if (!v.colours[i].see_through) shown.extend(intersection(bounds[i], region));
+    if (shown.empty()) {
+      shown = region;
+    } else {
+      for (const glm::dvec3& q : c.points_m) shown.extend(q);
+    }
+    const glm::dvec3 half = glm::max(glm::max(shown.max - p, p - shown.min), glm::dvec3(kClashViewMinMarginM));
+    v.camera = fit_camera(DAabb{p - half, p + half}, isometric_direction(), aspect, 50.0, kReviewFill);
+    v.section.has_box = true;
+    v.section.box.min = region.min - glm::dvec3(0.5 * margin_m);
+    v.section.box.max = region.max + glm::dvec3(0.5 * margin_m);
     v.attributes = {
         {"clash", hex(c.id) + " " + std::string(clash_status_name(c.status))},
         {"a", side(c.a)},
@@ -58,9 +114,44 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
         {"group", c.group}};
     if (c.changed_id)
       v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag());
-    out.push_back(std::move(v));
+    views.push_back(std::move(v));
   }
+  out = std::move(views);
+  return true;
+}
+
+}  // namespace
+
+std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
+  std::vector<ReviewView> out;
+  std::string unused;
+  make_views(report, aspect, {}, out, unused);
   return out;
+}
+
+bool clash_views(const ClashReport& report, double aspect, const ReadView& view,
+                 std::vector<ReviewView>& out, std::string& error) {
+  std::unordered_map<uint64_t, DAabb> known;  // (objects recur across a plant's clashes)
+  Object object;
+  const BoundsOf bounds_of = [&](uint64_t id, DAabb& bounds, std::string& why) {
+    if (const auto k = known.find(id); k != known.end()) {
+      bounds = k->second;
+      return true;
+    }
+    std::optional<uint32_t> slot;
+    if (!view.slot_of(id, slot, why)) return false;
+    bounds = DAabb{};
+    if (slot) {
+      if (!view.object(*slot, object, false, why)) {
+        why = "clash views: object " + std::to_string(id) + ": " + why;
+        return false;
+      }
+      bounds = object_bounds(object);
+    }
+    known.emplace(id, bounds);
+    return true;
+  };
+  return make_views(report, aspect, bounds_of, out, error);
 }
 
 }  // namespace plantview
