@@ -222,19 +222,27 @@ inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
 // The same with the objects' bounds read from the store (`views --per clash`), so that each
 // image shows both objects and where they meet:
-//   - of the two, the one whose bounds fill more of the region around the points (grown by
-//     1.5 x kClashViewMarginM; extents of at least kClashViewThinM) is the container: drawn
-//     see-through in its colour (SubjectColour::see_through, its label "... (see-through)";
-//     BCF: its Color with that alpha), the other opaque inside it (a pipe in a column);
-//   - the camera's target is the first (deepest) point, the region the points around it
-//     grown by a margin of kClashViewMarginSizes x the other object's middle extent inside
-//     that region, within kClashViewMinMarginM..kClashViewMarginM: a pipe of 0.2 m gets 0.6 m,
-//     large in the image; the section box as above.
+//   - of the two, the container is the one whose bounds, inside the points' box grown by
+//     1.5 x kClashViewMarginM (extents of at least kClashViewThinM), are thicker across (the
+//     middle of their three extents: a column's width against a pipe's diameter) by
+//     kClashViewContainerRatio or more: drawn see-through in its colour
+//     (SubjectColour::see_through, its label "... (see-through)"; BCF: its Color with that
+//     alpha), the other opaque inside it. Parts of about one size (a valve on a pipe) are
+//     both opaque, as in the form above;
+//   - the region is the points' box around the first (deepest) point grown by a margin of
+//     kClashViewMarginSizes x the thinner one's middle extent there, within
+//     kClashViewMinMarginM .. kClashViewMarginM (a pipe of 0.2 m: 0.6 m); the section box as
+//     above;
+//   - the camera, from the isometric direction, is aimed at the first point and fitted on
+//     the box centred there that holds the points and the opaque objects' parts in the region
+//     (at least kClashViewMinFrameM each way): the buried part is large in the image.
 // An object the snapshot no longer holds leaves the view as the form above makes it. False
 // with a message naming the object on a read error (`out` unchanged).
 inline constexpr double kClashViewThinM = 0.05;
 inline constexpr double kClashViewMarginSizes = 3.0;
 inline constexpr double kClashViewMinMarginM = 0.5;
+inline constexpr double kClashViewMinFrameM = 0.3;
+inline constexpr double kClashViewContainerRatio = 1.5;
 bool clash_views(const ClashReport& report, double aspect, const ReadView& view,
                  std::vector<ReviewView>& out, std::string& error);
 

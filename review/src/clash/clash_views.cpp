@@ -1,5 +1,6 @@
 // Review views of clashes (plantview/clash.h: clash_views): one fitted, sectioned view a clash.
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <unordered_map>
 
@@ -67,30 +68,34 @@ bool make_views(const ClashReport& report, double aspect, const BoundsOf& bounds
     double margin_m = kClashViewMarginM;
     DAabb bounds[2];  // (empty without the store)
     if (bounds_of) {
-      // Which of the two fills more of the widest region: it would hide the other.
+      // Which of the two is the thicker across in the widest region (its middle extent: a
+      // column's width, a pipe's diameter, a deck's width), by kClashViewContainerRatio at
+      // least: it would hide the other. (Parts of a size, a valve on a pipe, stay opaque.)
       const DAabb widest{p - reach - glm::dvec3(1.5 * kClashViewMarginM),
                          p + reach + glm::dvec3(1.5 * kClashViewMarginM)};
       if (!bounds_of(c.a.id, bounds[0], error) || !bounds_of(c.b.id, bounds[1], error)) return false;
-      const glm::dvec3 inside[2] = {extents_m(intersection(bounds[0], widest)),
-                                    extents_m(intersection(bounds[1], widest))};
-      const double volume[2] = {inside[0].x * inside[0].y * inside[0].z,
-                                inside[1].x * inside[1].y * inside[1].z};
-      if (volume[0] > 0 && volume[1] > 0) {
-        const int container = volume[0] > volume[1] ? 0 : 1;
-        SubjectColour& see_through = v.colours[size_t(container)];
-        see_through.see_through = true;
-        see_through.label += " (see-through)";
-        // Framed on the other: a margin of kClashViewMarginSizes of its middle extent there.
-        const glm::dvec3& o = inside[1 - container];
-        double e[3] = {o.x, o.y, o.z};
-        std::sort(e, e + 3);
-        margin_m = std::clamp(kClashViewMarginSizes * e[1], kClashViewMinMarginM, kClashViewMarginM);
+      std::array<double, 3> inside[2];
+      for (size_t i = 0; i < 2; ++i) {
+        const glm::dvec3 e = extents_m(intersection(bounds[i], widest));
+        inside[i] = {e.x, e.y, e.z};
+        std::sort(inside[i].begin(), inside[i].end());
+      }
+      const size_t container = inside[0][1] > inside[1][1] ? 0 : 1;
+      if (inside[0][0] > 0 && inside[1][0] > 0) {
+        if (inside[container][1] >= kClashViewContainerRatio * inside[1 - container][1]) {
+          SubjectColour& see_through = v.colours[container];
+          see_through.see_through = true;
+          see_through.label += " (see-through)";
+        }
+        // The margin: kClashViewMarginSizes of the thinner one's middle extent there.
+        margin_m = std::clamp(kClashViewMarginSizes * inside[1 - container][1], kClashViewMinMarginM,
+                              kClashViewMarginM);
       }
     }
     const DAabb region{p - reach - glm::dvec3(margin_m), p + reach + glm::dvec3(margin_m)};
     // Framed on what of the opaque one(s) lies in the region, and the points, centred on the
     // first: small parts fill the frame, not the region's air or the container (at least
-    // kClashViewMinMarginM each way). Without their bounds: the region.
+    // kClashViewMinFrameM each way). Without their bounds: the region.
     DAabb shown;
     for (size_t i = 0; i < 2; ++i)
       if (!v.colours[i].see_through) shown.extend(intersection(bounds[i], region));
@@ -99,7 +104,7 @@ bool make_views(const ClashReport& report, double aspect, const BoundsOf& bounds
     } else {
       for (const glm::dvec3& q : c.points_m) shown.extend(q);
     }
-    const glm::dvec3 half = glm::max(glm::max(shown.max - p, p - shown.min), glm::dvec3(kClashViewMinMarginM));
+    const glm::dvec3 half = glm::max(glm::max(shown.max - p, p - shown.min), glm::dvec3(kClashViewMinFrameM));
     v.camera = fit_camera(DAabb{p - half, p + half}, isometric_direction(), aspect, 50.0, kReviewFill);
     v.section.has_box = true;
     v.section.box.min = region.min - glm::dvec3(0.5 * margin_m);
