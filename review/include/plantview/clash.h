@@ -222,17 +222,17 @@ inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
 // The same with the objects' bounds read from the store (`views --per clash`), so that each
 // image shows both objects and where they meet:
-//   - of the two, the container is the one whose bounds, inside the points' box grown by
-//     1.5 x kClashViewMarginM (extents of at least kClashViewThinM), are thicker across (the
-//     middle of their three extents: a column's width against a pipe's diameter) by
-//     kClashViewContainerRatio or more: drawn see-through in its colour
-//     (SubjectColour::see_through, its label "... (see-through)"; BCF: its Color with that
-//     alpha), the other opaque inside it. Parts of about one size (a valve on a pipe) are
-//     both opaque, as in the form above;
+//   - each object's thickness where they meet: of its primitives within kClashViewMarginM
+//     of the first point whose bounds meet (within kClashViewThinM) those of one of the
+//     other's there, the largest middle of the three extents of its shape as placed (a
+//     column's width, a pipe's diameter, however turned); failing any, that of its primitive
+//     nearest the point. The one thicker by kClashViewContainerRatio or more is the container: drawn
+//     see-through in its colour (SubjectColour::see_through, its label "... (see-through)";
+//     BCF: its Color with that alpha), the other opaque inside it. Parts of about one size
+//     (a valve on a pipe) are both opaque, as in the form above;
 //   - the region is the points' box around the first (deepest) point grown by a margin of
-//     kClashViewMarginSizes x the thinner one's middle extent there, within
-//     kClashViewMinMarginM .. kClashViewMarginM (a pipe of 0.2 m: 0.6 m); the section box as
-//     above;
+//     kClashViewMarginSizes x the thinner one's thickness, within kClashViewMinMarginM ..
+//     kClashViewMarginM (a pipe of 0.2 m: 0.6 m); the section box as above;
 //   - the camera, from the isometric direction, is aimed at the first point and fitted on
 //     the box centred there that holds the points and the opaque objects' parts in the region
 //     (at least kClashViewMinFrameM each way): the buried part is large in the image.

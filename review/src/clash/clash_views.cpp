@@ -1,11 +1,14 @@
 // Review views of clashes (plantview/clash.h: clash_views): one fitted, sectioned view a clash.
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
+#include <functional>
 #include <unordered_map>
 
 #include "plantview/camera.h"
 #include "plantview/clash.h"
+#include "plantview/primitives.h"
 #include "plantview/store.h"
 
 namespace plantview {
@@ -30,9 +33,73 @@ std::string side(const ClashObject& o) {
   return name_of(o) + " (" + std::string(class_name(o.object_class)) + ")";
 }
 
-// An object's model bounds by id: empty when the snapshot does not hold it. False with a
-// message on a read error.
-using BoundsOf = std::function<bool(uint64_t id, DAabb& out, std::string& error)>;
+// What the views need of an object: its model bounds, and each primitive's model bounds with
+// its thickness across (the middle of its three local extents, scaled by its placement: a
+// cylinder's diameter, a column's width, whatever way it is turned).
+struct Sizes {
+  DAabb bounds;  // empty: the snapshot does not hold it
+  std::vector<std::pair<DAabb, double>> parts;
+};
+// An object's sizes by id. False with a message on a read error.
+using SizesOf = std::function<bool(uint64_t id, const Sizes*& out, std::string& error)>;
+
+Sizes sizes_of(const Object& object) {
+  Sizes s;
+  s.bounds = object_bounds(object);
+  for (const Primitive& p : object.primitives) {
+    const Aabb box = model_bounds(p), local = local_bounds(p.shape);
+    if (box.empty() || local.empty()) continue;
+    std::array<double, 3> e;
+    for (int i = 0; i < 3; ++i)
+      e[size_t(i)] = double(local.max[i] - local.min[i]) * double(glm::length(p.placement.linear[i]));
+    std::sort(e.begin(), e.end());
+    s.parts.emplace_back(DAabb{object.origin_m + glm::dvec3(box.min), object.origin_m + glm::dvec3(box.max)}, e[1]);
+  }
+  return s;
+}
+
+double distance_m(const DAabb& box, const glm::dvec3& p) {
+  return glm::length(glm::max(glm::max(box.min - p, p - box.max), glm::dvec3(0.0)));
+}
+
+bool overlap(const DAabb& a, const DAabb& b) {
+  return glm::all(glm::lessThanEqual(a.min, b.max + kClashViewThinM)) &&
+         glm::all(glm::lessThanEqual(b.min, a.max + kClashViewThinM));
+}
+
+// How thick each object is where the two meet (clash.h): of its parts within
+// kClashViewMarginM of the point whose bounds meet one of the other's there, the thickest;
+// failing any, its part nearest the point. 0 without parts.
+std::array<double, 2> thickness_where_they_meet_m(const Sizes& a, const Sizes& b, const glm::dvec3& p) {
+  const Sizes* sizes[2] = {&a, &b};
+  std::vector<const std::pair<DAabb, double>*> near[2];
+  std::array<double, 2> out{0.0, 0.0};
+  for (size_t i = 0; i < 2; ++i) {
+    double nearest_distance = INFINITY;
+    for (const auto& part : sizes[i]->parts) {
+      const double d = distance_m(part.first, p);
+      if (d <= kClashViewMarginM) near[i].push_back(&part);
+      if (d < nearest_distance) {
+        nearest_distance = d;
+        out[i] = part.second;
+      }
+    }
+  }
+  for (size_t i = 0; i < 2; ++i) {
+    double thickest = 0;
+    for (const auto* mine : near[i]) {
+      if (mine->second <= thickest) continue;
+      for (const auto* theirs : near[1 - i]) {
+        if (overlap(mine->first, theirs->first)) {
+          thickest = mine->second;
+          break;
+        }
+      }
+    }
+    if (thickest > 0) out[i] = thickest;
+  }
+  return out;
+}
 
 DAabb intersection(const DAabb& a, const DAabb& b) {
   DAabb out;
@@ -42,13 +109,7 @@ DAabb intersection(const DAabb& a, const DAabb& b) {
   return out;
 }
 
-// The box's extents, each at least kClashViewThinM (a plate has a volume), 0 when empty.
-glm::dvec3 extents_m(const DAabb& box) {
-  if (box.empty()) return glm::dvec3(0.0);
-  return glm::max(box.max - box.min, glm::dvec3(kClashViewThinM));
-}
-
-bool make_views(const ClashReport& report, double aspect, const BoundsOf& bounds_of,
+bool make_views(const ClashReport& report, double aspect, const SizesOf& sizes_of_id,
                 std::vector<ReviewView>& out, std::string& error) {
   std::vector<ReviewView> views;
   for (const Clash& c : report.clashes) {
@@ -67,28 +128,24 @@ bool make_views(const ClashReport& report, double aspect, const BoundsOf& bounds
     for (const glm::dvec3& q : c.points_m) reach = glm::max(reach, glm::abs(q - p));
     double margin_m = kClashViewMarginM;
     DAabb bounds[2];  // (empty without the store)
-    if (bounds_of) {
-      // Which of the two is the thicker across in the widest region (its middle extent: a
-      // column's width, a pipe's diameter, a deck's width), by kClashViewContainerRatio at
-      // least: it would hide the other. (Parts of a size, a valve on a pipe, stay opaque.)
-      const DAabb widest{p - reach - glm::dvec3(1.5 * kClashViewMarginM),
-                         p + reach + glm::dvec3(1.5 * kClashViewMarginM)};
-      if (!bounds_of(c.a.id, bounds[0], error) || !bounds_of(c.b.id, bounds[1], error)) return false;
-      std::array<double, 3> inside[2];
-      for (size_t i = 0; i < 2; ++i) {
-        const glm::dvec3 e = extents_m(intersection(bounds[i], widest));
-        inside[i] = {e.x, e.y, e.z};
-        std::sort(inside[i].begin(), inside[i].end());
-      }
-      const size_t container = inside[0][1] > inside[1][1] ? 0 : 1;
-      if (inside[0][0] > 0 && inside[1][0] > 0) {
-        if (inside[container][1] >= kClashViewContainerRatio * inside[1 - container][1]) {
+    if (sizes_of_id) {
+      // Which of the two is thicker where they meet (a column's width against
+      // a pipe's diameter), by kClashViewContainerRatio at least: it would hide the other.
+      // (Parts of a size, a valve on a pipe, stay opaque.)
+      const Sizes* sizes[2] = {nullptr, nullptr};
+      if (!sizes_of_id(c.a.id, sizes[0], error) || !sizes_of_id(c.b.id, sizes[1], error)) return false;
+      const std::array<double, 2> thickness = thickness_where_they_meet_m(*sizes[0], *sizes[1], p);
+      bounds[0] = sizes[0]->bounds;
+      bounds[1] = sizes[1]->bounds;
+      const size_t container = thickness[0] > thickness[1] ? 0 : 1;
+      if (thickness[0] > 0 && thickness[1] > 0) {
+        if (thickness[container] >= kClashViewContainerRatio * thickness[1 - container]) {
           SubjectColour& see_through = v.colours[container];
           see_through.see_through = true;
           see_through.label += " (see-through)";
         }
-        // The margin: kClashViewMarginSizes of the thinner one's middle extent there.
-        margin_m = std::clamp(kClashViewMarginSizes * inside[1 - container][1], kClashViewMinMarginM,
+        // The margin: kClashViewMarginSizes of the thinner one's thickness.
+        margin_m = std::clamp(kClashViewMarginSizes * thickness[1 - container], kClashViewMinMarginM,
                               kClashViewMarginM);
       }
     }
@@ -136,27 +193,27 @@ std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
 
 bool clash_views(const ClashReport& report, double aspect, const ReadView& view,
                  std::vector<ReviewView>& out, std::string& error) {
-  std::unordered_map<uint64_t, DAabb> known;  // (objects recur across a plant's clashes)
+  std::unordered_map<uint64_t, Sizes> known;  // (objects recur across a plant's clashes)
   Object object;
-  const BoundsOf bounds_of = [&](uint64_t id, DAabb& bounds, std::string& why) {
-    if (const auto k = known.find(id); k != known.end()) {
-      bounds = k->second;
-      return true;
-    }
-    std::optional<uint32_t> slot;
-    if (!view.slot_of(id, slot, why)) return false;
-    bounds = DAabb{};
-    if (slot) {
-      if (!view.object(*slot, object, false, why)) {
-        why = "clash views: object " + std::to_string(id) + ": " + why;
-        return false;
+  const SizesOf sizes_of_id = [&](uint64_t id, const Sizes*& sizes, std::string& why) {
+    auto k = known.find(id);
+    if (k == known.end()) {
+      std::optional<uint32_t> slot;
+      if (!view.slot_of(id, slot, why)) return false;
+      Sizes made;
+      if (slot) {
+        if (!view.object(*slot, object, false, why)) {
+          why = "clash views: object " + std::to_string(id) + ": " + why;
+          return false;
+        }
+        made = sizes_of(object);
       }
-      bounds = object_bounds(object);
+      k = known.emplace(id, std::move(made)).first;
     }
-    known.emplace(id, bounds);
+    sizes = &k->second;
     return true;
   };
-  return make_views(report, aspect, bounds_of, out, error);
+  return make_views(report, aspect, sizes_of_id, out, error);
 }
 
 }  // namespace plantview
