@@ -59,6 +59,7 @@ class BuriedClash : public ::testing::Test {
     ClashReport report;
     EXPECT_TRUE(find_clashes(*view, dir_.str(), settings, report, error)) << error;
     EXPECT_EQ(report.clashes.size(), 1u);
+    if (!report.clashes.empty()) first_point_ = report.clashes[0].points_m.front();
     std::vector<ReviewView> views;
     EXPECT_TRUE(clash_views(report, 16.0 / 9.0, *view, views, error)) << error;
     EXPECT_EQ(views.size(), 1u);
@@ -87,6 +88,7 @@ class BuriedClash : public ::testing::Test {
   TempDir dir_;
   std::vector<Object> objects_;
   std::unique_ptr<Store> store_;
+  glm::dvec3 first_point_{0.0};
 };
 
 TEST_F(BuriedClash, TheContainerIsSeeThroughAndTheBuriedPipeShowsThroughIt) {
@@ -104,6 +106,7 @@ TEST_F(BuriedClash, TheContainerIsSeeThroughAndTheBuriedPipeShowsThroughIt) {
   // Framed on the pipe: a margin of three of its diameters, not the 1.5 m of a view without
   // sizes; the camera aimed at the deepest point.
   EXPECT_LT(view.section.box.max.x - view.section.box.min.x, 2 * (2 * kClashViewMarginM));
+  EXPECT_LT(glm::distance(view.camera.target_m, first_point_), 1e-6);
 
   FrameStats stats;
   const Image image = draw(view, stats);
@@ -147,6 +150,40 @@ TEST_F(BuriedClash, TheContainerIsSeeThroughAndTheBuriedPipeShowsThroughIt) {
   const Image hidden = draw(opaque, opaque_stats);
   EXPECT_EQ(std::count(hidden.object_ids.begin(), hidden.object_ids.end(), pipe_id()), 0);
   EXPECT_GT(std::count(hidden.object_ids.begin(), hidden.object_ids.end(), vessel_id()), 2000);
+}
+
+// Two pipes of one size crossing: neither holds the other, both stay opaque; the section's
+// margin comes from their size (3 diameters, at least 0.5 m), not the 1.5 m of a view without
+// the store.
+TEST(ClashViews, PartsOfOneSizeStayOpaque) {
+  TempDir dir;
+  Primitive along_x{Placement{}, Cylinder{0.1f, 3.0f}};
+  along_x.placement.linear = glm::mat3(glm::vec3(0, 0, -1), glm::vec3(0, 1, 0), glm::vec3(1, 0, 0));
+  Primitive along_y{Placement{}, Cylinder{0.1f, 3.0f}};
+  along_y.placement.linear = glm::mat3(glm::vec3(1, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  const std::vector<Object> objects = {make_object("/P-1", ObjectClass::pipe, {10, 10, 2}, along_x),
+                                       make_object("/P-2", ObjectClass::pipe, {10, 10, 2.1}, along_y)};
+  const auto store = test::make_store(dir, objects);
+  ASSERT_TRUE(store);
+  std::string error;
+  const auto view = store->read(error);
+  ASSERT_TRUE(view) << error;
+  ClashSettings settings;
+  settings.include_connected = true;
+  ClashReport report;
+  ASSERT_TRUE(find_clashes(*view, dir.str(), settings, report, error)) << error;
+  ASSERT_EQ(report.clashes.size(), 1u);
+  std::vector<ReviewView> views;
+  ASSERT_TRUE(clash_views(report, 16.0 / 9.0, *view, views, error)) << error;
+  ASSERT_EQ(views.size(), 1u);
+  for (const SubjectColour& c : views[0].colours) {
+    EXPECT_FALSE(c.see_through) << c.label;
+    EXPECT_EQ(c.label.find("see-through"), std::string::npos) << c.label;
+  }
+  const glm::dvec3 box = views[0].section.box.max - views[0].section.box.min;
+  const glm::dvec3 plain = clash_views(report, 16.0 / 9.0)[0].section.box.max -
+                           clash_views(report, 16.0 / 9.0)[0].section.box.min;
+  EXPECT_LT(box.x, plain.x - 1.0);
 }
 
 // The views file carries the flag: written only when set, read back, a bad value refused.

@@ -163,6 +163,11 @@ bool make_views(const ClashReport& report, double aspect, const SizesOf& sizes_o
     }
     const glm::dvec3 half = glm::max(glm::max(shown.max - p, p - shown.min), glm::dvec3(kClashViewMinFrameM));
     v.camera = fit_camera(DAabb{p - half, p + half}, isometric_direction(), aspect, 50.0, kReviewFill);
+    // Aimed at the point itself (the fit centres the box's perspective projection, a little
+    // beside it), from the same distance.
+    const double distance_to_target_m = glm::length(v.camera.target_m - v.camera.eye_m);
+    v.camera.target_m = p;
+    v.camera.eye_m = p - glm::normalize(isometric_direction()) * distance_to_target_m;
     v.section.has_box = true;
     v.section.box.min = region.min - glm::dvec3(0.5 * margin_m);
     v.section.box.max = region.max + glm::dvec3(0.5 * margin_m);
