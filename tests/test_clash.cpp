@@ -13,6 +13,8 @@
 #include <map>
 #include <numbers>
 #include <set>
+#include <sstream>
+#include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -266,12 +268,12 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
     EXPECT_TRUE(name_changed_objects(second, *view, first.revision, note)) << note;
     EXPECT_TRUE(note.empty()) << note;
     ASSERT_NE(second.clashes[0].changed_id, 0u);
-    EXPECT_EQ(second.clashes[0].changed_tag().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
+    EXPECT_EQ(second.clashes[0].changed_tag().view().rfind("/P-1/", 0), 0u) << second.clashes[0].changed_tag();
     EXPECT_NE(clash_report_json(second).find("\"changed_tag\""), std::string::npos);
     const std::vector<ReviewView> views = clash_views(second, 16.0 / 9.0);
     ASSERT_EQ(views.size(), 1u);
     EXPECT_EQ(views[0].attributes.back(),
-              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag()}));
+              (std::pair<std::string, std::string>{"changed", second.clashes[0].changed_tag().str()}));
   }
   // Through the file, as --since reads it.
   ClashReport reread;
@@ -300,7 +302,7 @@ TEST(Clash, ViewsColourTheTwoObjectsAndRoundTrip) {
   Clash c;
   c.id = 0x1234;
   c.a.id = 7;
-  c.a.tag = "P-1";
+  c.a.tag = ClashText("P-1");
   c.b.id = 9;  // no tag: named by id
   c.points_m = {{1, 2, 3}};
   c.depth_m = 0.01;
@@ -385,7 +387,26 @@ TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
   std::string error;
   ASSERT_TRUE(parse_clash_report(text, back, error)) << error;
   EXPECT_EQ(clash_report_json(back), text);
-  EXPECT_FALSE(parse_clash_report(text.substr(0, text.size() / 2), back, error));
+  std::istringstream stream(text);
+  ASSERT_TRUE(read_clash_report(stream, back, error)) << error;
+  EXPECT_EQ(clash_report_json(back), text);
+  ASSERT_GE(report.clashes.size(), 1u);
+  // Cut anywhere, the file is refused with a reason, and the output is left as it was.
+  for (size_t cut = 0; cut < text.size(); cut += std::max<size_t>(1, text.size() / 97)) {
+    ClashReport untouched;
+    untouched.revision = 77;
+    EXPECT_FALSE(parse_clash_report(std::string_view(text).substr(0, cut), untouched, error)) << cut;
+    EXPECT_FALSE(error.empty());
+    EXPECT_EQ(untouched.revision, 77u);
+  }
+  // A wrong field inside a clash names the clash and the field.
+  std::string wrong = text;
+  const size_t at = wrong.find("\"depth_m\"");
+  ASSERT_NE(at, std::string::npos);
+  wrong.replace(at, 9, "\"deep_m\" ");
+  EXPECT_FALSE(parse_clash_report(wrong, back, error));
+  EXPECT_NE(error.find("clash 0"), std::string::npos) << error;
+  EXPECT_NE(error.find("depth_m"), std::string::npos) << error;
 }
 
 // Runs the program; its exit status, stdout in `out`, stderr in `err`.
@@ -465,6 +486,115 @@ TEST(ClashCommand, RunsSinceMergeAndRefusesBadInput) {
   EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
   EXPECT_EQ(run_plantview({"clash", "--store", bare.str(), "--include-connected"}, out, err), 0) << err;
   EXPECT_NE(out.find("1 clashes"), std::string::npos) << out;
+  EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+std::string slurp_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Every file under `dir` (logs too), by relative path -> bytes.
+std::map<std::string, std::string> files_under(const std::filesystem::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[std::filesystem::relative(e.path(), dir).string()] = slurp_file(e.path());
+  return files;
+}
+
+TEST(ClashCommand, FarmSinceMarksARevisionsNewClashAsOneProcessDoes) {
+  const test::TempDir dir, scratch;
+  std::filesystem::create_directories(scratch.path());
+  auto store = test::make_store(dir, piping_case(false));
+  ASSERT_TRUE(store);
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    single = (scratch.path() / "single.json").string();
+  const std::filesystem::path job = scratch.path() / "job";
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  // The revision moves the pipe into the beam.
+  ASSERT_TRUE(ingest_objects(*store, piping_case(true)));
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", single}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", first, "--out", job.string()}, out, err), 0) << err;
+  // (its summary: one JSON object, keys sorted)
+  EXPECT_NE(out.find("{\"active\":0,\"clash\":true,\"clashes\":1,\"complete\":true,\"new\":1,\"resolved\":0,"
+                     "\"shards_done\":2,\"since\":\"" + first + "\",\"tasks\":2}"), std::string::npos) << out;
+  EXPECT_EQ(slurp_file(job / "clashes.json"), slurp_file(single));
+  EXPECT_EQ(slurp_file(job / "clash-since.json"), slurp_file(first));
+  ClashReport merged;
+  std::string error;
+  ASSERT_TRUE(parse_clash_report(slurp_file(job / "clashes.json"), merged, error)) << error;
+  ASSERT_EQ(merged.clashes.size(), 1u);
+  EXPECT_EQ(merged.clashes[0].status, ClashStatus::new_clash);
+  EXPECT_EQ(merged.clashes[0].changed_tag().view().rfind("/P-1/", 0), 0u) << merged.clashes[0].changed_tag();
+  // The next job in the same directory, since its own clashes.json: the same clash, active.
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", (job / "clashes.json").string(), "--out", job.string()}, out, err), 0) << err;
+  EXPECT_NE(out.find("\"active\":1,"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"new\":0,"), std::string::npos) << out;
+  ASSERT_TRUE(parse_clash_report(slurp_file(job / "clashes.json"), merged, error)) << error;
+  ASSERT_EQ(merged.clashes.size(), 1u);
+  EXPECT_EQ(merged.clashes[0].status, ClashStatus::active);
+  ASSERT_EQ(run_plantview({"farm", "status", job.string()}, out, err), 0) << err;
+  EXPECT_NE(out.find("2 of 2 shards done; clashes.json: 1 clashes (since "), std::string::npos) << out;
+  EXPECT_NE(out.find(": 0 new, 1 active, 0 resolved)"), std::string::npos) << out;
+  // A job without --since leaves no copy behind to be taken for one.
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--out", job.string()}, out, err), 0) << err;
+  EXPECT_FALSE(std::filesystem::exists(job / "clash-since.json"));
+  EXPECT_EQ(out.find("\"new\""), std::string::npos) << out;
+}
+
+TEST(ClashCommand, FarmSubmitRefusesWhatClashRefusesAndLeavesTheDirectoryAsItWas) {
+  const test::TempDir dir, scratch, other, bare;
+  std::filesystem::create_directories(scratch.path());
+  ASSERT_TRUE(test::make_store(dir, piping_case(true)));
+  ASSERT_TRUE(test::make_store(other, piping_case(false)));
+  ASSERT_TRUE(test::make_store(bare, {planted("box-box", 0, 0.01).a, planted("box-box", 0, 0.01).b}));
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    elsewhere = (scratch.path() / "elsewhere.json").string(),
+                    cut = (scratch.path() / "cut.json").string();
+  const std::filesystem::path job = scratch.path() / "job", never = scratch.path() / "never";
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"clash", "--store", other.str(), "--out", elsewhere}, out, err), 0) << err;
+  std::ofstream(cut) << slurp_file(first).substr(0, slurp_file(first).size() / 2);
+  ASSERT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store", s,
+                           "--since", first, "--out", job.string()}, out, err), 0) << err;
+  const auto before = files_under(job);
+  ASSERT_TRUE(before.count("clashes.json") && before.count("clash-job.json") && before.count("clash-since.json"));
+
+  const std::vector<std::tuple<std::vector<std::string>, int, std::string>> cases = {
+      {{"--tolerance", "-1"}, 2, "--tolerance must be from 0"},
+      {{"--tolerance", "50000"}, 2, "--tolerance must be from 0"},
+      {{"--tolerance", "1mm"}, 2, "--tolerance: expected millimetres, got '1mm'"},
+      {{"--clearance", "nan"}, 2, "--clearance must be from 0"},
+      {{"--threads", "two"}, 2, "--threads: expected a whole number, got 'two'"},
+      {{"--between", "NOPE-*", "--and", "pipe"}, 2, "--between 'NOPE-*' matches no object"},
+      {{"--between", "pipe", "--and", "NADA"}, 2, "--and 'NADA' matches no object"},
+      {{"--between", "pipe"}, 2, "--between and --and go together"},
+      {{"--since", cut}, 1, "truncated"},
+      {{"--since", elsewhere}, 1, "another store"},
+      {{"--since", first, "--tolerance", "5"}, 1, "other settings"},
+      {{"--since", (scratch.path() / "missing.json").string()}, 1, "cannot read"},
+  };
+  for (const auto& [extra, status, message] : cases) {
+    std::vector<std::string> args = {"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2",
+                                     "--store", s, "--out", job.string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    EXPECT_EQ(run_plantview(args, out, err), status) << extra[0] << " " << extra[1] << ": " << err;
+    EXPECT_NE(err.find("farm submit --clash: "), std::string::npos) << err;
+    EXPECT_NE(err.find(message), std::string::npos) << err;
+    EXPECT_EQ(files_under(job), before) << extra[0] << " " << extra[1] << " changed the job's directory";
+  }
+  // A store without topology; --since on a render job.
+  EXPECT_EQ(run_plantview({"farm", "submit", "--clash", "--scheduler", "local", "--tasks", "2", "--store",
+                           bare.str(), "--out", never.string()}, out, err), 2);
+  EXPECT_NE(err.find("no piping topology"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"farm", "submit", "--scheduler", "local", "--tasks", "1", "--views", first, "--store", s,
+                           "--since", first, "--out", never.string()}, out, err), 2);
+  EXPECT_NE(err.find("--since is a clash job's option"), std::string::npos) << err;
   EXPECT_FALSE(std::filesystem::exists(never));
 }
 

@@ -724,6 +724,20 @@ TEST_F(Farm, SlurmArrayRendersTheSameImagesResumesAndCompletesACancelledTask) {
   EXPECT_EQ(json::parse(r.out)["complete"], true) << r.out << slurp(clash_out / "logs" / ("slurm-" + clash_job + "_0.log"));
   EXPECT_EQ(json::parse(r.out)["shards_done"], 4) << r.out;
   EXPECT_EQ(slurp(clash_out / "clashes.json"), slurp(single_clashes));
+  // Again, --since the job's own clashes.json: the array's merging task reads the copy submit
+  // left in the directory, and every clash is active.
+  r = run("farm submit --clash --scheduler slurm --tasks 4 --store " + store_.string() + " --out " +
+          clash_out.string() + " --since " + (clash_out / "clashes.json").string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string since_job = r.out.substr(0, r.out.find('\n'));
+  ASSERT_TRUE(cluster.wait_for_job(since_job, std::chrono::seconds(90))) << "job " << since_job << " still queued";
+  r = run("farm status --json " + clash_out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json since_status = json::parse(r.out);
+  EXPECT_EQ(since_status["complete"], true) << r.out;
+  EXPECT_EQ(since_status["new"], 0) << r.out;
+  EXPECT_EQ(since_status["resolved"], 0) << r.out;
+  EXPECT_EQ(since_status["active"], json::parse(slurp(single_clashes))["clashes"].size()) << r.out;
 }
 
 TEST_F(Farm, LocalClashShardsWriteTheSameClashesAsOneProcess) {
@@ -747,6 +761,44 @@ TEST_F(Farm, LocalClashShardsWriteTheSameClashesAsOneProcess) {
           (scratch_.path() / "never").string());
   EXPECT_EQ(r.status, 2) << r.err;
   EXPECT_FALSE(fs::exists(scratch_.path() / "never"));
+}
+
+TEST_F(Farm, LocalClashJobSinceARevisionWritesWhatOneProcessDoes) {
+  // Preset a imported from its XML, its clashes, then a revision (an item recoloured, a copy of
+  // another 3 m above it): `farm submit --clash --since` merges 3 shards into one process's
+  // `clash --since` file, byte for byte, statuses and changed objects included.
+  const fs::path store = scratch_.path() / "store", xml = scratch_.path() / "plant.xml";
+  const fs::path first = scratch_.path() / "first.json", single = scratch_.path() / "single.json",
+                 out = scratch_.path() / "clash-since";
+  fs::copy_file(plant_->path() / "plant.xml", xml);
+  Outcome r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("clash --store " + store.string() + " --out " + first.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  write_revision(xml, json::parse(slurp(views_)), 0, 12);
+  r = run("import --store " + store.string() + " " + xml.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("clash --store " + store.string() + " --since " + first.string() + " --out " + single.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run("farm submit --clash --scheduler local --tasks 3 --store " + store.string() + " --since " +
+          first.string() + " --out " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json summary = json::parse(r.out);
+  const std::string merged = slurp(out / "clashes.json");
+  EXPECT_EQ(merged, slurp(single));
+  const json clashes = json::parse(merged)["clashes"];
+  std::map<std::string, int> by_status;
+  for (const json& c : clashes) ++by_status[c["status"].get<std::string>()];
+  EXPECT_GT(by_status["active"], 0) << "the clashes the revision left";
+  EXPECT_GT(by_status["new"], 0) << "the copy 3 m above an item meets what is there";
+  for (const json& c : clashes)
+    if (c["status"] == "new") {
+      EXPECT_EQ(c.value("changed_tag", ""), "/ADDED-1") << c.dump();
+    }
+  for (const char* status : {"new", "active", "resolved"}) EXPECT_EQ(summary[status], by_status[status]) << r.out;
+  r = run("farm status --json " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out), summary);
 }
 
 }  // namespace

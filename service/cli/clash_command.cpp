@@ -5,7 +5,8 @@
 // --between without --and, a bad --shard, a store without piping topology unless
 // --include-connected), 1 for a store that cannot be read, a --since file
 // that is truncated, damaged, from another store or other settings, or an output that cannot be
-// written. --out is written through a temporary file and a rename: never half a file.
+// written; checked before the pass (check_clash_options, which farm submit --clash shares).
+// --out is written through a temporary file and a rename: never half a file.
 #include <unistd.h>
 
 #include <charconv>
@@ -15,7 +16,6 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
-#include <sstream>
 #include <string>
 
 #include "cli/commands.h"
@@ -33,9 +33,9 @@ int fail(const std::string& message) {
 }
 
 struct ClashArgs {
-  std::string store, between, with, since, out, shard = "0/1";
-  double tolerance_mm = kClashDefaultToleranceM * 1000, clearance_mm = 0;
-  bool include_connected = false, json = false;
+  std::string store, out, shard = "0/1";
+  ClashOptions options;
+  bool json = false;
   unsigned threads = 0;
   std::vector<std::string> merge_inputs;
   std::string merge_out;
@@ -54,22 +54,13 @@ bool parse_shard(const std::string& text, ClashShard& shard) {
          shard.index < shard.count;
 }
 
-bool read_file(const std::string& path, std::string& text, std::string& error) {
+bool read_report(const std::string& path, ClashReport& report, std::string& error) {
   std::ifstream file(path, std::ios::binary);
   if (!file) {
     error = "cannot read " + path;
     return false;
   }
-  std::ostringstream s;
-  s << file.rdbuf();
-  text = s.str();
-  return true;
-}
-
-bool read_report(const std::string& path, ClashReport& report, std::string& error) {
-  std::string text;
-  if (!read_file(path, text, error)) return false;
-  if (!parse_clash_report(text, report, error)) {
+  if (!read_clash_report(file, report, error)) {
     error = path + ": " + error;
     return false;
   }
@@ -143,14 +134,32 @@ int emit(const ClashReport& report, const std::string& out, bool json) {
 // DIR/clash-shard-I-of-N.json; the task that finds all N there (of one snapshot and settings)
 // merges them into DIR/clashes.json (atomically: two tasks finishing together write the same
 // bytes). Shard files of another job (another snapshot: the store changed between tasks) make
-// the merge wait for the task that rewrites them; that is said, not a failure.
+// the merge wait for the task that rewrites them; that is said, not a failure. With --since
+// (farm submit copies the file into DIR) only the merging task reads it, and applies it to the
+// merged result as `clash --since` does to one process's.
 std::string farm_shard_file(const std::string& dir, const ClashShard& shard) {
   return (std::filesystem::path(dir) / ("clash-shard-" + std::to_string(shard.index) + "-of-" +
                                         std::to_string(shard.count) + ".json"))
       .string();
 }
 
-int finish_farm_task(const ClashReport& report, const std::string& dir) {
+// --since PATH, once the run's clashes are found (all shards merged): statuses against
+// `previous` (that file's report), then the new clashes' changed objects (a note on stderr when
+// the store cannot name them). False with a message naming the file.
+bool apply_since(ClashReport& report, const ClashReport& previous, const ReadView& view, const std::string& path,
+                 std::string& error) {
+  if (!apply_previous(report, previous, error)) {
+    error = "--since " + path + ": " + error;
+    return false;
+  }
+  std::string note;
+  if (!name_changed_objects(report, view, previous.revision, note))
+    std::cerr << "plantview clash: note: --since " << path << ": " << note << "\n";
+  return true;
+}
+
+int finish_farm_task(const ClashReport& report, const std::string& dir, const ReadView& view,
+                     const std::string& since) {
   std::string error;
   if (!write_report_atomically(farm_shard_file(dir, report.shard), report, error)) return fail(error);
   std::vector<ClashReport> shards(report.shard.count);
@@ -167,63 +176,51 @@ int finish_farm_task(const ClashReport& report, const std::string& dir) {
     if (!read_report(path, shards[i], error)) return fail(error);
   }
   ClashReport merged;
-  if (!merge_reports(shards, merged, error)) {
+  if (!merge_reports(std::move(shards), merged, error)) {
     std::cout << "shard " << report.shard.index << "/" << report.shard.count
               << ": not merged yet: " << error << "\n";
     return 0;
   }
+  shards.clear();
+  // The merged run against the previous one, as one process's `clash --since` compares (the
+  // shards are of this task's snapshot: merge_reports checked it).
+  if (!since.empty()) {
+    ClashReport previous;
+    if (!read_report(since, previous, error)) return fail("--since " + error);
+    if (!apply_since(merged, previous, view, since, error)) return fail(error);
+  }
   const std::string out = (std::filesystem::path(dir) / "clashes.json").string();
   if (!write_report_atomically(out, merged, error)) return fail(error);
   std::cout << "shard " << report.shard.index << "/" << report.shard.count << " merged all "
-            << report.shard.count << " into " << out << ": " << merged.clashes.size() << " clashes\n";
+            << report.shard.count << " into " << out << ": " << merged.clashes.size() << " clashes"
+            << (since.empty() ? "" : " (statuses since " + since + ")") << "\n";
   return 0;
 }
 
 int run_clash(const ClashArgs& a) {
   if (a.store.empty()) return usage_error("clash: --store is required");
-  if (!std::isfinite(a.tolerance_mm) || a.tolerance_mm < 0 || a.tolerance_mm > kClashMaxDistanceM * 1000)
-    return usage_error("clash: --tolerance must be from 0 to " + std::to_string(int(kClashMaxDistanceM * 1000)) +
-                       " mm, got " + std::to_string(a.tolerance_mm));
-  if (!std::isfinite(a.clearance_mm) || a.clearance_mm < 0 || a.clearance_mm > kClashMaxDistanceM * 1000)
-    return usage_error("clash: --clearance must be from 0 (off) to " +
-                       std::to_string(int(kClashMaxDistanceM * 1000)) + " mm, got " + std::to_string(a.clearance_mm));
-  if (a.between.empty() != a.with.empty()) return usage_error("clash: --between and --and go together");
   ClashSettings settings;
   if (!parse_shard(a.shard, settings.shard))
     return usage_error("clash: --shard: expected I/N with 0 <= I < N, got '" + a.shard + "'");
   if (!a.farm_dir.empty() && (!a.out.empty() || a.json))
     return usage_error("clash: --farm-dir writes the shard's file and the merged clashes.json itself (no --out, --json)");
-  if (!a.since.empty() && settings.shard.count > 1)
+  if (!a.options.since.empty() && settings.shard.count > 1 && a.farm_dir.empty())
     return usage_error("clash: --since applies to a whole run: merge the shards, then compare");
-  settings.tolerance_m = a.tolerance_mm / 1000;
-  settings.clearance_m = a.clearance_mm / 1000;
-  settings.between.word = a.between;
-  settings.with.word = a.with;
-  settings.include_connected = a.include_connected;
+  // A farm task leaves --since to the task that merges (farm submit checked the file).
+  ClashOptions options = a.options;
+  if (!a.farm_dir.empty()) options.since.clear();
+  std::unique_ptr<ReadView> view;
+  ClashReport previous;
+  if (const int status = check_clash_options("clash", options, a.store, view, previous); status != 0)
+    return status;
+  settings.tolerance_m = a.options.tolerance_mm / 1000;
+  settings.clearance_m = a.options.clearance_mm / 1000;
+  settings.between.word = a.options.between;
+  settings.with.word = a.options.with;
+  settings.include_connected = a.options.include_connected;
   settings.threads = a.threads;
 
   std::string error;
-  const auto store = Store::open(a.store, Store::Mode::read_only, error);
-  if (!store) return fail(error);
-  const auto view = store->read(error);
-  if (!view) return fail(error);
-  if (!settings.include_connected && view->info().objects > 0 &&
-      view->info().statistics.objects_by_class[int(ObjectClass::pipeline)] == 0)
-    return usage_error("clash: the store " + a.store +
-                       " has no piping topology (no pipeline objects: an RVM file without its attributes?), so "
-                       "the rules that exempt a line's own parts, connected ends, supports and nozzles cannot "
-                       "apply: run with --include-connected to report every contact");
-  for (const auto& [option, set] : {std::pair{"--between", &settings.between}, std::pair{"--and", &settings.with}}) {
-    bool matches = false;
-    if (!clash_set_matches(*view, *set, matches, error)) return fail(error);
-    if (!matches)
-      return usage_error(std::string("clash: ") + option + " '" + set->word +
-                         "' matches no object of the store (a class: equipment, pipeline, pipe, component, "
-                         "structure, other; or a glob on the tag)");
-  }
-  ClashReport previous;
-  if (!a.since.empty() && !read_report(a.since, previous, error)) return fail("--since " + error);
-
   Progress progress("clash");
   settings.progress = [&progress](double fraction, uint64_t found) {
     progress.update(fraction, std::to_string(found) + " clashes");
@@ -231,12 +228,8 @@ int run_clash(const ClashArgs& a) {
   ClashReport report;
   if (!find_clashes(*view, a.store, settings, report, error)) return fail(error);
   progress.finish();
-  if (!a.farm_dir.empty()) return finish_farm_task(report, a.farm_dir);
-  if (!a.since.empty() && !apply_previous(report, previous, error))
-    return fail("--since " + a.since + ": " + error);
-  std::string note;
-  if (!a.since.empty() && !name_changed_objects(report, *view, previous.revision, note))
-    std::cerr << "plantview clash: note: --since " << a.since << ": " << note << "\n";
+  if (!a.farm_dir.empty()) return finish_farm_task(report, a.farm_dir, *view, a.options.since);
+  if (!a.options.since.empty() && !apply_since(report, previous, *view, a.options.since, error)) return fail(error);
   return emit(report, a.out, a.json);
 }
 
@@ -247,23 +240,81 @@ int run_merge(const ClashArgs& a) {
   for (size_t i = 0; i < shards.size(); ++i)
     if (!read_report(a.merge_inputs[i], shards[i], error)) return fail(error);
   ClashReport merged;
-  if (!merge_reports(shards, merged, error)) return fail(error);
+  if (!merge_reports(std::move(shards), merged, error)) return fail(error);
   return emit(merged, a.merge_out, a.json);
 }
 
 }  // namespace
 
+int check_clash_options(const std::string& command, const ClashOptions& o, const std::string& store_dir,
+                        std::unique_ptr<ReadView>& view, ClashReport& previous) {
+  const auto runtime_failure = [&command](const std::string& message) {
+    std::cerr << "plantview " << command << ": " << message << "\n";
+    return 1;
+  };
+  const std::string max_mm = std::to_string(int(kClashMaxDistanceM * 1000));
+  if (!std::isfinite(o.tolerance_mm) || o.tolerance_mm < 0 || o.tolerance_mm > kClashMaxDistanceM * 1000)
+    return usage_error(command + ": --tolerance must be from 0 to " + max_mm + " mm, got " +
+                       std::to_string(o.tolerance_mm));
+  if (!std::isfinite(o.clearance_mm) || o.clearance_mm < 0 || o.clearance_mm > kClashMaxDistanceM * 1000)
+    return usage_error(command + ": --clearance must be from 0 (off) to " + max_mm + " mm, got " +
+                       std::to_string(o.clearance_mm));
+  if (o.between.empty() != o.with.empty()) return usage_error(command + ": --between and --and go together");
+
+  std::string error;
+  const auto store = Store::open(store_dir, Store::Mode::read_only, error);
+  if (!store) return runtime_failure(error);
+  view = store->read(error);
+  if (!view) return runtime_failure(error);
+  if (!o.include_connected && view->info().objects > 0 &&
+      view->info().statistics.objects_by_class[int(ObjectClass::pipeline)] == 0)
+    return usage_error(command + ": the store " + store_dir +
+                       " has no piping topology (no pipeline objects: an RVM file without its attributes?), so "
+                       "the rules that exempt a line's own parts, connected ends, supports and nozzles cannot "
+                       "apply: run with --include-connected to report every contact");
+  for (const auto& [option, word] : {std::pair{"--between", &o.between}, std::pair{"--and", &o.with}}) {
+    ClashSet set;
+    set.word = *word;
+    bool matches = false;
+    if (!clash_set_matches(*view, set, matches, error)) return runtime_failure(error);
+    if (!matches)
+      return usage_error(command + ": " + option + " '" + set.word +
+                         "' matches no object of the store (a class: equipment, pipeline, pipe, component, "
+                         "structure, other; or a glob on the tag)");
+  }
+  if (o.since.empty()) return 0;
+  if (!read_report(o.since, previous, error)) return runtime_failure("--since " + error);
+  // The store and settings a run would record (find_clashes), compared as apply_previous does.
+  if (!view->spatial_ready(error)) return runtime_failure(error);
+  ClashReport run;
+  std::error_code ec;
+  const auto canonical = std::filesystem::weakly_canonical(store_dir, ec);
+  run.store_directory = ec ? store_dir : canonical.string();
+  run.spatial_origin_m = view->spatial_origin();
+  run.tolerance_m = o.tolerance_mm / 1000;
+  run.clearance_m = o.clearance_mm / 1000;
+  run.between = o.between;
+  run.with = o.with;
+  run.include_connected = o.include_connected;
+  std::deque<Clash> clashes;
+  clashes.swap(previous.clashes);  // (apply_previous would copy them into `run` as resolved)
+  const bool fits = apply_previous(run, previous, error);
+  previous.clashes.swap(clashes);
+  if (!fits) return runtime_failure("--since " + o.since + ": " + error);
+  return 0;
+}
+
 Action add_clash_command(CLI::App& app) {
   auto args = std::make_shared<ClashArgs>();
   auto* clash = app.add_subcommand("clash", "Clash detection: objects that interpenetrate or come too close");
   clash->add_option("--store", args->store, "Store directory");
-  clash->add_option("--tolerance", args->tolerance_mm, "Hard clash: penetration deeper than this (mm, default 1)");
-  clash->add_option("--clearance", args->clearance_mm, "Clearance clash: closer than this (mm; default 0, off)");
-  clash->add_option("--between", args->between, "Only pairs with one object in this set (a class or a glob on the tag)");
-  clash->add_option("--and", args->with, "... and the other in this one");
-  clash->add_flag("--include-connected", args->include_connected,
+  clash->add_option("--tolerance", args->options.tolerance_mm, "Hard clash: penetration deeper than this (mm, default 1)");
+  clash->add_option("--clearance", args->options.clearance_mm, "Clearance clash: closer than this (mm; default 0, off)");
+  clash->add_option("--between", args->options.between, "Only pairs with one object in this set (a class or a glob on the tag)");
+  clash->add_option("--and", args->options.with, "... and the other in this one");
+  clash->add_flag("--include-connected", args->options.include_connected,
                   "Report what the rules exempt too (a pipeline's own parts, connected ends, supports)");
-  clash->add_option("--since", args->since, "A previous clashes.json of this store: mark clashes new, active, resolved");
+  clash->add_option("--since", args->options.since, "A previous clashes.json of this store: mark clashes new, active, resolved");
   clash->add_option("--out", args->out, "Write clashes.json here");
   clash->add_flag("--json", args->json, "Print clashes.json on stdout instead of the summary");
   clash->add_option("--shard", args->shard, "Check shard I of N of the block pairs (a spatial region)");

@@ -6,8 +6,14 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
+
+namespace plantview {
+class ReadView;
+struct ClashReport;
+}  // namespace plantview
 
 namespace plantview::cli {
 
@@ -79,5 +85,21 @@ int apply_revision_options(const std::string& command, const RevisionOptions& op
 std::string newest_revision_summary(const std::string& directory);
 // `plantview clash --store DIR [...]` and `clash merge`: clash detection (plantview/clash.h).
 Action add_clash_command(CLI::App& app);
+// The options `clash` and `farm submit --clash` share, as given (millimetres).
+struct ClashOptions {
+  double tolerance_mm = 1.0, clearance_mm = 0.0;
+  std::string between, with;
+  bool include_connected = false;
+  std::string since;  // a previous clashes.json; "" for none
+};
+// What `clash --store STORE` refuses, checked before anything runs or is written, in this order:
+// the tolerance and clearance in range, --between with --and (usage: 2); the store opened and
+// read (1); a store without piping topology unless --include-connected, a set that matches no
+// object, naming it (2); the --since file read whole and made by a run on this store with these
+// settings (1). 0 with the store's view in `view` and, with --since, the file's report in
+// `previous`; else the exit status, the message on
+// stderr naming `command` ("clash", "farm submit --clash"), the option and the path.
+int check_clash_options(const std::string& command, const ClashOptions& options, const std::string& store,
+                        std::unique_ptr<ReadView>& view, ClashReport& previous);
 
 }  // namespace plantview::cli

@@ -3,7 +3,10 @@
 // and the files in the output directory are stated in farm/scheduler.h and farm/manifest.h.
 #include <sys/stat.h>
 
+#include <charconv>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -16,6 +19,7 @@
 #include "cli/farm/manifest.h"
 #include "cli/farm/output_dir.h"
 #include "cli/farm/scheduler.h"
+#include "plantview/clash.h"
 #include "plantview/render.h"
 #include "plantview/store.h"
 
@@ -42,6 +46,7 @@ struct SubmitArgs {
   std::vector<std::pair<CLI::Option*, std::string>> clash_values;  // given only
   std::vector<std::string> clash_storage = std::vector<std::string>(8);
   CLI::Option* include_connected = nullptr;
+  std::string since;  // --since: a previous clashes.json (clash jobs only)
 };
 
 // The render options given to `farm submit`, as the shards' command line passes them on.
@@ -107,31 +112,108 @@ std::string stale_summary(const StaleViews& stale) {
 }
 
 // A clash job's marker in its output directory (farm status reads it): {"clash": true,
-// "tasks": N, "store": ...}.
+// "tasks": N, "store": ...}, and with --since "since": the copy's name in DIR (kClashSinceName)
+// and "since_from": the file given (absolute).
 constexpr const char* kClashJobName = "clash-job.json";
+// The --since file as submit copied it into DIR, where every task can read it (the merging
+// task applies it).
+constexpr const char* kClashSinceName = "clash-since.json";
 
-// Shard files done of a clash job of `tasks` shards in `dir`, and the merged file's clash
-// count (-1: not merged yet).
-void clash_progress(const fs::path& dir, uint32_t tasks, uint32_t& done, int64_t& clashes) {
-  std::error_code ec;
-  done = 0;
-  for (uint32_t i = 0; i < tasks; ++i)
-    done += fs::exists(dir / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(tasks) + ".json"), ec);
-  clashes = -1;
-  std::string text, error;
-  if (farm::read_file(dir / "clashes.json", text, error)) {
-    const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-    if (!j.is_discarded() && j.contains("clashes") && j["clashes"].is_array()) clashes = int64_t(j["clashes"].size());
-  }
-}
-
-nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks) {
+// A clash job's state: the shard files done of its `tasks` shards in `dir`, and once merged the
+// merged file's clashes found (new and active; -1: not merged yet) and its entries by status.
+struct ClashProgress {
   uint32_t done = 0;
   int64_t clashes = -1;
-  clash_progress(dir, tasks, done, clashes);
-  nlohmann::json out = {{"clash", true}, {"tasks", tasks}, {"shards_done", done}, {"complete", clashes >= 0}};
-  if (clashes >= 0) out["clashes"] = clashes;
+  std::map<std::string, int64_t> by_status;  // "new", "active", "resolved"
+};
+// Counts the clashes of a clashes.json by status from parser events (clash.h's format: each
+// clash an object in the top-level "clashes" list), never holding the file or its tree.
+struct StatusCounter final : nlohmann::json_sax<nlohmann::json> {
+  int64_t counts[3] = {};  // new, active, resolved
+  int depth = 0;
+  bool status_key = false;
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t&) override { return value(); }
+  bool string(string_t& v) override {
+    if (status_key) {
+      if (v == "new") ++counts[0];
+      else if (v == "active") ++counts[1];
+      else if (v == "resolved") ++counts[2];
+    }
+    return value();
+  }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override { return open(); }
+  bool end_object() override { return close(); }
+  bool start_array(std::size_t) override { return open(); }
+  bool end_array() override { return close(); }
+  bool key(string_t& k) override {
+    status_key = depth == 3 && k == "status";  // {"clashes": [{"status": ...}]}
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override { return false; }
+
+ private:
+  bool value() {
+    status_key = false;
+    return true;
+  }
+  bool open() {
+    ++depth;
+    return value();
+  }
+  bool close() {
+    --depth;
+    return true;
+  }
+};
+
+ClashProgress clash_progress(const fs::path& dir, uint32_t tasks) {
+  ClashProgress p;
+  std::error_code ec;
+  for (uint32_t i = 0; i < tasks; ++i)
+    p.done += fs::exists(dir / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(tasks) + ".json"), ec);
+  std::ifstream file(dir / "clashes.json", std::ios::binary);
+  StatusCounter counter;
+  if (file && nlohmann::json::sax_parse(file, &counter)) {
+    p.by_status = {{"new", counter.counts[0]}, {"active", counter.counts[1]}, {"resolved", counter.counts[2]}};
+    p.clashes = counter.counts[0] + counter.counts[1];
+  }
+  return p;
+}
+
+// The job's state as `farm status --json` prints it; with --since (`since`: the file given)
+// the merged file's new, active and resolved counts.
+nlohmann::json clash_status_json(const fs::path& dir, uint32_t tasks, const std::string& since) {
+  const ClashProgress p = clash_progress(dir, tasks);
+  nlohmann::json out = {{"clash", true}, {"tasks", tasks}, {"shards_done", p.done}, {"complete", p.clashes >= 0}};
+  if (p.clashes >= 0) out["clashes"] = p.clashes;
+  if (!since.empty()) {
+    out["since"] = since;
+    if (p.clashes >= 0)
+      for (const char* status : {"new", "active", "resolved"}) out[status] = p.by_status.at(status);
+  }
   return out;
+}
+
+// "12 clashes" once merged, with --since "12 clashes (since F: 1 new, 11 active, 2 resolved)".
+std::string clash_status_text(const nlohmann::json& status) {
+  if (!status["complete"].get<bool>()) return "not merged yet";
+  std::string text = "clashes.json: " + status["clashes"].dump() + " clashes";
+  if (status.contains("new"))
+    text += " (since " + status["since"].get<std::string>() + ": " + status["new"].dump() + " new, " +
+            status["active"].dump() + " active, " + status["resolved"].dump() + " resolved)";
+  return text;
+}
+
+// A clash option's value in millimetres, read as `clash` reads it: false when it is not a number.
+bool millimetres(const std::string& text, double& mm) {
+  char* end = nullptr;
+  mm = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size();
 }
 
 // --dry-run: what the job would run, the Slurm script or each local shard's command line.
@@ -156,8 +238,35 @@ int run_submit_clash(const SubmitArgs& a) {
     if (option->count() > 0)
       return usage_error("farm submit --clash: " + option->get_name() +
                          " is a render option (a clash job takes --tolerance, --clearance, --between, --and, "
-                         "--include-connected, --threads)");
+                         "--include-connected, --threads, --since)");
   std::string error;
+  // What every task (or the merge) would refuse is refused here, before anything is queued or
+  // an earlier job's output removed: the checks of `clash` itself (check_clash_options).
+  ClashOptions options;
+  for (const auto& [option, value] : a.clash_values) {
+    if (option->count() == 0) continue;
+    const std::string& name = option->get_name();
+    if (name == "--tolerance" || name == "--clearance") {
+      double& mm = name == "--tolerance" ? options.tolerance_mm : options.clearance_mm;
+      if (!millimetres(value, mm))
+        return usage_error("farm submit --clash: " + name + ": expected millimetres, got '" + value + "'");
+    }
+    unsigned threads = 0;
+    if (name == "--threads" && (std::from_chars(value.data(), value.data() + value.size(), threads).ptr !=
+                                    value.data() + value.size() ||
+                                value.empty()))
+      return usage_error("farm submit --clash: --threads: expected a whole number, got '" + value + "'");
+    if (name == "--between") options.between = value;
+    if (name == "--and") options.with = value;
+  }
+  options.include_connected = a.include_connected->count() > 0;
+  options.since = a.since;
+  {
+    std::unique_ptr<ReadView> view;
+    ClashReport previous;
+    if (const int status = check_clash_options("farm submit --clash", options, a.store, view, previous); status != 0)
+      return status;
+  }
   farm::FarmJob job;
   job.clash = true;
   job.tasks = a.tasks;
@@ -178,22 +287,28 @@ int run_submit_clash(const SubmitArgs& a) {
   if (ec) return fail("cannot find this program's path (/proc/self/exe): " + ec.message());
   job.store = fs::absolute(a.store);
   job.out = fs::absolute(a.out);
-  {
-    auto store = Store::open(job.store.string(), Store::Mode::read_only, error);
-    if (!store) return fail(error);
-    if (!store->read(error)) return fail(error);
-  }
+  // The merging task reads the previous result from DIR (a path every node reaches).
+  if (!a.since.empty()) job.clash_args.insert(job.clash_args.end(), {"--since", (job.out / kClashSinceName).string()});
   if (a.dry_run) {
     print_dry_run(job, a.scheduler);
     return 0;
   }
   if (!farm::prepare_output_dir(job.out, error) || !farm::prepare_output_dir(job.out / "logs", error))
     return fail(error);
-  // A new job: what an earlier one left (its shards, its merge) would read as this one's.
+  // The previous result copied first: --since may name DIR/clashes.json, removed next.
+  if (!a.since.empty() && !farm::copy_file_atomically(a.since, job.out / kClashSinceName, error))
+    return fail(error);
+  // A new job: what an earlier one left (its shards, its merge, its --since copy) would read as
+  // this one's.
   fs::remove(job.out / "clashes.json", ec);
+  if (a.since.empty()) fs::remove(job.out / kClashSinceName, ec);
   for (uint32_t i = 0; i < job.tasks; ++i)
     fs::remove(job.out / ("clash-shard-" + std::to_string(i) + "-of-" + std::to_string(job.tasks) + ".json"), ec);
-  const nlohmann::json marker = {{"clash", true}, {"tasks", job.tasks}, {"store", job.store.string()}};
+  nlohmann::json marker = {{"clash", true}, {"tasks", job.tasks}, {"store", job.store.string()}};
+  if (!a.since.empty()) {
+    marker["since"] = kClashSinceName;
+    marker["since_from"] = fs::absolute(a.since).string();
+  }
   if (!farm::write_file_atomically(job.out / kClashJobName, marker.dump() + "\n", error)) return fail(error);
   if (a.scheduler == "slurm") {
     const fs::path script = job.out / "farm.sbatch";
@@ -212,7 +327,8 @@ int run_submit_clash(const SubmitArgs& a) {
     return 0;
   }
   const bool shards_ok = farm::run_local_shards(job, error);
-  std::cout << clash_status_json(job.out, job.tasks).dump() << "\n";
+  std::cout << clash_status_json(job.out, job.tasks, a.since.empty() ? "" : fs::absolute(a.since).string()).dump()
+            << "\n";
   if (!shards_ok) return fail(error);
   return 0;
 }
@@ -220,6 +336,9 @@ int run_submit_clash(const SubmitArgs& a) {
 int run_submit(const SubmitArgs& a) {
   if (a.clash) return run_submit_clash(a);
   if (a.views.empty()) return usage_error("farm submit: --views is required (or --clash)");
+  if (!a.since.empty())
+    return usage_error("farm submit: --since is a clash job's option (--clash); a render job re-renders what "
+                       "changed by itself");
   std::string error, text;
   farm::FarmJob job;
   job.tasks = a.tasks;
@@ -327,15 +446,15 @@ int run_status(const std::string& dir, const std::string& store_dir, bool json) 
     const nlohmann::json marker = nlohmann::json::parse(text, nullptr, false);
     if (marker.is_discarded() || !marker.contains("tasks") || !marker["tasks"].is_number_unsigned())
       return fail((fs::path(dir) / kClashJobName).string() + ": not a clash job's marker");
-    const nlohmann::json out = clash_status_json(dir, marker["tasks"].get<uint32_t>());
-    if (json) {
+    const std::string since = marker.contains("since_from") && marker["since_from"].is_string()
+                                  ? marker["since_from"].get<std::string>()
+                                  : std::string();
+    const nlohmann::json out = clash_status_json(dir, marker["tasks"].get<uint32_t>(), since);
+    if (json)
       std::cout << out.dump() << "\n";
-    } else {
+    else
       std::cout << "clash job: " << out["shards_done"] << " of " << out["tasks"] << " shards done; "
-                << (out["complete"].get<bool>() ? "clashes.json: " + out["clashes"].dump() + " clashes"
-                                                : std::string("not merged yet"))
-                << "\n";
-    }
+                << clash_status_text(out) << "\n";
     return 0;
   }
   if (!fs::is_regular_file(fs::path(dir) / farm::kViewsCopyName, ec))
@@ -440,6 +559,9 @@ Action add_farm_command(CLI::App& app) {
     ++j;
   }
   a->include_connected = submit->add_flag("--include-connected")->description("clash: report what the rules exempt");
+  submit->add_option("--since", a->since,
+                     "clash: a previous clashes.json of this store and settings; the merge marks clashes new, "
+                     "active, resolved (copied into OUT at submit)");
 
   auto status_dir = std::make_shared<std::string>();
   auto status_json = std::make_shared<bool>(false);

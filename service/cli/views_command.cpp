@@ -96,9 +96,8 @@ int run_views(const ViewsArgs& a) {
     if (a.clashes.empty()) return usage_error("views --per clash: --clashes FILE (from plantview clash --out)");
     std::ifstream file(a.clashes, std::ios::binary);
     if (!file) return fail("cannot read " + a.clashes);
-    const std::string text((std::istreambuf_iterator<char>(file)), {});
     ClashReport report;
-    if (!parse_clash_report(text, report, error)) return fail(a.clashes + ": " + error);
+    if (!read_clash_report(file, report, error)) return fail(a.clashes + ": " + error);
     const auto view = store->read(error);
     if (!view) return fail(error);
     if (!clash_views(report, options.aspect, *view, views, error)) return fail(error);

@@ -65,7 +65,9 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <functional>
+#include <iosfwd>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -118,9 +120,39 @@ struct ClashSettings {
   std::function<void(double fraction, uint64_t clashes)> progress;
 };
 
+// An immutable text shared by the clashes that name it: an object's tag, a group. A run at 4
+// million objects holds millions of clashes, most of whose objects and groups recur; a copy is a
+// reference (8 bytes), not a string. Null-terminated; empty when default-made. Copies may be
+// used and dropped on different threads (the count is atomic).
+class ClashText {
+ public:
+  ClashText() = default;
+  explicit ClashText(std::string_view text);
+  ClashText(const ClashText& other) noexcept;
+  ClashText(ClashText&& other) noexcept : block_(other.block_) { other.block_ = nullptr; }
+  ClashText& operator=(ClashText other) noexcept {
+    std::swap(block_, other.block_);
+    return *this;
+  }
+  ~ClashText();
+  std::string_view view() const;
+  operator std::string_view() const { return view(); }
+  std::string str() const { return std::string(view()); }
+  const char* c_str() const;
+  bool empty() const { return view().empty(); }
+  friend bool operator==(const ClashText& x, const ClashText& y) { return x.view() == y.view(); }
+  friend bool operator==(const ClashText& x, std::string_view y) { return x.view() == y; }
+  friend auto operator<=>(const ClashText& x, const ClashText& y) { return x.view() <=> y.view(); }
+
+ private:
+  struct Block;
+  Block* block_ = nullptr;
+};
+std::ostream& operator<<(std::ostream& out, const ClashText& text);
+
 struct ClashObject {
   uint64_t id = 0;
-  std::string tag;
+  ClashText tag;
   ObjectClass object_class = ObjectClass::other;
   uint64_t pipeline_id = 0;
 };
@@ -138,12 +170,12 @@ struct Clash {
   double distance_m = 0;          // clearance: the minimum distance (0 touching)
   double error_m = 0;             // bound on depth/distance from tessellation (0: exact parts)
   std::vector<glm::dvec3> points_m;  // at least one
-  std::string group;
+  ClashText group;
   uint64_t changed_id = 0;        // a new clash's object that changed since the previous run
                                   // (name_changed_objects; 0: none named). Its tag is written
                                   // beside it in clashes.json ("changed_tag") and the caption.
   // The tag of changed_id's object ("" when none).
-  const std::string& changed_tag() const;
+  const ClashText& changed_tag() const;
 };
 
 struct ClashCounts {
@@ -162,7 +194,9 @@ struct ClashReport {
   std::string between, with;
   bool include_connected = false;
   ClashShard shard;
-  std::vector<Clash> clashes;    // sorted (above); resolved ones last, after status
+  // Sorted (above); resolved ones last, after status. A deque: it grows without moving what it
+  // holds, so a run of millions of clashes holds each once (find_clashes' workers append to it).
+  std::deque<Clash> clashes;
   ClashCounts counts;
 };
 
@@ -188,11 +222,12 @@ bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t si
                           std::string& note);
 
 // Sorts the clashes (the order above); merge_reports() and find_clashes() call it.
-void sort_clashes(std::vector<Clash>& clashes);
+void sort_clashes(std::deque<Clash>& clashes);
 
 // The shards' reports as one: the same store and settings (else false, naming the file index),
 // each shard index once; clashes merged and sorted; counts summed; shard 0/1.
-bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error);
+// The shards are taken (moved from: pass std::move where they are not needed again).
+bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::string& error);
 
 // clashes.json (version 1): {"version":1,"store":{...},"settings":{...},"counts":{...},
 //  "clashes":[{"id":"hex16","status":"new","kind":"hard","a":{"id":"..","tag":"..",
@@ -204,7 +239,10 @@ std::string clash_report_json(const ClashReport& report);
 bool write_clash_report(const ClashReport& report, const std::function<bool(std::string_view)>& sink);
 // Reads it back; false with a message for text that is not JSON, truncated, another version,
 // or a missing or mistyped field (naming it and the clash index).
+// The file is read as a stream of parser events: each clash is kept as a Clash, never the
+// document's tree (a run at millions of clashes writes gigabytes).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error);
 
 // Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
 // "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted; the

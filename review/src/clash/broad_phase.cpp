@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cassert>
+#include <deque>
 #include <filesystem>
 #include <memory>
 #include <mutex>
@@ -57,8 +58,14 @@ struct Worker {
   glm::dvec3 frame_origin{0.0};
   std::unordered_map<uint32_t, Object> objects;
   std::unordered_map<uint32_t, std::unique_ptr<MeasureShapes>> shapes;
-  std::unordered_map<uint64_t, std::string> owner_tags;
-  std::vector<Clash> clashes;
+  // Texts shared by this worker's clashes (clash.h: ClashText): pipelines' tags for the run,
+  // objects' tags and groups for the task (the objects of one task recur in its clashes).
+  std::unordered_map<uint64_t, ClashText> owner_tags, tags;
+  struct PairHash {
+    size_t operator()(const std::pair<uint64_t, uint64_t>& p) const { return std::hash<uint64_t>()(p.first * 31 + p.second); }
+  };
+  std::unordered_map<std::pair<uint64_t, uint64_t>, ClashText, PairHash> groups;
+  std::vector<Clash> clashes;  // the current task's, handed to the report when it is done
   ClashCounts counts;
 
   const Object* object(uint32_t slot, std::string& error) {
@@ -76,18 +83,34 @@ struct Worker {
                                                !(settings->clearance_m > 0));
     return *s;
   }
+  const ClashText& tag(const Object& o) {
+    auto it = tags.find(o.id);
+    if (it == tags.end()) it = tags.emplace(o.id, ClashText(o.name)).first;
+    return it->second;
+  }
   // The tag of the object's owner: its pipeline's, else its own (clash.h, groups).
-  std::string owner(const Object& o) {
-    if (o.pipeline_id == 0) return o.name.empty() ? std::to_string(o.id) : o.name;
+  ClashText owner(const Object& o) {
+    if (o.pipeline_id == 0) return o.name.empty() ? ClashText(std::to_string(o.id)) : tag(o);
     auto it = owner_tags.find(o.pipeline_id);
     if (it == owner_tags.end()) {
-      std::string tag = std::to_string(o.pipeline_id);
+      std::string name = std::to_string(o.pipeline_id);
       std::string error;
       Object line;
       if (const auto slot = view->slot_of(o.pipeline_id); slot && view->object(*slot, line, false, error) &&
                                                            !line.name.empty())
-        tag = line.name;
-      it = owner_tags.emplace(o.pipeline_id, std::move(tag)).first;
+        name = line.name;
+      it = owner_tags.emplace(o.pipeline_id, ClashText(name)).first;
+    }
+    return it->second;
+  }
+  // The group of two objects (clash.h): their owners' tags, sorted, joined by " x ".
+  const ClashText& group(const Object& a, const Object& b) {
+    const auto key = std::minmax(a.pipeline_id ? a.pipeline_id : a.id, b.pipeline_id ? b.pipeline_id : b.id);
+    auto it = groups.find(key);
+    if (it == groups.end()) {
+      const ClashText oa = owner(a), ob = owner(b);
+      const bool swap = ob.view() < oa.view();
+      it = groups.emplace(key, ClashText((swap ? ob : oa).str() + " x " + (swap ? oa : ob).str())).first;
     }
     return it->second;
   }
@@ -139,10 +162,10 @@ struct Worker {
   bool task(uint32_t block_a, uint32_t block_b, std::string& error);
 };
 
-ClashObject clash_object(const Object& o) {
+ClashObject clash_object(const Object& o, const ClashText& tag) {
   ClashObject c;
   c.id = o.id;
-  c.tag = o.name;
+  c.tag = tag;
   c.object_class = o.object_class;
   c.pipeline_id = o.pipeline_id;
   return c;
@@ -189,17 +212,15 @@ bool Worker::pair(uint32_t slot_a, uint32_t slot_b, std::string& error) {
   const bool swap = b->id < a->id;
   const Object& lo = swap ? *b : *a;
   const Object& hi = swap ? *a : *b;
-  c.a = clash_object(lo);
-  c.b = clash_object(hi);
+  c.a = clash_object(lo, tag(lo));
+  c.b = clash_object(hi, tag(hi));
   c.kind = found->kind;
   c.depth_m = found->depth_m;
   c.distance_m = found->distance_m;
   c.error_m = found->error_m;
   c.points_m = std::move(found->points_m);
   c.id = clash_detail::clash_id(c.a.id, c.b.id, c.points_m.front());
-  std::string oa = owner(lo), ob = owner(hi);
-  if (ob < oa) std::swap(oa, ob);
-  c.group = oa + " x " + ob;
+  c.group = group(lo, hi);
   clashes.push_back(std::move(c));
   return true;
 }
@@ -207,6 +228,8 @@ bool Worker::pair(uint32_t slot_a, uint32_t slot_b, std::string& error) {
 bool Worker::task(uint32_t block_a, uint32_t block_b, std::string& error) {
   objects.clear();
   shapes.clear();
+  tags.clear();
+  groups.clear();
   const auto first = view->spatial_block(block_a, error);
   if (!first) return false;
   std::shared_ptr<const SpatialBlock> second;
@@ -240,7 +263,7 @@ bool Worker::task(uint32_t block_a, uint32_t block_b, std::string& error) {
 
 }  // namespace
 
-void sort_clashes(std::vector<Clash>& clashes) {
+void sort_clashes(std::deque<Clash>& clashes) {
   std::sort(clashes.begin(), clashes.end(), [](const Clash& x, const Clash& y) {
     if (x.status == ClashStatus::resolved) {
       if (y.status != ClashStatus::resolved) return false;
@@ -316,18 +339,22 @@ bool find_clashes(const ReadView& view, const std::string& directory, const Clas
   std::atomic<size_t> next{0}, done{0};
   std::atomic<uint64_t> found{0};
   std::atomic<bool> failed{false};
-  std::mutex mutex;  // the first error, the progress callback
+  std::mutex mutex;  // the first error, the progress callback, out.clashes
   std::string first_error;
   const auto work = [&](Worker& w) {
     for (size_t k; !failed && (k = next.fetch_add(1)) < tasks.size();) {
-      const size_t before = w.clashes.size();
       std::string e;
       if (!w.task(tasks[k].first, tasks[k].second, e)) {
         std::lock_guard lock(mutex);
         if (!failed.exchange(true)) first_error = e;
         return;
       }
-      found += w.clashes.size() - before;
+      found += w.clashes.size();
+      {  // the task's clashes join the report's (held once: no gathering at the end)
+        std::lock_guard lock(mutex);
+        for (Clash& c : w.clashes) out.clashes.push_back(std::move(c));
+      }
+      w.clashes.clear();
       const size_t d = ++done;
       if (settings.progress) {
         std::lock_guard lock(mutex);
@@ -343,13 +370,7 @@ bool find_clashes(const ReadView& view, const std::string& directory, const Clas
     error = first_error;
     return false;
   }
-  size_t total = 0;
-  for (const Worker& w : workers) total += w.clashes.size();
-  out.clashes.reserve(total);
   for (Worker& w : workers) {
-    out.clashes.insert(out.clashes.end(), std::make_move_iterator(w.clashes.begin()),
-                       std::make_move_iterator(w.clashes.end()));
-    std::vector<Clash>().swap(w.clashes);  // each worker's list goes as it is moved over
     out.counts.candidate_pairs += w.counts.candidate_pairs;
     out.counts.narrow_pairs += w.counts.narrow_pairs;
     for (int r = 0; r < kClashRuleCount; ++r) out.counts.skipped_by_rule[r] += w.counts.skipped_by_rule[r];

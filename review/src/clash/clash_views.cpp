@@ -27,7 +27,9 @@ std::string fixed(double v, const char* format) {
   return buf;
 }
 
-std::string name_of(const ClashObject& o) { return o.tag.empty() ? std::to_string(o.id) : o.tag; }
+std::string name_of(const ClashObject& o) {
+  return o.tag.empty() ? std::to_string(o.id) : std::string(std::string_view(o.tag));
+}
 
 std::string side(const ClashObject& o) {
   return name_of(o) + " (" + std::string(class_name(o.object_class)) + ")";
@@ -178,9 +180,10 @@ bool make_views(const ClashReport& report, double aspect, const SizesOf& sizes_o
         c.kind == ClashKind::hard ? std::pair<std::string, std::string>{"depth", fixed(c.depth_m * 1000, "%.1f mm")}
                                   : std::pair<std::string, std::string>{"distance", fixed(c.distance_m * 1000, "%.1f mm")},
         {"point", fixed(p.x, "%.3f") + ", " + fixed(p.y, "%.3f") + ", " + fixed(p.z, "%.3f") + " m"},
-        {"group", c.group}};
+        {"group", c.group.str()}};
     if (c.changed_id)
-      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id) : c.changed_tag());
+      v.attributes.emplace_back("changed", c.changed_tag().empty() ? std::to_string(c.changed_id)
+                                                                   : std::string(std::string_view(c.changed_tag())));
     views.push_back(std::move(v));
   }
   out = std::move(views);

@@ -6,7 +6,6 @@
 #include <numbers>
 #include <unordered_map>
 
-#include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/box.h>
 #include <fcl/geometry/shape/cone.h>
 #include <fcl/geometry/shape/cylinder.h>
@@ -20,7 +19,6 @@ namespace plantview::clash_detail {
 
 namespace {
 
-using Mesh = fcl::BVHModel<fcl::OBBRSSd>;
 constexpr int kRimPoints = 32;
 
 struct Contact {
@@ -28,11 +26,50 @@ struct Contact {
   double depth_m = 0;
 };
 
-// The points that stand for a part's surface in the vertex depth (frame coordinates): a
-// mesh's vertices on the surface, a box's corners, points on a cylinder's or cone's rims and a cone's apex.
-std::vector<fcl::Vector3d> part_points(MeasureShapes::Impl& set, MeasurePart& part) {
-  std::vector<fcl::Vector3d> out;
-  const fcl::CollisionGeometryd& g = set.geometry(part);
+// Whether a mesh part's inside is known exactly (measure_internal.h: MeasurePart::solid), and
+// its local frame: the placement's columns orthogonal and of one length (a mirror allowed).
+void find_solid(const Primitive& primitive, const glm::dvec3& object_offset_m, MeasurePart& part) {
+  const auto* torus = std::get_if<CircularTorus>(&primitive.shape);
+  const auto* dish = std::get_if<SphericalDish>(&primitive.shape);
+  if (!torus && !dish) return;
+  glm::dvec3 axis[3];
+  double scale = 0;
+  for (int i = 0; i < 3; ++i) {
+    axis[i] = glm::dvec3(primitive.placement.linear[i]);
+    const double length = glm::length(axis[i]);
+    if (!(length > 0) || !std::isfinite(length)) return;
+    if (i > 0 && std::abs(length - scale) > 1e-6 * scale) return;
+    scale = length;
+    axis[i] /= length;
+  }
+  for (int i = 0; i < 3; ++i)
+    if (std::abs(glm::dot(axis[i], axis[(i + 1) % 3])) > 1e-5) return;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) part.axes(r, c) = axis[r][c];
+  const glm::dvec3 t = object_offset_m + glm::dvec3(primitive.placement.translation_m);
+  part.origin = fcl::Vector3d(t.x, t.y, t.z);
+  if (torus) {
+    if (!(torus->tube_radius_m > 0) || !(torus->angle_rad > 0)) return;
+    part.solid = MeasurePart::Solid::circular_torus;
+    part.size[0] = double(torus->bend_radius_m) * scale;
+    part.size[1] = double(torus->tube_radius_m) * scale;
+    part.size[2] = double(torus->angle_rad);
+  } else {
+    const double b = double(dish->base_radius_m) * scale, h = double(dish->height_m) * scale;
+    if (!(b > 0) || !(h > 0)) return;
+    part.solid = MeasurePart::Solid::spherical_dish;
+    part.size[0] = (b * b + h * h) / (2 * h);  // the sphere's radius
+    part.size[1] = h - part.size[0];           // its centre's z
+  }
+}
+
+// The points that stand for a part's surface in the vertex depth (frame coordinates), made
+// once per part: a mesh's tessellation vertices on the true surface (the mesh's own are fitted
+// to straddle it), a box's corners, points on a cylinder's or cone's rims and a cone's apex.
+const std::vector<fcl::Vector3d>& part_points(MeasureShapes::Impl& set, MeasurePart& part) {
+  if (part.has_surface_points) return part.surface_points;
+  part.has_surface_points = true;
+  std::vector<fcl::Vector3d>& out = part.surface_points;
   const auto rim = [&](double radius, double z) {
     for (int i = 0; i < kRimPoints; ++i) {
       const double t = 2 * std::numbers::pi * i / kRimPoints;
@@ -40,13 +77,18 @@ std::vector<fcl::Vector3d> part_points(MeasureShapes::Impl& set, MeasurePart& pa
     }
   };
   if (part.mesh) {
-    // The tessellation's vertices on the true surface (the mesh's are fitted to straddle it).
     const Primitive& primitive = set.primitives[part.primitive];
-    const PrimitiveTriangles on_surface =
-        primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level, kOnSurface);
-    out.reserve(on_surface.positions.size());
-    for (const glm::vec3& p : on_surface.positions) out.push_back(part.transform * fcl::Vector3d(p.x, p.y, p.z));
-  } else if (const auto* box = dynamic_cast<const fcl::Boxd*>(&g)) {
+    find_solid(primitive, set.object_offset_m, part);
+    const MeshPlan plan = plan_mesh(primitive);
+    std::vector<PackedVertex> vertices(plan.vertex_count);
+    write_vertices(primitive, plan, glm::dvec3(0.0), vertices, kOnSurface);
+    out.reserve(vertices.size());
+    for (const PackedVertex& v : vertices)
+      out.push_back(part.transform * fcl::Vector3d(v.position_m.x, v.position_m.y, v.position_m.z));
+    return out;
+  }
+  const fcl::CollisionGeometryd& g = set.geometry(part);
+  if (const auto* box = dynamic_cast<const fcl::Boxd*>(&g)) {
     for (int i = 0; i < 8; ++i)
       out.push_back(part.transform * fcl::Vector3d((i & 1 ? 0.5 : -0.5) * box->side[0],
                                                    (i & 2 ? 0.5 : -0.5) * box->side[1],
@@ -83,37 +125,38 @@ fcl::Vector3d closest_on_triangle(const fcl::Vector3d& p, const fcl::Vector3d& a
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
-// A mesh's triangles with their bounds (the mesh's frame), made once per part and pair.
-struct TriangleSet {
-  std::vector<fcl::Vector3d> corners;  // three a triangle
-  std::vector<fcl::AABBd> bounds;
-};
-
-template <typename BV>
-void triangle_set(const fcl::BVHModel<BV>& mesh, TriangleSet& out) {
-  out.corners.reserve(size_t(mesh.num_tris) * 3);
-  out.bounds.reserve(size_t(mesh.num_tris));
-  for (int t = 0; t < mesh.num_tris; ++t) {
-    const fcl::Triangle& tri = mesh.tri_indices[t];
-    const fcl::Vector3d &v0 = mesh.vertices[tri[0]], &v1 = mesh.vertices[tri[1]], &v2 = mesh.vertices[tri[2]];
-    out.corners.insert(out.corners.end(), {v0, v1, v2});
-    fcl::AABBd box(v0, v1);
-    box += v2;
-    out.bounds.push_back(box);
+// A mesh part's triangles with their bounds (its own frame: relative to the object's origin),
+// from the tessellation its mesh is built of (measure_internal.h), made once per part.
+void triangle_set(MeasureShapes::Impl& set, MeasurePart& part) {
+  const Primitive& primitive = set.primitives[part.primitive];
+  const PrimitiveTriangles t = primitive_triangles(primitive, plan_mesh(primitive), part.mesh_level, part.mesh_level);
+  part.triangle_corners.reserve(t.indices.size());
+  part.triangle_bounds.reserve(t.indices.size() / 3);
+  for (size_t i = 0; i + 2 < t.indices.size(); i += 3) {
+    fcl::Vector3d v[3];
+    for (int k = 0; k < 3; ++k) {
+      const glm::vec3& p = t.positions[t.indices[i + k]];
+      v[k] = fcl::Vector3d(p.x, p.y, p.z);
+      part.triangle_corners.push_back(v[k]);
+    }
+    fcl::AABBd box(v[0], v[1]);
+    box += v[2];
+    part.triangle_bounds.push_back(box);
   }
 }
 
 // How deep a point (the mesh's frame) lies behind a mesh: the distance to its nearest triangle
 // when behind that triangle (outward winding), else 0.
-double depth_in_mesh(const TriangleSet& mesh, const fcl::Vector3d& p) {
+double depth_in_mesh(const MeasurePart& mesh, const fcl::Vector3d& p) {
   double best = std::numeric_limits<double>::infinity();
   double depth = 0;
-  for (size_t t = 0; t < mesh.bounds.size(); ++t) {
+  for (size_t t = 0; t < mesh.triangle_bounds.size(); ++t) {
     // The triangle's bounds are no nearer than the best: it cannot be nearer.
-    const fcl::AABBd& b = mesh.bounds[t];
+    const fcl::AABBd& b = mesh.triangle_bounds[t];
     const double gap = (b.min_ - p).cwiseMax(p - b.max_).cwiseMax(0.0).squaredNorm();
     if (gap >= best * best) continue;
-    const fcl::Vector3d &v0 = mesh.corners[3 * t], &v1 = mesh.corners[3 * t + 1], &v2 = mesh.corners[3 * t + 2];
+    const fcl::Vector3d &v0 = mesh.triangle_corners[3 * t], &v1 = mesh.triangle_corners[3 * t + 1],
+                        &v2 = mesh.triangle_corners[3 * t + 2];
     const fcl::Vector3d q = closest_on_triangle(p, v0, v1, v2);
     const double d = (p - q).norm();
     if (d < best) {
@@ -129,27 +172,45 @@ struct Query {
   MeasureShapes::Impl* b = nullptr;
   std::vector<Contact> contacts;
   double error_m = 0;
-  std::unordered_map<const MeasurePart*, TriangleSet> triangles;  // meshes' triangles, once
 };
 
+// How deep a point (local coordinates) lies inside a circular torus or spherical dish part
+// (MeasurePart::solid): its distance to the surface, 0 outside.
+double depth_in_solid(const MeasurePart& part, const fcl::Vector3d& p) {
+  if (part.solid == MeasurePart::Solid::spherical_dish) {
+    const double radius = part.size[0], centre_z = part.size[1];
+    return std::max(0.0, std::min(radius - (p - fcl::Vector3d(0, 0, centre_z)).norm(), p.z()));
+  }
+  const double bend = part.size[0], tube = part.size[1], angle = part.size[2];
+  const double rho = std::hypot(p.x(), p.y());
+  double depth = tube - std::hypot(rho - bend, p.z());
+  if (depth <= 0) return 0;
+  if (angle < 2 * std::numbers::pi - 1e-9) {  // open: inside the swept angle, short of each end cap
+    double theta = std::atan2(p.y(), p.x());
+    if (theta < 0) theta += 2 * std::numbers::pi;
+    if (theta > angle) return 0;
+    const auto to_cap = [rho](double from_cap) {
+      return from_cap < std::numbers::pi / 2 ? rho * std::sin(from_cap) : rho;
+    };
+    depth = std::min({depth, to_cap(theta), to_cap(angle - theta)});
+  }
+  return std::max(0.0, depth);
+}
+
 // How deep a point (frame coordinates) lies inside a part: the distance to its surface, 0
-// outside. Exact kinds analytically; a mesh by its nearest triangle, inside when behind it.
-double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vector3d& p_frame,
-                    std::unordered_map<const MeasurePart*, TriangleSet>& triangles) {
+// outside. Exact kinds and solid meshes analytically; other meshes by their nearest triangle,
+// inside when behind it.
+double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vector3d& p_frame) {
   const fcl::AABBd& box = part.proxy->getAABB();
   if ((p_frame.array() < box.min_.array()).any() || (p_frame.array() > box.max_.array()).any()) return 0;
-  const fcl::CollisionGeometryd& g = set.geometry(part);
-  const fcl::Vector3d p = part.transform.inverse() * p_frame;
   if (part.mesh) {
-    auto [it, added] = triangles.try_emplace(&part);
-    if (added) {
-      if (set.collide_only)
-        triangle_set(static_cast<const fcl::BVHModel<fcl::AABBd>&>(g), it->second);
-      else
-        triangle_set(static_cast<const Mesh&>(g), it->second);
-    }
-    return depth_in_mesh(it->second, p);
+    part_points(set, part);  // finds the solid
+    if (part.solid != MeasurePart::Solid::none) return depth_in_solid(part, part.axes * (p_frame - part.origin));
+    if (part.triangle_bounds.empty()) triangle_set(set, part);
+    return depth_in_mesh(part, p_frame - part.transform.translation());
   }
+  const fcl::CollisionGeometryd& g = set.geometry(part);
+  const fcl::Vector3d p = part.transform.linear().transpose() * (p_frame - part.transform.translation());
   if (const auto* b = dynamic_cast<const fcl::Boxd*>(&g)) {
     const fcl::Vector3d h = b->side * 0.5;
     const fcl::Vector3d room = h - p.cwiseAbs();
@@ -167,13 +228,14 @@ double depth_inside(MeasureShapes::Impl& set, MeasurePart& part, const fcl::Vect
   return 0;  // a line (capsule of radius 0) has no inside
 }
 
-// The depth of two overlapping parts (clash.h).
-double part_depth(Query& q, MeasurePart& pa, MeasurePart& pb, double ccd_depth_m) {
-  if (!pa.mesh && !pb.mesh && ccd_depth_m > 0) return ccd_depth_m;
-  double depth = 0;
-  for (const fcl::Vector3d& p : part_points(*q.a, pa)) depth = std::max(depth, depth_inside(*q.b, pb, p, q.triangles));
-  for (const fcl::Vector3d& p : part_points(*q.b, pb)) depth = std::max(depth, depth_inside(*q.a, pa, p, q.triangles));
-  return depth;
+// The deepest point of either part inside the other (clash.h): its depth, and where it is.
+Contact deepest_point(Query& q, MeasurePart& pa, MeasurePart& pb) {
+  Contact deepest;
+  for (const fcl::Vector3d& p : part_points(*q.a, pa))
+    if (const double d = depth_inside(*q.b, pb, p); d > deepest.depth_m) deepest = {p, d};
+  for (const fcl::Vector3d& p : part_points(*q.b, pb))
+    if (const double d = depth_inside(*q.a, pa, p); d > deepest.depth_m) deepest = {p, d};
+  return deepest;
 }
 
 bool owns(const MeasureShapes::Impl& set, const MeasurePart* part) {
@@ -185,14 +247,24 @@ bool collide_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* da
   auto* pa = static_cast<MeasurePart*>(o1->getUserData());
   auto* pb = static_cast<MeasurePart*>(o2->getUserData());
   if (!owns(*q.a, pa)) std::swap(pa, pb);
+  if (pa->mesh || pb->mesh) {
+    // Where a mesh is involved the depth is the deepest sampled point, so the points alone say
+    // whether the parts overlap: no mesh tree is built (its build was most of a run's time).
+    const Contact deepest = deepest_point(q, *pa, *pb);
+    if (deepest.depth_m > 0) {
+      q.contacts.push_back(deepest);
+      q.error_m = std::max(q.error_m, pa->error_m + pb->error_m);
+    }
+    return false;
+  }
   fcl::CollisionRequestd request(1, true);
   request.gjk_solver_type = fcl::GST_LIBCCD;
   fcl::CollisionResultd result;
   fcl::collide(&q.a->geometry(*pa), pa->transform, &q.b->geometry(*pb), pb->transform, request, result);
   if (result.numContacts() == 0) return false;
   const fcl::Contactd& c = result.getContact(0);
-  q.contacts.push_back({c.pos, part_depth(q, *pa, *pb, std::max(0.0, c.penetration_depth))});
-  q.error_m = std::max(q.error_m, pa->error_m + pb->error_m);
+  const double depth = c.penetration_depth > 0 ? c.penetration_depth : deepest_point(q, *pa, *pb).depth_m;
+  q.contacts.push_back({c.pos, depth});
   return false;
 }
 

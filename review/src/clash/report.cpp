@@ -2,8 +2,10 @@
 #include <algorithm>
 #include <cassert>
 #include <functional>
+#include <istream>
 #include <charconv>
 #include <cstdio>
+#include <unordered_map>
 
 #include <nlohmann/json.hpp>
 
@@ -26,7 +28,7 @@ std::string hex(uint64_t v) {
 
 json side(const ClashObject& o) {
   return {{"id", std::to_string(o.id)},
-          {"tag", o.tag},
+          {"tag", o.tag.str()},
           {"class", std::string(class_name(o.object_class))},
           {"pipeline_id", std::to_string(o.pipeline_id)}};
 }
@@ -63,12 +65,25 @@ glm::dvec3 point(const json& v, const std::string& where) {
     throw Bad{where + ": a point must be a list of 3 numbers"};
   return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
 }
-ClashObject read_side(const json& j, const char* key, const std::string& where) {
+// The texts of a file being read: each tag and group made once (clash.h: ClashText).
+struct Texts {
+  std::unordered_map<std::string, ClashText> made;
+  ClashText operator()(std::string text) {
+    auto it = made.find(text);
+    if (it == made.end()) {
+      ClashText shared(text);
+      it = made.emplace(std::move(text), std::move(shared)).first;
+    }
+    return it->second;
+  }
+};
+
+ClashObject read_side(const json& j, const char* key, const std::string& where, Texts& texts) {
   const json& s = field(j, key, where);
   const std::string w = where + "." + key;
   ClashObject o;
   o.id = decimal(s, "id", w);
-  o.tag = text(s, "tag", w);
+  o.tag = texts(text(s, "tag", w));
   if (!class_from_name(text(s, "class", w), o.object_class)) throw Bad{w + ": unknown 'class'"};
   o.pipeline_id = decimal(s, "pipeline_id", w);
   return o;
@@ -90,10 +105,10 @@ static json clash_json(const Clash& c) {
   json points = json::array();
   for (const glm::dvec3& p : c.points_m) points.push_back(xyz(p));
   j["points_m"] = std::move(points);
-  j["group"] = c.group;
+  j["group"] = c.group.str();
   if (c.changed_id) {
     j["changed_id"] = std::to_string(c.changed_id);
-    j["changed_tag"] = c.changed_tag();  // (for readers; derived from changed_id)
+    j["changed_tag"] = c.changed_tag().str();  // (for readers; derived from changed_id)
   }
   return j;
 }
@@ -157,13 +172,129 @@ std::string clash_report_json(const ClashReport& r) {
 }
 
 
-bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
-  const json j = json::parse(input, nullptr, false);
-  if (j.is_discarded()) {
-    error = "not JSON (truncated or damaged)";
+namespace {
+
+// One clash of the file (clash.h's format), naming the field and the clash index when wrong.
+Clash read_clash(const json& c, size_t i, Texts& texts) {
+  const std::string where = "clash " + std::to_string(i);
+  Clash k;
+  k.id = decimal(c, "id", where, 16);
+  const std::string status = text(c, "status", where);
+  if (status == "new") k.status = ClashStatus::new_clash;
+  else if (status == "active") k.status = ClashStatus::active;
+  else if (status == "resolved") k.status = ClashStatus::resolved;
+  else throw Bad{where + ": unknown 'status'"};
+  const std::string kind = text(c, "kind", where);
+  if (kind == "hard") k.kind = ClashKind::hard;
+  else if (kind == "clearance") k.kind = ClashKind::clearance;
+  else throw Bad{where + ": unknown 'kind'"};
+  k.a = read_side(c, "a", where, texts);
+  k.b = read_side(c, "b", where, texts);
+  if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
+  else k.distance_m = number(c, "distance_m", where);
+  k.error_m = number(c, "error_m", where);
+  const json& points = field(c, "points_m", where);
+  if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
+  for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
+  k.group = texts(text(c, "group", where));
+  if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
+  return k;
+}
+
+// Reads a clashes file from parser events: the document as a tree, except that each element of
+// the top-level "clashes" list becomes a Clash as soon as it is complete and its tree is dropped,
+// so a file of millions of clashes is never held as JSON. Bad values throw Bad.
+class ReportReader final : public nlohmann::json_sax<json> {
+ public:
+  json root;
+  std::deque<Clash> clashes;
+  std::string parse_error_message;
+
+  bool null() override { return add(nullptr); }
+  bool boolean(bool v) override { return add(v); }
+  bool number_integer(number_integer_t v) override { return add(v); }
+  bool number_unsigned(number_unsigned_t v) override { return add(v); }
+  bool number_float(number_float_t v, const string_t&) override { return add(v); }
+  bool string(string_t& v) override { return add(std::move(v)); }
+  bool binary(binary_t&) override { return false; }
+  bool start_object(std::size_t) override {
+    if (in_clash_list()) {  // a clash: built aside
+      clash_ = json::object();
+      stack_.push_back(&clash_);
+      return true;
+    }
+    stack_.push_back(add_container(json::object()));
+    return true;
+  }
+  bool key(string_t& k) override {
+    key_ = &(*stack_.back())[k];
+    if (stack_.size() == 1) top_key_ = k;
+    return true;
+  }
+  bool end_object() override {
+    const json* done = stack_.back();
+    stack_.pop_back();
+    if (done == &clash_) {
+      clashes.push_back(read_clash(clash_, clashes.size(), texts_));
+      clash_ = json();
+    }
+    return true;
+  }
+  bool start_array(std::size_t) override {
+    json* list = add_container(json::array());
+    if (stack_.size() == 1 && top_key_ == "clashes") clash_list_ = list;
+    stack_.push_back(list);
+    return true;
+  }
+  bool end_array() override {
+    stack_.pop_back();
+    return true;
+  }
+  bool parse_error(std::size_t position, const std::string&, const nlohmann::detail::exception&) override {
+    parse_error_message = "not JSON (truncated or damaged) at byte " + std::to_string(position);
     return false;
   }
+
+ private:
+  std::vector<json*> stack_;
+  json* key_ = nullptr;
+  json* clash_list_ = nullptr;
+  std::string top_key_;
+  json clash_;
+  Texts texts_;
+
+  bool in_clash_list() const { return clash_list_ && !stack_.empty() && stack_.back() == clash_list_; }
+  template <typename V>
+  bool add(V&& v) {
+    if (in_clash_list()) throw Bad{"clash " + std::to_string(clashes.size()) + ": must be an object"};
+    add_container(json(std::forward<V>(v)));
+    return true;
+  }
+  // Places the value where the events say (the root, a list's end, an object's key): its address.
+  json* add_container(json&& v) {
+    if (stack_.empty()) {
+      root = std::move(v);
+      return &root;
+    }
+    json& parent = *stack_.back();
+    if (parent.is_array()) {
+      parent.push_back(std::move(v));
+      return &parent.back();
+    }
+    *key_ = std::move(v);
+    return key_;
+  }
+};
+
+template <typename Parse>
+bool read_report(Parse&& parse, ClashReport& out, std::string& error) {
   try {
+    ReportReader reader;
+    if (!parse(reader)) {
+      error = reader.parse_error_message.empty() ? "not JSON (truncated or damaged)" : reader.parse_error_message;
+      return false;
+    }
+    const json& j = reader.root;
     ClashReport r;
     const json& version = field(j, "version", "clashes file");
     if (!version.is_number_integer() || version.get<int>() != 1) throw Bad{"clashes file: version must be 1"};
@@ -195,38 +326,24 @@ bool parse_clash_report(std::string_view input, ClashReport& out, std::string& e
     }
     const json& clashes = field(j, "clashes", "clashes file");
     if (!clashes.is_array()) throw Bad{"clashes file: 'clashes' must be a list"};
-    for (size_t i = 0; i < clashes.size(); ++i) {
-      const json& c = clashes[i];
-      const std::string where = "clash " + std::to_string(i);
-      Clash k;
-      k.id = decimal(c, "id", where, 16);
-      const std::string status = text(c, "status", where);
-      if (status == "new") k.status = ClashStatus::new_clash;
-      else if (status == "active") k.status = ClashStatus::active;
-      else if (status == "resolved") k.status = ClashStatus::resolved;
-      else throw Bad{where + ": unknown 'status'"};
-      const std::string kind = text(c, "kind", where);
-      if (kind == "hard") k.kind = ClashKind::hard;
-      else if (kind == "clearance") k.kind = ClashKind::clearance;
-      else throw Bad{where + ": unknown 'kind'"};
-      k.a = read_side(c, "a", where);
-      k.b = read_side(c, "b", where);
-      if (k.kind == ClashKind::hard) k.depth_m = number(c, "depth_m", where);
-      else k.distance_m = number(c, "distance_m", where);
-      k.error_m = number(c, "error_m", where);
-      const json& points = field(c, "points_m", where);
-      if (!points.is_array() || points.empty()) throw Bad{where + ": 'points_m' must be a list of points"};
-      for (const json& p : points) k.points_m.push_back(point(p, where + ".points_m"));
-      k.group = text(c, "group", where);
-      if (c.contains("changed_id")) k.changed_id = decimal(c, "changed_id", where);
-      r.clashes.push_back(std::move(k));
-    }
+    r.clashes = std::move(reader.clashes);
     out = std::move(r);
     return true;
   } catch (const Bad& bad) {
     error = bad.message;
     return false;
   }
+}
+
+}  // namespace
+
+bool parse_clash_report(std::string_view input, ClashReport& out, std::string& error) {
+  return read_report([&](ReportReader& reader) { return json::sax_parse(input.begin(), input.end(), &reader); },
+                     out, error);
+}
+
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error) {
+  return read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, out, error);
 }
 
 namespace {
@@ -250,25 +367,37 @@ bool same_settings(const ClashReport& x, const ClashReport& y, std::string& erro
 
 }  // namespace
 
-const std::string& Clash::changed_tag() const {
-  static const std::string none;
+const ClashText& Clash::changed_tag() const {
+  static const ClashText none;
   return changed_id == 0 ? none : changed_id == a.id ? a.tag : changed_id == b.id ? b.tag : none;
 }
 
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
   if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
   std::vector<bool> matched(previous.clashes.size(), false);
+  // The previous clashes by pair (then by their order in the file).
+  std::vector<uint32_t> by_pair;
+  by_pair.reserve(previous.clashes.size());
+  for (size_t i = 0; i < previous.clashes.size(); ++i)
+    if (previous.clashes[i].status != ClashStatus::resolved) by_pair.push_back(uint32_t(i));
+  const auto pair_of = [&](uint32_t i) { return std::pair(previous.clashes[i].a.id, previous.clashes[i].b.id); };
+  std::sort(by_pair.begin(), by_pair.end(), [&](uint32_t x, uint32_t y) {
+    return pair_of(x) != pair_of(y) ? pair_of(x) < pair_of(y) : x < y;
+  });
   for (Clash& c : report.clashes) {
     c.status = ClashStatus::new_clash;
     // The same id, else the same pair with its first point within kClashMatchM.
+    const auto key = std::pair(c.a.id, c.b.id);
+    auto it = std::lower_bound(by_pair.begin(), by_pair.end(), key,
+                               [&](uint32_t i, const std::pair<uint64_t, uint64_t>& k) { return pair_of(i) < k; });
     size_t best = previous.clashes.size();
     double best_m = kClashMatchM;
-    for (size_t i = 0; i < previous.clashes.size(); ++i) {
-      const Clash& p = previous.clashes[i];
-      if (matched[i] || p.status == ClashStatus::resolved || p.a.id != c.a.id || p.b.id != c.b.id) continue;
+    for (; it != by_pair.end() && pair_of(*it) == key; ++it) {
+      const Clash& p = previous.clashes[*it];
+      if (matched[*it]) continue;
       const double d = p.id == c.id ? -1.0 : glm::length(p.points_m.front() - c.points_m.front());
       if (d <= best_m) {
-        best = i;
+        best = *it;
         best_m = d;
       }
     }
@@ -317,13 +446,17 @@ bool name_changed_objects(ClashReport& report, const ReadView& view, uint32_t si
   return true;
 }
 
-bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std::string& error) {
+bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::string& error) {
   if (shards.empty()) {
     error = "no shard results to merge";
     return false;
   }
-  ClashReport merged = shards.front();
-  merged.clashes.clear();
+  ClashReport merged;  // the first shard's header (its clashes are moved over below)
+  {
+    std::deque<Clash> first = std::move(shards.front().clashes);
+    merged = shards.front();
+    shards.front().clashes = std::move(first);
+  }
   merged.counts = ClashCounts();
   std::vector<bool> seen(shards.front().shard.count, false);
   for (size_t i = 0; i < shards.size(); ++i) {
@@ -339,7 +472,8 @@ bool merge_reports(const std::vector<ClashReport>& shards, ClashReport& out, std
       return false;
     }
     seen[s.shard.index] = true;
-    merged.clashes.insert(merged.clashes.end(), s.clashes.begin(), s.clashes.end());
+    for (std::deque<Clash>& from = shards[i].clashes; !from.empty(); from.pop_front())
+      merged.clashes.push_back(std::move(from.front()));  // (the shard's list shrinks as the merge grows)
     merged.counts.block_pairs += s.counts.block_pairs;
     merged.counts.candidate_pairs += s.counts.candidate_pairs;
     merged.counts.narrow_pairs += s.counts.narrow_pairs;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
+#include <fcl/math/bv/AABB.h>
 #include <fcl/geometry/collision_geometry.h>
 #include <fcl/narrowphase/collision_object.h>
 
@@ -24,6 +25,21 @@ struct MeasurePart {
   fcl::Transform3d transform = fcl::Transform3d::Identity();  // to the frame (mesh: translation only)
   std::shared_ptr<fcl::CollisionGeometryd> geometry;           // null until a mesh is built
   std::unique_ptr<fcl::CollisionObjectd> proxy;
+  // The clash narrow phase's per-part caches (clash/narrow_phase.cpp), filled on first use by
+  // the thread that uses the shapes: the points that stand for the surface (frame coordinates)
+  // and a mesh's triangles (corners three a triangle, and their bounds; the part's own frame).
+  std::vector<fcl::Vector3d> surface_points;
+  bool has_surface_points = false;
+  std::vector<fcl::Vector3d> triangle_corners;
+  std::vector<fcl::AABBd> triangle_bounds;
+  // A mesh part whose inside is known exactly (clash depth): a circular torus or a spherical
+  // dish under an orthogonal placement of equal scales. `axes` maps frame to local coordinates
+  // (rows: the unit axes, a mirror kept), `origin` is the local origin in the frame; sizes are
+  // scaled. Filled with the surface points.
+  enum class Solid : uint8_t { none, circular_torus, spherical_dish } solid = Solid::none;
+  fcl::Matrix3d axes = fcl::Matrix3d::Identity();
+  fcl::Vector3d origin = fcl::Vector3d::Zero();
+  double size[3] = {0, 0, 0};  // torus: bend radius, tube radius, angle; dish: sphere radius, centre z
 };
 
 struct MeasureShapes::Impl {

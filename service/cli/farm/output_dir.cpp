@@ -8,6 +8,7 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 namespace plantview::cli::farm {
 
@@ -67,6 +68,37 @@ bool write_file_atomically(const fs::path& path, std::string_view bytes, std::st
   ::close(fd);
   if (!written || ::rename(temp.c_str(), path.c_str()) != 0) {
     error = "cannot write " + path.string() + ": " + std::strerror(written ? errno : saved);
+    ::unlink(temp.c_str());
+    return false;
+  }
+  return true;
+}
+
+bool copy_file_atomically(const fs::path& from, const fs::path& path, std::string& error) {
+  std::ifstream in(from, std::ios::binary);
+  if (!in) {
+    error = "cannot read " + from.string() + ": " + std::strerror(errno);
+    return false;
+  }
+  const std::string temp = temp_name_for(path);
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    error = "cannot write " + temp + ": " + std::strerror(errno);
+    return false;
+  }
+  std::vector<char> buffer(1 << 20);
+  bool written = true;
+  while (written && in) {
+    in.read(buffer.data(), std::streamsize(buffer.size()));
+    written = write_all(fd, std::string_view(buffer.data(), size_t(in.gcount())));
+  }
+  const bool read_whole = in.eof() && !in.bad();
+  written = written && read_whole && ::fsync(fd) == 0;
+  const int saved = errno;
+  ::close(fd);
+  if (!written || ::rename(temp.c_str(), path.c_str()) != 0) {
+    error = read_whole ? "cannot write " + path.string() + ": " + std::strerror(written ? errno : saved)
+                       : "cannot read " + from.string();
     ::unlink(temp.c_str());
     return false;
   }

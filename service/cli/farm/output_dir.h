@@ -22,6 +22,10 @@ bool prepare_output_dir(const std::filesystem::path& dir, std::string& error);
 bool write_file_atomically(const std::filesystem::path& path, std::string_view bytes,
                            std::string& error);
 
+// Copies the file `from` to `path` atomically (see above), streaming: never held whole.
+bool copy_file_atomically(const std::filesystem::path& from, const std::filesystem::path& path,
+                          std::string& error);
+
 // Reads a whole file. False with "cannot read PATH: reason".
 bool read_file(const std::filesystem::path& path, std::string& out, std::string& error);
 

@@ -9,8 +9,10 @@
 // running a task again, or the whole job, completes what is missing and renders nothing twice.
 // A clash job (farm submit --clash) runs instead, in task I of N,
 //   plantview clash --store STORE --shard I/N --farm-dir OUT [clash options]
+//                   [--since OUT/clash-since.json]
 // which checks the I-th region's block pairs into OUT/clash-shard-I-of-N.json; the task that
-// finds all N there merges them into OUT/clashes.json (clash.h: merge_reports; docs/clash.md).
+// finds all N there merges them into OUT/clashes.json (clash.h: merge_reports; docs/clash.md),
+// and with --since (the previous result, copied there by farm submit) sets the statuses.
 // Errors: false with a message naming the program and what it said (sbatch's own message).
 #pragma once
 
