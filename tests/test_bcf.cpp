@@ -93,6 +93,11 @@ class Bcf : public ::testing::Test {
     views["views"][0]["section"] = {{"planes", {{{"point", {1.5, 2, 3}}, {"normal", {0, 0, 1}}}}},
                                     {"box", {{"min", {0, 0, 0}}, {"max", {50, 40, 30}}}}};
     views["views"][0]["style"] = {{"hide", {"structure"}}};
+    // A subject colour drawn see-through (a clash view's container): an ARGB Coloring.
+    views["views"][0]["colours"] = {{{"id", views["views"][0]["subject"][0]},
+                                     {"colour", "#14afeb"},
+                                     {"label", "second: P-01-001 (see-through)"},
+                                     {"see_through", true}}};
     views["views"][1]["style"] = {{"only", {"P-01-*"}}, {"colour_by", "Material"}};
     views["views"][2]["section"] = {{"planes", {{{"point", {10, 0, 0}}, {"normal", {0.6, 0.8, 0}}}}},
                                     {"capped", false}};
@@ -149,7 +154,25 @@ TEST_F(Bcf, RoundTripKeepsCamerasSectionsSelectionsAndStyles) {
         << name;
     EXPECT_EQ(b[i].value("section", json()), a[i].value("section", json())) << name;
     EXPECT_EQ(b[i].value("style", json()), a[i].value("style", json())) << name;
+    EXPECT_EQ(b[i].value("colours", json()), a[i].value("colours", json())) << name;
   }
+}
+
+TEST_F(Bcf, ASeeThroughSubjectColourIsWrittenArgb) {
+  const fs::path unzipped = dir() / "unzipped-argb";
+  python("import zipfile\nzipfile.ZipFile('" + (dir() / "out.bcf").string() + "').extractall('" +
+             unzipped.string() + "')\n",
+         dir());
+  std::vector<std::string> colours;
+  for (const auto& e : fs::recursive_directory_iterator(unzipped)) {
+    if (e.path().filename() != "viewpoint.bcfv") continue;
+    std::ifstream in(e.path());
+    const std::string xml((std::istreambuf_iterator<char>(in)), {});
+    for (size_t at = xml.find("<Color Color=\""); at != std::string::npos; at = xml.find("<Color Color=\"", at + 1))
+      colours.push_back(xml.substr(at + 14, xml.find('"', at + 14) - at - 14));
+  }
+  // kSeeThroughSubjectAlpha (0.35) of 255 is 0x59; then the colour's RGB.
+  EXPECT_NE(std::find(colours.begin(), colours.end(), "5914AFEB"), colours.end());
 }
 
 TEST_F(Bcf, ExportIsStableAndAtomic) {

@@ -41,8 +41,13 @@ struct Renderer::State {
     if (!o.subject_colours.empty() && !o.changes) {
       options.hlod = false;
       options.style.colour_by.clear();
-      for (const SubjectColour& c : o.subject_colours)
-        packed_subjects.emplace_back(c.id, packed_colour(c.colour));
+      // A see-through subject's alpha marks it for the backend (gl/backend.h: Look); the
+      // others' alpha is their own.
+      for (const SubjectColour& c : o.subject_colours) {
+        Colour packed = c.colour;
+        packed.a = c.see_through ? uint8_t(std::lround(kSeeThroughSubjectAlpha * 255)) : 255;
+        packed_subjects.emplace_back(c.id, packed_colour(packed));
+      }
       std::sort(packed_subjects.begin(), packed_subjects.end());
     }
     if (o.changes) {

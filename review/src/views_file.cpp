@@ -228,12 +228,12 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
   }
   if (item.contains("colours")) {
     const Json& colours = item["colours"];
-    if (!colours.is_array()) return fail("'colours' must be a list of {id, colour, label}");
+    if (!colours.is_array()) return fail("'colours' must be a list of {id, colour, label, see_through}");
     for (size_t i = 0; i < colours.size(); ++i) {
       const std::string name = "colours[" + std::to_string(i) + "]";
       const Json& c = colours[i];
-      if (!c.is_object()) return fail("'" + name + "' must be an object {id, colour, label}");
-      if (!check_keys(c, name, {"id", "colour", "label"}, fail)) return false;
+      if (!c.is_object()) return fail("'" + name + "' must be an object {id, colour, label, see_through}");
+      if (!check_keys(c, name, {"id", "colour", "label", "see_through"}, fail)) return false;
       SubjectColour sc;
       if (!c.contains("id") || !c["id"].is_number_unsigned())
         return fail("'" + name + ".id' must be an object id (an integer >= 0)");
@@ -253,6 +253,10 @@ bool parse_view(const Json& item, const std::string& where, ReviewView& v, std::
       if (c.contains("label")) {
         if (!c["label"].is_string()) return fail("'" + name + ".label' must be a string");
         sc.label = c["label"].get<std::string>();
+      }
+      if (c.contains("see_through")) {
+        if (!c["see_through"].is_boolean()) return fail("'" + name + ".see_through' must be true or false");
+        sc.see_through = c["see_through"].get<bool>();
       }
       v.colours.push_back(std::move(sc));
     }
@@ -301,6 +305,7 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
         char hex[8];
         std::snprintf(hex, sizeof hex, "#%02x%02x%02x", c.colour.r, c.colour.g, c.colour.b);
         colours.push_back(Json{{"id", c.id}, {"colour", hex}, {"label", c.label}});
+        if (c.see_through) colours.back()["see_through"] = true;
       }
       list.back()["colours"] = colours;
     }

@@ -98,7 +98,9 @@ int run_views(const ViewsArgs& a) {
     if (!file) return fail("cannot read " + a.clashes);
     ClashReport report;
     if (!read_clash_report(file, report, error)) return fail(a.clashes + ": " + error);
-    views = clash_views(report, options.aspect);
+    const auto view = store->read(error);
+    if (!view) return fail(error);
+    if (!clash_views(report, options.aspect, *view, views, error)) return fail(error);
     summary.subjects = views.size();
   } else {
     Progress progress("views");

@@ -187,7 +187,11 @@ struct RenderOptions {
   std::vector<uint64_t> highlight_ids;
   // Non-empty (with highlight_ids naming them): these subjects in these colours instead of
   // their own (alpha kept), and the frame's legend (key "subjects") one entry a label, in this
-  // order, objects 1. Replaces style.colour_by; a change image ignores it.
+  // order, objects 1. Replaces style.colour_by; a change image ignores it. A see-through one
+  // (SubjectColour::see_through) is drawn last, blended at kSeeThroughSubjectAlpha (more
+  // opaque where its surface turns away from the eye: its outline), without depth or ids:
+  // the other subjects show through it, tinted, and the context in front of it is drawn
+  // see-through as in front of any subject.
   std::vector<SubjectColour> subject_colours;  // (view_filters.h)
   // Clip planes and a section box (view_filters.h): what they remove is neither decoded,
   // tessellated, drawn nor picked (culled whole where its bounds are removed, else clipped on

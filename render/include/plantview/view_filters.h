@@ -82,11 +82,18 @@ struct ObjectStyle {
 
 // A subject drawn in a colour of its own (RenderOptions::subject_colours): a clash view's two
 // objects, the first red and the second cyan (clash.h). `label` is its legend entry's text
-// ("first: P-1001-01").
+// ("first: P-1001-01"). `see_through`: drawn see-through in its colour, at
+// kSeeThroughSubjectAlpha where it faces the eye, rising towards opaque along its outline
+// (kSeeThroughSubjectRim: the share of the way there seen edge on), so that what it holds
+// inside shows through it (a clash's part buried in a column); the colour's own alpha is not
+// used.
+inline constexpr double kSeeThroughSubjectAlpha = 0.35;
+inline constexpr double kSeeThroughSubjectRim = 0.8;
 struct SubjectColour {
   uint64_t id = 0;  // store id
   Colour colour;
   std::string label;
+  bool see_through = false;
   bool operator==(const SubjectColour&) const = default;
 };
 

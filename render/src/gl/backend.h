@@ -37,7 +37,11 @@
 //   - Highlight (Look::highlight_ids non-empty): the subject is drawn first, marking its pixels
 //     in the stencil; the context (every other object, ghosted: lighter, desaturated, pick 0)
 //     then where the subject is not, and once more, blended faintly and without depth, where it
-//     lies in front of the subject: occluders are see-through.
+//     lies in front of the subject: occluders are see-through. See-through subjects (a subject
+//     colour with alpha, Look::subject_colours) are left out of the first draw: they mark their
+//     pixels without drawing anything after it (the context in front of them is see-through
+//     too), and are drawn last, blended at their alpha (more opaque along their outline:
+//     u_rim), depth tested but not written, no ids: the subjects inside them show through.
 //   - Framebuffers: the frame is drawn at `scale` x the output's size (2 when supersampled) with
 //     `samples` per pixel (multisampled: resolved into textures by a blit; the depth is a
 //     multisampled texture, which the depth reduction reads sample by sample, with a stencil
@@ -138,8 +142,10 @@ struct Look {
   bool ground = true;
   bool ambient_occlusion = true;
   std::span<const uint64_t> highlight_ids;  // any order; valid for the draw call
-  // A change image's subject colours (RGBA8, sorted by id): a subject object listed here is
-  // drawn in that colour (its alpha kept) instead of its own. Valid for the draw call.
+  // A change image's or a clash view's subject colours (RGBA8, sorted by id): a subject object
+  // listed here is drawn in that colour (its alpha kept) instead of its own; with an alpha
+  // under 255 it is a see-through subject, drawn at that alpha (see the highlight rule above).
+  // Valid for the draw call.
   std::span<const std::pair<uint64_t, uint32_t>> subject_colours;
   const Section* section = nullptr;         // null or empty: none; valid for the frame
   DAabb model_bounds;                       // world metres (the ground lies at min.z)
@@ -284,7 +290,7 @@ class GlBackend {
   // Resolves multisampling and runs the finishing pass into output_.
   void finish(const FrameView& view, const Plan& plan, bool with_ids);
   // The table with the context ghosted for a highlight: colours lightened and desaturated,
-  // picks 0.
+  // picks 0. Sets see_through_subjects_.
   std::span<const TableEntry> highlighted(
       std::span<const TableEntry> table, std::span<const uint64_t> pick_ids,
       std::span<const uint64_t> highlight_ids,
@@ -382,6 +388,7 @@ class GlBackend {
   void release_ghost_buffers();
   std::vector<TableEntry> highlight_table_;
   std::vector<uint64_t> highlight_sorted_;
+  bool see_through_subjects_ = false;  // highlighted(): the table holds see-through subjects
 };
 
 }  // namespace plantview::detail

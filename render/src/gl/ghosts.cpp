@@ -80,6 +80,7 @@ void GlBackend::draw_ghosts(const FrameView& view, const GhostMesh& ghosts, uint
   const GLuint surface = drawing_program(ProgramId::surface);
   glUseProgram(surface);
   glProgramUniform1i(surface, at(surface, "u_mode"), 0);
+  glProgramUniform1f(surface, at(surface, "u_rim"), 0.0f);
   glBindVertexArray(ghost_.vao);
   glEnablei(GL_BLEND, 0);
   glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);

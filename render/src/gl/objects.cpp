@@ -41,17 +41,22 @@ std::span<const TableEntry> GlBackend::highlighted(std::span<const TableEntry> t
   highlight_sorted_.assign(highlight_ids.begin(), highlight_ids.end());
   std::sort(highlight_sorted_.begin(), highlight_sorted_.end());
   highlight_table_.assign(table.begin(), table.end());
+  see_through_subjects_ = false;
   for (TableEntry& e : highlight_table_) {
     // The pick word's low bits index the pick table; its high bits are the tie-break, kept for
     // the context too (it only orders coinciding depths).
     const uint32_t pick = e.pick & (kPickLimit - 1);
     const uint64_t id = pick && pick <= pick_ids.size() ? pick_ids[pick - 1] : 0;
     if (id && std::binary_search(highlight_sorted_.begin(), highlight_sorted_.end(), id)) {
-      // A change image's subject: its change's colour, its own alpha.
+      // A change image's or a clash view's subject: its colour, its own alpha; a see-through
+      // one's alpha is the subject colour's.
       const auto c = std::lower_bound(subject_colours.begin(), subject_colours.end(),
                                       std::pair<uint64_t, uint32_t>(id, 0));
-      if (c != subject_colours.end() && c->first == id)
-        e.colour = (c->second & 0x00ffffffu) | (e.colour & 0xff000000u);
+      if (c != subject_colours.end() && c->first == id) {
+        const bool see_through = (c->second >> 24) < 255;
+        e.colour = see_through ? c->second : (c->second & 0x00ffffffu) | (e.colour & 0xff000000u);
+        see_through_subjects_ = see_through_subjects_ || see_through;
+      }
       continue;
     }
     e.pick &= ~(kPickLimit - 1);
@@ -75,17 +80,24 @@ void GlBackend::draw_phase(const FrameView& view, const IndexCounts& counts,
     draw_lists(counts, proxy_tables.size(), 0, 1.0f, with_ids);
   } else {
     // The subject, marking its pixels; the context where it is not; the context in front of
-    // it, see-through (gl/backend.h).
+    // it, see-through (gl/backend.h). See-through subjects mark theirs without drawing, and
+    // are drawn last.
     glEnable(GL_STENCIL_TEST);
     glStencilFunc(GL_ALWAYS, 1, 0xff);
     glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
-    draw_lists(counts, proxy_tables.size(), 1, 1.0f, with_ids);
+    draw_lists(counts, proxy_tables.size(), see_through_subjects_ ? 3 : 1, 1.0f, with_ids);
+    if (see_through_subjects_) {
+      glColorMaski(0, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      draw_lists(counts, proxy_tables.size(), 4, 1.0f, with_ids);
+      glColorMaski(0, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    }
     glStencilFunc(GL_EQUAL, 0, 0xff);
     glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
     draw_lists(counts, proxy_tables.size(), 2, 1.0f, with_ids);
     glStencilFunc(GL_EQUAL, 1, 0xff);
     draw_lists(counts, proxy_tables.size(), 2, kSeeThroughAlpha, with_ids);
     glDisable(GL_STENCIL_TEST);
+    if (see_through_subjects_) draw_lists(counts, proxy_tables.size(), 4, 1.0f, with_ids);
   }
   set_clipping(false);
   if (wait) glFinish();
@@ -164,7 +176,8 @@ void GlBackend::draw_triangles(size_t first, size_t count) const {
 void GlBackend::draw_cut_capped(size_t first, size_t count, int mode) {
   // Highlight modes (gl/shaders/object_table.glsl): the context (2) is drawn only where the
   // subject (stencil bit 0) is not; the subject (1) marks its pixels in bit 0.
-  const GLuint not_subject = mode == 2 ? 1u : 0u, subject = mode == 1 ? 1u : 0u;
+  const bool marks = mode == 1 || mode == 3;  // the (opaque) subject
+  const GLuint not_subject = mode == 2 ? 1u : 0u, subject = marks ? 1u : 0u;
   const GLenum test = mode == 2 ? GL_EQUAL : GL_ALWAYS;
   const GLuint surface = drawing_program(ProgramId::surface);
   glEnable(GL_STENCIL_TEST);
@@ -221,7 +234,7 @@ void GlBackend::draw_cut_capped(size_t first, size_t count, int mode) {
   // The highlight's stencil state back (draw_phase).
   if (mode == 0) {
     glDisable(GL_STENCIL_TEST);
-  } else if (mode == 1) {
+  } else if (marks) {
     glStencilFunc(GL_ALWAYS, 1, 0xff);
     glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
   } else {
@@ -235,7 +248,8 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
   const size_t n_closed = counts[kClosed], n_cut = counts[kClosedCut], n_open = counts[kOpen];
   const size_t n_opaque = n_closed + n_cut + n_open, n_transparent = counts[kTransparent],
                n_lines = counts[kLines];
-  const bool see_through = alpha < 1.0f;
+  // Mode 4 draws see-through subjects: blended at their own alpha, their outline stronger.
+  const bool see_through = alpha < 1.0f || mode == 4;
   const GLuint surface = drawing_program(ProgramId::surface),
                proxy = drawing_program(ProgramId::proxy),
                centreline = drawing_program(ProgramId::centreline);
@@ -245,6 +259,8 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     glProgramUniform1i(program, at(program, "u_mode"), mode);
     glProgramUniform1f(program, at(program, "u_alpha"), alpha);
   }
+  for (const GLuint program : {surface, proxy, plain})
+    glProgramUniform1f(program, at(program, "u_rim"), mode == 4 ? float(kSeeThroughSubjectRim) : 0.0f);
   if (see_through) {
     glEnablei(GL_BLEND, 0);
     glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);

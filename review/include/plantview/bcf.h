@@ -34,7 +34,9 @@
 //         reported). Each value's colour is the one its snapshot shows it in (the rendered
 //         frame's legend, BcfWriteOptions::legends); a value the legend does not list (no object
 //         of it in view, or beyond its palette) or a view without a legend takes a colour of a
-//         fixed palette by hash of the value.
+//         fixed palette by hash of the value. A view's subject colours (ReviewView::colours:
+//         a clash's two objects) add one Color each, RGB, or ARGB ("AARRGGBB", alpha
+//         kSeeThroughSubjectAlpha) for a see-through one.
 //     Visibility and Coloring need the store (they list objects); without one they are left
 //     at DefaultVisibility true and no Coloring, and the report says so.
 //   - What BCF cannot state (the camera's target distance, kind, name, attributes, capped, the

@@ -249,12 +249,39 @@ bool read_clash_report(std::istream& input, ClashReport& out, std::string& error
 // first in kClashFirstColour, the second in kClashSecondColour, as ReviewView::colours labelled
 // "first: TAG" and "second: TAG"; their BCF Coloring the same), its
 // camera fit_camera from the isometric direction on the clash region (the points' bounds grown
-// by kClashViewMarginM), a section box of that region grown by another half margin, and
+// by kClashViewMarginM, centred on the first point), a section box of that region grown by
+// another half margin, and
 // caption lines: Clash (id, status), A and B (tag and class), Depth or Distance (mm), Point
 // (the first, model metres), Group. BCF export writes them as topics of TopicType "Clash".
+// This form knows nothing of the objects' sizes: both opaque, the margin kClashViewMarginM.
 inline constexpr double kClashViewMarginM = 1.5;
 inline constexpr Colour kClashFirstColour{225, 35, 35, 255};    // red
 inline constexpr Colour kClashSecondColour{20, 175, 235, 255};  // cyan-blue
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect);
+// The same with the objects' bounds read from the store (`views --per clash`), so that each
+// image shows both objects and where they meet:
+//   - each object's thickness where they meet: of its primitives within kClashViewMarginM
+//     of the first point whose bounds meet (within kClashViewThinM) those of one of the
+//     other's there, the largest middle of the three extents of its shape as placed (a
+//     column's width, a pipe's diameter, however turned); failing any, that of its primitive
+//     nearest the point. The one thicker by kClashViewContainerRatio or more is the container: drawn
+//     see-through in its colour (SubjectColour::see_through, its label "... (see-through)";
+//     BCF: its Color with that alpha), the other opaque inside it. Parts of about one size
+//     (a valve on a pipe) are both opaque, as in the form above;
+//   - the region is the points' box around the first (deepest) point grown by a margin of
+//     kClashViewMarginSizes x the thinner one's thickness, within kClashViewMinMarginM ..
+//     kClashViewMarginM (a pipe of 0.2 m: 0.6 m); the section box as above;
+//   - the camera, from the isometric direction, is aimed at the first point and fitted on
+//     the box centred there that holds the points and the opaque objects' parts in the region
+//     (at least kClashViewMinFrameM each way): the buried part is large in the image.
+// An object the snapshot no longer holds leaves the view as the form above makes it. False
+// with a message naming the object on a read error (`out` unchanged).
+inline constexpr double kClashViewThinM = 0.05;
+inline constexpr double kClashViewMarginSizes = 3.0;
+inline constexpr double kClashViewMinMarginM = 0.5;
+inline constexpr double kClashViewMinFrameM = 0.3;
+inline constexpr double kClashViewContainerRatio = 1.5;
+bool clash_views(const ClashReport& report, double aspect, const ReadView& view,
+                 std::vector<ReviewView>& out, std::string& error);
 
 }  // namespace plantview

@@ -57,11 +57,14 @@ struct ReviewView {
 //                           "box": {"min": [x,y,z], "max": [x,y,z]}, "capped": true},
 //               "style": {"colour_by": "Material", "hide": ["structure"], "only": ["P-*"]},
 //               "changes": "12..14",
-//               "colours": [{"id": 12, "colour": "#d72828", "label": "first: P-101A"}]}]}
+//               "colours": [{"id": 12, "colour": "#d72828", "label": "first: P-101A"},
+//                           {"id": 13, "colour": "#14afeb", "label": "second: C-1 (see-through)",
+//                            "see_through": true}]}]}
 // `section` and `style` are optional (absent: nothing cut, the model's colours) and written
 // only when not empty; each of their keys is optional too. `changes` (optional) is a range
 // as parse_change_range reads it ("R1" or "R1..R2"). `colours` (optional, written when not
-// empty): each entry's id must be in `subject`, once.
+// empty): each entry's id must be in `subject`, once; its `see_through` (optional, a boolean,
+// written only when true: SubjectColour::see_through) defaults to false.
 // `per` is overview|equipment|pipeline|area. The writer keeps the views' and attributes' order
 // (the parser reads that order back) and writes text that is not UTF-8 (attribute values are
 // bytes as the model gave them) with U+FFFD in place of each invalid sequence. The parser rejects: text that is not JSON, a version other

@@ -107,6 +107,13 @@ std::string rgb_hex(const Colour& c) {
   return text;
 }
 
+// "AARRGGBB" (BCF 2.1 and 3.0 read a Color of 8 digits as ARGB).
+std::string argb_hex(const Colour& c, double alpha) {
+  char text[12];
+  std::snprintf(text, sizeof text, "%02X%02X%02X%02X", unsigned(std::lround(alpha * 255)), c.r, c.g, c.b);
+  return text;
+}
+
 std::string colour_of(const std::string& value) {
   return kPalette[mix(fnv1a(value, 14695981039346656037ull)) % (sizeof kPalette / sizeof kPalette[0])];
 }
@@ -352,9 +359,11 @@ bool write_bcf(const fs::path& path, const std::vector<ReviewView>& views,
           for (auto& [colour, group] : by_colour) vp.colours.push_back(std::move(group));
         }
       }
-      // Subject colours (a clash's two objects): one Coloring each, as the image shows them.
+      // Subject colours (a clash's two objects): one Coloring each, as the image shows them
+      // (a see-through one with its alpha, ARGB).
       for (const SubjectColour& c : view.colours)
-        vp.colours.push_back({rgb_hex(c.colour), {component_for(tool_id(c.id))}});
+        vp.colours.push_back({c.see_through ? argb_hex(c.colour, kSeeThroughSubjectAlpha) : rgb_hex(c.colour),
+                              {component_for(tool_id(c.id))}});
 
       bcf::Markup markup;
       markup.guid = topic_guid;

@@ -12,6 +12,9 @@ layout(location = 1) out uint o_pick;
 uniform mat3 u_ray;
 uniform vec2 u_window_scale;
 uniform float u_alpha;  // multiplies the object's alpha (see-through passes)
+// A see-through subject's outline (0: none): the alpha taken this share of the way to opaque
+// where the surface is seen edge on, less as it turns to face the eye.
+uniform float u_rim;
 // Caps (gl/backend.h: sections): while the closed solids a section cuts are drawn, a back face
 // is the inside of a cut solid: shaded as its cap, flat in the object's colour, darker, facing
 // along the cutting plane where the view ray enters the kept region (the farthest crossing of a
@@ -48,5 +51,8 @@ void main() {
 #endif
   float n_length = length(v_normal);
   vec3 n = n_length > 0.5 ? v_normal / n_length : to_eye;
-  o_colour = vec4(lit_colour(v_colour.rgb, n, to_eye), v_colour.a * u_alpha);
+  float alpha = v_colour.a * u_alpha;
+  float edge_on = 1.0 - abs(dot(n, to_eye));
+  alpha = mix(alpha, 1.0, u_rim * edge_on * edge_on);
+  o_colour = vec4(lit_colour(v_colour.rgb, n, to_eye), alpha);
 }
