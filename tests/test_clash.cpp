@@ -95,6 +95,10 @@ Planted planted(const std::string& kind, int index, double depth_m) {
     p.a = object_of(n + "-A", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0}, rotation(std::numbers::pi / 2, {0, 1, 0}))}, o);
     const glm::mat3 r = rotation(std::numbers::pi / 3, {0, 0, 1}) * rotation(std::numbers::pi / 2, {0, 1, 0});
     p.b = object_of(n + "-B", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0.2f - d}, r)}, o);
+  } else if (kind == "pipe-along-pipe") {  // two lines laid along one route, 1 m apart lengthwise
+    const glm::mat3 along_x = rotation(std::numbers::pi / 2, {0, 1, 0});
+    p.a = object_of(n + "-A", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0}, along_x)}, o);
+    p.b = object_of(n + "-B", ObjectClass::pipe, {at(Cylinder{0.15f, 3}, {1, 0.25f - d, 0}, along_x)}, o);
   } else if (kind == "torus-cylinder") {  // an elbow's outer side into a vertical pipe
     p.a = object_of(n + "-A", ObjectClass::component, {at(CircularTorus{0.5f, 0.1f, float(std::numbers::pi / 2)}, {0, 0, 0})}, o);
     const float r = 0.6f + 0.1f - d, c = float(std::cos(std::numbers::pi / 4));
@@ -109,7 +113,8 @@ Planted planted(const std::string& kind, int index, double depth_m) {
   return p;
 }
 
-const char* const kKinds[] = {"box-box", "cylinder-box", "cylinder-cylinder", "torus-cylinder", "dish-box", "facets-box"};
+const char* const kKinds[] = {"box-box",        "cylinder-box", "cylinder-cylinder", "pipe-along-pipe",
+                              "torus-cylinder", "dish-box",     "facets-box"};
 
 ClashReport run(const Store& store, const std::string& dir, ClashSettings settings = {}) {
   std::string error;
@@ -228,6 +233,25 @@ std::vector<Object> piping_case(bool moved) {
   line.branches = {{"/P-1-B1", {out[0].id, out[1].id}}};
   out.push_back(line);
   return out;
+}
+
+TEST(Clash, PipesLaidInOneAnotherReadTheirRadialDepth) {
+  // Two lines along one route, one lying 5 cm off the other's axis and 1 m along it: the
+  // shortest way apart is sideways, 0.2 - 0.05 m (the line between their centres runs along
+  // them, and a depth measured there reads the length they share).
+  const glm::mat3 along_x = rotation(std::numbers::pi / 2, {0, 1, 0});
+  const glm::dvec3 o(0, 0, 5);
+  const std::vector<Object> objects = {
+      object_of("P-A", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {0, 0, 0}, along_x)}, o),
+      object_of("P-B", ObjectClass::pipe, {at(Cylinder{0.1f, 3}, {1, 0.05f, 0}, along_x)}, o)};
+  const test::TempDir dir;
+  const auto store = test::make_store(dir, objects);
+  ASSERT_TRUE(store);
+  ClashSettings settings;
+  settings.include_connected = true;
+  const ClashReport report = run(*store, dir.str(), settings);
+  ASSERT_EQ(report.clashes.size(), 1u);
+  EXPECT_NEAR(report.clashes[0].depth_m, 0.15, 1 * kMm);
 }
 
 TEST(Clash, RulesKeepAPipelinesOwnPartsAndSupportsOut) {

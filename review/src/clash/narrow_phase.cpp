@@ -1,6 +1,7 @@
 // The narrow phase (plantview/clash.h): the overlapping parts of two objects, their contact
 // points and depth, and, when nothing overlaps deeper than the tolerance, the clearance.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -242,6 +243,65 @@ bool owns(const MeasureShapes::Impl& set, const MeasurePart* part) {
   return !set.parts.empty() && part >= set.parts.data() && part < set.parts.data() + set.parts.size();
 }
 
+// The interval an exact part covers along the unit direction `d` (frame coordinates); false for
+// a kind without one here.
+bool projection(const fcl::CollisionGeometryd& g, const fcl::Transform3d& tf, const fcl::Vector3d& d, double& lo,
+                double& hi) {
+  const double centre = d.dot(tf.translation());
+  const fcl::Vector3d local = tf.linear().transpose() * d;  // d in the part's axes
+  const double along = std::abs(local.z()), across = std::sqrt(std::max(0.0, 1.0 - along * along));
+  double half = 0;
+  if (const auto* box = dynamic_cast<const fcl::Boxd*>(&g)) {
+    half = 0.5 * (std::abs(local.x()) * box->side[0] + std::abs(local.y()) * box->side[1] +
+                  std::abs(local.z()) * box->side[2]);
+  } else if (const auto* cylinder = dynamic_cast<const fcl::Cylinderd*>(&g)) {
+    half = along * 0.5 * cylinder->lz + across * cylinder->radius;
+  } else if (const auto* sphere = dynamic_cast<const fcl::Sphered*>(&g)) {
+    half = sphere->radius;
+  } else if (const auto* cone = dynamic_cast<const fcl::Coned*>(&g)) {  // apex at +z, base at -z
+    const double apex = centre + 0.5 * cone->lz * local.z(), base = centre - 0.5 * cone->lz * local.z();
+    lo = std::min(apex, base - across * cone->radius);
+    hi = std::max(apex, base + across * cone->radius);
+    return true;
+  } else {
+    return false;
+  }
+  lo = centre - half;
+  hi = centre + half;
+  return true;
+}
+
+// An upper bound on two overlapping exact parts' penetration depth (the shortest move that
+// parts them): their overlap along any direction parts them when moved by it. Directions: the
+// frame's axes, both parts' axes and the cross products of their axes (two crossing cylinders:
+// the exact depth). FCL's libccd depth is measured along the line between the parts' centres
+// (MPR), not the shortest way out: two pipes laid along one route read metres deep there.
+double overlap_bound(const MeasurePart& pa, const MeasurePart& pb) {
+  const fcl::CollisionGeometryd& ga = *pa.geometry;
+  const fcl::CollisionGeometryd& gb = *pb.geometry;
+  std::array<fcl::Vector3d, 18> directions;
+  size_t n = 0;
+  for (int i = 0; i < 3; ++i) {
+    directions[n++] = fcl::Vector3d::Unit(i);
+    directions[n++] = pa.transform.linear().col(i);
+    directions[n++] = pb.transform.linear().col(i);
+  }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const fcl::Vector3d normal = pa.transform.linear().col(i).cross(pb.transform.linear().col(j));
+      if (normal.norm() > 1e-6 && n < directions.size()) directions[n++] = normal.normalized();
+    }
+  double bound = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < n; ++k) {
+    const fcl::Vector3d& d = directions[k];
+    double alo, ahi, blo, bhi;
+    if (!projection(ga, pa.transform, d, alo, ahi) || !projection(gb, pb.transform, d, blo, bhi))
+      return std::numeric_limits<double>::infinity();
+    bound = std::min(bound, std::max(0.0, std::min(ahi - blo, bhi - alo)));
+  }
+  return bound;
+}
+
 bool collide_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* data) {
   auto& q = *static_cast<Query*>(data);
   auto* pa = static_cast<MeasurePart*>(o1->getUserData());
@@ -263,7 +323,9 @@ bool collide_pair(fcl::CollisionObjectd* o1, fcl::CollisionObjectd* o2, void* da
   fcl::collide(&q.a->geometry(*pa), pa->transform, &q.b->geometry(*pb), pb->transform, request, result);
   if (result.numContacts() == 0) return false;
   const fcl::Contactd& c = result.getContact(0);
-  const double depth = c.penetration_depth > 0 ? c.penetration_depth : deepest_point(q, *pa, *pb).depth_m;
+  const double depth = c.penetration_depth > 0
+                           ? std::min(c.penetration_depth, overlap_bound(*pa, *pb))
+                           : deepest_point(q, *pa, *pb).depth_m;
   q.contacts.push_back({c.pos, depth});
   return false;
 }
