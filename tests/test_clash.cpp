@@ -311,9 +311,31 @@ TEST(Clash, ARevisionMovingAPipeIntoABeamMakesOneNewClash) {
   // Moved back: resolved.
   ASSERT_TRUE(ingest_objects(*store, piping_case(false)));
   ClashReport fourth = run(*store, dir.str());
+  const ClashReport fourth_found = fourth;
   ASSERT_TRUE(apply_previous(fourth, third, error)) << error;
   ASSERT_EQ(fourth.clashes.size(), 1u);
   EXPECT_EQ(fourth.clashes[0].status, ClashStatus::resolved);
+  {
+    // The same from the file's keys, then the file again for the resolved ones (clash --since
+    // on a file too large to hold): the same report.
+    const std::string third_file = clash_report_json(third);
+    std::istringstream keys_stream(third_file), again(third_file);
+    PreviousClashes previous;
+    ASSERT_TRUE(read_previous_clashes(keys_stream, previous, error)) << error;
+    ASSERT_EQ(previous.keys.size(), 1u);
+    EXPECT_TRUE(previous.header.clashes.empty());
+    EXPECT_EQ(previous.header.revision, third.revision);
+    ClashReport streamed = fourth_found;
+    std::vector<bool> matched;
+    ASSERT_TRUE(match_previous(streamed, previous, matched, error)) << error;
+    ASSERT_TRUE(append_resolved(streamed, again, matched, error)) << error;
+    EXPECT_EQ(clash_report_json(streamed), clash_report_json(fourth));
+    // A file that changed between the two reads is refused.
+    std::istringstream empty_now(clash_report_json(fourth_found));
+    ClashReport changed = fourth_found;
+    EXPECT_FALSE(append_resolved(changed, empty_now, matched, error));
+    EXPECT_NE(error.find("changed"), std::string::npos) << error;
+  }
   // Another store's file is refused.
   ClashReport other = third;
   other.store_directory = "/elsewhere";

@@ -143,17 +143,33 @@ std::string farm_shard_file(const std::string& dir, const ClashShard& shard) {
       .string();
 }
 
+bool read_previous(const std::string& path, PreviousClashes& previous, std::string& error) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) {
+    error = "cannot read " + path;
+    return false;
+  }
+  if (!read_previous_clashes(file, previous, error)) {
+    error = path + ": " + error;
+    return false;
+  }
+  return true;
+}
+
 // --since PATH, once the run's clashes are found (all shards merged): statuses against
-// `previous` (that file's report), then the new clashes' changed objects (a note on stderr when
-// the store cannot name them). False with a message naming the file.
-bool apply_since(ClashReport& report, const ClashReport& previous, const ReadView& view, const std::string& path,
+// `previous` (that file's keys; the file is read again for the clashes now resolved, never held
+// whole), then the new clashes' changed objects (a note on stderr when the store cannot name
+// them). False with a message naming the file.
+bool apply_since(ClashReport& report, const PreviousClashes& previous, const ReadView& view, const std::string& path,
                  std::string& error) {
-  if (!apply_previous(report, previous, error)) {
-    error = "--since " + path + ": " + error;
+  std::vector<bool> matched;
+  std::ifstream file(path, std::ios::binary);
+  if (!match_previous(report, previous, matched, error) || !file || !append_resolved(report, file, matched, error)) {
+    error = "--since " + path + ": " + (error.empty() ? "cannot read it again" : error);
     return false;
   }
   std::string note;
-  if (!name_changed_objects(report, view, previous.revision, note))
+  if (!name_changed_objects(report, view, previous.header.revision, note))
     std::cerr << "plantview clash: note: --since " << path << ": " << note << "\n";
   return true;
 }
@@ -185,8 +201,8 @@ int finish_farm_task(const ClashReport& report, const std::string& dir, const Re
   // The merged run against the previous one, as one process's `clash --since` compares (the
   // shards are of this task's snapshot: merge_reports checked it).
   if (!since.empty()) {
-    ClashReport previous;
-    if (!read_report(since, previous, error)) return fail("--since " + error);
+    PreviousClashes previous;
+    if (!read_previous(since, previous, error)) return fail("--since " + error);
     if (!apply_since(merged, previous, view, since, error)) return fail(error);
   }
   const std::string out = (std::filesystem::path(dir) / "clashes.json").string();
@@ -210,7 +226,7 @@ int run_clash(const ClashArgs& a) {
   ClashOptions options = a.options;
   if (!a.farm_dir.empty()) options.since.clear();
   std::unique_ptr<ReadView> view;
-  ClashReport previous;
+  PreviousClashes previous;
   if (const int status = check_clash_options("clash", options, a.store, view, previous); status != 0)
     return status;
   settings.tolerance_m = a.options.tolerance_mm / 1000;
@@ -247,7 +263,7 @@ int run_merge(const ClashArgs& a) {
 }  // namespace
 
 int check_clash_options(const std::string& command, const ClashOptions& o, const std::string& store_dir,
-                        std::unique_ptr<ReadView>& view, ClashReport& previous) {
+                        std::unique_ptr<ReadView>& view, PreviousClashes& previous) {
   const auto runtime_failure = [&command](const std::string& message) {
     std::cerr << "plantview " << command << ": " << message << "\n";
     return 1;
@@ -283,8 +299,8 @@ int check_clash_options(const std::string& command, const ClashOptions& o, const
                          "structure, other; or a glob on the tag)");
   }
   if (o.since.empty()) return 0;
-  if (!read_report(o.since, previous, error)) return runtime_failure("--since " + error);
-  // The store and settings a run would record (find_clashes), compared as apply_previous does.
+  if (!read_previous(o.since, previous, error)) return runtime_failure("--since " + error);
+  // The store and settings a run would record (find_clashes), compared as match_previous does.
   if (!view->spatial_ready(error)) return runtime_failure(error);
   ClashReport run;
   std::error_code ec;
@@ -296,11 +312,8 @@ int check_clash_options(const std::string& command, const ClashOptions& o, const
   run.between = o.between;
   run.with = o.with;
   run.include_connected = o.include_connected;
-  std::deque<Clash> clashes;
-  clashes.swap(previous.clashes);  // (apply_previous would copy them into `run` as resolved)
-  const bool fits = apply_previous(run, previous, error);
-  previous.clashes.swap(clashes);
-  if (!fits) return runtime_failure("--since " + o.since + ": " + error);
+  std::vector<bool> matched;
+  if (!match_previous(run, previous, matched, error)) return runtime_failure("--since " + o.since + ": " + error);
   return 0;
 }
 

@@ -13,6 +13,7 @@
 namespace plantview {
 class ReadView;
 struct ClashReport;
+struct PreviousClashes;
 }  // namespace plantview
 
 namespace plantview::cli {
@@ -96,10 +97,10 @@ struct ClashOptions {
 // the tolerance and clearance in range, --between with --and (usage: 2); the store opened and
 // read (1); a store without piping topology unless --include-connected, a set that matches no
 // object, naming it (2); the --since file read whole and made by a run on this store with these
-// settings (1). 0 with the store's view in `view` and, with --since, the file's report in
-// `previous`; else the exit status, the message on
+// settings (1). 0 with the store's view in `view` and, with --since, the file's header and keys
+// in `previous` (clash.h: read_previous_clashes); else the exit status, the message on
 // stderr naming `command` ("clash", "farm submit --clash"), the option and the path.
 int check_clash_options(const std::string& command, const ClashOptions& options, const std::string& store,
-                        std::unique_ptr<ReadView>& view, ClashReport& previous);
+                        std::unique_ptr<ReadView>& view, PreviousClashes& previous);
 
 }  // namespace plantview::cli

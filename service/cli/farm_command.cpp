@@ -263,7 +263,7 @@ int run_submit_clash(const SubmitArgs& a) {
   options.since = a.since;
   {
     std::unique_ptr<ReadView> view;
-    ClashReport previous;
+    PreviousClashes previous;
     if (const int status = check_clash_options("farm submit --clash", options, a.store, view, previous); status != 0)
       return status;
   }

@@ -213,6 +213,28 @@ bool clash_set_matches(const ReadView& view, const ClashSet& set, bool& matches,
 // False, naming the reason, when `previous` comes from another store (directory or spatial
 // origin differ) or other settings (tolerance, clearance, sets).
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error);
+
+// --since against a previous run too large to hold twice (millions of clashes): its header and,
+// per clash, what matching needs (about 50 bytes a clash, in the file's order).
+struct ClashKey {
+  uint64_t id = 0, a = 0, b = 0;  // the clash's id, its objects' ids
+  glm::dvec3 first_point_m{0.0};
+  bool resolved = false;
+};
+struct PreviousClashes {
+  ClashReport header;  // the file's report, without its clashes
+  std::vector<ClashKey> keys;
+};
+// Reads a clashes file's header and keys, never its clashes whole (errors as parse_clash_report).
+bool read_previous_clashes(std::istream& input, PreviousClashes& out, std::string& error);
+// apply_previous in two steps: the statuses and kept ids from the keys (false, naming why, for
+// another store or other settings), `matched` saying which previous clashes are found again;
+// then the previous file, read again, gives those neither matched nor resolved before, appended
+// as resolved, and the clashes are sorted (false on a read error: the file changed meanwhile).
+bool match_previous(ClashReport& report, const PreviousClashes& previous, std::vector<bool>& matched,
+                    std::string& error);
+bool append_resolved(ClashReport& report, std::istream& previous_file, const std::vector<bool>& matched,
+                     std::string& error);
 // After apply_previous: each new clash whose a or b changed (added or modified) between
 // `since_revision` (the previous report's) and the view's revision (ReadView::changes) gets
 // changed_id (a's where both changed). A range the store cannot give (its changes pruned, or

@@ -209,6 +209,8 @@ class ReportReader final : public nlohmann::json_sax<json> {
   json root;
   std::deque<Clash> clashes;
   std::string parse_error_message;
+  // When set, each clash goes there (in the file's order) instead of `clashes`.
+  std::function<void(Clash&&)> sink;
 
   bool null() override { return add(nullptr); }
   bool boolean(bool v) override { return add(v); }
@@ -235,7 +237,11 @@ class ReportReader final : public nlohmann::json_sax<json> {
     const json* done = stack_.back();
     stack_.pop_back();
     if (done == &clash_) {
-      clashes.push_back(read_clash(clash_, clashes.size(), texts_));
+      Clash c = read_clash(clash_, read_++, texts_);
+      if (sink)
+        sink(std::move(c));
+      else
+        clashes.push_back(std::move(c));
       clash_ = json();
     }
     return true;
@@ -262,11 +268,12 @@ class ReportReader final : public nlohmann::json_sax<json> {
   std::string top_key_;
   json clash_;
   Texts texts_;
+  size_t read_ = 0;
 
   bool in_clash_list() const { return clash_list_ && !stack_.empty() && stack_.back() == clash_list_; }
   template <typename V>
   bool add(V&& v) {
-    if (in_clash_list()) throw Bad{"clash " + std::to_string(clashes.size()) + ": must be an object"};
+    if (in_clash_list()) throw Bad{"clash " + std::to_string(read_) + ": must be an object"};
     add_container(json(std::forward<V>(v)));
     return true;
   }
@@ -287,9 +294,11 @@ class ReportReader final : public nlohmann::json_sax<json> {
 };
 
 template <typename Parse>
-bool read_report(Parse&& parse, ClashReport& out, std::string& error) {
+bool read_report(Parse&& parse, ClashReport& out, std::string& error,
+                 std::function<void(Clash&&)> sink = nullptr) {
   try {
     ReportReader reader;
+    reader.sink = std::move(sink);
     if (!parse(reader)) {
       error = reader.parse_error_message.empty() ? "not JSON (truncated or damaged)" : reader.parse_error_message;
       return false;
@@ -346,6 +355,20 @@ bool read_clash_report(std::istream& input, ClashReport& out, std::string& error
   return read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, out, error);
 }
 
+bool read_previous_clashes(std::istream& input, PreviousClashes& out, std::string& error) {
+  std::vector<ClashKey> keys;
+  ClashReport header;
+  const bool read = read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, header, error,
+                                [&keys](Clash&& c) {
+                                  keys.push_back({c.id, c.a.id, c.b.id, c.points_m.front(),
+                                                  c.status == ClashStatus::resolved});
+                                });
+  if (!read) return false;
+  out.header = std::move(header);
+  out.keys = std::move(keys);
+  return true;
+}
+
 namespace {
 
 bool same_store(const ClashReport& x, const ClashReport& y, std::string& error) {
@@ -372,15 +395,17 @@ const ClashText& Clash::changed_tag() const {
   return changed_id == 0 ? none : changed_id == a.id ? a.tag : changed_id == b.id ? b.tag : none;
 }
 
-bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
-  if (!same_store(report, previous, error) || !same_settings(report, previous, error)) return false;
-  std::vector<bool> matched(previous.clashes.size(), false);
+bool match_previous(ClashReport& report, const PreviousClashes& previous, std::vector<bool>& matched,
+                    std::string& error) {
+  if (!same_store(report, previous.header, error) || !same_settings(report, previous.header, error)) return false;
+  const std::vector<ClashKey>& keys = previous.keys;
+  matched.assign(keys.size(), false);
   // The previous clashes by pair (then by their order in the file).
   std::vector<uint32_t> by_pair;
-  by_pair.reserve(previous.clashes.size());
-  for (size_t i = 0; i < previous.clashes.size(); ++i)
-    if (previous.clashes[i].status != ClashStatus::resolved) by_pair.push_back(uint32_t(i));
-  const auto pair_of = [&](uint32_t i) { return std::pair(previous.clashes[i].a.id, previous.clashes[i].b.id); };
+  by_pair.reserve(keys.size());
+  for (size_t i = 0; i < keys.size(); ++i)
+    if (!keys[i].resolved) by_pair.push_back(uint32_t(i));
+  const auto pair_of = [&](uint32_t i) { return std::pair(keys[i].a, keys[i].b); };
   std::sort(by_pair.begin(), by_pair.end(), [&](uint32_t x, uint32_t y) {
     return pair_of(x) != pair_of(y) ? pair_of(x) < pair_of(y) : x < y;
   });
@@ -390,25 +415,78 @@ bool apply_previous(ClashReport& report, const ClashReport& previous, std::strin
     const auto key = std::pair(c.a.id, c.b.id);
     auto it = std::lower_bound(by_pair.begin(), by_pair.end(), key,
                                [&](uint32_t i, const std::pair<uint64_t, uint64_t>& k) { return pair_of(i) < k; });
-    size_t best = previous.clashes.size();
+    size_t best = keys.size();
     double best_m = kClashMatchM;
     for (; it != by_pair.end() && pair_of(*it) == key; ++it) {
-      const Clash& p = previous.clashes[*it];
+      const ClashKey& p = keys[*it];
       if (matched[*it]) continue;
-      const double d = p.id == c.id ? -1.0 : glm::length(p.points_m.front() - c.points_m.front());
+      const double d = p.id == c.id ? -1.0 : glm::length(p.first_point_m - c.points_m.front());
       if (d <= best_m) {
         best = *it;
         best_m = d;
       }
     }
-    if (best < previous.clashes.size()) {
+    if (best < keys.size()) {
       matched[best] = true;
       c.status = ClashStatus::active;
-      c.id = previous.clashes[best].id;
+      c.id = keys[best].id;
     }
   }
+  return true;
+}
+
+namespace {
+
+// The previous clash `index` (status `previous`) as this run lists it: resolved, unless found
+// again or resolved already (then nothing).
+bool still_resolved(size_t index, ClashStatus previous, const std::vector<bool>& matched) {
+  return index < matched.size() && !matched[index] && previous != ClashStatus::resolved;
+}
+
+}  // namespace
+
+bool append_resolved(ClashReport& report, std::istream& previous_file, const std::vector<bool>& matched,
+                     std::string& error) {
+  size_t index = 0;
+  ClashReport header;
+  const bool read = read_report([&](ReportReader& reader) { return json::sax_parse(previous_file, &reader); },
+                                header, error, [&](Clash&& c) {
+                                  if (still_resolved(index++, c.status, matched)) {
+                                    c.status = ClashStatus::resolved;
+                                    report.clashes.push_back(std::move(c));
+                                  }
+                                });
+  if (read && index != matched.size()) {
+    error = "it changed since it was first read (" + std::to_string(index) + " clashes, not " +
+            std::to_string(matched.size()) + ")";
+    return false;
+  }
+  if (read) sort_clashes(report.clashes);
+  return read;
+}
+
+bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
+  PreviousClashes keys;  // (the header: every field but the clashes)
+  ClashReport& h = keys.header;
+  h.store_directory = previous.store_directory;
+  h.spatial_origin_m = previous.spatial_origin_m;
+  h.commit_id = previous.commit_id;
+  h.revision = previous.revision;
+  h.objects = previous.objects;
+  h.tolerance_m = previous.tolerance_m;
+  h.clearance_m = previous.clearance_m;
+  h.between = previous.between;
+  h.with = previous.with;
+  h.include_connected = previous.include_connected;
+  h.shard = previous.shard;
+  h.counts = previous.counts;
+  keys.keys.reserve(previous.clashes.size());
+  for (const Clash& c : previous.clashes)
+    keys.keys.push_back({c.id, c.a.id, c.b.id, c.points_m.front(), c.status == ClashStatus::resolved});
+  std::vector<bool> matched;
+  if (!match_previous(report, keys, matched, error)) return false;
   for (size_t i = 0; i < previous.clashes.size(); ++i) {
-    if (matched[i] || previous.clashes[i].status == ClashStatus::resolved) continue;
+    if (!still_resolved(i, previous.clashes[i].status, matched)) continue;
     Clash c = previous.clashes[i];
     c.status = ClashStatus::resolved;
     report.clashes.push_back(std::move(c));
