@@ -66,13 +66,18 @@ glm::dvec3 point(const json& v, const std::string& where) {
   return {v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
 }
 // The texts of a file being read: each tag and group made once (clash.h: ClashText).
+// The map's keys view the texts' own characters (a ClashText's never move). Without `share`
+// each text is its own (a reading that keeps few of its clashes holds no table of them all).
 struct Texts {
-  std::unordered_map<std::string, ClashText> made;
-  ClashText operator()(std::string text) {
+  bool share = true;
+  std::unordered_map<std::string_view, ClashText> made;
+  ClashText operator()(const std::string& text) {
+    if (!share) return ClashText(text);
     auto it = made.find(text);
     if (it == made.end()) {
       ClashText shared(text);
-      it = made.emplace(std::move(text), std::move(shared)).first;
+      const std::string_view key = shared.view();
+      it = made.emplace(key, std::move(shared)).first;
     }
     return it->second;
   }
@@ -209,9 +214,11 @@ class ReportReader final : public nlohmann::json_sax<json> {
   json root;
   std::deque<Clash> clashes;
   std::string parse_error_message;
-  // When set, each clash goes there (in the file's order) instead of `clashes`.
+  // When set, each clash goes there (in the file's order) instead of `clashes`, and its texts
+  // are not shared with the others' (the sink keeps few or none of them).
   std::function<void(Clash&&)> sink;
 
+  void share_texts(bool share) { texts_.share = share; }
   bool null() override { return add(nullptr); }
   bool boolean(bool v) override { return add(v); }
   bool number_integer(number_integer_t v) override { return add(v); }
@@ -298,6 +305,7 @@ bool read_report(Parse&& parse, ClashReport& out, std::string& error,
                  std::function<void(Clash&&)> sink = nullptr) {
   try {
     ReportReader reader;
+    reader.share_texts(!sink);
     reader.sink = std::move(sink);
     if (!parse(reader)) {
       error = reader.parse_error_message.empty() ? "not JSON (truncated or damaged)" : reader.parse_error_message;
