@@ -1,10 +1,11 @@
 // clashes.json, status against a previous run, and merging shards (plantview/clash.h).
 #include <algorithm>
 #include <cassert>
-#include <functional>
-#include <istream>
 #include <charconv>
 #include <cstdio>
+#include <functional>
+#include <istream>
+#include <limits>
 #include <unordered_map>
 
 #include <nlohmann/json.hpp>
@@ -51,6 +52,14 @@ std::string text(const json& j, const char* key, const std::string& where) {
   const json& v = field(j, key, where);
   if (!v.is_string()) throw Bad{where + ": '" + key + "' must be a string"};
   return v.get<std::string>();
+}
+// A count: a whole number from 0 to `max` (a JSON integer, not a fraction or a sign).
+uint64_t count(const json& j, const char* key, const std::string& where,
+               uint64_t max = std::numeric_limits<uint64_t>::max()) {
+  const json& v = field(j, key, where);
+  if (!v.is_number_unsigned() || v.get<uint64_t>() > max)
+    throw Bad{where + ": '" + key + "' must be a whole number from 0 to " + std::to_string(max)};
+  return v.get<uint64_t>();
 }
 uint64_t decimal(const json& j, const char* key, const std::string& where, int base = 10) {
   const std::string s = text(j, key, where);
@@ -319,8 +328,8 @@ bool read_report(Parse&& parse, ClashReport& out, std::string& error,
     r.store_directory = text(store, "directory", "store");
     r.spatial_origin_m = point(field(store, "spatial_origin_m", "store"), "store.spatial_origin_m");
     r.commit_id = decimal(store, "commit_id", "store");
-    r.revision = uint32_t(number(store, "revision", "store"));
-    r.objects = uint64_t(number(store, "objects", "store"));
+    r.revision = uint32_t(count(store, "revision", "store", std::numeric_limits<uint32_t>::max()));
+    r.objects = count(store, "objects", "store");
     const json& settings = field(j, "settings", "clashes file");
     r.tolerance_m = number(settings, "tolerance_m", "settings");
     r.clearance_m = number(settings, "clearance_m", "settings");
@@ -334,12 +343,12 @@ bool read_report(Parse&& parse, ClashReport& out, std::string& error,
         r.shard.index >= r.shard.count)
       throw Bad{"settings: 'shard' must be I/N"};
     if (const json& counts = field(j, "counts", "clashes file"); counts.is_object()) {
-      r.counts.block_pairs = uint64_t(number(counts, "block_pairs", "counts"));
-      r.counts.candidate_pairs = uint64_t(number(counts, "candidate_pairs", "counts"));
-      r.counts.narrow_pairs = uint64_t(number(counts, "narrow_pairs", "counts"));
+      r.counts.block_pairs = count(counts, "block_pairs", "counts");
+      r.counts.candidate_pairs = count(counts, "candidate_pairs", "counts");
+      r.counts.narrow_pairs = count(counts, "narrow_pairs", "counts");
       const json& skipped = field(counts, "skipped_by_rule", "counts");
       for (int i = 0; i < kClashRuleCount; ++i)
-        r.counts.skipped_by_rule[i] = uint64_t(number(skipped, std::string(clash_rule_name(ClashRule(i))).c_str(), "counts"));
+        r.counts.skipped_by_rule[i] = count(skipped, std::string(clash_rule_name(ClashRule(i))).c_str(), "counts");
     }
     const json& clashes = field(j, "clashes", "clashes file");
     if (!clashes.is_array()) throw Bad{"clashes file: 'clashes' must be a list"};
