@@ -455,6 +455,16 @@ TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
   EXPECT_FALSE(parse_clash_report(wrong, back, error));
   EXPECT_NE(error.find("clash 0"), std::string::npos) << error;
   EXPECT_NE(error.find("depth_m"), std::string::npos) << error;
+  // A count that is not a whole number in range is refused, naming it.
+  for (const char* bad : {"-1", "1e30", "2.5", "4294967296"}) {
+    std::string wrong_revision = text;
+    const size_t r = wrong_revision.find("\"revision\": ");
+    ASSERT_NE(r, std::string::npos);
+    const size_t value = r + 12, end_of_value = wrong_revision.find_first_of(",\n}", value);
+    wrong_revision.replace(value, end_of_value - value, bad);
+    EXPECT_FALSE(parse_clash_report(wrong_revision, back, error)) << bad;
+    EXPECT_NE(error.find("'revision'"), std::string::npos) << error;
+  }
 }
 
 // Runs the program; its exit status, stdout in `out`, stderr in `err`.
