@@ -98,10 +98,16 @@ bool write_report_atomically(const std::string& path, const ClashReport& report,
       error = "cannot write " + path + " (creating " + temporary + " failed)";
       return false;
     }
-    const bool written = write_clash_report(report, [&file](std::string_view text) {
+    // (a run of millions of clashes writes gigabytes: the terminal sees how far it got)
+    Progress progress("writing " + path);
+    const double pieces = double(report.clashes.size()) + 3.0;  // the header, each clash, the end
+    uint64_t written_pieces = 0;
+    const bool written = write_clash_report(report, [&](std::string_view text) {
       file.write(text.data(), std::streamsize(text.size()));
+      if ((++written_pieces & 4095) == 0) progress.update(double(written_pieces) / pieces);
       return bool(file);
     });
+    progress.finish();
     if (!written || !file.flush()) {
       error = "writing " + temporary + " failed";
       std::filesystem::remove(temporary);
