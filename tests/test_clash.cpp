@@ -17,6 +17,7 @@
 #include <tuple>
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
 
 #include "plantview/clash.h"
 #include "plantview/generate.h"
@@ -421,6 +422,39 @@ TEST(Clash, GeneratedPlantShardsEqualOneRunAndNoOwnPartsReported) {
   EXPECT_EQ(clash_report_json(merged), clash_report_json(whole));
   shards.pop_back();
   EXPECT_FALSE(merge_reports(shards, merged, error));
+}
+
+TEST(Clash, ReportIsWhatTheDocumentsDumpWrites) {
+  // The writer appends each clash itself (no JSON value a clash): its bytes must be the
+  // document's dump, for every field, kind and status, and for texts that need escaping.
+  ClashReport report;
+  report.store_directory = "/data/plant \"one\".store";
+  Clash hard;
+  hard.id = 0x0123456789abcdefull;
+  hard.a = {7, ClashText("/P-1/\"quoted\" \\ tab\t \xc3\xa9"), ObjectClass::pipe, 99};
+  hard.b = {9, ClashText(), ObjectClass::structure, 0};
+  hard.depth_m = 0.1;
+  hard.error_m = 1e-7;
+  hard.points_m = {{1.5, -2.25, 1e20}, {0, 0, 0}};
+  hard.group = ClashText("bad utf-8 \xff here");
+  hard.changed_id = 7;
+  Clash clearance;
+  clearance.id = 1;
+  clearance.kind = ClashKind::clearance;
+  clearance.status = ClashStatus::resolved;
+  clearance.a = {3, ClashText("A"), ObjectClass::equipment, 0};
+  clearance.b = {4, ClashText("B"), ObjectClass::other, 0};
+  clearance.distance_m = 0.0123456789;
+  clearance.points_m = {{123456.789, 0.001, -0.0}};
+  report.clashes = {hard, clearance};
+  const std::string text = clash_report_json(report);
+  const nlohmann::json document = nlohmann::json::parse(text, nullptr, false);
+  ASSERT_FALSE(document.is_discarded());
+  EXPECT_EQ(document.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n", text);
+  ClashReport back;
+  std::string error;
+  ASSERT_TRUE(parse_clash_report(text, back, error)) << error;
+  EXPECT_EQ(clash_report_json(back), text);
 }
 
 TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
