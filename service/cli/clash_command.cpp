@@ -7,6 +7,7 @@
 // that is truncated, damaged, from another store or other settings, or an output that cannot be
 // written; checked before the pass (check_clash_options, which farm submit --clash shares).
 // --out is written through a temporary file and a rename: never half a file.
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <charconv>
@@ -108,7 +109,13 @@ bool write_report_atomically(const std::string& path, const ClashReport& report,
       return bool(file);
     });
     progress.finish();
-    if (!written || !file.flush()) {
+    file.close();
+    // The data reaches the disk before the rename makes it the file (a crash then leaves the
+    // previous clashes.json, never an empty one).
+    const int fd = written && file ? ::open(temporary.c_str(), O_RDONLY | O_CLOEXEC) : -1;
+    const bool synced = fd >= 0 && ::fsync(fd) == 0;
+    if (fd >= 0) ::close(fd);
+    if (!synced) {
       error = "writing " + temporary + " failed";
       std::filesystem::remove(temporary);
       return false;
