@@ -255,6 +255,43 @@ TEST_F(Caps, ABoxAroundEverythingChangesNothing) {
   EXPECT_TRUE(plain.object_ids == boxed.object_ids);
 }
 
+// The ground under a cut model is drawn from the cut frame's own camera, whatever the renderer
+// drew before: the first frame of a fresh renderer and a frame after an uncut one from another
+// camera are the same image (a served permalink renders on whichever renderer is free).
+TEST_F(Caps, TheGroundUnderACutIsDrawnFromTheFramesOwnCamera) {
+  RenderOptions options;
+  options.ambient_occlusion = false;
+  std::string error;
+  auto warm = Renderer::create(*store_, options, error);
+  ASSERT_TRUE(warm) << error;
+  Camera elsewhere;
+  elsewhere.eye_m = {60.0, 150.0, 30.0};
+  elsewhere.target_m = {100.0, 200.0, 2.0};
+  elsewhere.up = {0, 0, 1};
+  Image before, after_uncut, fresh;
+  FrameStats stats;
+  ASSERT_TRUE(render(*warm, elsewhere, kSide, kSide, before, stats));
+  options.section.planes.push_back({{0, 0, 2.0}, {0, 0, 1}});
+  warm->set_options(options);
+  ASSERT_TRUE(render(*warm, camera_, kSide, kSide, after_uncut, stats));
+  auto cold = Renderer::create(*store_, options, error);
+  ASSERT_TRUE(cold) << error;
+  ASSERT_TRUE(render(*cold, camera_, kSide, kSide, fresh, stats));
+
+  // Looking down from 12 m over a plant 3 m across, the ground fills the corners.
+  for (const Image* image : {&fresh, &after_uncut}) {
+    const Rgb corner = pixel(*image, 3, 3);
+    EXPECT_FALSE(corner.r == 204 && corner.g == 214 && corner.b == 224)
+        << "the background, not the ground, at a corner";
+    EXPECT_LT(corner.b, 200) << corner.r << " " << corner.g << " " << corner.b;
+  }
+  ASSERT_EQ(fresh.rgba.size(), after_uncut.rgba.size());
+  double difference = 0;
+  for (size_t i = 0; i < fresh.rgba.size(); ++i)
+    difference += std::abs(int(fresh.rgba[i]) - int(after_uncut.rgba[i]));
+  EXPECT_LT(difference / double(fresh.rgba.size()), 0.5) << "mean difference per channel";
+}
+
 // ---- views --section subject
 
 TEST(SectionViews, AWalledInSubjectIsCutOpenAndShowsItsColour) {

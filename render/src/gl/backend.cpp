@@ -222,8 +222,10 @@ bool GlBackend::begin_frame(const FrameView& view, const Look& look, bool with_i
   }
   // The ground first: what stands on it is drawn over it, and what is blended (see-through
   // triangles, centrelines' feathered edges) blends over it rather than being painted over.
-  if (look.ground) draw_ground(view, look.model_bounds, with_ids);
+  // No clip distance is enabled for it (a previous frame's section may have left them on): its
+  // program writes none.
   set_clipping(false);
+  if (look.ground) draw_ground(view, look.model_bounds, with_ids);
   final_ = nullptr;
   return true;
 }

@@ -51,7 +51,7 @@
 //   - Object ids are written only when read back (with_ids).
 //   - Sections (Look::section): its planes, then the faces of its box that cut the model, as
 //     camera-relative half-spaces (offsets computed in double precision from the eye), are
-//     clipped per vertex by gl_ClipDistance in every program that draws the model and the
+//     clipped per vertex by gl_ClipDistance in every program that draws the model, never the
 //     ground (section_clip.glsl; the closed solids of objects it does not cut, kClosed, are
 //     drawn unclipped by the plain surface program): at most kMaxClipHalfSpaces, the rest of
 //     a box's faces (three planes or more and a box cutting the model on every side) only
@@ -316,7 +316,7 @@ class GlBackend {
   bool bounded_drawing_ = false;
   std::array<GlName, kProgramCount> programs_{};  // linked at init(), by ProgramId
   GlName gl_program(ProgramId id) const { return programs_[size_t(id)]; }
-  // Surface, proxy, centreline or ground as this frame draws with it: the section variant
+  // Surface, proxy or centreline as this frame draws with it: the section variant
   // when the frame has a section.
   GlName drawing_program(ProgramId id) const {
     return gl_program(clip_count_ > 0 ? sections_variant(id) : id);

@@ -25,7 +25,7 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   const glm::dvec2 centre = 0.5 * glm::dvec2(bounds.min.x + bounds.max.x, bounds.min.y + bounds.max.y) -
                             glm::dvec2(view.eye_m);
   const glm::dvec2 phase(std::fmod(view.eye_m.x, 10 * grid), std::fmod(view.eye_m.y, 10 * grid));
-  const GLuint p = gl_program(ProgramId::ground);  // the plain program: it writes no clip distance
+  const GLuint p = gl_program(ProgramId::ground);  // it writes no clip distance (none enabled)
   glProgramUniform1f(p, at(p, "u_ground_z"), float(ground_z));
   glProgramUniform2f(p, at(p, "u_grid_phase"), float(phase.x), float(phase.y));
   glProgramUniform1f(p, at(p, "u_grid_m"), float(grid));
@@ -36,12 +36,9 @@ void GlBackend::draw_ground(const FrameView& view, const DAabb& bounds, bool wit
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, colour_only);
   glEnablei(GL_BLEND, 0);
   glBlendFunci(0, GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-  const bool clipping = clip_count_ > 0 && glIsEnabled(GL_CLIP_DISTANCE0);
-  if (clipping) set_clipping(false);
   glUseProgram(p);
   glBindVertexArray(empty_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 6);
-  if (clipping) set_clipping(true);
   glDisablei(GL_BLEND, 0);
   const GLenum restored[] = {GL_COLOR_ATTACHMENT0, GLenum(with_ids ? GL_COLOR_ATTACHMENT1 : GL_NONE)};
   glNamedFramebufferDrawBuffers(scene_.framebuffer, 2, restored);

@@ -138,7 +138,7 @@ void GlBackend::begin_pass(const FrameView& view, const Plan& plan, bool with_id
                             glm::value_ptr(view.view_projection));
   for (const GLuint program :
        {drawing_program(ProgramId::surface), drawing_program(ProgramId::proxy), centreline,
-        drawing_program(ProgramId::ground), gl_program(ProgramId::surface)}) {
+        gl_program(ProgramId::ground), gl_program(ProgramId::surface)}) {
     glProgramUniform1i(program, at(program, "u_clip_count"), clip_count_);
     if (clip_count_)
       glProgramUniform4fv(program, at(program, "u_clip"), clip_count_, glm::value_ptr(clip_[0]));

@@ -54,8 +54,7 @@ ShaderSource shader(ShaderStage stage, std::initializer_list<const ShaderFile*> 
 ProgramSource with_sections(ProgramSource program) {
   program.name = program.name == std::string_view("surface")      ? "surface (sections)"
                  : program.name == std::string_view("proxy")      ? "proxy (sections)"
-                 : program.name == std::string_view("centreline") ? "centreline (sections)"
-                                                                  : "ground (sections)";
+                                                                  : "centreline (sections)";
   for (ShaderSource& s : program.shaders)
     for (const ShaderPart& p : s.parts)
       if (p.name == kSectionClip.name || p.name == kSurfaceFrag.name) {
@@ -97,7 +96,7 @@ ProgramSource program_source(ProgramId id) {
                shader(fragment, {&kCentrelineFrag}),
                shader(fragment, {&kLighting})}};
     case ProgramId::ground:
-      return {"ground", {shader(vertex, {&kTieConstants, &kSectionClip, &kGroundVert}),
+      return {"ground", {shader(vertex, {&kTieConstants, &kGroundVert}),
                          shader(fragment, {&kGroundFrag})}};
     case ProgramId::ambient_occlusion:
       return {"ambient occlusion", {shader(vertex, {&kFullScreenVert}),
@@ -111,7 +110,6 @@ ProgramSource program_source(ProgramId id) {
     case ProgramId::proxy_sections: return with_sections(program_source(ProgramId::proxy));
     case ProgramId::centreline_sections:
       return with_sections(program_source(ProgramId::centreline));
-    case ProgramId::ground_sections: return with_sections(program_source(ProgramId::ground));
     case ProgramId::box_test:
       return {"box test", {shader(vertex, {&kBoxTestVert}), shader(vertex, {&kBoxFace}),
                            shader(fragment, {&kBoxTestFrag})}};
@@ -125,10 +123,9 @@ ProgramId sections_variant(ProgramId id) {
     case ProgramId::surface: return ProgramId::surface_sections;
     case ProgramId::proxy: return ProgramId::proxy_sections;
     case ProgramId::centreline: return ProgramId::centreline_sections;
-    case ProgramId::ground: return ProgramId::ground_sections;
     default: break;
   }
-  assert(false && "sections_variant: not surface, proxy, centreline or ground");
+  assert(false && "sections_variant: not surface, proxy or centreline");
   return id;
 }
 

@@ -71,17 +71,16 @@ enum class ProgramId : uint8_t {
   depth_reduction,
   depth_reduction_multisampled,
   box_test,
-  // The section variants of surface, proxy, centreline and ground (SECTIONS defined: clipped,
+  // The section variants of surface, proxy and centreline (SECTIONS defined: clipped,
   // and surfaces capped), linked when a frame first has a section.
   surface_sections,
   proxy_sections,
   centreline_sections,
-  ground_sections,
 };
-inline constexpr size_t kProgramCount = size_t(ProgramId::ground_sections) + 1;
+inline constexpr size_t kProgramCount = size_t(ProgramId::centreline_sections) + 1;
 // The programs init() links: those before the section variants.
 inline constexpr size_t kProgramsAtInit = size_t(ProgramId::surface_sections);
-// The section variant of surface, proxy, centreline or ground.
+// The section variant of surface, proxy or centreline (the ground is never clipped).
 ProgramId sections_variant(ProgramId id);
 
 ProgramSource program_source(ProgramId id);
