@@ -33,7 +33,9 @@ pass "tests"
 ctest --test-dir build --output-on-failure -j "$jobs"
 took tests
 
-# Debug keeps asserts; -O1 makes the sanitized tests run about twice as fast as -O0.
+# Debug keeps asserts; -O1 makes the sanitized tests run about twice as fast as -O0. The glue
+# (most test programs, the command-line front end) is compiled at -O0 all the same
+# (CMakeLists.txt: plantview_glue_unoptimised): the ASan pass builds in 330 s rather than 430 s.
 sanitized_build() {  # <dir> <PLANTVIEW_SANITIZE> [cmake options...]
   local dir=$1 sanitize=$2
   shift 2
