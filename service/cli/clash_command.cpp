@@ -55,13 +55,17 @@ bool parse_shard(const std::string& text, ClashShard& shard) {
          shard.index < shard.count;
 }
 
-bool read_report(const std::string& path, ClashReport& report, std::string& error) {
+// A clashes file read whole (read_clash_report) or as its keys (read_previous_clashes); the
+// error names the file.
+template <class Out>
+bool read_clashes_file(const std::string& path, bool (*read)(std::istream&, Out&, std::string&), Out& out,
+                       std::string& error) {
   std::ifstream file(path, std::ios::binary);
   if (!file) {
     error = "cannot read " + path;
     return false;
   }
-  if (!read_clash_report(file, report, error)) {
+  if (!read(file, out, error)) {
     error = path + ": " + error;
     return false;
   }
@@ -156,19 +160,6 @@ std::string farm_shard_file(const std::string& dir, const ClashShard& shard) {
       .string();
 }
 
-bool read_previous(const std::string& path, PreviousClashes& previous, std::string& error) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) {
-    error = "cannot read " + path;
-    return false;
-  }
-  if (!read_previous_clashes(file, previous, error)) {
-    error = path + ": " + error;
-    return false;
-  }
-  return true;
-}
-
 // --since PATH, once the run's clashes are found (all shards merged): statuses against
 // `previous` (that file's keys; the file is read again for the clashes now resolved, never held
 // whole), then the new clashes' changed objects (a note on stderr when the store cannot name
@@ -202,7 +193,7 @@ int finish_farm_task(const ClashReport& report, const std::string& dir, const Re
                 << " clashes; waiting for the others (" << path << " is missing)\n";
       return 0;
     }
-    if (!read_report(path, shards[i], error)) return fail(error);
+    if (!read_clashes_file(path, read_clash_report, shards[i], error)) return fail(error);
   }
   ClashReport merged;
   if (!merge_reports(std::move(shards), merged, error)) {
@@ -215,7 +206,7 @@ int finish_farm_task(const ClashReport& report, const std::string& dir, const Re
   // shards are of this task's snapshot: merge_reports checked it).
   if (!since.empty()) {
     PreviousClashes previous;
-    if (!read_previous(since, previous, error)) return fail("--since " + error);
+    if (!read_clashes_file(since, read_previous_clashes, previous, error)) return fail("--since " + error);
     if (!apply_since(merged, previous, view, since, error)) return fail(error);
   }
   const std::string out = (std::filesystem::path(dir) / "clashes.json").string();
@@ -267,7 +258,7 @@ int run_merge(const ClashArgs& a) {
   std::vector<ClashReport> shards(a.merge_inputs.size());
   std::string error;
   for (size_t i = 0; i < shards.size(); ++i)
-    if (!read_report(a.merge_inputs[i], shards[i], error)) return fail(error);
+    if (!read_clashes_file(a.merge_inputs[i], read_clash_report, shards[i], error)) return fail(error);
   ClashReport merged;
   if (!merge_reports(std::move(shards), merged, error)) return fail(error);
   return emit(merged, a.merge_out, a.json);
@@ -312,7 +303,7 @@ int check_clash_options(const std::string& command, const ClashOptions& o, const
                          "structure, other; or a glob on the tag)");
   }
   if (o.since.empty()) return 0;
-  if (!read_previous(o.since, previous, error)) return runtime_failure("--since " + error);
+  if (!read_clashes_file(o.since, read_previous_clashes, previous, error)) return runtime_failure("--since " + error);
   // The store and settings a run would record (find_clashes), compared as match_previous does.
   if (!view->spatial_ready(error)) return runtime_failure(error);
   ClashReport run;

@@ -183,8 +183,9 @@ struct ClashCounts {
   uint64_t skipped_by_rule[kClashRuleCount] = {};
 };
 
-// What a run found, and the store and settings it ran on (clashes.json).
-struct ClashReport {
+// A run's header: the store and settings it ran on and what it counted (clashes.json but its
+// clashes). Copied on its own where the clashes are not (a previous run's keys, merging).
+struct ClashRun {
   std::string store_directory;   // canonical
   glm::dvec3 spatial_origin_m{0.0};
   uint64_t commit_id = 0;
@@ -194,10 +195,14 @@ struct ClashReport {
   std::string between, with;
   bool include_connected = false;
   ClashShard shard;
+  ClashCounts counts;
+};
+
+// What a run found, with its header.
+struct ClashReport : ClashRun {
   // Sorted (above); resolved ones last, after status. A deque: it grows without moving what it
   // holds, so a run of millions of clashes holds each once (find_clashes' workers append to it).
   std::deque<Clash> clashes;
-  ClashCounts counts;
 };
 
 // Finds the clashes of the view's snapshot. `directory` is recorded as the store's identity.
@@ -222,7 +227,7 @@ struct ClashKey {
   bool resolved = false;
 };
 struct PreviousClashes {
-  ClashReport header;  // the file's report, without its clashes
+  ClashRun header;
   std::vector<ClashKey> keys;
 };
 // Reads a clashes file's header and keys, never its clashes whole (errors as parse_clash_report).

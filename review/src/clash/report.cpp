@@ -423,7 +423,7 @@ bool read_previous_clashes(std::istream& input, PreviousClashes& out, std::strin
 
 namespace {
 
-bool same_store(const ClashReport& x, const ClashReport& y, std::string& error) {
+bool same_store(const ClashRun& x, const ClashRun& y, std::string& error) {
   if (x.store_directory != y.store_directory || x.spatial_origin_m != y.spatial_origin_m) {
     error = "it comes from another store (" + y.store_directory + ", not " + x.store_directory + ")";
     return false;
@@ -431,7 +431,7 @@ bool same_store(const ClashReport& x, const ClashReport& y, std::string& error) 
   return true;
 }
 
-bool same_settings(const ClashReport& x, const ClashReport& y, std::string& error) {
+bool same_settings(const ClashRun& x, const ClashRun& y, std::string& error) {
   if (x.tolerance_m != y.tolerance_m || x.clearance_m != y.clearance_m || x.between != y.between ||
       x.with != y.with || x.include_connected != y.include_connected) {
     error = "it was run with other settings (tolerance, clearance, --between/--and, --include-connected)";
@@ -518,20 +518,8 @@ bool append_resolved(ClashReport& report, std::istream& previous_file, const std
 }
 
 bool apply_previous(ClashReport& report, const ClashReport& previous, std::string& error) {
-  PreviousClashes keys;  // (the header: every field but the clashes)
-  ClashReport& h = keys.header;
-  h.store_directory = previous.store_directory;
-  h.spatial_origin_m = previous.spatial_origin_m;
-  h.commit_id = previous.commit_id;
-  h.revision = previous.revision;
-  h.objects = previous.objects;
-  h.tolerance_m = previous.tolerance_m;
-  h.clearance_m = previous.clearance_m;
-  h.between = previous.between;
-  h.with = previous.with;
-  h.include_connected = previous.include_connected;
-  h.shard = previous.shard;
-  h.counts = previous.counts;
+  PreviousClashes keys;
+  keys.header = previous;  // (its header)
   keys.keys.reserve(previous.clashes.size());
   for (const Clash& c : previous.clashes)
     keys.keys.push_back({c.id, c.a.id, c.b.id, c.points_m.front(), c.status == ClashStatus::resolved});
@@ -581,12 +569,8 @@ bool merge_reports(std::vector<ClashReport> shards, ClashReport& out, std::strin
     error = "no shard results to merge";
     return false;
   }
-  ClashReport merged;  // the first shard's header (its clashes are moved over below)
-  {
-    std::deque<Clash> first = std::move(shards.front().clashes);
-    merged = shards.front();
-    shards.front().clashes = std::move(first);
-  }
+  ClashReport merged;
+  static_cast<ClashRun&>(merged) = shards.front();  // the first shard's header (the clashes below)
   merged.counts = ClashCounts();
   std::vector<bool> seen(shards.front().shard.count, false);
   for (size_t i = 0; i < shards.size(); ++i) {
