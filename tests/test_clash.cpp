@@ -500,6 +500,51 @@ TEST(Clash, ReportRoundTripsAndRefusesTruncation) {
   }
 }
 
+// `views --per clash` reads a clashes file keeping only the clashes it makes views of: the
+// header as read whole, the selected clashes in the file's order.
+TEST(Clash, ReadingKeepsOnlyTheSelectedClashes) {
+  ClashReport report;
+  report.store_directory = "/data/plant";
+  report.revision = 4;
+  const auto clash = [](uint64_t id, ClashStatus status, const char* a_tag, const char* group) {
+    Clash c;
+    c.id = id;
+    c.status = status;
+    c.a = {id * 2, ClashText(a_tag), ObjectClass::pipe, 0};
+    c.b = {id * 2 + 1, ClashText(), ObjectClass::structure, 0};
+    c.depth_m = 0.01;
+    c.points_m = {{1, 2, 3}};
+    c.group = ClashText(group);
+    return c;
+  };
+  report.clashes = {clash(0x11, ClashStatus::new_clash, "/P-101/TUBE-1", "P-101 x B-7"),
+                    clash(0x22, ClashStatus::active, "/P-202/TUBE-3", "P-202 x B-7"),
+                    clash(0x33, ClashStatus::new_clash, "/P-303/ELBO-2", "P-303 x B-9"),
+                    clash(0x44, ClashStatus::resolved, "/P-101/TUBE-9", "P-101 x B-7")};
+  const std::string text = clash_report_json(report);
+  const auto kept = [&](const ClashViewSelection& selection) {
+    std::istringstream in(text);
+    ClashReport read;
+    std::string error;
+    EXPECT_TRUE(read_clash_report(in, read, error, [&](const Clash& c) { return clash_view_selected(c, selection); }))
+        << error;
+    EXPECT_EQ(read.store_directory, report.store_directory);
+    EXPECT_EQ(read.revision, 4u);
+    std::vector<uint64_t> ids;
+    for (const Clash& c : read.clashes) ids.push_back(c.id);
+    return ids;
+  };
+  using Ids = std::vector<uint64_t>;
+  EXPECT_EQ(kept({}), (Ids{0x11, 0x22, 0x33}));  // never a resolved one
+  EXPECT_EQ(kept({true, false, ""}), (Ids{0x11, 0x33}));
+  EXPECT_EQ(kept({false, true, ""}), (Ids{0x22}));
+  EXPECT_EQ(kept({true, true, "/P-101/*"}), (Ids{0x11}));        // a tag
+  EXPECT_EQ(kept({true, true, "* x B-7"}), (Ids{0x11, 0x22}));   // the group
+  EXPECT_EQ(kept({true, true, "clash-0000000000000033"}), (Ids{0x33}));  // the view name
+  EXPECT_EQ(kept({true, true, "103"}), (Ids{0x33}));  // b has no tag: its id (0x33 * 2 + 1)
+  EXPECT_EQ(kept({false, true, "/P-101/*"}), (Ids{}));
+}
+
 // Runs the program; its exit status, stdout in `out`, stderr in `err`.
 int run_plantview(const std::vector<std::string>& args, std::string& out, std::string& err) {
   const test::TempDir scratch;
@@ -591,6 +636,56 @@ std::map<std::string, std::string> files_under(const std::filesystem::path& dir)
   for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
     if (e.is_regular_file()) files[std::filesystem::relative(e.path(), dir).string()] = slurp_file(e.path());
   return files;
+}
+
+// `views --per clash --status ... --select ...`: the views of the clashes asked for; a status
+// that is not new or active, or either option without --per clash, is a usage error; a glob
+// matching no clash fails naming it.
+TEST(ClashCommand, ViewsPerClashMakeViewsOfTheChosenStatusesAndTags) {
+  const test::TempDir dir, scratch;
+  std::filesystem::create_directories(scratch.path());
+  ASSERT_TRUE(test::make_store(dir, piping_case(true)));
+  const std::string s = dir.str(), first = (scratch.path() / "first.json").string(),
+                    second = (scratch.path() / "second.json").string(),
+                    views = (scratch.path() / "views.json").string();
+  std::string out, err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--out", first}, out, err), 0) << err;
+  ASSERT_EQ(run_plantview({"clash", "--store", s, "--since", first, "--out", second}, out, err), 0) << err;
+  ClashReport report;
+  std::string error;
+  std::ifstream in(second);
+  ASSERT_TRUE(read_clash_report(in, report, error)) << error;
+  ASSERT_EQ(report.clashes.size(), 1u);
+  const Clash& clash = report.clashes[0];
+  ASSERT_EQ(clash.status, ClashStatus::active);
+  const auto views_of = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {"views", "--store", s, "--per", "clash", "--clashes", second, "--out", views};
+    args.insert(args.end(), extra.begin(), extra.end());
+    std::filesystem::remove(views);
+    const int status = run_plantview(args, out, err);
+    EXPECT_EQ(status, 0) << err;
+    const nlohmann::json written = nlohmann::json::parse(slurp_file(views), nullptr, false);
+    EXPECT_TRUE(written.is_object() && written["views"].is_array()) << slurp_file(views);
+    return written.is_object() && written["views"].is_array() ? written["views"].size() : size_t(99);
+  };
+  EXPECT_EQ(views_of({}), 1u);
+  EXPECT_EQ(views_of({"--status", "new"}), 0u);  // (after a revision: nothing new to review)
+  EXPECT_EQ(views_of({"--status", "active"}), 1u);
+  EXPECT_EQ(views_of({"--status", "new,active", "--select", "clash-*"}), 1u);
+  ASSERT_FALSE(clash.a.tag.empty());
+  EXPECT_EQ(views_of({"--select", clash.a.tag.str()}), 1u);
+  EXPECT_NE(out.find("\"views\":1,\"subjects\":1,"), std::string::npos) << out;
+
+  const std::string never = (scratch.path() / "never.json").string();
+  EXPECT_EQ(run_plantview({"views", "--store", s, "--per", "clash", "--clashes", second, "--select", "NOPE-*", "--out",
+                           never}, out, err), 1);
+  EXPECT_NE(err.find("'NOPE-*' matches none of the 1 unresolved clashes"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"views", "--store", s, "--per", "clash", "--clashes", second, "--status", "resolved",
+                           "--out", never}, out, err), 2);
+  EXPECT_NE(err.find("--status: 'resolved'"), std::string::npos) << err;
+  EXPECT_EQ(run_plantview({"views", "--store", s, "--per", "equipment", "--status", "new", "--out", never}, out, err), 2);
+  EXPECT_NE(err.find("--per clash"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(never));
 }
 
 TEST(ClashCommand, FarmSinceMarksARevisionsNewClashAsOneProcessDoes) {

@@ -1,5 +1,5 @@
 // `plantview views --store DIR --per overview|equipment|pipeline|area|change|clash [--select GLOB]
-// [--from R1 [--to R2] [--group object|pipeline|equipment]] [--clashes CLASHES.json]
+// [--from R1 [--to R2] [--group object|pipeline|equipment]] [--clashes CLASHES.json [--status new|active]]
 // [--sides 1|4] [--size WxH] [--section none|subject [--section-margin M]] --out VIEWS.json`:
 // named, fitted review views of a store's subjects (review.h: make_review_views), for
 // `render --views`.
@@ -33,6 +33,7 @@ struct ViewsArgs {
   int64_t from = -1, to = 0;
   std::string group = "object";
   std::string clashes;                // --per clash: the clashes file (clash.h)
+  std::string status;                 // --per clash: new, active or both ("": both)
 };
 
 int fail(const std::string& message) {
@@ -83,6 +84,23 @@ int run_views(const ViewsArgs& a) {
   }
 
   std::string error;
+  ClashViewSelection selection;  // --per clash
+  selection.select = a.select;
+  if (a.per == "clash") {
+    if (a.clashes.empty()) return usage_error("views --per clash: --clashes FILE (from plantview clash --out)");
+    if (!a.status.empty()) {
+      std::vector<std::string> statuses;
+      if (!parse_word_list(a.status, "--status", statuses, error)) return usage_error(error);
+      selection.new_clashes = selection.active = false;
+      for (const std::string& s : statuses) {
+        if (s == "new") selection.new_clashes = true;
+        else if (s == "active") selection.active = true;
+        else return usage_error("--status: '" + s + "' is not one of new, active (resolved clashes have no view)");
+      }
+    }
+  } else if (!a.status.empty() || !a.clashes.empty()) {
+    return usage_error("--status and --clashes go with --per clash");
+  }
   ObjectStyle style;
   style.colour_by = a.colour_by;
   if ((!a.hide.empty() && !parse_word_list(a.hide, "--hide", style.hide, error)) ||
@@ -93,15 +111,21 @@ int run_views(const ViewsArgs& a) {
   std::vector<ReviewView> views;
   ReviewViewsSummary summary;
   if (options.per == "clash") {  // one view a clash of the clashes file (clash.h)
-    if (a.clashes.empty()) return usage_error("views --per clash: --clashes FILE (from plantview clash --out)");
     std::ifstream file(a.clashes, std::ios::binary);
     if (!file) return fail("cannot read " + a.clashes);
+    // Only the selected clashes are kept as the file is read (a run at millions of clashes).
     ClashReport report;
-    if (!read_clash_report(file, report, error)) return fail(a.clashes + ": " + error);
+    const auto keep = [&](const Clash& c) {
+      summary.subjects += c.status != ClashStatus::resolved;
+      return clash_view_selected(c, selection);
+    };
+    if (!read_clash_report(file, report, error, keep)) return fail(a.clashes + ": " + error);
+    if (!a.select.empty() && report.clashes.empty() && summary.subjects > 0)
+      return fail("--select '" + a.select + "' matches none of the " + std::to_string(summary.subjects) +
+                  " unresolved clashes" + (a.status.empty() ? "" : " (--status " + a.status + ")"));
     const auto view = store->read(error);
     if (!view) return fail(error);
     if (!clash_views(report, options.aspect, *view, views, error)) return fail(error);
-    summary.subjects = views.size();
   } else {
     Progress progress("views");
     if (!make_review_views(*store, options, views, summary, error,
@@ -136,8 +160,11 @@ Action add_views_command(CLI::App& app) {
       ->check(CLI::IsMember({"object", "pipeline", "equipment"}))
       ->capture_default_str();
   views->add_option("--clashes", args->clashes, "--per clash: the clashes.json of plantview clash");
+  views->add_option("--status", args->status,
+                    "--per clash: new, active or new,active (the default): the clashes of these statuses");
   views->add_option("--select", args->select,
-                    "Only subjects whose view name or tag/path matches this shell glob");
+                    "Only subjects whose view name or tag/path matches this shell glob (--per clash: the "
+                    "view name, either object's tag or the group)");
   views->add_option("--sides", args->sides, "1: isometric; 4: from north, east, south and west")
       ->check(CLI::IsMember({1, 4}))
       ->capture_default_str();

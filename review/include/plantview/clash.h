@@ -270,6 +270,19 @@ bool write_clash_report(const ClashReport& report, const std::function<bool(std:
 // document's tree (a run at millions of clashes writes gigabytes).
 bool parse_clash_report(std::string_view json, ClashReport& out, std::string& error);
 bool read_clash_report(std::istream& input, ClashReport& out, std::string& error);
+// The same keeping only the clashes `keep` accepts (each is read, given to it, and dropped
+// unless kept): a selection from a file of millions is held alone.
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error,
+                       const std::function<bool(const Clash&)>& keep);
+
+// Which clashes get a view (`views --per clash --status ... --select ...`): never resolved ones;
+// new and active ones as the flags say; and, with `select` (a shell glob, fnmatch), those whose
+// view name (clash-<id>), either object's tag (its id where it has none) or group matches.
+struct ClashViewSelection {
+  bool new_clashes = true, active = true;
+  std::string select;  // empty: any
+};
+bool clash_view_selected(const Clash& clash, const ClashViewSelection& selection);
 
 // Review views of the clashes (resolved ones left out): `views --per clash`. Each is named
 // "clash-<id>", kind "clash", its subject the two objects (highlighted, the rest ghosted; the

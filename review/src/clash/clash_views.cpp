@@ -1,4 +1,7 @@
-// Review views of clashes (plantview/clash.h: clash_views): one fitted, sectioned view a clash.
+// Review views of clashes (plantview/clash.h: clash_views): one fitted, sectioned view a clash,
+// and which clashes get one (clash_view_selected).
+#include <fnmatch.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -191,6 +194,16 @@ bool make_views(const ClashReport& report, double aspect, const SizesOf& sizes_o
 }
 
 }  // namespace
+
+bool clash_view_selected(const Clash& c, const ClashViewSelection& selection) {
+  if (c.status == ClashStatus::resolved || (c.status == ClashStatus::new_clash && !selection.new_clashes) ||
+      (c.status == ClashStatus::active && !selection.active))
+    return false;
+  if (selection.select.empty()) return true;
+  const auto matches = [&](const std::string& text) { return fnmatch(selection.select.c_str(), text.c_str(), 0) == 0; };
+  return matches("clash-" + hex(c.id)) || matches(name_of(c.a)) || matches(name_of(c.b)) ||
+         (!c.group.empty() && matches(c.group.str()));
+}
 
 std::vector<ReviewView> clash_views(const ClashReport& report, double aspect) {
   std::vector<ReviewView> out;

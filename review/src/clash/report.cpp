@@ -407,6 +407,20 @@ bool read_clash_report(std::istream& input, ClashReport& out, std::string& error
   return read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, out, error);
 }
 
+bool read_clash_report(std::istream& input, ClashReport& out, std::string& error,
+                       const std::function<bool(const Clash&)>& keep) {
+  std::deque<Clash> kept;
+  ClashReport read;
+  if (!read_report([&](ReportReader& reader) { return json::sax_parse(input, &reader); }, read, error,
+                   [&](Clash&& c) {
+                     if (keep(c)) kept.push_back(std::move(c));
+                   }))
+    return false;
+  read.clashes = std::move(kept);
+  out = std::move(read);
+  return true;
+}
+
 bool read_previous_clashes(std::istream& input, PreviousClashes& out, std::string& error) {
   std::vector<ClashKey> keys;
   ClashReport header;
