@@ -310,7 +310,10 @@ std::string review_views_json(const std::vector<ReviewView>& views, std::string_
       list.back()["colours"] = colours;
     }
   }
-  const Json file{{"version", kViewsFileVersion}, {"per", std::string(per)}, {"views", list}};
+  Json file = Json::object();  // (keys sorted as written: the list moved in, not copied)
+  file["version"] = kViewsFileVersion;
+  file["per"] = std::string(per);
+  file["views"] = std::move(list);
   // Attribute values are bytes as the model gave them, not always UTF-8: invalid sequences
   // become U+FFFD rather than failing the file.
   return file.dump(1, ' ', false, Json::error_handler_t::replace) + "\n";
