@@ -11,7 +11,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <map>
 
 #include "plantview/camera.h"
 #include "plantview/review.h"
@@ -73,6 +75,49 @@ class Looks : public ::testing::Test {
     EXPECT_EQ(views.size(), 1u) << tag;
     return views.empty() ? ReviewView{} : views.front();
   }
+
+  // A golden look: its reference's name, the renderer's options and the camera.
+  struct Look {
+    std::string name;
+    RenderOptions options;
+    Camera camera;
+  };
+  static Look look(const std::string& name) {
+    Look l{name, RenderOptions{}, Camera{}};
+    std::string error;
+    auto view = store_->read(error);
+    EXPECT_TRUE(view) << error;
+    if (name == "overview" || name == "colour_by") {
+      // Categories (view_filters.h: colour_by): each material a palette colour, objects without
+      // one grey. (The legend is the caption's, drawn by the CLI, not here.)
+      if (name == "colour_by") l.options.style.colour_by = "Material";
+      l.camera = default_camera(overview_boxes(*view), double(kWidth) / kHeight);
+    } else if (name == "interior") {
+      // Among the pumps and exchangers of unit 01, under the pipe rack: curved shells, elbows and
+      // contact shadows, where half-resolution ambient occlusion once left blocks.
+      l.camera.eye_m = {8.0, 16.0, 3.0};
+      l.camera.target_m = {16.0, 24.0, 1.0};
+    } else if (name == "highlight") {
+      const ReviewView v = equipment_view("P-01-001A");
+      EXPECT_FALSE(v.subject.empty());
+      l.options.highlight_ids = v.subject;
+      l.camera = v.camera;
+    } else if (name == "section") {
+      // A 2 m plan slab (clip planes 1 m and 3 m above the plant's lowest point), seen from
+      // above at an angle: vessels, a pipe rack's legs, pumps of unit 01.
+      const double bottom = view->info().statistics.bounds.min.z + 1.0, top = bottom + 2.0;
+      l.options.section.planes.push_back({{0, 0, top}, {0, 0, 1}});
+      l.options.section.planes.push_back({{0, 0, bottom}, {0, 0, -1}});
+      l.camera.target_m = {12.0, 14.0, bottom};
+      l.camera.eye_m = {4.0, 6.0, bottom + 8.3};
+    } else {
+      ADD_FAILURE() << "no look " << name;
+    }
+    return l;
+  }
+
+  // Renders the look on a fresh renderer and compares it with its reference.
+  static void expect_look_matches_reference(const std::string& name);
 
   static Colour colour_of(uint64_t id) {
     std::string error;
@@ -147,62 +192,52 @@ Hsv mean_hsv(const Image& image, Where where, size_t& count) {
   return count ? hsv(r / count, g / count, b / count) : Hsv{};
 }
 
-TEST_F(Looks, TheDefaultOverviewMatchesItsReference) {
+void Looks::expect_look_matches_reference(const std::string& name) {
+  const Look l = look(name);
+  auto r = renderer(l.options);
+  ASSERT_TRUE(r);
+  expect_matches_reference(render(*r, l.camera), name);
+}
+
+TEST_F(Looks, TheDefaultOverviewMatchesItsReference) { expect_look_matches_reference("overview"); }
+TEST_F(Looks, AnOverviewColouredByMaterialMatchesItsReference) { expect_look_matches_reference("colour_by"); }
+TEST_F(Looks, AStillInsideThePlantMatchesItsReference) { expect_look_matches_reference("interior"); }
+TEST_F(Looks, AHighlightedReviewViewMatchesItsReference) { expect_look_matches_reference("highlight"); }
+// Only the slab drawn, the cut faces of vessels, walls and pipes capped in their colours,
+// darker, over the floor grid.
+TEST_F(Looks, APlanSlabMatchesItsReference) { expect_look_matches_reference("section"); }
+
+// A look is the same image whatever its renderer drew before: a server's renderers serve every
+// client in turn and a farm's draw one view after another (a cut frame's ground once kept the
+// camera of the renderer's last uncut frame). Each look drawn by one renderer after each of the
+// others against a fresh renderer's first frame of it.
+TEST_F(Looks, EachLookIsTheSameImageAfterAnyOther) {
+  const std::vector<std::string> names = {"overview", "colour_by", "interior", "highlight", "section"};
+  std::map<std::string, Image> first_frames;
+  for (const std::string& name : names) {
+    const Look l = look(name);
+    auto r = renderer(l.options);
+    ASSERT_TRUE(r);
+    first_frames[name] = render(*r, l.camera);
+  }
   auto r = renderer();
-  std::string error;
-  auto view = store_->read(error);
-  ASSERT_TRUE(view) << error;
-  const Camera camera = default_camera(overview_boxes(*view), double(kWidth) / kHeight);
-  expect_matches_reference(render(*r, camera), "overview");
-}
-
-TEST_F(Looks, AnOverviewColouredByMaterialMatchesItsReference) {
-  // Categories (view_filters.h: colour_by): each material a palette colour, objects without
-  // one grey. (The legend is the caption's, drawn by the CLI, not here.)
-  RenderOptions options;
-  options.style.colour_by = "Material";
-  auto r = renderer(options);
-  std::string error;
-  auto view = store_->read(error);
-  ASSERT_TRUE(view) << error;
-  const Camera camera = default_camera(overview_boxes(*view), double(kWidth) / kHeight);
-  expect_matches_reference(render(*r, camera), "colour_by");
-}
-
-TEST_F(Looks, AStillInsideThePlantMatchesItsReference) {
-  // Among the pumps and exchangers of unit 01, under the pipe rack: curved shells, elbows and
-  // contact shadows, where half-resolution ambient occlusion once left blocks.
-  auto r = renderer();
-  Camera camera;
-  camera.eye_m = {8.0, 16.0, 3.0};
-  camera.target_m = {16.0, 24.0, 1.0};
-  expect_matches_reference(render(*r, camera), "interior");
-}
-
-TEST_F(Looks, AHighlightedReviewViewMatchesItsReference) {
-  const ReviewView view = equipment_view("P-01-001A");
-  ASSERT_FALSE(view.subject.empty());
-  RenderOptions options;
-  options.highlight_ids = view.subject;
-  auto r = renderer(options);
-  expect_matches_reference(render(*r, view.camera), "highlight");
-}
-
-// A 2 m plan slab of preset c (clip planes 1 m and 3 m above its lowest point), seen from above
-// at an angle: only the slab drawn, the cut faces of vessels, walls and pipes capped in their
-// colours, darker.
-TEST_F(Looks, APlanSlabMatchesItsReference) {
-  RenderOptions options;
-  auto r = renderer(options);
-  const DAabb bounds = r->model_bounds();
-  const double bottom = bounds.min.z + 1.0, top = bottom + 2.0;
-  options.section.planes.push_back({{0, 0, top}, {0, 0, 1}});
-  options.section.planes.push_back({{0, 0, bottom}, {0, 0, -1}});
-  r->set_options(options);
-  Camera camera;
-  camera.target_m = {12.0, 14.0, bottom};  // vessels, a pipe rack's legs, pumps of unit 01
-  camera.eye_m = {4.0, 6.0, bottom + 8.3};
-  expect_matches_reference(render(*r, camera), "section");
+  ASSERT_TRUE(r);
+  std::string after = "(none)";
+  for (const char* name : {"section", "interior", "highlight", "colour_by", "overview", "section", "highlight",
+                           "overview", "interior", "colour_by", "section", "colour_by", "highlight", "interior",
+                           "overview"}) {
+    const Look l = look(name);
+    r->set_options(l.options);
+    const Image image = render(*r, l.camera);
+    ImageComparison c;
+    std::string error;
+    ASSERT_TRUE(compare_images(image, first_frames[name], c, error)) << error;
+    std::printf("%s after %s: %.1f dB, %.3f%% differing\n", name, after.c_str(), c.psnr_db, 100 * c.differing_share);
+    EXPECT_TRUE(c.psnr_db >= 50.0 && c.differing_share <= 0.0005)
+        << name << " after " << after << ": PSNR " << c.psnr_db << " dB, " << 100 * c.differing_share
+        << "% of pixels differing from a fresh renderer's";
+    after = name;
+  }
 }
 
 // The subject's pixels (where a plain frame of the same view draws it) keep its stored hue and

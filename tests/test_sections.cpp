@@ -255,6 +255,35 @@ TEST_F(Caps, ABoxAroundEverythingChangesNothing) {
   EXPECT_TRUE(plain.object_ids == boxed.object_ids);
 }
 
+// Whatever lies inside a cut solid (a pipe through a vessel) is under its cap, not seen through
+// it: the cap is drawn before the uncut solids, whose depth would otherwise hide the back faces
+// that mark where it goes.
+TEST_F(Caps, WhatLiesInsideACutSolidIsUnderItsCap) {
+  const TempDir dir;
+  std::vector<Object> objects = objects_;
+  // A pipe inside the vessel, wholly below the cut (uncut), off its axis.
+  objects.push_back(make_object("/P-1", ObjectClass::pipe, {100.4, 200, 1.0}, kBlue,
+                                Primitive{Placement{}, Cylinder{0.25f, 1.0f}}));
+  auto store = make_store(dir, objects);
+  ASSERT_TRUE(store);
+  RenderOptions options;
+  options.ambient_occlusion = false;
+  options.section.planes.push_back({{0, 0, 2.0}, {0, 0, 1}});
+  std::string error;
+  auto r = Renderer::create(*store, options, error);
+  ASSERT_TRUE(r) << error;
+  Image image;
+  FrameStats stats;
+  ASSERT_TRUE(render(*r, camera_, kSide, kSide, image, stats));
+  uint64_t vessel = 0, pipe = 0;
+  for (const uint64_t id : image.object_ids) {
+    vessel += id == objects[0].id;
+    pipe += id == objects.back().id;
+  }
+  EXPECT_GT(vessel, 1000u);
+  EXPECT_EQ(pipe, 0u) << "pixels of the pipe inside the vessel seen through its cap";
+}
+
 // The ground under a cut model is drawn from the cut frame's own camera, whatever the renderer
 // drew before: the first frame of a fresh renderer and a frame after an uncut one from another
 // camera are the same image (a served permalink renders on whichever renderer is free).

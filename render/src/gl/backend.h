@@ -57,8 +57,11 @@
 //     a box's faces (three planes or more and a box cutting the model on every side) only
 //     cull whole objects (frame_plan.h). Clipped fragments write neither colour, depth nor id. Capped
 //     (Section::capped): the closed solids of the objects the section cuts (kClosedCut) are
-//     drawn after the other closed solids with both sides, a front face that passes the depth
-//     test clearing stencil bit kCapStencilBit and a back face setting it: at the end it is
+//     drawn first in each phase, before the other closed solids (which would hide their back
+//     faces where they lie inside them: a pipe through a vessel would show through its cap;
+//     what an earlier phase drew inside a cut solid still does), with both sides, a front
+//     face that passes the depth test clearing stencil bit kCapStencilBit and a back face
+//     setting it: at the end it is
 //     set where a back face is seen, which happens only where a solid is cut open. Their back
 //     faces are then drawn again through the cap program where marked, each fragment moved
 //     onto the cut (cap.frag.glsl), and the marks cleared. The cap's depth, colour and id are

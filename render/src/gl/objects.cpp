@@ -271,6 +271,16 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     glDisablei(GL_BLEND, 0);
   }
   glBindVertexArray(vao_);
+  // The cut solids first: their caps must be drawn before whatever lies inside them (a pipe
+  // through a vessel), which would otherwise hide the back faces that mark where a cap goes.
+  glUseProgram(surface);
+  if (n_cut && caps_ && !see_through) {
+    draw_cut_capped(n_closed, n_cut, mode);
+  } else if (n_cut) {
+    glEnable(GL_CULL_FACE);
+    draw_triangles(n_closed, n_cut);
+    glDisable(GL_CULL_FACE);
+  }
   if (n_closed) {
     // Closed solids have outward, counter-clockwise faces: their back faces are never seen.
     glUseProgram(plain);
@@ -279,14 +289,7 @@ void GlBackend::draw_lists(const IndexCounts& counts, size_t proxies, int mode, 
     draw_triangles(0, n_closed);
     glDisable(GL_CULL_FACE);
     if (plain != surface) set_clipping(true);
-  }
-  glUseProgram(surface);
-  if (n_cut && caps_ && !see_through) {
-    draw_cut_capped(n_closed, n_cut, mode);
-  } else if (n_cut) {
-    glEnable(GL_CULL_FACE);
-    draw_triangles(n_closed, n_cut);
-    glDisable(GL_CULL_FACE);
+    glUseProgram(surface);
   }
   if (n_open) draw_triangles(n_closed + n_cut, n_open);
   if (proxies) {
