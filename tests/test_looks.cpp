@@ -6,7 +6,9 @@
 // named). PLANTVIEW_UPDATE_REFERENCES=1 rewrites the references: look at them before committing.
 // And what a highlight means, checked on the pixels: the subject keeps its own hue, in the
 // first frame of a renderer and in every frame after, whatever came before; the rest is
-// desaturated. And a change image (a generated plant's second revision).
+// desaturated. And a change image (a generated plant's second revision). And each look (and a
+// clash view's: two colours, see-through, a section box) the same image on a renderer that drew
+// the others before it as on a fresh one.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -101,6 +103,16 @@ class Looks : public ::testing::Test {
       const ReviewView v = equipment_view("P-01-001A");
       EXPECT_FALSE(v.subject.empty());
       l.options.highlight_ids = v.subject;
+      l.camera = v.camera;
+    } else if (name == "clash") {
+      // A clash view's look (clash.h: clash_views; not a golden): the subject in its own colour,
+      // see-through, the rest ghosted, cut to a box around it.
+      const ReviewView v = equipment_view("P-01-001A");
+      EXPECT_FALSE(v.subject.empty());
+      l.options.highlight_ids = v.subject;
+      for (const uint64_t id : v.subject) l.options.subject_colours.push_back({id, Colour{225, 35, 35, 255}, "", true});
+      l.options.section.has_box = true;
+      l.options.section.box = {v.camera.target_m - glm::dvec3(1.5), v.camera.target_m + glm::dvec3(1.5)};
       l.camera = v.camera;
     } else if (name == "section") {
       // A 2 m plan slab (clip planes 1 m and 3 m above the plant's lowest point), seen from
@@ -212,7 +224,7 @@ TEST_F(Looks, APlanSlabMatchesItsReference) { expect_look_matches_reference("sec
 // camera of the renderer's last uncut frame). Each look drawn by one renderer after each of the
 // others against a fresh renderer's first frame of it.
 TEST_F(Looks, EachLookIsTheSameImageAfterAnyOther) {
-  const std::vector<std::string> names = {"overview", "colour_by", "interior", "highlight", "section"};
+  const std::vector<std::string> names = {"overview", "colour_by", "interior", "highlight", "section", "clash"};
   std::map<std::string, Image> first_frames;
   for (const std::string& name : names) {
     const Look l = look(name);
@@ -223,9 +235,9 @@ TEST_F(Looks, EachLookIsTheSameImageAfterAnyOther) {
   auto r = renderer();
   ASSERT_TRUE(r);
   std::string after = "(none)";
-  for (const char* name : {"section", "interior", "highlight", "colour_by", "overview", "section", "highlight",
-                           "overview", "interior", "colour_by", "section", "colour_by", "highlight", "interior",
-                           "overview"}) {
+  for (const char* name : {"section", "interior", "highlight", "colour_by", "overview", "clash", "section",
+                           "highlight", "clash", "overview", "interior", "colour_by", "section", "colour_by",
+                           "clash", "highlight", "interior", "overview", "clash"}) {
     const Look l = look(name);
     r->set_options(l.options);
     const Image image = render(*r, l.camera);
