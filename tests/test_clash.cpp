@@ -670,6 +670,7 @@ TEST(ClashCommand, ViewsPerClashMakeViewsOfTheChosenStatusesAndTags) {
   };
   EXPECT_EQ(views_of({}), 1u);
   EXPECT_EQ(views_of({"--status", "new"}), 0u);  // (after a revision: nothing new to review)
+  EXPECT_NE(err.find("no clash to review"), std::string::npos) << err;
   EXPECT_EQ(views_of({"--status", "active"}), 1u);
   EXPECT_EQ(views_of({"--status", "new,active", "--select", "clash-*"}), 1u);
   ASSERT_FALSE(clash.a.tag.empty());

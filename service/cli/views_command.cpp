@@ -126,6 +126,10 @@ int run_views(const ViewsArgs& a) {
     const auto view = store->read(error);
     if (!view) return fail(error);
     if (!clash_views(report, options.aspect, *view, views, error)) return fail(error);
+    if (views.empty())  // (not an error: after a revision, no new clash is good news)
+      std::cerr << "plantview: views: no clash to review in " << a.clashes << " ("
+                << summary.subjects << " unresolved" << (a.status.empty() ? "" : ", --status " + a.status)
+                << "); the views file is empty, and render --views refuses an empty one\n";
   } else {
     Progress progress("views");
     if (!make_review_views(*store, options, views, summary, error,
