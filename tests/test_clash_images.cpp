@@ -22,16 +22,10 @@ namespace {
 
 using test::TempDir;
 
+constexpr Colour kGrey{150, 150, 150, 255};
+
 Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin, Primitive primitive) {
-  Object o;
-  o.name = name;
-  o.source = "test";
-  o.id = object_id(o.source, name);
-  o.object_class = cls;
-  o.origin_m = origin;
-  o.colour = Colour{150, 150, 150, 255};
-  o.primitives.push_back(primitive);
-  return o;
+  return test::make_object(name, cls, origin, kGrey, std::move(primitive));
 }
 
 class BuriedClash : public ::testing::Test {

@@ -41,19 +41,7 @@ uint64_t id_at(const Image& image, uint32_t x, uint32_t y) {
   return image.object_ids[size_t(y) * image.width + x];
 }
 
-Object make_object(const std::string& name, ObjectClass cls, glm::dvec3 origin, Colour colour,
-                   Primitive primitive) {
-  Object o;
-  o.name = name;
-  o.source = "test";
-  o.id = object_id(o.source, name);
-  o.object_class = cls;
-  o.origin_m = origin;
-  o.colour = colour;
-  o.primitives.push_back(primitive);
-  return o;
-}
-
+using test::make_object;
 using test::make_store;
 
 bool render(Renderer& r, const Camera& camera, uint32_t w, uint32_t h, Image& image,
